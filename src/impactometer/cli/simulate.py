@@ -1,0 +1,128 @@
+"""``impactometer simulate`` and ``impactometer demo``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.table import Table
+
+from ..identify.pulses import contact_pulses, stage_b_start
+from ..model import simulate as run_simulation
+from ..model.io import save_simulation
+from ..rig import Scenario, get_rig
+from .app import app, console, output_path, quantity
+
+MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30kg).")]
+HeightOpt = Annotated[Optional[str], typer.Option("--height", help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
+VelocityOpt = Annotated[Optional[str], typer.Option("--velocity", help="Impact velocity V0 (e.g. 2m/s).")]
+PressureOpt = Annotated[str, typer.Option("--pressure", help="Charge pressure p0, gauge (e.g. 200kPa).")]
+ContactOpt = Annotated[Optional[str], typer.Option("--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
+RigOpt = Annotated[Optional[str], typer.Option("--rig", help="Stand: a preset name or a TOML file.")]
+DurationOpt = Annotated[str, typer.Option("--duration", help="Simulated time after first contact.")]
+RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the histories.")]
+
+
+def scenario_from_options(mass: str, height: str | None, velocity: str | None, pressure: str, rig) -> Scenario:
+    """Scenario from CLI strings: exactly one of height and velocity."""
+    m = quantity(mass, "mass", "--mass")
+    p0 = quantity(pressure, "pressure", "--pressure")
+    if (height is None) == (velocity is None):
+        from ..errors import ParameterError
+
+        raise ParameterError("give exactly one of --height and --velocity, got "
+                             f"{'both' if height is not None else 'neither'}")
+    if velocity is not None:
+        scenario = Scenario(mass=m, velocity=quantity(velocity, "velocity", "--velocity"), pressure_gauge=p0)
+    else:
+        scenario = Scenario.from_height(mass=m, height=quantity(height, "length", "--height"), pressure_gauge=p0,
+                                        gravity=rig.gravity)
+    scenario.check_against(rig)
+    return scenario
+
+
+def summary_table(result, title: str) -> Table:
+    """Rich table of the headline numbers of a simulation."""
+    pulses = contact_pulses(result.time, result.contact_force)
+    b = stage_b_start(pulses)
+    table = Table(title=title)
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    rows = [
+        ("impact velocity V0", f"{result.scenario.velocity:.4f} m/s"),
+        ("impact energy", f"{0.5 * result.scenario.mass * result.scenario.velocity ** 2:.2f} J"),
+        ("peak contact force", f"{result.contact_force.max():.1f} N"),
+        ("contact pulses (stage A)", f"{sum(not p.sustained for p in pulses)}"),
+        ("stage B (sustained contact) from", "none in record" if b is None else f"{b * 1e3:.2f} ms"),
+        ("max stroke", f"{result.u2.max() * 1e3:.2f} mm"),
+        ("peak pressure, lower chamber", f"{result.pressure_lower.max() / 1e3:.1f} kPa abs"),
+        ("peak pressure, upper chamber", f"{result.pressure_upper.max() / 1e3:.1f} kPa abs"),
+        ("energy dissipated", f"{result.dissipated_energy[-1]:.3f} J"),
+        ("energy balance error", f"{result.energy_balance_error:.2e} of E0"),
+    ]
+    for name, value in rows:
+        table.add_row(name, value)
+    return table, pulses
+
+
+@app.command()
+def simulate(
+    mass: MassOpt = "30kg",
+    height: HeightOpt = None,
+    velocity: VelocityOpt = None,
+    pressure: PressureOpt = "200kPa",
+    contact: ContactOpt = None,
+    rig: RigOpt = None,
+    duration: DurationOpt = "50ms",
+    sample_rate: RateOpt = "50kHz",
+    integrator: Annotated[str, typer.Option(help="fast (compiled) or reference (solve_ivp).")] = "fast",
+    out: Annotated[Optional[Path], typer.Option("--out", help="HDF5 file of the histories.")] = None,
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG figure of the histories.")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite existing output files.")] = False,
+) -> None:
+    """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""
+    stand = get_rig(rig, contact=contact)
+    if height is None and velocity is None:
+        height = "0.2m"
+    scenario = scenario_from_options(mass, height, velocity, pressure, stand)
+    output_path(out, force)
+    output_path(plot, force, field="--plot")
+    result = run_simulation(scenario, stand, duration=quantity(duration, "time", "--duration"),
+                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), integrator=integrator)
+    table, pulses = summary_table(result, f"{scenario.mass:g} kg at {scenario.velocity:.3f} m/s, "
+                                          f"p0 = {scenario.pressure_gauge / 1e3:g} kPa ({stand.contact.law})")
+    console.print(table)
+    if out is not None:
+        save_simulation(result, out, overwrite=force)
+        console.print(f"histories written to {out}")
+    if plot is not None:
+        result.plot(pulses=pulses).savefig(plot, dpi=120)
+        console.print(f"figure written to {plot}")
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option("--out", help="PNG figure of the demo impact.")] = Path("impactometer-demo.png"),
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing figure.")] = False,
+) -> None:
+    """Simulate the built-in impact (30 kg from 0.2 m at 200 kPa), print its headline numbers, draw it."""
+    stand = get_rig()
+    scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3, gravity=stand.gravity)
+    if out.exists() and not force:
+        out = _free_name(out)
+    output_path(out, True)
+    result = run_simulation(scenario, stand, duration=0.1, sample_rate=50e3)
+    table, pulses = summary_table(result, "impactometer demo: 30 kg from 0.2 m onto the drop stand at 200 kPa")
+    console.print(table)
+    result.plot(pulses=pulses).savefig(out, dpi=120)
+    console.print(f"figure written to {out}")
+
+
+def _free_name(path: Path) -> Path:
+    """``path`` with the first free ``-N`` suffix, so an existing file is never overwritten."""
+    for i in range(1, 10_000):
+        candidate = path.with_name(f"{path.stem}-{i}{path.suffix}")
+        if not candidate.exists():
+            return candidate
+    return path

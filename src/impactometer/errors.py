@@ -1,0 +1,45 @@
+"""Exception hierarchy of impactometer.
+
+Every error raised on purpose by the package derives from :class:`ImpactometerError` and from the builtin that
+matches its meaning, so callers can catch either ``ImpactometerError`` or, e.g., ``ValueError``.
+"""
+
+from __future__ import annotations
+
+
+class ImpactometerError(Exception):
+    """Base class of every error impactometer raises on purpose."""
+
+
+class ParameterError(ImpactometerError, ValueError):
+    """A parameter (stand, scenario, option) is missing, of the wrong type or out of range."""
+
+
+class UnitError(ParameterError):
+    """A quantity with a unit suffix could not be parsed or has the wrong dimension."""
+
+
+class SimulationError(ImpactometerError, RuntimeError):
+    """The integrator failed; no partial result is returned."""
+
+
+class RecordingError(ImpactometerError, ValueError):
+    """A recording or a file holding one is malformed or does not fit what was asked."""
+
+
+class IdentificationError(ImpactometerError, ValueError):
+    """The signal does not allow an identification (no impact, too short, saturated, ...)."""
+
+
+class ResponseMapError(ImpactometerError, ValueError):
+    """A response map is corrupt, of another schema, or does not fit the measurement."""
+
+
+class ControlError(ImpactometerError, RuntimeError):
+    """An absorption strategy could not be computed or applied."""
+
+
+def require(condition: bool, message: str, error: type[ImpactometerError] = ParameterError) -> None:
+    """Raise ``error(message)`` unless ``condition`` holds."""
+    if not condition:
+        raise error(message)

@@ -1,0 +1,7 @@
+"""The drop-stand model (paper eqs. 1-2): force laws, initial equilibrium, reference and fast integrators."""
+
+from .dynamics import CHANNELS
+from .result import BatchResult, SimulationResult
+from .simulate import INTEGRATORS, simulate, simulate_batch
+
+__all__ = ["CHANNELS", "BatchResult", "SimulationResult", "INTEGRATORS", "simulate", "simulate_batch"]

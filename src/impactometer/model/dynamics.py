@@ -1,0 +1,136 @@
+"""Right-hand side of the drop-stand model (paper eqs. 1-2) on a packed parameter vector.
+
+State vector (indices ``U1 .. DISSIPATED``): mass and piston displacement and velocity (axis down, both measured
+from the piston's top-stop position), the pressures and gas masses of the lower and upper chambers, and the
+energy dissipated so far. Chamber pressures follow the energy balance of an adiabatic chamber,
+dp/dt = γ·(R·T_in·ṁ_in − R·T·ṁ_out − p·V')/V, which reduces to dp/dt = −γ·p·V'/V for the closed cylinder.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .forces import (contact_energy, contact_force, contact_spring_force, friction_force, orifice_mass_flow,
+                     pneumatic_force, stop_force)
+
+# state indices
+U1, V1, U2, V2, P_LOWER, P_UPPER, M_LOWER, M_UPPER, DISSIPATED = range(9)
+N_STATE = 9
+
+# parameter indices
+(MASS, PISTON_MASS, GRAVITY, AREA, ROD_AREA, LOWER_LENGTH, UPPER_LENGTH, DEAD_LOWER, DEAD_UPPER, STROKE,
+ GAMMA, GAS_CONSTANT, ATMOSPHERE, FRICTION, FRICTION_SCALE, LAW, CONTACT_K, CONTACT_C, STOP_K, STOP_C,
+ VALVE_AREA, DISCHARGE, VELOCITY, PRESSURE_GAUGE, TEMPERATURE) = range(25)
+N_PARAM = 25
+
+#: channels a simulation can return, in the order of :func:`channels`
+CHANNELS = ("u1", "v1", "u2", "v2", "pressure_lower", "pressure_upper", "gas_mass_lower", "gas_mass_upper",
+            "dissipated_energy", "a1", "a2", "contact_force", "pneumatic_force", "friction_force",
+            "top_stop_force", "bottom_stop_force")
+N_CHANNEL = len(CHANNELS)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def volumes(u2, p):
+    """Lower and upper chamber volumes [m³] at piston displacement ``u2`` [m]."""
+    lower = p[AREA] * (p[LOWER_LENGTH] - u2) + p[DEAD_LOWER]
+    upper = (p[AREA] - p[ROD_AREA]) * (p[UPPER_LENGTH] + u2) + p[DEAD_UPPER]
+    return lower, upper
+
+
+@njit(cache=True, error_model="numpy")
+def channels(y, p, out):
+    """Fill ``out`` (length N_CHANNEL) with the state and the forces and accelerations it implies."""
+    for i in range(N_STATE):
+        out[i] = y[i]
+    delta = y[U1] - y[U2]
+    delta_rate = y[V1] - y[V2]
+    fc = contact_force(delta, delta_rate, int(p[LAW]), p[CONTACT_K], p[CONTACT_C])
+    fp = pneumatic_force(y[P_LOWER], y[P_UPPER], p[AREA], p[ROD_AREA], p[ATMOSPHERE])
+    ff = friction_force(y[V2], p[FRICTION], p[FRICTION_SCALE])
+    f_top = stop_force(-y[U2], -y[V2], p[STOP_K], p[STOP_C])
+    f_bottom = stop_force(y[U2] - p[STROKE], y[V2], p[STOP_K], p[STOP_C])
+    out[9] = p[GRAVITY] - fc / p[MASS]
+    out[10] = p[GRAVITY] + (fc - fp - ff + f_top - f_bottom) / p[PISTON_MASS]
+    out[11] = fc
+    out[12] = fp
+    out[13] = ff
+    out[14] = f_top
+    out[15] = f_bottom
+
+
+@njit(cache=True, error_model="numpy")
+def rhs(y, p, valve_area, dy):
+    """Time derivative of the state ``y`` into ``dy`` for a valve opening ``valve_area`` [m²]."""
+    u2 = y[U2]
+    v2 = y[V2]
+    delta = y[U1] - u2
+    delta_rate = y[V1] - v2
+    law = int(p[LAW])
+    fc = contact_force(delta, delta_rate, law, p[CONTACT_K], p[CONTACT_C])
+    fp = pneumatic_force(y[P_LOWER], y[P_UPPER], p[AREA], p[ROD_AREA], p[ATMOSPHERE])
+    ff = friction_force(v2, p[FRICTION], p[FRICTION_SCALE])
+    top_pen = -u2
+    bottom_pen = u2 - p[STROKE]
+    f_top = stop_force(top_pen, -v2, p[STOP_K], p[STOP_C])
+    f_bottom = stop_force(bottom_pen, v2, p[STOP_K], p[STOP_C])
+    dy[U1] = y[V1]
+    dy[V1] = p[GRAVITY] - fc / p[MASS]
+    dy[U2] = v2
+    dy[V2] = p[GRAVITY] + (fc - fp - ff + f_top - f_bottom) / p[PISTON_MASS]
+
+    vol_lower, vol_upper = volumes(u2, p)
+    dvol_lower = -p[AREA] * v2
+    dvol_upper = (p[AREA] - p[ROD_AREA]) * v2
+    gamma = p[GAMMA]
+    r_gas = p[GAS_CONSTANT]
+    # gas flow through the valve, positive from the lower to the upper chamber
+    flow_enthalpy = 0.0  # R·T of the gas that flows, times the mass flow [W·(γ−1)/γ]
+    mdot = 0.0
+    if valve_area > 0.0:
+        t_lower = y[P_LOWER] * vol_lower / (y[M_LOWER] * r_gas)
+        t_upper = y[P_UPPER] * vol_upper / (y[M_UPPER] * r_gas)
+        if y[P_LOWER] >= y[P_UPPER]:
+            mdot = orifice_mass_flow(y[P_LOWER], t_lower, y[P_UPPER], valve_area, p[DISCHARGE], gamma, r_gas)
+            flow_enthalpy = r_gas * t_lower * mdot
+        else:
+            mdot = -orifice_mass_flow(y[P_UPPER], t_upper, y[P_LOWER], valve_area, p[DISCHARGE], gamma, r_gas)
+            flow_enthalpy = r_gas * t_upper * mdot
+    dy[P_LOWER] = gamma * (-flow_enthalpy - y[P_LOWER] * dvol_lower) / vol_lower
+    dy[P_UPPER] = gamma * (flow_enthalpy - y[P_UPPER] * dvol_upper) / vol_upper
+    dy[M_LOWER] = -mdot
+    dy[M_UPPER] = mdot
+
+    # dissipated power: work of the non-conservative parts of contact, stops and friction
+    power = (fc - contact_spring_force(delta, law, p[CONTACT_K])) * delta_rate + ff * v2
+    if top_pen > 0.0:
+        power += (f_top - p[STOP_K] * top_pen) * (-v2)
+    if bottom_pen > 0.0:
+        power += (f_bottom - p[STOP_K] * bottom_pen) * v2
+    dy[DISSIPATED] = power
+
+
+@njit(cache=True, error_model="numpy")
+def stored_energy(y, p):
+    """Mechanical + gas energy of the state [J]: kinetic, potential (gravity, atmosphere), gas internal, elastic.
+
+    ``stored_energy(y) + y[DISSIPATED]`` is conserved by the model.
+    """
+    kinetic = 0.5 * p[MASS] * y[V1] ** 2 + 0.5 * p[PISTON_MASS] * y[V2] ** 2
+    potential = -p[GRAVITY] * (p[MASS] * y[U1] + p[PISTON_MASS] * y[U2]) - p[ATMOSPHERE] * p[ROD_AREA] * y[U2]
+    vol_lower, vol_upper = volumes(y[U2], p)
+    gas = (y[P_LOWER] * vol_lower + y[P_UPPER] * vol_upper) / (p[GAMMA] - 1.0)
+    elastic = contact_energy(y[U1] - y[U2], int(p[LAW]), p[CONTACT_K])
+    top_pen = -y[U2]
+    bottom_pen = y[U2] - p[STROKE]
+    if top_pen > 0.0:
+        elastic += 0.5 * p[STOP_K] * top_pen**2
+    if bottom_pen > 0.0:
+        elastic += 0.5 * p[STOP_K] * bottom_pen**2
+    return kinetic, potential, gas, elastic
+
+
+def empty_state() -> np.ndarray:
+    """A zero state vector."""
+    return np.zeros(N_STATE)

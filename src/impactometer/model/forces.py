@@ -1,0 +1,91 @@
+"""Force laws of the drop-stand model (paper eqs. 1-2), as compiled scalar functions.
+
+Sign convention: the axis points down; a positive contact force pushes the mass up and the rod down; the
+pneumatic force Fp and the friction act upward on the piston for positive values; the top stop pushes down, the
+bottom stop pushes up.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+KELVIN_VOIGT = 0
+HUNT_CROSSLEY = 1
+#: contact law name -> code used by the compiled model
+LAW_CODES = {"kelvin-voigt": KELVIN_VOIGT, "hunt-crossley": HUNT_CROSSLEY}
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def contact_force(delta, delta_rate, law, stiffness, damping):
+    """Compressive-only contact force [N] for compression ``delta`` [m] and its rate [m/s].
+
+    Kelvin-Voigt: k·δ + c·δ'; Hunt-Crossley: k·δ^1.5·(1 + 1.5·α·δ') with ``damping`` = α [s/m].
+    Zero when the bodies are apart (δ <= 0) and never negative (no adhesion).
+    """
+    if delta <= 0.0:
+        return 0.0
+    if law == HUNT_CROSSLEY:
+        force = stiffness * delta * math.sqrt(delta) * (1.0 + 1.5 * damping * delta_rate)
+    else:
+        force = stiffness * delta + damping * delta_rate
+    return force if force > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def contact_spring_force(delta, law, stiffness):
+    """Conservative part of the contact force [N] (the derivative of :func:`contact_energy`)."""
+    if delta <= 0.0:
+        return 0.0
+    if law == HUNT_CROSSLEY:
+        return stiffness * delta * math.sqrt(delta)
+    return stiffness * delta
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def contact_energy(delta, law, stiffness):
+    """Elastic energy stored in the contact [J]."""
+    if delta <= 0.0:
+        return 0.0
+    if law == HUNT_CROSSLEY:
+        return 0.4 * stiffness * delta * delta * math.sqrt(delta)
+    return 0.5 * stiffness * delta * delta
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def stop_force(penetration, penetration_rate, stiffness, damping):
+    """Push-only spring-damper force of a stop [N] for a penetration [m] and its rate [m/s]."""
+    if penetration <= 0.0:
+        return 0.0
+    force = stiffness * penetration + damping * penetration_rate
+    return force if force > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def friction_force(velocity, coulomb_force, velocity_scale):
+    """Smoothed Coulomb friction [N], opposing the piston velocity: F·tanh(v2 / v_s)."""
+    return coulomb_force * math.tanh(velocity / velocity_scale)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def pneumatic_force(pressure_lower, pressure_upper, area, rod_area, atmospheric_pressure):
+    """Net upward gas force on the piston [N]: Fp = pL·A − pU·(A − A_rod) − p_atm·A_rod."""
+    return pressure_lower * area - pressure_upper * (area - rod_area) - atmospheric_pressure * rod_area
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def orifice_mass_flow(p_up, t_up, p_down, area, discharge_coefficient, gamma, gas_constant):
+    """Compressible flow through an orifice [kg/s] from the upstream to the downstream side (>= 0).
+
+    Choked when p_down/p_up is below the critical ratio (2/(γ+1))^(γ/(γ−1)), isentropic otherwise.
+    """
+    if area <= 0.0 or p_up <= p_down:
+        return 0.0
+    ratio = p_down / p_up
+    critical = (2.0 / (gamma + 1.0)) ** (gamma / (gamma - 1.0))
+    if ratio <= critical:
+        psi = math.sqrt(gamma * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (gamma - 1.0)))
+    else:
+        psi = math.sqrt(2.0 * gamma / (gamma - 1.0) * (ratio ** (2.0 / gamma) - ratio ** ((gamma + 1.0) / gamma)))
+    return discharge_coefficient * area * p_up * psi / math.sqrt(gas_constant * t_up)

@@ -1,0 +1,66 @@
+"""Every figure of impactometer. matplotlib is imported lazily, inside the functions."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def _pyplot():
+    import matplotlib
+
+    if matplotlib.get_backend().lower() not in ("agg", "module://matplotlib_inline.backend_inline"):
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def shade_pulses(ax, pulses, *, scale: float = 1e3) -> None:
+    """Shade contact pulses (stage A, blue) and sustained contact (stage B, orange) on ``ax`` (time in ms)."""
+    first_a = first_b = True
+    for p in pulses or []:
+        end = ax.get_xlim()[1] / scale if p.sustained else p.end
+        label = None
+        if p.sustained and first_b:
+            label, first_b = "stage B (sustained contact)", False
+        elif not p.sustained and first_a:
+            label, first_a = "stage A (contact pulses)", False
+        ax.axvspan(p.start * scale, end * scale, color="tab:orange" if p.sustained else "tab:blue",
+                   alpha=0.12, lw=0, label=label)
+
+
+def plot_simulation(result, axes=None, *, pulses=None):
+    """Contact force, piston acceleration, displacements and chamber pressures vs time, pulses shaded.
+
+    Returns the figure.
+    """
+    plt = _pyplot()
+    if axes is None:
+        fig, axes = plt.subplots(4, 1, figsize=(9, 10), sharex=True, constrained_layout=True)
+    else:
+        axes = np.atleast_1d(axes)
+        fig = axes[0].figure
+    t = result.time * 1e3
+    s = result.scenario
+    axes[0].plot(t, result.contact_force / 1e3, color="k", lw=1)
+    axes[0].set_ylabel("contact force [kN]")
+    axes[0].set_title(f"M1 = {s.mass:g} kg, V0 = {s.velocity:.3f} m/s, p0 = {s.pressure_gauge / 1e3:g} kPa "
+                      f"({result.rig.contact.law})")
+    axes[1].plot(t, result.a2 / 1e3, color="tab:red", lw=1)
+    axes[1].set_ylabel("piston acceleration [km/s²]")
+    axes[2].plot(t, result.u1 * 1e3, label="mass u1")
+    axes[2].plot(t, result.u2 * 1e3, label="piston u2", ls="--")
+    axes[2].set_ylabel("displacement [mm]")
+    axes[2].legend(loc="upper left")
+    axes[3].plot(t, result.pressure_lower / 1e3, label="lower chamber")
+    axes[3].plot(t, result.pressure_upper / 1e3, label="upper chamber")
+    axes[3].set_ylabel("pressure [kPa abs]")
+    axes[3].set_xlabel("time after first contact [ms]")
+    axes[3].legend(loc="upper left")
+    for ax in axes:
+        ax.set_xlim(t[0], t[-1])
+        ax.grid(alpha=0.3)
+        shade_pulses(ax, pulses)
+    if pulses:
+        axes[0].legend(loc="upper right")
+    return fig

@@ -1,0 +1,369 @@
+"""The drop stand: cylinder, gas, friction, contact, stops and valve, as frozen keyword-only dataclasses.
+
+A stand is loaded from and saved to TOML (unknown keys are errors). ``PRESETS['drop-stand']`` is the built-in
+stand, representative of the stand of the reference paper (Fig. 1): a 4 kg piston and rod in an 80 mm bore,
+25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import ParameterError
+
+ATMOSPHERIC_PRESSURE = 101325.0  # [Pa]
+STANDARD_GRAVITY = 9.81  # [m/s²], the value of the reference model
+
+
+def _check(name: str, value: Any, *, low: float | None = None, high: float | None = None,
+           low_open: bool = True, unit: str = "") -> None:
+    """Raise ParameterError unless ``value`` is a finite real within the bounds."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ParameterError(f"{name} must be a finite number{unit}, got {value!r}")
+    if low is not None and (value <= low if low_open else value < low):
+        raise ParameterError(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {value!r}")
+    if high is not None and value > high:
+        raise ParameterError(f"{name} must be <= {high:g}{unit}, got {value!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Cylinder:
+    """Pneumatic cylinder with its piston and rod.
+
+    Attributes
+    ----------
+    piston_mass : Mass of piston and rod M2 [kg].
+    bore : Cylinder bore diameter [m].
+    rod_diameter : Rod diameter [m]; the rod passes through the upper chamber.
+    stroke : Piston travel between the top and bottom stops [m].
+    lower_length, upper_length : Gas column lengths with the piston at the top stop [m].
+    dead_volume_lower, dead_volume_upper : Extra gas volume of ports and fittings [m³].
+    rated_pressure_gauge : Highest admissible charge pressure above atmosphere [Pa].
+    """
+
+    piston_mass: float = 4.0
+    bore: float = 0.08
+    rod_diameter: float = 0.025
+    stroke: float = 0.20
+    lower_length: float = 0.20
+    upper_length: float = 0.02
+    dead_volume_lower: float = 0.0
+    dead_volume_upper: float = 0.0
+    rated_pressure_gauge: float = 400e3
+
+    def __post_init__(self) -> None:
+        for name in ("piston_mass", "bore", "rod_diameter", "stroke", "rated_pressure_gauge"):
+            _check(f"cylinder.{name}", getattr(self, name), low=0.0)
+        for name in ("lower_length", "upper_length", "dead_volume_lower", "dead_volume_upper"):
+            _check(f"cylinder.{name}", getattr(self, name), low=0.0, low_open=False)
+        if self.rod_diameter >= self.bore:
+            raise ParameterError(f"cylinder.rod_diameter must be < bore ({self.bore!r} m), got {self.rod_diameter!r}")
+        if self.lower_length * self.area + self.dead_volume_lower <= 0.0:
+            raise ParameterError("cylinder.lower_length: the lower chamber has zero gas volume; expected "
+                                 "lower_length > 0 or dead_volume_lower > 0")
+        if self.upper_length * self.annulus_area + self.dead_volume_upper <= 0.0:
+            raise ParameterError("cylinder.upper_length: the upper chamber has zero gas volume; expected "
+                                 "upper_length > 0 or dead_volume_upper > 0")
+        if self.stroke > self.lower_length + self.dead_volume_lower / self.area:
+            raise ParameterError(f"cylinder.stroke must not exceed the lower gas column "
+                                 f"({self.lower_length!r} m), got {self.stroke!r}")
+
+    @property
+    def area(self) -> float:
+        """Piston area A [m²]."""
+        return math.pi * self.bore**2 / 4.0
+
+    @property
+    def rod_area(self) -> float:
+        """Rod cross-section A_rod [m²]."""
+        return math.pi * self.rod_diameter**2 / 4.0
+
+    @property
+    def annulus_area(self) -> float:
+        """Piston area on the rod side, A - A_rod [m²]."""
+        return self.area - self.rod_area
+
+
+@dataclass(frozen=True, kw_only=True)
+class Gas:
+    """Charge gas (ideal, calorically perfect).
+
+    Attributes
+    ----------
+    gamma : Adiabatic exponent [-].
+    gas_constant : Specific gas constant R [J/(kg·K)].
+    temperature : Charge temperature [K].
+    atmospheric_pressure : Ambient pressure p_atm [Pa].
+    """
+
+    gamma: float = 1.4
+    gas_constant: float = 287.05
+    temperature: float = 293.15
+    atmospheric_pressure: float = ATMOSPHERIC_PRESSURE
+
+    def __post_init__(self) -> None:
+        _check("gas.gamma", self.gamma, low=1.0, high=5.0 / 3.0)
+        for name in ("gas_constant", "temperature", "atmospheric_pressure"):
+            _check(f"gas.{name}", getattr(self, name), low=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Friction:
+    """Coulomb friction of the piston, smoothed as ``force·tanh(v2 / velocity_scale)``.
+
+    Attributes
+    ----------
+    force : Coulomb friction force [N].
+    velocity_scale : Smoothing velocity [m/s].
+    """
+
+    force: float = 30.0
+    velocity_scale: float = 0.01
+
+    def __post_init__(self) -> None:
+        _check("friction.force", self.force, low=0.0, low_open=False)
+        _check("friction.velocity_scale", self.velocity_scale, low=0.0)
+
+
+#: contact law name -> (law code used by the compiled model, default parameters)
+CONTACT_LAWS: dict[str, dict[str, float]] = {
+    "kelvin-voigt": {"stiffness": 2e6, "damping": 150.0},
+    "hunt-crossley": {"stiffness": 4e8, "damping": 0.2},
+}
+CONTACT_ALIASES = {"kv": "kelvin-voigt", "kelvin": "kelvin-voigt", "hunt": "hunt-crossley", "hc": "hunt-crossley"}
+
+
+def contact_law_name(name: str) -> str:
+    """Return the canonical contact law name for ``name`` or an alias (``kv``, ``hunt``)."""
+    if not isinstance(name, str):
+        raise ParameterError(f"contact.law must be a string, got {name!r}")
+    key = CONTACT_ALIASES.get(name.lower(), name.lower())
+    if key not in CONTACT_LAWS:
+        raise ParameterError(f"contact.law must be one of {sorted(CONTACT_LAWS)} (or {sorted(CONTACT_ALIASES)}), "
+                             f"got {name!r}")
+    return key
+
+
+@dataclass(frozen=True, kw_only=True)
+class Contact:
+    """Compressive-only contact between the falling mass and the rod tip.
+
+    ``kelvin-voigt``: F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
+    ``hunt-crossley``: F = k·δ^1.5·(1 + 1.5·α·δ') [stiffness N/m^1.5, damping = α s/m].
+    The force is zero while δ <= 0 and never pulls.
+    """
+
+    law: str = "kelvin-voigt"
+    stiffness: float = 2e6
+    damping: float = 150.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "law", contact_law_name(self.law))
+        _check("contact.stiffness", self.stiffness, low=0.0)
+        _check("contact.damping", self.damping, low=0.0, low_open=False)
+
+    @classmethod
+    def preset(cls, law: str) -> "Contact":
+        """The default contact of the built-in stand for ``law``."""
+        name = contact_law_name(law)
+        return cls(law=name, **CONTACT_LAWS[name])
+
+
+@dataclass(frozen=True, kw_only=True)
+class Stops:
+    """Top and bottom stops of the piston (push only, spring-damper).
+
+    Attributes
+    ----------
+    stiffness : [N/m].  damping : [N·s/m].
+    """
+
+    stiffness: float = 5e7
+    damping: float = 2e3
+
+    def __post_init__(self) -> None:
+        _check("stops.stiffness", self.stiffness, low=0.0)
+        _check("stops.damping", self.damping, low=0.0, low_open=False)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Valve:
+    """Valve Z between the lower and the upper chamber (closed by default).
+
+    Attributes
+    ----------
+    area : Constant opening area [m²] (0 = closed cylinder).
+    max_area : Fully open area A_max [m²].
+    discharge_coefficient : C_d [-].
+    """
+
+    area: float = 0.0
+    max_area: float = 5e-5
+    discharge_coefficient: float = 0.7
+
+    def __post_init__(self) -> None:
+        _check("valve.max_area", self.max_area, low=0.0)
+        _check("valve.area", self.area, low=0.0, low_open=False, high=self.max_area)
+        _check("valve.discharge_coefficient", self.discharge_coefficient, low=0.0, high=1.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Rig:
+    """The whole drop stand."""
+
+    name: str = "drop-stand"
+    cylinder: Cylinder = field(default_factory=Cylinder)
+    gas: Gas = field(default_factory=Gas)
+    friction: Friction = field(default_factory=Friction)
+    contact: Contact = field(default_factory=Contact)
+    stops: Stops = field(default_factory=Stops)
+    valve: Valve = field(default_factory=Valve)
+    gravity: float = STANDARD_GRAVITY
+
+    def __post_init__(self) -> None:
+        for name, kind in _SECTIONS.items():
+            if not isinstance(getattr(self, name), kind):
+                raise ParameterError(f"rig.{name} must be a {kind.__name__}, got {getattr(self, name)!r}")
+        _check("rig.gravity", self.gravity, low=0.0, low_open=False)
+        if not isinstance(self.name, str):
+            raise ParameterError(f"rig.name must be a string, got {self.name!r}")
+
+    def with_contact(self, law: str) -> "Rig":
+        """This stand with the default contact of ``law``."""
+        return dataclasses.replace(self, contact=Contact.preset(law))
+
+    def replace(self, **changes: Any) -> "Rig":
+        """A copy with dotted-name changes, e.g. ``rig.replace(**{"contact.stiffness": 3e6})``."""
+        data = to_dict(self)
+        for key, value in changes.items():
+            section, _, attr = key.rpartition(".")
+            target = data[section] if section else data
+            if section and section not in data or attr not in target:
+                raise ParameterError(f"unknown rig parameter {key!r}; expected one of {parameter_names()}")
+            target[attr] = value
+        return from_dict(data)
+
+    def to_toml(self, path: str | Path, *, overwrite: bool = False) -> Path:
+        """Save as TOML; refuses to overwrite an existing file unless ``overwrite``."""
+        return save_toml(self, path, overwrite=overwrite)
+
+
+_SECTIONS: dict[str, type] = {"cylinder": Cylinder, "gas": Gas, "friction": Friction, "contact": Contact,
+                              "stops": Stops, "valve": Valve}
+
+
+def to_dict(rig: Rig) -> dict[str, Any]:
+    """Nested plain dictionary of ``rig`` (TOML shape)."""
+    return dataclasses.asdict(rig)
+
+
+def from_dict(data: dict[str, Any], *, source: str = "rig") -> Rig:
+    """Build a :class:`Rig` from a nested dictionary; unknown keys are errors.
+
+    A ``[contact]`` section that names a ``law`` without stiffness or damping takes that law's defaults.
+    """
+    if not isinstance(data, dict):
+        raise ParameterError(f"{source}: expected a table of rig sections, got {type(data).__name__}")
+    known_top = set(_SECTIONS) | {"name", "gravity"}
+    unknown = sorted(set(data) - known_top)
+    if unknown:
+        raise ParameterError(f"{source}: unknown key(s) {unknown}; expected {sorted(known_top)}")
+    kwargs: dict[str, Any] = {k: data[k] for k in ("name", "gravity") if k in data}
+    for name, kind in _SECTIONS.items():
+        section = data.get(name, {})
+        if not isinstance(section, dict):
+            raise ParameterError(f"{source}: [{name}] must be a table, got {section!r}")
+        fields = {f.name for f in dataclasses.fields(kind)}
+        bad = sorted(set(section) - fields)
+        if bad:
+            raise ParameterError(f"{source}: unknown key(s) {[f'{name}.{b}' for b in bad]}; "
+                                 f"expected {sorted(f'{name}.{f}' for f in fields)}")
+        if kind is Contact and "law" in section:
+            section = {**CONTACT_LAWS[contact_law_name(section["law"])], **section}
+        try:
+            kwargs[name] = kind(**section)
+        except TypeError as exc:  # pragma: no cover - keys were checked above
+            raise ParameterError(f"{source}: [{name}] {exc}") from None
+    return Rig(**kwargs)
+
+
+def parameter_names() -> list[str]:
+    """Dotted names of every numeric stand parameter (usable in :meth:`Rig.replace` and batch overrides)."""
+    names = ["gravity"]
+    for name, kind in _SECTIONS.items():
+        names += [f"{name}.{f.name}" for f in dataclasses.fields(kind) if f.name != "law"]
+    return names
+
+
+def load_toml(path: str | Path) -> Rig:
+    """Load a stand from a TOML file."""
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(f"rig file {str(path)!r} does not exist")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"rig file {str(path)!r} is not valid TOML: {exc}") from None
+    return from_dict(data, source=str(path))
+
+
+def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write ``rig`` to ``path`` as TOML."""
+    import tomli_w
+
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise ParameterError(f"rig file {str(path)!r} exists; pass overwrite=True to replace it")
+    path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+    return path
+
+
+#: named stands; ``drop-stand`` is the default
+PRESETS: dict[str, Rig] = {"drop-stand": Rig()}
+
+
+def get_rig(name_or_path: str | Path | Rig | None = None, *, contact: str | None = None) -> Rig:
+    """A preset by name, a TOML file by path, or the default stand; optionally with another contact law."""
+    if isinstance(name_or_path, Rig):
+        rig = name_or_path
+    elif name_or_path is None:
+        rig = PRESETS["drop-stand"]
+    elif str(name_or_path) in PRESETS:
+        rig = PRESETS[str(name_or_path)]
+    elif Path(name_or_path).suffix.lower() == ".toml":
+        rig = load_toml(name_or_path)
+    else:
+        raise ParameterError(f"rig must be one of {sorted(PRESETS)} or a .toml file, got {str(name_or_path)!r}")
+    return rig.with_contact(contact) if contact is not None else rig
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scenario:
+    """One drop test: impacting mass M1 [kg], impact velocity V0 [m/s], charge pressure p0 [Pa gauge]."""
+
+    mass: float
+    velocity: float
+    pressure_gauge: float = 200e3
+
+    def __post_init__(self) -> None:
+        _check("mass", self.mass, low=0.0, unit=" [kg]")
+        _check("velocity", self.velocity, low=0.0, unit=" [m/s]")
+        _check("pressure_gauge", self.pressure_gauge, low=0.0, low_open=False, unit=" [Pa]")
+
+    @classmethod
+    def from_height(cls, *, mass: float, height: float, pressure_gauge: float = 200e3,
+                    gravity: float = STANDARD_GRAVITY) -> "Scenario":
+        """Scenario of a free drop from ``height`` [m]: V0 = sqrt(2·g·h)."""
+        _check("height", height, low=0.0, unit=" [m]")
+        return cls(mass=mass, velocity=math.sqrt(2.0 * gravity * height), pressure_gauge=pressure_gauge)
+
+    def check_against(self, rig: Rig) -> None:
+        """Raise unless the charge pressure is within the rating of ``rig``."""
+        if self.pressure_gauge > rig.cylinder.rated_pressure_gauge:
+            raise ParameterError(f"pressure_gauge must be <= the rated {rig.cylinder.rated_pressure_gauge:g} Pa "
+                                 f"of {rig.name!r}, got {self.pressure_gauge!r}")
