@@ -7,7 +7,7 @@ import sys
 import click
 
 from ..errors import ImpactometerError
-from . import simulate as _simulate  # noqa: F401  (registers commands)
+from . import control, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
 from .app import app, console
 
 __all__ = ["app", "main"]
