@@ -1,3 +1,109 @@
-"""Commands of this concept (registered on the shared typer app)."""
+"""``impactometer study NAME|all|list --out DIR``: the paper's studies, tables, figures and report."""
 
-from .app import app  # noqa: F401
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
+    TimeRemainingColumn
+from rich.table import Table
+
+from ..errors import ParameterError
+from ..rig import get_rig
+from .app import app, console, quantity
+
+
+def _fraction(text: str, field: str) -> float:
+    return quantity(text, "fraction", field)
+
+
+def _print_list() -> None:
+    from ..studies import STUDIES, load_studies
+
+    load_studies()
+    table = Table(title="studies")
+    for column in ("name", "paper", "title", "status"):
+        table.add_column(column)
+    for name, study in STUDIES.items():
+        missing = study.missing()
+        table.add_row(name, study.figure or "–", study.title,
+                      "ready" if not missing else f"needs {', '.join(missing)}")
+    console.print(table)
+
+
+def _parse_params(items: list[str] | None) -> dict:
+    import json
+
+    params = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or "." not in key:
+            raise ParameterError(f"--set must look like STUDY.SETTING=VALUE (value in JSON), got {item!r}")
+        try:
+            params[key] = json.loads(value)
+        except ValueError:
+            params[key] = value
+    return params
+
+
+@app.command()
+def study(
+    name: Annotated[str, typer.Argument(help="A study name, 'all', or 'list' to show the studies.")],
+    out: Annotated[Optional[Path], typer.Option("--out", help="Output folder (tables, figures, index.html).")] = None,
+    workers: Annotated[Optional[int], typer.Option("--workers", help="Local processes (default: all cores).")] = None,
+    scheduler: Annotated[Optional[str], typer.Option(
+        "--scheduler", help="Run on a Dask cluster: scheduler address tcp://HOST:PORT.")] = None,
+    seed: Annotated[int, typer.Option("--seed", help="Root seed of every noise realisation.")] = 0,
+    seeds: Annotated[int, typer.Option("--seeds", help="Noise realisations per case.")] = 1,
+    grid: Annotated[int, typer.Option("--grid", help="Values per axis of the M1×V0×p0 grid (5: 125 cases).")] = 5,
+    noise: Annotated[str, typer.Option("--noise", help="Sensor noise of the non-noise studies (% of RMS).")] = "1%",
+    sample_rate: Annotated[str, typer.Option("--sample-rate", help="DAQ rate of the non-sampling studies.")]
+    = "50kHz",
+    contact: Annotated[Optional[str], typer.Option(
+        "--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")] = None,
+    rig: Annotated[Optional[str], typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
+    setting: Annotated[Optional[list[str]], typer.Option(
+        "--set", help="Study setting STUDY.SETTING=JSON, e.g. noise.levels=[0,0.05] (repeatable).")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Discard runs with other options; overwrite files.")]
+    = False,
+) -> None:
+    """Run a study of the paper (or all of them): tables (CSV), figures (PNG) and DIR/index.html."""
+    from ..studies import StudyOptions, available_studies, get_study, load_studies, run_studies
+
+    if name == "list":
+        _print_list()
+        return
+    if out is None:
+        raise ParameterError("--out is required: the folder for the tables, figures and index.html")
+    load_studies()
+    if name == "all":
+        names = available_studies()
+    else:
+        get_study(name)
+        names = [name]
+    options = StudyOptions(rig=get_rig(rig, contact=contact), seed=seed, seeds=seeds, grid=grid,
+                           noise=_fraction(noise, "--noise"),
+                           sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
+                           params=_parse_params(setting))
+    columns = (TextColumn("{task.description:<14}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+               TextColumn("ETA"), TimeRemainingColumn())
+    start = time.perf_counter()
+    with Progress(*columns, console=console, transient=False) as bar:
+        tasks = {n: bar.add_task(n, total=None) for n in names}
+
+        def progress(study_name: str, done: int, total: int) -> None:
+            bar.update(tasks[study_name], completed=done, total=total)
+
+        runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
+                           progress=progress)
+    table = Table(title=f"studies in {out} ({time.perf_counter() - start:.1f} s)")
+    for column in ("study", "cases", "reused chunks", "wall [s]", "compute [s]", "table"):
+        table.add_column(column)
+    for run in runs:
+        table.add_row(run.name, str(run.cases), f"{run.reused_chunks}/{run.chunks}", f"{run.wall_time:.1f}",
+                      f"{run.compute_time:.1f}", str(run.table))
+    console.print(table)
+    console.print(f"report written to {out / 'index.html'}")

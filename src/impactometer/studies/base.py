@@ -1,0 +1,184 @@
+"""What a study is: options, the registry, the case grid and per-case seeding.
+
+A study turns a list of *cases* (JSON-ready dicts, one unit of work each) into a tidy table (a list of flat dicts,
+one row per case and method). The runner splits the cases into fixed chunks, evaluates them anywhere (this process,
+a process pool, a Dask cluster) and persists every finished chunk; a case's random numbers depend only on the seed,
+the study name and the case index, so results do not depend on the number of workers or on where they ran.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import json
+import math
+import zlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..rig import Rig, get_rig, to_dict
+
+Row = dict[str, Any]
+
+#: the paper's scenario ranges: M1 [kg], V0 [m/s], p0 [Pa gauge]
+PAPER_RANGES = MappingProxyType({"mass": (10.0, 50.0), "velocity": (1.0, 3.0), "pressure_gauge": (20e3, 400e3)})
+
+
+@dataclass(frozen=True, kw_only=True)
+class StudyOptions:
+    """Options shared by every study.
+
+    Attributes
+    ----------
+    rig : The stand (contact law included).
+    seed : Root seed of every noise realisation.
+    grid : Values per axis of the M1 × V0 × p0 grid over the paper's ranges (5 gives the paper's 125 cases).
+    seeds : Noise realisations per case where a study adds noise.
+    noise : Sensor noise of the studies that are not about noise, as a fraction of each channel's RMS.
+    sample_rate : DAQ sample rate of the studies that are not about sampling [Hz].
+    duration : Record length after first contact [s].
+    pre_trigger : Record length before first contact [s] (used by the identification to remove offsets).
+    params : Study-specific settings (e.g. ``{"noise.levels": [0, 0.05]}``); see each study's ``defaults``.
+    """
+
+    rig: Rig = field(default_factory=get_rig)
+    seed: int = 0
+    grid: int = 5
+    seeds: int = 1
+    noise: float = 0.01
+    sample_rate: float = 50e3
+    duration: float = 0.05
+    pre_trigger: float = 0.002
+    params: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.rig, Rig):
+            raise ParameterError(f"rig must be a Rig, got {self.rig!r}")
+        for name, low in (("seed", 0), ("grid", 2), ("seeds", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
+                raise ParameterError(f"{name} must be an integer >= {low}, got {value!r}")
+        for name, low, high in (("noise", 0.0, 1.0), ("sample_rate", 1e3, 1e7), ("duration", 1e-3, 1.0),
+                                ("pre_trigger", 0.0, 0.1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or not low <= value <= high:
+                raise ParameterError(f"{name} must be a number within [{low:g}, {high:g}], got {value!r}")
+        if not isinstance(self.params, Mapping):
+            raise ParameterError(f"params must be a mapping of setting -> value, got {self.params!r}")
+
+    def param(self, study: str, name: str, default: Any) -> Any:
+        """Study setting ``study.name`` from ``params``, else ``default``."""
+        return self.params.get(f"{study}.{name}", default)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready description (the stand in full)."""
+        return {"rig": to_dict(self.rig), "seed": int(self.seed), "grid": int(self.grid), "seeds": int(self.seeds),
+                "noise": float(self.noise), "sample_rate": float(self.sample_rate),
+                "duration": float(self.duration), "pre_trigger": float(self.pre_trigger),
+                "params": {k: self.params[k] for k in sorted(self.params)}}
+
+    def key(self, study: str) -> str:
+        """Fingerprint of these options for ``study`` (persisted chunks are valid only under the same key)."""
+        text = json.dumps({"study": study, **self.to_dict()}, sort_keys=True, default=repr)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Study:
+    """A registered study.
+
+    Attributes
+    ----------
+    name : Registry name (``impactometer study NAME``).
+    title : One-line description.
+    figure : The paper's figure it reproduces (or ``""``).
+    cases : ``options -> list of case dicts`` (JSON-ready).
+    evaluate : ``(cases, options) -> rows``; cases carry their ``case`` index. Must be a module-level function.
+    aggregate : ``rows -> small table`` shown in the report.
+    summary : ``rows -> [{"quantity", "ours", "paper"}]`` lines of the report's summary.
+    plot : ``(rows, options) -> matplotlib Figure``.
+    chunk_size : Cases per persisted chunk.
+    requires : Modules the study needs; while one is missing the study is listed as unavailable.
+    defaults : Study-specific settings and their defaults (override through ``StudyOptions.params``).
+    """
+
+    name: str
+    title: str
+    figure: str
+    cases: Callable[[StudyOptions], list[Row]]
+    evaluate: Callable[[list[Row], StudyOptions], list[Row]]
+    aggregate: Callable[[list[Row]], list[Row]]
+    summary: Callable[[list[Row]], list[Row]]
+    plot: Callable[[list[Row], StudyOptions], Any]
+    chunk_size: int = 25
+    requires: tuple[str, ...] = ()
+    defaults: Mapping[str, Any] = field(default_factory=dict)
+
+    def missing(self) -> list[str]:
+        """Required modules that cannot be imported here."""
+        out = []
+        for module in self.requires:
+            try:
+                found = importlib.util.find_spec(module) is not None
+            except ModuleNotFoundError:
+                found = False
+            if not found:
+                out.append(module)
+        return out
+
+    def run(self, options: StudyOptions | None = None) -> list[Row]:
+        """Evaluate every case in this process and return the tidy table (no persistence, no progress)."""
+        options = StudyOptions() if options is None else options
+        return self.evaluate(indexed_cases(self, options), options)
+
+
+#: study name -> Study (filled by the study modules)
+STUDIES: dict[str, Study] = {}
+
+
+def register(study: Study) -> Study:
+    """Add ``study`` to :data:`STUDIES`."""
+    STUDIES[study.name] = study
+    return study
+
+
+def get_study(name: str) -> Study:
+    """The registered study ``name``; an unknown name raises with the list of valid names."""
+    if name not in STUDIES:
+        raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {name!r}")
+    return STUDIES[name]
+
+
+def indexed_cases(study: Study, options: StudyOptions) -> list[Row]:
+    """The cases of ``study`` with their ``case`` index."""
+    return [{"case": i, **case} for i, case in enumerate(study.cases(options))]
+
+
+def case_seed(options: StudyOptions, study: str, case: int, *more: int) -> np.random.SeedSequence:
+    """Seed of one case (and optional sub-draw): a function of the root seed, the study and the indices only."""
+    return np.random.SeedSequence(int(options.seed), spawn_key=(zlib.crc32(study.encode()), int(case), *more))
+
+
+def scenario_grid(options: StudyOptions, *, pressures=None) -> list[Row]:
+    """The M1 × V0 × p0 grid, ``options.grid`` values per axis over the paper's ranges (pressures optional)."""
+    n = options.grid
+    masses = np.linspace(*PAPER_RANGES["mass"], n)
+    velocities = np.linspace(*PAPER_RANGES["velocity"], n)
+    pressures = np.linspace(*PAPER_RANGES["pressure_gauge"], n) if pressures is None else np.asarray(pressures)
+    rated = options.rig.cylinder.rated_pressure_gauge
+    if np.any(pressures > rated):
+        raise ParameterError(f"pressures must be <= the rated {rated:g} Pa of {options.rig.name!r}, "
+                             f"got {pressures.max():g}")
+    return [{"mass": float(m), "velocity": float(v), "pressure_gauge": float(p)}
+            for m in masses for v in velocities for p in pressures]
+
+
+def relative_error(estimate: float, truth: float) -> float:
+    """Signed relative error (estimate − truth)/truth [-]."""
+    return (estimate - truth) / truth

@@ -1,0 +1,149 @@
+"""Figures of the studies (matplotlib imported lazily). Each function takes the tidy rows and returns a Figure."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ..plotting import _pyplot
+from .tables import Row, finite_values, group_stats, pick
+
+#: colour per compared method
+COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "brute": "tab:red",
+          "fast": "tab:blue"}
+
+
+def _color(method: str) -> str:
+    return COLORS.get(method, None)
+
+
+def _methods(rows: Sequence[Row], column: str = "method") -> list[str]:
+    return list(dict.fromkeys(r[column] for r in rows))
+
+
+def plot_peak_force(rows: Sequence[Row]):
+    """Simulated first-pulse peak force vs the two-body closed form, per case."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
+    closed = finite_values(rows, "closed_form_peak_force")
+    simulated = np.array([r["simulated_peak_force"] for r in rows], dtype=float)
+    mass = np.array([r["mass"] for r in rows])
+    sc = ax[0].scatter(closed / 1e3, simulated / 1e3, c=mass, cmap="viridis", s=14)
+    lim = [0, max(closed.max(), np.nanmax(simulated)) / 1e3 * 1.05] if closed.size else [0, 1]
+    ax[0].plot(lim, lim, "k--", lw=0.8, label="equal")
+    ax[0].set(xlabel="closed form peak force [kN]", ylabel="simulated peak force [kN]", xlim=lim, ylim=lim)
+    ax[0].legend()
+    fig.colorbar(sc, ax=ax[0], label="M1 [kg]")
+    ax[1].scatter(mass, (simulated / np.maximum(np.array([r["closed_form_peak_force"] for r in rows]), 1e-30) - 1)
+                  * 100, s=14, c=[r["pressure_gauge"] / 1e3 for r in rows], cmap="plasma")
+    ax[1].axhline(0, color="k", lw=0.8)
+    ax[1].set(xlabel="M1 [kg]", ylabel="simulated / closed form − 1 [%]")
+    fig.suptitle("First contact pulse: simulator vs two-body closed form")
+    return fig
+
+
+def plot_case_bars(rows: Sequence[Row]):
+    """Figs. 3-4: signed mass and velocity error per case as bars, methods side by side, one row per pressure."""
+    plt = _pyplot()
+    pressures = sorted({r["pressure_gauge"] for r in rows})
+    methods = _methods(rows)
+    fig, axes = plt.subplots(len(pressures), 2, figsize=(13, 3.2 * len(pressures)), squeeze=False,
+                             constrained_layout=True)
+    for row_axes, p in zip(axes, pressures):
+        subset = pick(rows, pressure_gauge=p)
+        labels = list(dict.fromkeys(f"{r['mass']:g} kg\n{r['velocity']:.2g} m/s" for r in subset))
+        x = np.arange(len(labels))
+        width = 0.8 / max(len(methods), 1)
+        for j, method in enumerate(methods):
+            chosen = pick(subset, method=method)
+            for ax, column in zip(row_axes, ("mass_error", "velocity_error")):
+                values = np.array([r[column] for r in chosen], dtype=float) * 100
+                ax.bar(x[:values.size] + (j - (len(methods) - 1) / 2) * width, values, width, label=method,
+                       color=_color(method))
+        for ax, what in zip(row_axes, ("mass", "velocity")):
+            ax.axhline(0, color="k", lw=0.6)
+            ax.set_xticks(x, labels, fontsize=6)
+            ax.set_ylabel(f"{what} error [%]")
+            ax.set_title(f"{what} identification, p0 = {p / 1e3:g} kPa")
+        row_axes[0].legend(fontsize=8)
+    return fig
+
+
+def plot_mean_error_vs(rows: Sequence[Row], parameters: Sequence[tuple[str, str, float]], *,
+                       error: str = "mass_error", title: str = "", log_y: bool = True, maximum: bool = False):
+    """Mean (and optionally max) |error| vs each parameter, one panel per parameter, one line per method.
+
+    ``parameters`` lists (column, axis label, scale applied to the column for display).
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(parameters), figsize=(4.6 * len(parameters), 3.8), squeeze=False,
+                             constrained_layout=True)
+    for ax, (column, label, scale) in zip(axes[0], parameters):
+        for method in _methods(rows):
+            stats = sorted(group_stats(pick(rows, method=method), (column,), (error,)), key=lambda s: s[column])
+            x = np.array([s[column] for s in stats]) * scale
+            ax.plot(x, [s[f"mean_abs_{error}"] for s in stats], "o-", color=_color(method), label=f"{method} mean")
+            if maximum:
+                ax.plot(x, [s[f"max_abs_{error}"] for s in stats], "v:", color=_color(method),
+                        label=f"{method} max")
+        ax.set(xlabel=label, ylabel=f"|{error.replace('_', ' ')}| [%]")
+        if log_y:
+            ax.set_yscale("log")
+        ax.grid(alpha=0.3, which="both")
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle(title)
+    return fig
+
+
+def plot_noise(rows: Sequence[Row]):
+    """Fig. 6: mean |mass error| vs noise level on the force, the acceleration and both, methods side by side."""
+    plt = _pyplot()
+    targets = ("force", "acceleration", "both")
+    fig, axes = plt.subplots(2, 3, figsize=(14, 7), sharey="row", constrained_layout=True)
+    for col, target in enumerate(targets):
+        subset = [r for r in rows if r["noise_on"] in (target, "none")]
+        for row, error in enumerate(("mass_error", "velocity_error")):
+            ax = axes[row][col]
+            for method in _methods(rows):
+                stats = sorted(group_stats(pick(subset, method=method), ("noise",), (error,)),
+                               key=lambda s: s["noise"])
+                x = [s["noise"] * 100 for s in stats]
+                ax.plot(x, [s[f"mean_abs_{error}"] for s in stats], "o-", color=_color(method), label=method)
+            ax.set_yscale("log")
+            ax.grid(alpha=0.3, which="both")
+            ax.set(xlabel=f"noise on {target} [% of RMS]", ylabel=f"mean |{error.split('_')[0]} error| [%]")
+    axes[0][0].legend(fontsize=8)
+    fig.suptitle("Identification error vs Gaussian noise (mean over the grid)")
+    return fig
+
+
+def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = True, title: str = "",
+                    timing: bool = True):
+    """Figs. 8-9: mean |mass| and |velocity| error (and time per identification) vs ``x``, one line per search
+    method and feature set."""
+    plt = _pyplot()
+    panels = ["mass_error", "velocity_error"] + (["seconds_per_identification"] if timing else [])
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.8 * len(panels), 3.8), squeeze=False,
+                             constrained_layout=True)
+    series = list(dict.fromkeys((r.get("search", ""), r.get("features", "")) for r in rows))
+    for ax, panel in zip(axes[0], panels):
+        for search, features in series:
+            chosen = sorted(pick(rows, search=search, features=features) if search or features else rows,
+                            key=lambda r: r[x])
+            values = np.array([r.get(panel, np.nan) for r in chosen], dtype=float)
+            if panel != "seconds_per_identification":
+                values = values * 100
+            label = " ".join(s for s in (search, features) if s)
+            ax.plot([r[x] for r in chosen], values, "o-", color=_color(search), label=label or None,
+                    ls="-" if features in ("", "peaks") else "--")
+        ax.set(xlabel=xlabel, ylabel=("time per identification [s]" if panel.startswith("seconds")
+                                      else f"mean |{panel.split('_')[0]} error| [%]"))
+        ax.set_yscale("log")
+        if log_x:
+            ax.set_xscale("log")
+        ax.grid(alpha=0.3, which="both")
+    if series and any(a or b for a, b in series):
+        axes[0][0].legend(fontsize=8)
+    fig.suptitle(title)
+    return fig

@@ -1,0 +1,141 @@
+"""The HTML report of a study folder: summary next to the paper's statements, figures, tables, timings."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import html
+from pathlib import Path
+from typing import Any
+
+from ..errors import ParameterError
+from . import store
+from .base import STUDIES
+from .tables import columns, fmt
+
+#: marker of a report written by impactometer (an index.html without it is a user file)
+MARKER = "<!-- impactometer study report -->"
+
+#: the page checks that every figure decoded and writes the outcome into #figure-check and body[data-figures]
+_CHECK_SCRIPT = """
+window.addEventListener("load", function () {
+  var images = Array.prototype.slice.call(document.images);
+  var broken = images.filter(function (img) { return !(img.complete && img.naturalWidth > 0); });
+  var out = document.getElementById("figure-check");
+  if (broken.length) {
+    out.textContent = "figures that failed to load: " + broken.map(function (img) {
+      return img.getAttribute("src"); }).join(", ");
+    out.className = "bad";
+  } else {
+    out.textContent = "all " + images.length + " figures loaded";
+  }
+  document.body.setAttribute("data-figures", (broken.length ? "broken " : "ok ") + (images.length - broken.length)
+    + "/" + images.length);
+});
+"""
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1200px; color: #222; }
+table { border-collapse: collapse; margin: 0.6em 0 1.2em; font-size: 0.85em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
+th { background: #f0f0f0; } td.text { text-align: left; }
+img { max-width: 100%; border: 1px solid #ddd; }
+#figure-check { color: #2a7; } #figure-check.bad { color: #c22; font-weight: bold; }
+.note { color: #666; font-size: 0.9em; }
+"""
+
+
+def _table(rows: list[dict[str, Any]], *, limit: int = 200) -> str:
+    if not rows:
+        return "<p class='note'>no rows</p>"
+    cols = columns(rows)
+    head = "".join(f"<th>{html.escape(c)}</th>" for c in cols)
+    body = []
+    for row in rows[:limit]:
+        cells = []
+        for c in cols:
+            value = row.get(c, "")
+            cls = " class='text'" if isinstance(value, str) else ""
+            cells.append(f"<td{cls}>{html.escape(fmt(value))}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    more = f"<p class='note'>{len(rows) - limit} more rows in the CSV</p>" if len(rows) > limit else ""
+    return f"<table><thead><tr>{head}</tr></thead><tbody>{''.join(body)}</tbody></table>{more}"
+
+
+def collect(out: str | Path) -> list[dict[str, Any]]:
+    """Results of every study run found in ``out``, in registry order (unknown ones last)."""
+    out = Path(out)
+    order = {name: i for i, name in enumerate(STUDIES)}
+    found = []
+    for folder in sorted(p for p in out.iterdir() if p.is_dir()) if out.is_dir() else []:
+        result = store.read_result(folder)
+        if result and result.get("name") == folder.name and (out / f"{folder.name}.png").exists():
+            found.append(result)
+    return sorted(found, key=lambda r: order.get(r["name"], len(order)))
+
+
+def summary_rows(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The report's summary: one line per statement, with the study it comes from."""
+    return [{"study": r["name"], **line} for r in results for line in r.get("summary", [])]
+
+
+def timing_rows(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Cases, chunks and times per study."""
+    return [{"study": r["name"], "cases": r["cases"], "rows": r["rows"], "chunks": r["chunks"],
+             "reused chunks": r["reused_chunks"], "workers": r["workers"],
+             "wall time [s]": r["wall_time"], "compute time [s]": r["compute_time"]} for r in results]
+
+
+def render(results: list[dict[str, Any]]) -> str:
+    """HTML text of the report."""
+    from . import load_studies
+
+    load_studies()
+    sections = []
+    for r in results:
+        name = html.escape(r["name"])
+        figure = f" (the paper's {html.escape(r['figure'])})" if r.get("figure") else ""
+        sections.append(
+            f"<section id='{name}'><h2>{name}: {html.escape(r.get('title', ''))}{figure}</h2>"
+            f"<p><img src='{name}.png' alt='figure of study {name}'></p>"
+            f"<p class='note'>{r['cases']} cases, {r['rows']} rows; full table: <a href='{name}.csv'>{name}.csv"
+            f"</a>; wall time {r['wall_time']:.1f} s, compute time {r['compute_time']:.1f} s</p>"
+            f"{_table(r.get('aggregate', []))}</section>")
+    options = results[0]["options"] if results else {}
+    rig = options.get("rig", {})
+    setup = (f"stand {html.escape(str(rig.get('name', '?')))}, contact {html.escape(str(rig.get('contact', {})))}, "
+             f"seed {options.get('seed')}, grid {options.get('grid')} per axis, {options.get('seeds')} noise "
+             f"seed(s), base noise {options.get('noise')}, {options.get('sample_rate')} Hz") if options else ""
+    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    return f"""<!DOCTYPE html>
+{MARKER}
+<html lang="en"><head><meta charset="utf-8"><title>impactometer studies</title>
+<style>{_STYLE}</style></head>
+<body data-figures="pending">
+<h1>impactometer studies</h1>
+<p class="note">Written {stamp}. {setup}</p>
+<p id="figure-check">checking figures…</p>
+<h2>Summary: our numbers next to the paper's</h2>
+{_table(summary_rows(results))}
+<h2>Run</h2>
+{_table(timing_rows(results))}
+{''.join(sections)}
+<script>{_CHECK_SCRIPT}</script>
+</body></html>
+"""
+
+
+def write_report(out: str | Path, *, force: bool = False) -> Path:
+    """Write ``out/index.html`` from every study run found in ``out``; a foreign index.html needs ``force``."""
+    out = Path(out)
+    if not out.is_dir():
+        raise ParameterError(f"--out: {str(out)!r} is not a folder of study runs")
+    path = out / "index.html"
+    if path.exists() and not force:
+        try:
+            ours = MARKER in path.read_text(encoding="utf-8", errors="replace")[:500]
+        except OSError:
+            ours = False
+        if not ours:
+            raise ParameterError(f"--out: {str(path)!r} exists and was not written by impactometer; pass --force "
+                                 f"to overwrite it")
+    return store.atomic_write(path, render(collect(out)))

@@ -1,0 +1,132 @@
+"""Persistence of study runs in an output folder: atomic writes, a manifest per study, one JSON file per chunk.
+
+Layout of ``DIR``::
+
+    DIR/index.html              the report
+    DIR/<study>.csv, .png       the tidy table and the figure
+    DIR/<study>/manifest.json   the options the chunks belong to (their key)
+    DIR/<study>/chunk-00003.json  finished chunks (rows + compute time)
+    DIR/<study>/result.json     aggregate table, summary and timings, read by the report
+
+Every file is written to a temporary name in the same folder, flushed, synced and renamed with ``os.replace``:
+a killed run leaves either the previous file or the new one, never a half-written file under the final name.
+A chunk is read back only if it parses and names the same study, options key, chunk number and cases.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from ..errors import ParameterError
+
+MANIFEST = "manifest.json"
+RESULT = "result.json"
+SCHEMA = 1
+
+
+def atomic_write(path: Path, data: str | bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder, fsync, ``os.replace``)."""
+    path = Path(path)
+    mode = "wb" if isinstance(data, bytes) else "w"
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode, **({} if mode == "wb" else {"encoding": "utf-8"})) as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def save_figure(fig, path: Path, *, dpi: int = 110) -> Path:
+    """Save a matplotlib figure as PNG atomically and close it."""
+    import io
+
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi)
+    from ..plotting import _pyplot
+
+    _pyplot().close(fig)
+    return atomic_write(path, buffer.getvalue())
+
+
+def chunk_path(folder: Path, index: int) -> Path:
+    return folder / f"chunk-{index:05d}.json"
+
+
+def write_chunk(folder: Path, *, study: str, key: str, index: int, cases: list[int], rows: list[dict],
+                seconds: float) -> Path:
+    """Persist one finished chunk."""
+    payload = {"schema": SCHEMA, "study": study, "key": key, "chunk": index, "cases": cases, "seconds": seconds,
+               "rows": rows}
+    return atomic_write(chunk_path(folder, index), json.dumps(payload, allow_nan=True))
+
+
+def read_chunk(folder: Path, *, study: str, key: str, index: int, cases: list[int]) -> dict[str, Any] | None:
+    """A persisted chunk if present and valid for these options, else None."""
+    path = chunk_path(folder, index)
+    try:
+        payload = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(payload, dict) or not isinstance(payload.get("rows"), list):
+        return None
+    expected = {"schema": SCHEMA, "study": study, "key": key, "chunk": index, "cases": cases}
+    if any(payload.get(k) != v for k, v in expected.items()):
+        return None
+    return payload
+
+
+def prepare_folder(out: Path, study: str, key: str, options: dict[str, Any], *, force: bool) -> Path:
+    """The study's chunk folder under ``out``, checked against the options of an earlier run.
+
+    A folder holding chunks of other options is refused unless ``force`` (then its chunks are discarded).
+    Final tables of a study without a manifest are user files: refused unless ``force``.
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"--out: {str(out)!r} exists and is not a folder; expected a folder for the study run")
+    folder = out / study
+    manifest = folder / MANIFEST
+    if manifest.exists():
+        try:
+            previous = json.loads(manifest.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            previous = {}
+        if previous.get("key") != key:
+            if not force:
+                raise ParameterError(
+                    f"--out: {str(folder)!r} holds a '{study}' run with other options (key "
+                    f"{previous.get('key')!r}, this run {key!r}); pass --force to discard it or choose another --out")
+            for old in folder.glob("chunk-*.json"):
+                old.unlink()
+            (folder / RESULT).unlink(missing_ok=True)
+    elif not force:
+        for name in (f"{study}.csv", f"{study}.png"):
+            if (out / name).exists():
+                raise ParameterError(f"--out: {str(out / name)!r} exists and was not written by a study run; "
+                                     f"pass --force to overwrite it")
+    folder.mkdir(parents=True, exist_ok=True)
+    atomic_write(manifest, json.dumps({"schema": SCHEMA, "study": study, "key": key, "options": options},
+                                      indent=1, default=repr))
+    return folder
+
+
+def write_result(folder: Path, result: dict[str, Any]) -> Path:
+    return atomic_write(folder / RESULT, json.dumps(result, indent=1, allow_nan=True, default=repr))
+
+
+def read_result(folder: Path) -> dict[str, Any] | None:
+    try:
+        data = json.loads((Path(folder) / RESULT).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
