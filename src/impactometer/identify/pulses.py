@@ -61,3 +61,93 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
 def stage_b_start(pulses: list[Pulse]) -> float | None:
     """Start of sustained contact (stage B) [s], or None when the record has none."""
     return next((p.start for p in pulses if p.sustained), None)
+
+
+# --------------------------------------------------------------------------------------------------------------
+# Noise-robust detection (used by the peak-to-peak identification)
+
+#: a pulse is declared where the force exceeds this many noise standard deviations
+DETECT_SIGMAS = 5.0
+#: a pulse ends (and a gap may begin) where the force falls below this many noise standard deviations
+RELEASE_SIGMAS = 2.0
+#: resolution floor relative to the largest force when the record is free of noise [-]
+FLOOR_FRACTION = 1e-5
+
+
+def noise_std(signal: np.ndarray) -> float:
+    """Standard deviation of white noise on a smooth ``signal`` [signal units].
+
+    Median absolute second difference scaled for Gaussian noise (second differences of white noise have
+    variance 6σ²); insensitive to the smooth signal and to a few jumps.
+    """
+    x = np.asarray(signal, dtype=float)
+    if x.size < 3:
+        return 0.0
+    d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
+    return float(np.median(np.abs(d2)) / (0.6744897501960817 * np.sqrt(6.0)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PulseSpan:
+    """Sample indices of one contact pulse within a force array.
+
+    ``zero`` is the last sample before the pulse consistent with zero force, ``first`` the first sample above
+    the detection level, ``peak`` the maximum and ``end`` the first sample after the peak back below the release
+    level (the array length when the pulse is still running at the end of the data).
+    """
+
+    zero: int
+    first: int
+    peak: int
+    end: int
+
+    @property
+    def complete(self) -> bool:
+        """Whether the pulse ended within the data (``end`` is a sample index)."""
+        return self.end >= 0
+
+
+def detection_levels(noise: float, force_scale: float) -> tuple[float, float]:
+    """(detect, release) force levels [N] for a noise standard deviation [N] and the largest force [N]."""
+    sigma = max(float(noise), FLOOR_FRACTION * float(force_scale), 1e-12)
+    return DETECT_SIGMAS * sigma, RELEASE_SIGMAS * sigma
+
+
+def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None = None) -> list[PulseSpan]:
+    """Contact pulses of an offset-free ``force`` [N] with white noise of standard deviation ``noise`` [N].
+
+    A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ and ends where it falls below ``RELEASE_SIGMAS``·σ.
+    A gap between two pulses counts as a separation only when the force in it is consistent with zero (its mean
+    within 3σ/√n of zero, n = samples in the gap); otherwise both are merged into one pulse. A pulse still
+    running at the end of the data has ``end = -1``.
+    """
+    f = np.asarray(force, dtype=float)
+    scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)
+    detect, release = detection_levels(noise, scale)
+    sigma = detect / DETECT_SIGMAS
+    spans: list[list[int]] = []
+    i, n = 0, f.size
+    above = np.flatnonzero(f > detect)
+    while above.size:
+        first = int(above[0])
+        below = np.flatnonzero(f[first:] <= release)
+        end = first + int(below[0]) if below.size else -1
+        if spans and spans[-1][3] >= 0:
+            gap = f[spans[-1][3]:first]
+            if gap.size == 0 or gap.mean() > 3.0 * sigma / np.sqrt(gap.size):
+                spans[-1][3] = end  # not a separation: same pulse
+                first = -1
+        if first >= 0:
+            zero = first - 1
+            while zero > i and f[zero] > release:
+                zero -= 1
+            spans.append([max(zero, 0), first, 0, end])
+        if end < 0:
+            break
+        i = end
+        above = above[above > end]
+    out = []
+    for zero, first, _, end in spans:
+        stop = n if end < 0 else end
+        out.append(PulseSpan(zero=zero, first=first, peak=first + int(np.argmax(f[first:stop])), end=end))
+    return out

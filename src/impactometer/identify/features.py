@@ -1,0 +1,255 @@
+"""Feature sets of the response map: a contact-force signal -> m characteristic numbers (paper section 5).
+
+A feature set is registered by name in :data:`FEATURE_SETS`. Each one turns force histories sampled at a common
+time vector (t = 0 at first contact, t00 of the paper) into ``m`` positive numbers, and declares when its data is
+complete (``available_at`` [s] after first contact): an on-line identification cannot answer earlier.
+
+- ``peaks``: amplitudes of the first two contact-force peaks [N] (the paper's first choice);
+- ``max-impulse``: the maximum force [N] and the impulse ∫Fc dt [N·s] over the window [t00, t00 + T]
+  (the paper's second choice; ``window`` = T).
+
+Adding a set: write ``extract(time, forces, **params) -> (values (n, m), available_at (n,))`` with NaN rows for
+signals that do not give the features, and register a :class:`FeatureSet`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from ..errors import ParameterError, ResponseMapError
+
+
+@dataclass(frozen=True, kw_only=True)
+class FeatureSet:
+    """A named way of reducing a force signal to characteristic numbers.
+
+    Attributes
+    ----------
+    name : Registry name.
+    labels : Name of each feature.
+    units : SI unit of each feature.
+    defaults : Parameter name -> default value (SI).
+    limits : Parameter name -> (low, high) admissible range (SI).
+    extract : ``extract(time, forces, **params) -> (values (n, m), available_at (n,))``.
+    description : One line for ``map info``.
+    """
+
+    name: str
+    labels: tuple[str, ...]
+    units: tuple[str, ...]
+    defaults: Mapping[str, float]
+    limits: Mapping[str, tuple[float, float]]
+    extract: Callable[..., tuple[np.ndarray, np.ndarray]] = field(repr=False)
+    description: str = ""
+
+    @property
+    def size(self) -> int:
+        """Number of features m."""
+        return len(self.labels)
+
+    def params(self, given: Mapping[str, Any] | None = None) -> dict[str, float]:
+        """Defaults completed by ``given``; unknown names and out-of-range values raise ParameterError."""
+        given = dict(given or {})
+        unknown = sorted(set(given) - set(self.defaults))
+        if unknown:
+            raise ParameterError(f"feature set {self.name!r}: unknown parameter(s) {unknown}; expected "
+                                 f"{sorted(self.defaults)}")
+        out = dict(self.defaults)
+        for key, value in given.items():
+            low, high = self.limits[key]
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(value) or not low <= value <= high:
+                raise ParameterError(f"feature set {self.name!r}: {key} must be a number within [{low:g}, {high:g}]"
+                                     f", got {value!r}")
+            out[key] = float(value)
+        return out
+
+
+def _check_signals(time, forces) -> tuple[np.ndarray, np.ndarray]:
+    time = np.asarray(time, dtype=float)
+    forces = np.asarray(forces, dtype=float)
+    if forces.ndim == 1:
+        forces = forces[None, :]
+    if time.ndim != 1 or forces.ndim != 2 or forces.shape[1] != time.size or time.size < 3:
+        raise ParameterError(f"time must be 1-D and forces (n, samples) with samples = len(time) >= 3, got shapes "
+                             f"{time.shape} and {forces.shape}")
+    if not np.all(np.isfinite(time)) or np.any(np.diff(time) <= 0):
+        raise ParameterError("time must be finite and strictly increasing [s]")
+    if time[-1] < 0 or time[0] > 0:
+        raise ResponseMapError(f"the record must contain first contact (t = 0); it covers [{time[0]:g}, "
+                               f"{time[-1]:g}] s")
+    return time, forces
+
+
+def _refined_peak(y: np.ndarray, idx: np.ndarray, low: int, high: int) -> np.ndarray:
+    """Parabolic refinement of the sampled maxima ``y[r, idx[r]]`` (rows), within samples [low, high)."""
+    rows = np.arange(y.shape[0])
+    peak = y[rows, idx]
+    inner = (idx > low) & (idx < high - 1)
+    i = idx[inner]
+    r = rows[inner]
+    y0, y1, y2 = y[r, i - 1], y[r, i], y[r, i + 1]
+    curvature = y0 - 2.0 * y1 + y2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(curvature < 0, 0.5 * (y0 - y2) / curvature, 0.0)
+    peak[inner] = y1 - 0.25 * (y0 - y2) * np.clip(delta, -0.5, 0.5)
+    return peak
+
+
+def max_impulse(time, forces, *, window: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Maximum contact force [N] and impulse ∫Fc dt [N·s] over [0, ``window``] after first contact.
+
+    Parameters
+    ----------
+    time : (samples,) array
+        Sample instants [s], t = 0 at first contact.
+    forces : (n, samples) or (samples,) array
+        Contact force [N].
+    window : float
+        Integration window T [s].
+
+    Returns
+    -------
+    values : (n, 2) array
+        Maximum force [N], impulse [N·s].
+    available_at : (n,) array
+        ``window`` [s]: the features are complete T after first contact.
+    """
+    time, forces = _check_signals(time, forces)
+    dt = float(np.median(np.diff(time)))
+    if time[-1] < window - 0.5 * dt:
+        raise ResponseMapError(f"the record covers {time[-1] * 1e3:.3g} ms after first contact; feature set "
+                               f"'max-impulse' with window {window * 1e3:.3g} ms needs at least that long")
+    i0 = int(np.searchsorted(time, 0.0))
+    i1 = int(np.searchsorted(time, window + 0.5 * dt, side="right"))
+    part = forces[:, i0:i1]
+    if part.shape[1] < 2:
+        raise ResponseMapError(f"window {window!r} s holds fewer than 2 samples; expected a window of several "
+                               f"sample periods ({dt:g} s)")
+    peak = _refined_peak(part, np.argmax(part, axis=1), 0, part.shape[1])
+    impulse = np.trapezoid(part, time[i0:i1], axis=1)
+    return np.column_stack([peak, impulse]), np.full(forces.shape[0], float(window))
+
+
+@njit(cache=True)
+def _two_pulses(forces, i0, min_samples, fraction, out_index, out_end):
+    """Indices of the maxima of the first two contact pulses and of the end of the second (-1: not found).
+
+    Pulse 1 starts at ``i0``; a pulse ends when the force falls below ``fraction`` of its running maximum (not
+    before ``min_samples``); pulse 2 starts when the force rises above ``2·fraction`` of the first peak.
+    """
+    n, samples = forces.shape
+    for r in range(n):
+        f = forces[r]
+        out_index[r, 0] = -1
+        out_index[r, 1] = -1
+        out_end[r] = -1
+        state = 0
+        best = -np.inf
+        ibest = i0
+        start = i0
+        peak1 = 0.0
+        for k in range(i0, samples):
+            x = f[k]
+            if state == 0 or state == 2:
+                if x > best:
+                    best = x
+                    ibest = k
+                if k - start >= min_samples and best > 0 and x < fraction * best:
+                    out_index[r, state // 2] = ibest
+                    if state == 2:
+                        out_end[r] = k
+                        break
+                    peak1 = best
+                    state = 1
+            elif x > 2.0 * fraction * peak1:
+                state = 2
+                best = x
+                ibest = k
+                start = k
+
+
+def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4) -> tuple[np.ndarray, np.ndarray]:
+    """Amplitudes of the first two contact-force peaks [N] (stage A).
+
+    Parameters
+    ----------
+    time : (samples,) array
+        Sample instants [s], t = 0 at first contact.
+    forces : (n, samples) or (samples,) array
+        Contact force [N].
+    fraction : float
+        A pulse ends when the force falls below this fraction of its maximum; the next one starts above twice this
+        fraction of the first peak (hysteresis against noise) [-].
+    min_duration : float
+        Shortest pulse [s]; shorter dips are not taken as the end of a pulse.
+
+    Returns
+    -------
+    values : (n, 2) array
+        First and second peak force [N]; NaN where the record does not hold two complete pulses.
+    available_at : (n,) array
+        End of the second pulse [s] (its peak is known only then); NaN where not found.
+    """
+    time, forces = _check_signals(time, forces)
+    dt = float(np.median(np.diff(time)))
+    i0 = int(np.searchsorted(time, 0.0))
+    index = np.empty((forces.shape[0], 2), dtype=np.int64)
+    end = np.empty(forces.shape[0], dtype=np.int64)
+    _two_pulses(forces, i0, max(1, int(round(min_duration / dt))), fraction, index, end)
+    values = np.full((forces.shape[0], 2), np.nan)
+    ok = end >= 0
+    for j in range(2):
+        if ok.any():
+            values[ok, j] = _refined_peak(forces[ok], index[ok, j], i0, forces.shape[1])
+    available = np.where(ok, time[np.clip(end, 0, None)], np.nan)
+    return values, available
+
+
+#: feature-set name -> FeatureSet
+FEATURE_SETS: dict[str, FeatureSet] = {
+    "peaks": FeatureSet(name="peaks", labels=("first_peak", "second_peak"), units=("N", "N"),
+                        defaults={"fraction": 0.05, "min_duration": 5e-4},
+                        limits={"fraction": (1e-3, 0.5), "min_duration": (0.0, 0.05)}, extract=peaks,
+                        description="amplitudes of the first two contact-force peaks"),
+    "max-impulse": FeatureSet(name="max-impulse", labels=("max_force", "impulse"), units=("N", "N*s"),
+                              defaults={"window": 0.02}, limits={"window": (1e-4, 1.0)}, extract=max_impulse,
+                              description="maximum contact force and impulse over a window T after first contact"),
+}
+
+
+def get_feature_set(name: str) -> FeatureSet:
+    """The registered feature set ``name``; the error lists the valid names."""
+    if name not in FEATURE_SETS:
+        raise ParameterError(f"features must be one of {sorted(FEATURE_SETS)}, got {name!r}")
+    return FEATURE_SETS[name]
+
+
+def extract_batch(time, forces, name: str = "max-impulse",
+                  params: Mapping[str, Any] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Features of many force histories: ``(values (n, m), available_at (n,))`` with NaN rows where not found."""
+    fs = get_feature_set(name)
+    return fs.extract(time, forces, **fs.params(params))
+
+
+def extract_features(time, force, name: str = "max-impulse",
+                     params: Mapping[str, Any] | None = None) -> tuple[np.ndarray, float]:
+    """Features of one force history [N] sampled at ``time`` [s]: ``(values (m,), available_at [s])``.
+
+    Raises ResponseMapError when the signal does not give them (e.g. fewer than two usable peaks).
+    """
+    fs = get_feature_set(name)
+    values, available = fs.extract(time, np.asarray(force, dtype=float).reshape(1, -1), **fs.params(params))
+    if not np.all(np.isfinite(values)) or np.any(values[0] <= 0):
+        detail = ("fewer than two usable peaks (two contact pulses separated by a drop below "
+                  f"{fs.params(params).get('fraction', 0):g} of the peak)" if name == "peaks" else
+                  f"non-positive features {values[0].tolist()}")
+        raise ResponseMapError(f"feature set {name!r}: the force signal gives {detail}; expected a record of an "
+                               "impact with positive contact force; try --features max-impulse or a longer record")
+    return values[0], float(available[0])

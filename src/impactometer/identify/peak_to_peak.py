@@ -1,0 +1,295 @@
+"""Peak-to-peak identification of the impacting mass M1 and impact velocity V0 (paper section 4).
+
+Two variants: ``paper`` (eqs. (3)-(5) as published) and ``robust`` (default; zero relative displacement at every
+contact onset, generalised least squares with propagated noise, an early and a final answer). Both work on the
+same prepared segment: the first impact found by the trigger, offsets removed with the pre-trigger samples.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import IdentificationError, RecordingError
+from ..recording import Recording
+from . import trigger
+from .early import solve_early
+from .onsets import onset_index
+from .pulses import PulseSpan, detect_pulses, noise_std
+from .result import VARIANTS, Identification
+from .robust import MIN_ONSET_ROWS, Kinematics, solve_onsets
+
+GRAVITY = 9.81
+#: pre-trigger samples kept before the trigger (offsets and noise come from them)
+PRE_SAMPLES = 1024
+#: samples next to the trigger left out of the pre-trigger statistics (the foot of the first rise)
+GUARD_SAMPLES = 32
+#: fewest pre-trigger samples for removing offsets
+MIN_PRE_SAMPLES = 32
+#: quiet spell that ends an impact [s] and longest impact [s]
+QUIET_TIME = 0.05
+MAX_DURATION = 0.25
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One impact cut from the data: offset-free channels and what was learnt while preparing them."""
+
+    force: np.ndarray
+    acceleration: np.ndarray
+    sample_rate: float
+    start_time: float
+    noise_force: float
+    noise_acceleration: float
+    pre_samples: int
+    pulses: list[PulseSpan]
+
+    def time_of(self, index: float) -> float:
+        """Time [s] of a (fractional) sample index of the segment."""
+        return self.start_time + float(index) / self.sample_rate
+
+
+def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.ndarray, float]:
+    """Validate the two channels; IdentificationError naming what is wrong."""
+    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
+            sample_rate) or sample_rate <= 0:
+        raise IdentificationError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
+    if acceleration is None:
+        raise IdentificationError("the piston acceleration channel is missing; peak-to-peak needs contact force "
+                                  "and piston acceleration")
+    try:
+        f = np.asarray(force, dtype=float)
+        a = np.asarray(acceleration, dtype=float)
+    except (TypeError, ValueError):
+        raise IdentificationError("force and acceleration must be arrays of numbers") from None
+    for name, x in (("contact_force", f), ("piston_acceleration", a)):
+        if x.ndim != 1:
+            raise IdentificationError(f"{name} must be a 1-D array, got shape {x.shape}")
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise IdentificationError(f"{name} has a non-finite sample ({x[bad[0]]!r}) at index {int(bad[0])}; "
+                                      "expected finite numbers")
+    if f.size != a.size:
+        raise IdentificationError(f"contact_force and piston_acceleration must have equal lengths, got {f.size} "
+                                  f"and {a.size} samples")
+    if f.size < 8:
+        raise IdentificationError(f"the record has {f.size} samples; expected at least 8")
+    if np.ptp(a) == 0.0:
+        raise IdentificationError(f"piston_acceleration is constant ({a[0]!r} m/s² throughout); expected a "
+                                  "measured acceleration")
+    return f, a, float(sample_rate)
+
+
+def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
+    """Trigger events (code, sample index) over a whole record."""
+    fstate, istate = trigger.new_state()
+    events = np.zeros((force.size + 2, 2), dtype=np.int64)
+    n = trigger.run_trigger(force, fstate, istate, floor, max(int(QUIET_TIME * sample_rate), 1),
+                            max(int(MAX_DURATION * sample_rate), 1), events)
+    return events[:n]
+
+
+def resolution_floor(force: np.ndarray) -> float:
+    """Smallest meaningful force step [N]: the channel's quantisation, or 1e-9 of its range for exact data."""
+    steps = np.diff(np.unique(force[: min(force.size, 4096)]))
+    step = float(steps.min()) if steps.size else 0.0
+    return max(step, 1e-9 * float(np.max(np.abs(force))), 1e-12)
+
+
+def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
+            pre: int) -> Segment:
+    """Offsets and noise from the first ``pre`` samples (less the guard), then the pulses of the impact."""
+    n_pre = pre - GUARD_SAMPLES
+    if n_pre >= MIN_PRE_SAMPLES:
+        f0, a0 = float(np.mean(force[:n_pre])), float(np.mean(acceleration[:n_pre]))
+        sf, sa = float(np.std(force[:n_pre])), float(np.std(acceleration[:n_pre]))
+    else:
+        n_pre, f0, a0 = 0, 0.0, 0.0
+        sf, sa = noise_std(force), noise_std(acceleration)
+    f = force - f0
+    a = acceleration - a0
+    pulses = detect_pulses(f, sf)
+    return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses)
+
+
+def check_clipping(seg: Segment) -> None:
+    """IdentificationError when the force channel is saturated (a flat top at its maximum)."""
+    fmax = float(np.max(seg.force))
+    at_max = np.flatnonzero(seg.force >= fmax - 1e-12 * abs(fmax))
+    if at_max.size >= 3 and np.any(np.diff(at_max) == 1):
+        raise IdentificationError(f"contact_force is saturated: {at_max.size} samples sit at its maximum "
+                                  f"{fmax:.6g} N from t = {seg.time_of(at_max[0]):.6g} s; the force channel was "
+                                  "clipped, its range must be raised")
+
+
+def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None) -> Identification:
+    """Identify from a prepared segment with the named variant."""
+    return VARIANT_SOLVERS[variant](seg, gravity, early)
+
+
+def _need_pulses(seg: Segment, needed: int, what: str) -> None:
+    complete = [p for p in seg.pulses if p.complete]
+    if not seg.pulses:
+        raise IdentificationError("no impact found: the contact force never leaves its noise "
+                                  f"(noise {seg.noise_force:.3g} N); expected at least one contact pulse")
+    if len(complete) < needed:
+        last = seg.pulses[-1]
+        span = (last.first - seg.pulses[0].first) / max(len(seg.pulses) - 1, 1) if len(seg.pulses) > 1 else None
+        more = "" if span is None else (f"; about {span / seg.sample_rate * 1e3 * (needed - len(complete)):.1f} "
+                                        "ms more signal is needed")
+        raise IdentificationError(f"{what} needs {needed} complete contact pulses, the record holds "
+                                  f"{len(complete)} (it ends at {seg.time_of(seg.force.size - 1):.6g} s){more}")
+
+
+def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
+    """Eqs. (3)-(5) of the reference paper and the momentum step for V0.
+
+    t00 = first contact, t01/t11 = force peaks of the first two pulses; M1 = −∫Fc / ((V2(t11) − V2(t01)) −
+    g·Δt) (eq. 4), V2 = ∫a2 from t00 (eq. 5), V0 = V2(t01) + ∫_{t00}^{t01}Fc/M1 − g·(t01 − t00).
+    """
+    _need_pulses(seg, 2, "the paper variant")
+    p1, p2 = seg.pulses[0], seg.pulses[1]
+    t00, _ = onset_index(seg.force, p1, seg.noise_force)
+    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity)
+    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, p2.peak], dtype=float))
+    denominator = (va[1] - va[0]) - gravity * (tau[1] - tau[0])
+    impulse = jf[1] - jf[0]
+    if not denominator < 0.0 or impulse <= 0.0:
+        raise IdentificationError(f"the paper's eq. (4) has no positive mass here: ∫Fc = {impulse:.4g} N·s, "
+                                  f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
+    mass = -impulse / denominator
+    velocity = va[0] + jf[0] / mass - gravity * tau[0]
+    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(p2.peak),
+                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(p2.peak),
+                          variant="paper", details={"noise_force_N": seg.noise_force,
+                                                    "noise_acceleration_m_s2": seg.noise_acceleration})
+
+
+def _onsets(seg: Segment, pulses) -> tuple[np.ndarray, np.ndarray]:
+    pairs = [onset_index(seg.force, p, seg.noise_force) for p in pulses]
+    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+
+
+def solve_robust(seg: Segment, gravity: float, early: Identification | None = None) -> Identification:
+    """Zero relative displacement at every complete pulse's onset; GLS with propagated noise (module notes).
+
+    With fewer than three separated pulses the contact-phase rows of the early solver are added.
+    """
+    _need_pulses(seg, 2, "the robust variant")
+    pulses = [p for p in seg.pulses if p.complete]
+    onsets, stds = _onsets(seg, pulses)
+    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, onsets[0], gravity)
+    kin.onset_std0 = stds[0]
+    common = dict(t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
+                  variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
+                  available_at=seg.time_of(pulses[-1].end))
+    noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
+                 pre_samples=seg.pre_samples)
+    if len(pulses) - 1 >= MIN_ONSET_ROWS:
+        theta, cov, chi2, dof = solve_onsets(kin, onsets[1:], stds[1:], **noise)
+        rows = len(pulses) - 1
+    else:
+        theta, cov, chi2, dof = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
+        rows = -1
+    velocity, w = float(theta[0]), float(theta[1])
+    if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity):
+        raise IdentificationError(f"the onset equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses "
+                                  "found are not contact separations of a falling mass")
+    mass = 1.0 / w
+    return Identification(mass=mass, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
+                          velocity_std=float(np.sqrt(cov[0, 0])), early=early,
+                          details={"onset_rows": rows, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
+                                   "noise_acceleration_m_s2": seg.noise_acceleration,
+                                   "pre_trigger_samples": seg.pre_samples}, **common)
+
+
+VARIANT_SOLVERS = {"robust": solve_robust, "paper": solve_paper}
+
+
+def _segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, list[int], int]:
+    """First impact: (start, stop) sample indices of its segment and the pulse-end indices in it."""
+    events = run_trigger(force, sample_rate, floor=resolution_floor(force))
+    trig = [int(i) for c, i in events if c == trigger.EVENT_TRIGGER]
+    if not trig:
+        raise IdentificationError("no impact found: the contact force never leaves its noise; expected at least "
+                                  "one contact pulse")
+    start = max(trig[0] - PRE_SAMPLES, 0)
+    closes = [int(i) for c, i in events if c == trigger.EVENT_CLOSE and i > trig[0]]
+    stop = closes[0] + 1 if closes else force.size
+    ends = [int(i) for c, i in events if c == trigger.EVENT_PULSE_END and trig[0] < i < stop]
+    return start, stop, ends, trig[0] - start
+
+
+def segment_of(force, acceleration, sample_rate, start_time, start, stop, pre) -> Segment:
+    """Prepared segment [start, stop) of the arrays."""
+    return prepare(force[start:stop], acceleration[start:stop], sample_rate, start_time + start / sample_rate, pre)
+
+
+def early_cut(force, acceleration, sample_rate, start_time, start, ends, pre) -> Segment | None:
+    """The segment up to the first pulse end after which two complete pulses are known (None if never)."""
+    for end in ends:
+        seg = segment_of(force, acceleration, sample_rate, start_time, start, end + 1, pre)
+        if sum(p.complete for p in seg.pulses) >= 2:
+            return seg
+    return None
+
+
+def identify_arrays(force, acceleration, sample_rate: float, start_time: float = 0.0, *, variant: str = "robust",
+                    gravity: float = GRAVITY) -> Identification:
+    """Identify M1 and V0 from contact force [N] and kinematic piston acceleration [m/s²] arrays.
+
+    Parameters
+    ----------
+    force, acceleration : array_like
+        Contact force [N] (positive in compression) and piston acceleration [m/s²] (down, gravity removed).
+    sample_rate : float
+        Sample rate [Hz].
+    start_time : float
+        Time of the first sample [s].
+    variant : {"robust", "paper"}
+        The robust method (default) or eqs. (3)-(5) of the reference paper.
+    gravity : float
+        Gravitational acceleration [m/s²].
+
+    Returns
+    -------
+    Identification
+        For ``robust`` with an ``early`` answer (data up to the end of the second pulse).
+
+    Notes
+    -----
+    The first impact in the data is used: the trigger finds it, up to ``PRE_SAMPLES`` samples before it give the
+    offsets and noise of both channels, and it ends after ``QUIET_TIME`` without contact or ``MAX_DURATION``.
+    """
+    if variant not in VARIANT_SOLVERS:
+        raise IdentificationError(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {variant!r}")
+    if not (isinstance(gravity, (int, float)) and math.isfinite(gravity) and gravity >= 0):
+        raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {gravity!r}")
+    f, a, fs = check_channels(force, acceleration, sample_rate)
+    start, stop, ends, pre = _segment_bounds(f, fs)
+    seg = segment_of(f, a, fs, float(start_time), start, stop, pre)
+    check_clipping(seg)
+    early = None
+    if variant == "robust":
+        cut = early_cut(f, a, fs, float(start_time), start, ends, pre)
+        if cut is not None:
+            early = solve(cut, variant, gravity)
+    return solve(seg, variant, gravity, early=early)
+
+
+def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY) -> Identification:
+    """Identify M1 and V0 from a :class:`~impactometer.recording.Recording` (see :func:`identify_arrays`)."""
+    if not isinstance(recording, Recording):
+        raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
+    channels = {}
+    for name in ("contact_force", "piston_acceleration"):
+        try:
+            channels[name] = recording.channel(name)
+        except RecordingError:
+            raise IdentificationError(f"{recording.source}: channel {name!r} is missing; peak-to-peak needs "
+                                      f"contact_force and piston_acceleration, found {sorted(recording.channels)}"
+                                      ) from None
+    return identify_arrays(channels["contact_force"], channels["piston_acceleration"], recording.sample_rate,
+                           recording.start_time, variant=variant, gravity=gravity)

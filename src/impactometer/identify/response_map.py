@@ -1,0 +1,209 @@
+"""Response-map identification (paper section 5): impacting mass and velocity from the contact force alone.
+
+The measured features (see :mod:`~impactometer.identify.features`) are matched against a database of features over
+mass × velocity (× charge pressure), the response map, by minimizing eq. (7) of the paper::
+
+    f(M1, V1) = Σ_i [(Y_i^M - Y_i(M1, V1)) / Y_i^M]²
+
+Building: :func:`build_map_simulated`, :func:`build_map_from_recordings`, :func:`refine`; files: :func:`save_map`,
+:func:`load_map`; identification: :func:`identify_features` (features already extracted), :func:`identify_recording`.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError, ResponseMapError
+from ..recording import Recording
+from .features import FEATURE_SETS, extract_features
+from .response_map_build import (PRESSURE_TOLERANCE, ResponseMap, build_map_from_recordings, build_map_simulated,
+                                 refine)
+from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_search, fast_tables
+from .response_map_store import load_map, save_map
+
+__all__ = ["FEATURE_SETS", "MapIdentification", "ResponseMap", "build_map_from_recordings", "build_map_simulated",
+           "identify_features", "identify_recording", "load_map", "refine", "save_map"]
+
+#: eq. (7) residual above which the features are said to fit nowhere in the map (≈ 7 % feature mismatch)
+MISFIT_RESIDUAL = 0.01
+
+
+@dataclass(frozen=True, kw_only=True)
+class MapIdentification:
+    """Result of a response-map identification.
+
+    Attributes
+    ----------
+    mass : Identified impacting mass M1 [kg].
+    velocity : Identified impact velocity V0 [m/s].
+    residual : Value of eq. (7) at the answer [-].
+    available_at : When the features were complete, after first contact [s] (NaN when unknown).
+    search : ``fast`` or ``brute``.
+    features : Feature name -> measured value.
+    feature_set : Feature-set name.
+    pressure_gauge : Charge pressure the map was read at [Pa gauge].
+    extrapolated : The answer lies outside the map (only with ``allow_extrapolation``).
+    mass_std, velocity_std : Standard uncertainties [kg], [m/s]; None (not estimated).
+    """
+
+    mass: float
+    velocity: float
+    residual: float
+    available_at: float
+    search: str
+    features: dict[str, float]
+    feature_set: str
+    pressure_gauge: float
+    extrapolated: bool = False
+    mass_std: float | None = None
+    velocity_std: float | None = None
+
+    @property
+    def energy(self) -> float:
+        """Impact energy M1·V0²/2 [J]."""
+        return 0.5 * self.mass * self.velocity ** 2
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary (the keys shared with the peak-to-peak identification, plus ``residual``)."""
+        return {"mass_kg": self.mass, "velocity_m_s": self.velocity, "energy_J": self.energy,
+                "available_at_s": None if math.isnan(self.available_at) else self.available_at,
+                "method": "response-map", "search": self.search, "residual": self.residual,
+                "features": dict(self.features), "feature_set": self.feature_set,
+                "pressure_gauge_Pa": self.pressure_gauge, "extrapolated": self.extrapolated,
+                "mass_std_kg": self.mass_std, "velocity_std_m_s": self.velocity_std}
+
+
+def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapolation: bool) -> float:
+    axis = rmap.pressures_gauge
+    if pressure_gauge is None:
+        if axis.size > 1:
+            raise ResponseMapError(f"the map has a pressure axis ({axis[0] / 1e3:g}-{axis[-1] / 1e3:g} kPa); give "
+                                   "the measured charge pressure (metadata pressure_gauge_Pa)")
+        return float(axis[0])
+    p = float(pressure_gauge)
+    if not math.isfinite(p):
+        raise ParameterError(f"pressure_gauge must be a finite number [Pa], got {pressure_gauge!r}")
+    lo, hi = axis[0], axis[-1]
+    tol = max(PRESSURE_TOLERANCE[0], PRESSURE_TOLERANCE[1] * hi)
+    if lo - tol <= p <= hi + tol:
+        return min(max(p, lo), hi)
+    if axis.size > 1 and allow_extrapolation:
+        warnings.warn(f"charge pressure {p / 1e3:g} kPa is outside the map's {lo / 1e3:g}-{hi / 1e3:g} kPa; "
+                      "extrapolating along pressure", UserWarning, stacklevel=3)
+        return p
+    span = f"{lo / 1e3:g} kPa" if axis.size == 1 else f"{lo / 1e3:g}-{hi / 1e3:g} kPa"
+    raise ResponseMapError(f"the map was made for a charge pressure of {span}, the measurement is at "
+                           f"{p / 1e3:g} kPa; build a map at that pressure (map build --pressure {p / 1e3:g}kPa) or "
+                           "one whose pressure axis spans it")
+
+
+def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pressure_gauge: float | None = None,
+                      allow_extrapolation: bool = False, available_at: float | None = None) -> MapIdentification:
+    """Mass and velocity whose map features best match ``features`` (eq. (7) of the paper).
+
+    Parameters
+    ----------
+    features : (m,) array_like
+        Measured features, in the order and units of the map's feature set.
+    rmap : ResponseMap
+        The database.
+    search : {"fast", "brute"}
+        Continuous inversion of the smooth map (cost independent of its size) or eq. (7) at every node.
+    pressure_gauge : float, optional
+        Measured charge pressure [Pa gauge]; required for a map with a pressure axis.
+    allow_extrapolation : bool
+        Answer (with a warning) when the features lie outside the map instead of raising ResponseMapError.
+    available_at : float, optional
+        When the features were complete [s] (reported; default: the feature window where fixed, else NaN).
+
+    Returns
+    -------
+    MapIdentification
+
+    Notes
+    -----
+    Implements eqs. (6)-(7) of the reference paper. Whether the measurement lies inside the map is decided by the
+    continuous inversion for both searches (the brute minimum always sits on a node).
+    """
+    if search not in SEARCHES:
+        raise ParameterError(f"search must be one of {list(SEARCHES)}, got {search!r}")
+    if not isinstance(rmap, ResponseMap):
+        raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
+    y = np.asarray(features, dtype=float)
+    labels = rmap.labels
+    if y.shape != (len(labels),) or not np.all(np.isfinite(y)) or np.any(y <= 0):
+        raise ResponseMapError(f"features must be {len(labels)} finite numbers > 0 ({', '.join(labels)}), got "
+                               f"{np.asarray(features).tolist()!r}")
+    p = _pressure_for(rmap, pressure_gauge, allow_extrapolation)
+    herm, xm, xv, coarse, cm, cv = fast_tables(rmap)
+    mass, velocity, residual = fast_search(herm, xm, xv, coarse, cm, cv, rmap.pressures_gauge, p, y, EXTENSION)
+    outside = not (xm[0] - 1e-9 * (xm[-1] - xm[0]) <= mass <= xm[-1] + 1e-9 * (xm[-1] - xm[0])
+                   and xv[0] - 1e-9 * (xv[-1] - xv[0]) <= velocity <= xv[-1] + 1e-9 * (xv[-1] - xv[0]))
+    if outside or residual > MISFIT_RESIDUAL:
+        _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation)
+    if search == "brute":
+        mass, velocity, residual, _, _ = brute_search(rmap, y, p)
+    if available_at is None:
+        available_at = rmap.feature_params.get("window", math.nan)
+    return MapIdentification(mass=float(mass), velocity=float(velocity), residual=float(residual),
+                             available_at=float(available_at), search=search,
+                             features=dict(zip(labels, y.tolist())), feature_set=rmap.feature_set,
+                             pressure_gauge=p, extrapolated=bool(outside))
+
+
+def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:
+    measured = ", ".join(f"{k} = {v:.4g}" for k, v in zip(rmap.labels, y))
+    span = (f"mass {rmap.masses[0]:g}-{rmap.masses[-1]:g} kg, velocity {rmap.velocities[0]:.3g}-"
+            f"{rmap.velocities[-1]:.3g} m/s")
+    if outside:
+        text = (f"features ({measured}) lie outside the map ({span}); the nearest impact explaining them is about "
+                f"{mass:.3g} kg at {velocity:.3g} m/s (eq. (7) residual {residual:.2g})")
+        hint = "build a map that spans it (map build --mass/--height) or pass --allow-extrapolation"
+    else:
+        text = (f"features ({measured}) fit nowhere in the map ({span}): the best eq. (7) residual is {residual:.2g} "
+                f"> {MISFIT_RESIDUAL:g}")
+        hint = "expected a map of the same stand, contact law and feature parameters as the measurement"
+    if not allow_extrapolation:
+        raise ResponseMapError(f"{text}; {hint}")
+    warnings.warn(f"{text}; answering by extrapolation", UserWarning, stacklevel=3)
+
+
+def check_recording(recording: Recording, rmap: ResponseMap) -> None:
+    """Raise ResponseMapError when ``recording`` was not made under the conditions the map describes."""
+    where = f"{recording.source}: "
+    if abs(recording.sample_rate - rmap.sample_rate) > 1e-6 * rmap.sample_rate:
+        raise ResponseMapError(f"{where}sampled at {recording.sample_rate:g} Hz, the map was built from signals at "
+                               f"{rmap.sample_rate:g} Hz; expected the same sample rate (build the map with "
+                               f"--sample-rate {recording.sample_rate:g}Hz)")
+    stand = recording.metadata.get("rig")
+    if isinstance(stand, str) and stand != rmap.rig.get("name"):
+        raise ResponseMapError(f"{where}recorded on stand {stand!r}, the map describes stand "
+                               f"{rmap.rig.get('name')!r}; expected a map of the same stand (map build --rig)")
+    law = recording.metadata.get("contact_law")
+    map_law = rmap.rig.get("contact", {}).get("law")
+    if isinstance(law, str) and law != map_law:
+        raise ResponseMapError(f"{where}contact law {law!r}, the map was made with {map_law!r}; expected a map "
+                               "of the same contact")
+
+
+def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Path, *, search: str = "fast",
+                       allow_extrapolation: bool = False) -> MapIdentification:
+    """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
+
+    The recording must have the map's sample rate, stand and contact law (when its metadata names them); its
+    charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis).
+    """
+    if not isinstance(recording, Recording):
+        raise ParameterError(f"recording must be a Recording, got {type(recording).__name__}")
+    rmap = map_or_path if isinstance(map_or_path, ResponseMap) else load_map(map_or_path)
+    check_recording(recording, rmap)
+    values, available = extract_features(recording.time, recording.contact_force, rmap.feature_set,
+                                         rmap.feature_params)
+    return identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
+                             allow_extrapolation=allow_extrapolation, available_at=available)

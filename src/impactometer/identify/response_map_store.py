@@ -1,0 +1,116 @@
+"""Response maps in HDF5 (h5py): schema version, axes, features, feature-set parameters, stand, provenance.
+
+Layout (schema 1): root attributes ``schema`` = ``"impactometer-response-map"``, ``schema_version``,
+``feature_set``, ``feature_labels`` (JSON), ``feature_params`` (JSON), ``sample_rate`` [Hz], ``rig`` (JSON of
+``rig.to_dict``), ``provenance`` (JSON); datasets ``masses`` [kg], ``velocities`` [m/s], ``pressures_gauge`` [Pa]
+and ``values`` (features, pressures, masses, velocities). No pickle: only numbers and JSON text.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ImpactometerError, ParameterError, ResponseMapError
+from .features import get_feature_set
+from .response_map_build import SCHEMA_VERSION, ResponseMap
+
+SCHEMA = "impactometer-response-map"
+_ATTRS = ("schema", "schema_version", "feature_set", "feature_labels", "feature_params", "sample_rate", "rig",
+          "provenance")
+_DATASETS = ("masses", "velocities", "pressures_gauge", "values")
+
+
+def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write ``rmap`` to an HDF5 file; refuses to overwrite an existing file unless ``overwrite``.
+
+    The file is written next to its target and renamed into place, so a failure never leaves a half-written map.
+    """
+    import h5py
+
+    if not isinstance(rmap, ResponseMap):
+        raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise ParameterError(f"{str(path)!r} exists; pass overwrite=True (--force) to replace it")
+    if not path.parent.exists():
+        raise ParameterError(f"folder {str(path.parent)!r} does not exist")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with h5py.File(tmp, "w") as h5:
+            h5.attrs["schema"] = SCHEMA
+            h5.attrs["schema_version"] = SCHEMA_VERSION
+            h5.attrs["feature_set"] = rmap.feature_set
+            h5.attrs["feature_labels"] = json.dumps(list(rmap.labels))
+            h5.attrs["feature_params"] = json.dumps(rmap.feature_params)
+            h5.attrs["sample_rate"] = float(rmap.sample_rate)
+            h5.attrs["rig"] = json.dumps(rmap.rig)
+            h5.attrs["provenance"] = json.dumps(rmap.provenance)
+            for name in _DATASETS:
+                h5.create_dataset(name, data=getattr(rmap, name))
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _json(attrs, key: str, where: str):
+    try:
+        return json.loads(str(attrs[key]))
+    except (TypeError, ValueError):
+        raise ResponseMapError(f"{where}: attribute {key!r} is not valid JSON; expected a map written by "
+                               "impactometer map build") from None
+
+
+def load_map(path: str | Path) -> ResponseMap:
+    """Read and validate a response map written by :func:`save_map`.
+
+    Raises ResponseMapError for a missing, non-HDF5, corrupt, foreign or older-schema file.
+    """
+    import h5py
+
+    path = Path(path)
+    where = str(path)
+    if not path.is_file():
+        raise ResponseMapError(f"{where}: no such map file; expected an HDF5 file from impactometer map build")
+    try:
+        h5 = h5py.File(path, "r")
+    except OSError:
+        raise ResponseMapError(f"{where}: not an HDF5 file (or corrupt); expected a map from impactometer map "
+                               "build") from None
+    with h5:
+        missing = [k for k in _ATTRS if k not in h5.attrs] + [k for k in _DATASETS if k not in h5]
+        if "schema" in h5.attrs and str(h5.attrs["schema"]) != SCHEMA:
+            raise ResponseMapError(f"{where}: schema {str(h5.attrs['schema'])!r} is not {SCHEMA!r}; expected a "
+                                   "response map")
+        version = h5.attrs.get("schema_version")
+        if version is not None and int(version) != SCHEMA_VERSION:
+            raise ResponseMapError(f"{where}: schema version {int(version)}, this impactometer reads version "
+                                   f"{SCHEMA_VERSION}; rebuild the map with impactometer map build")
+        if missing:
+            raise ResponseMapError(f"{where}: missing {missing}; expected attributes {list(_ATTRS)} and datasets "
+                                   f"{list(_DATASETS)} (schema {SCHEMA_VERSION})")
+        try:
+            arrays = {k: np.asarray(h5[k][()], dtype=float) for k in _DATASETS}
+        except (OSError, TypeError, ValueError, KeyError):
+            raise ResponseMapError(f"{where}: a dataset could not be read as numbers; the file is corrupt") from None
+        feature_set = str(h5.attrs["feature_set"])
+        labels = _json(h5.attrs, "feature_labels", where)
+        params = _json(h5.attrs, "feature_params", where)
+        rig = _json(h5.attrs, "rig", where)
+        provenance = _json(h5.attrs, "provenance", where)
+        sample_rate = float(h5.attrs["sample_rate"])
+    try:
+        expected = list(get_feature_set(feature_set).labels)
+        if labels != expected:
+            raise ResponseMapError(f"feature labels {labels} do not match feature set {feature_set!r} {expected}")
+        if not isinstance(params, dict) or not isinstance(rig, dict) or not isinstance(provenance, dict):
+            raise ResponseMapError("feature_params, rig and provenance must be JSON objects")
+        return ResponseMap(feature_set=feature_set, feature_params=params, sample_rate=sample_rate, rig=rig,
+                           provenance=provenance, **arrays)
+    except ImpactometerError as exc:
+        raise ResponseMapError(f"{where}: {exc}") from None

@@ -1,0 +1,95 @@
+"""Compiled sample-by-sample impact trigger shared by the batch and the streaming identification.
+
+One pass over the samples keeps a running (exponentially weighted) baseline and noise level of the force, fires
+when the force leaves the noise, reports the end of each contact pulse and closes the impact after a quiet spell
+or a maximum duration, then re-arms. Because it works sample by sample with all its state in two small arrays,
+its events do not depend on how the samples are chunked.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+IDLE, ACTIVE = 0, 1
+EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE = 1, 2, 3
+#: time constant of the running baseline and noise level [samples]
+BASELINE_SAMPLES = 256
+#: the trigger fires at this many running standard deviations above the baseline
+TRIGGER_SIGMAS = 8.0
+#: pulse detection and release levels in the kernel [running standard deviations]
+PULSE_SIGMAS, RELEASE_SIGMAS = 5.0, 2.0
+
+# float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline
+_MEAN, _VAR, _SIGMA, _BASE = range(4)
+# int state: mode, samples seen, index of trigger, samples since trigger, quiet run, inside a pulse
+_MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE = range(6)
+
+
+def new_state() -> tuple[np.ndarray, np.ndarray]:
+    """Fresh (float, int) state arrays of the trigger."""
+    return np.zeros(4), np.zeros(6, dtype=np.int64)
+
+
+@njit(cache=True)
+def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events):
+    """Advance the trigger over ``force``; write (code, absolute sample index) rows into ``events``.
+
+    Returns the number of events written. ``floor`` [N] is the smallest trigger level (resolution of the
+    channel), ``quiet_samples`` the release run that closes an impact, ``max_samples`` the longest impact.
+    """
+    alpha = 1.0 / BASELINE_SAMPLES
+    n_events = 0
+    for k in range(force.shape[0]):
+        x = force[k]
+        index = istate[_SEEN]
+        istate[_SEEN] += 1
+        if istate[_MODE] == IDLE:
+            sigma = np.sqrt(fstate[_VAR])
+            level = TRIGGER_SIGMAS * sigma
+            if level < floor:
+                level = floor
+            if index > 0 and x - fstate[_MEAN] > level:
+                istate[_MODE] = ACTIVE
+                istate[_TRIG] = index
+                istate[_SINCE] = 0
+                istate[_QUIET] = 0
+                istate[_INSIDE] = 1
+                fstate[_SIGMA] = sigma if sigma * PULSE_SIGMAS > floor else floor / PULSE_SIGMAS
+                fstate[_BASE] = fstate[_MEAN]
+                events[n_events, 0] = EVENT_TRIGGER
+                events[n_events, 1] = index
+                n_events += 1
+            else:
+                if index == 0:
+                    fstate[_MEAN] = x
+                    fstate[_VAR] = 0.0
+                else:
+                    d = x - fstate[_MEAN]
+                    fstate[_MEAN] += alpha * d
+                    fstate[_VAR] = (1.0 - alpha) * (fstate[_VAR] + alpha * d * d)
+            continue
+        istate[_SINCE] += 1
+        y = x - fstate[_BASE]
+        if istate[_INSIDE] == 1:
+            if y < RELEASE_SIGMAS * fstate[_SIGMA]:
+                istate[_INSIDE] = 0
+                istate[_QUIET] = 1
+                events[n_events, 0] = EVENT_PULSE_END
+                events[n_events, 1] = index
+                n_events += 1
+        else:
+            if y > PULSE_SIGMAS * fstate[_SIGMA]:
+                istate[_INSIDE] = 1
+                istate[_QUIET] = 0
+            elif y < RELEASE_SIGMAS * fstate[_SIGMA]:
+                istate[_QUIET] += 1
+        if istate[_QUIET] >= quiet_samples or istate[_SINCE] >= max_samples:
+            events[n_events, 0] = EVENT_CLOSE
+            events[n_events, 1] = index
+            n_events += 1
+            istate[_MODE] = IDLE
+            istate[_INSIDE] = 0
+            fstate[_VAR] = fstate[_SIGMA] ** 2
+            fstate[_MEAN] = x
+    return n_events
