@@ -215,11 +215,20 @@ def _segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, li
     if not trig:
         raise IdentificationError("no impact found: the contact force never leaves its noise; expected at least "
                                   "one contact pulse")
+    if trig[0] <= trigger.WARM_SAMPLES:  # fired at the first chance: no quiet history before the impact
+        return 0, _first_close(events, trig[0], force.size), _pulse_ends(events, trig[0], force.size), 0
     start = max(trig[0] - PRE_SAMPLES, 0)
-    closes = [int(i) for c, i in events if c == trigger.EVENT_CLOSE and i > trig[0]]
-    stop = closes[0] + 1 if closes else force.size
-    ends = [int(i) for c, i in events if c == trigger.EVENT_PULSE_END and trig[0] < i < stop]
-    return start, stop, ends, trig[0] - start
+    stop = _first_close(events, trig[0], force.size)
+    return start, stop, _pulse_ends(events, trig[0], stop), trig[0] - start
+
+
+def _first_close(events, trig: int, size: int) -> int:
+    closes = [int(i) for c, i in events if c == trigger.EVENT_CLOSE and i > trig]
+    return closes[0] + 1 if closes else size
+
+
+def _pulse_ends(events, trig: int, stop: int) -> list[int]:
+    return [int(i) for c, i in events if c == trigger.EVENT_PULSE_END and trig < i < stop]
 
 
 def segment_of(force, acceleration, sample_rate, start_time, start, stop, pre) -> Segment:

@@ -137,7 +137,7 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
     y = np.asarray(features, dtype=float)
     labels = rmap.labels
-    if y.shape != (len(labels),) or not np.all(np.isfinite(y)) or np.any(y <= 0):
+    if y.shape != (len(labels),) or not all(0.0 < x < math.inf for x in y.tolist()):
         raise ResponseMapError(f"features must be {len(labels)} finite numbers > 0 ({', '.join(labels)}), got "
                                f"{np.asarray(features).tolist()!r}")
     p = _pressure_for(rmap, pressure_gauge, allow_extrapolation)

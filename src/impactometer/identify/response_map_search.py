@@ -21,7 +21,7 @@ from .response_map_build import ResponseMap, spline_basis
 FAST_NODES = 257
 #: nodes per axis of the coarse lookup that starts the fast search
 COARSE = 16
-#: Gauss-Newton starts (best coarse nodes)
+#: Gauss-Newton starts at most (best coarse nodes, tried in turn until one matches the features exactly)
 STARTS = 3
 #: how far outside the map the fast search may look [fraction of each axis range]
 EXTENSION = 0.25
@@ -203,6 +203,8 @@ def fast_search(herm, xm, xv, coarse, cm, cv, pressures, p, y, extension):
         m, v, cost = _gauss_newton(herm, xm, xv, k0, w, count, y, cm[a], cv[b], box)
         if cost < best:
             best_m, best_v, best = m, v, cost
+        if best < 1e-24:  # the features are matched exactly: further starts cannot do better
+            break
     return best_m, best_v, best
 
 

@@ -15,6 +15,8 @@ IDLE, ACTIVE = 0, 1
 EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE = 1, 2, 3
 #: time constant of the running baseline and noise level [samples]
 BASELINE_SAMPLES = 256
+#: samples the baseline learns from before the trigger may fire
+WARM_SAMPLES = 64
 #: the trigger fires at this many running standard deviations above the baseline
 TRIGGER_SIGMAS = 8.0
 #: pulse detection and release levels in the kernel [running standard deviations]
@@ -49,7 +51,7 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
             level = TRIGGER_SIGMAS * sigma
             if level < floor:
                 level = floor
-            if index > 0 and x - fstate[_MEAN] > level:
+            if index >= WARM_SAMPLES and x - fstate[_MEAN] > level:
                 istate[_MODE] = ACTIVE
                 istate[_TRIG] = index
                 istate[_SINCE] = 0
@@ -61,13 +63,17 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
                 events[n_events, 1] = index
                 n_events += 1
             else:
-                if index == 0:
-                    fstate[_MEAN] = x
-                    fstate[_VAR] = 0.0
-                else:
-                    d = x - fstate[_MEAN]
-                    fstate[_MEAN] += alpha * d
-                    fstate[_VAR] = (1.0 - alpha) * (fstate[_VAR] + alpha * d * d)
+                d = x - fstate[_MEAN]
+                if index < WARM_SAMPLES:  # plain running mean and variance while learning
+                    rate = 1.0 / (index + 1)
+                else:  # weighted, with outliers clipped so that a slow rise cannot drag the baseline along
+                    rate = alpha
+                    if d > 3.0 * sigma:
+                        d = 3.0 * sigma
+                    elif d < -3.0 * sigma:
+                        d = -3.0 * sigma
+                fstate[_MEAN] += rate * d
+                fstate[_VAR] = (1.0 - rate) * (fstate[_VAR] + rate * d * d)
             continue
         istate[_SINCE] += 1
         y = x - fstate[_BASE]
