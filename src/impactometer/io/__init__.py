@@ -1,0 +1,204 @@
+"""Reading and writing recordings in the formats labs use: CSV (+ JSON sidecar), HDF5, TDMS, MATLAB .mat.
+
+The format follows the file extension (:data:`FORMATS`). Every reader failure is a :class:`RecordingError`
+naming the file, the field and what was expected; reading never modifies a file; writing refuses to replace an
+existing file unless ``overwrite=True`` and replaces it only once the new file is complete.
+"""
+
+from __future__ import annotations
+
+import csv as _csv
+import dataclasses
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from ..errors import ImpactometerError, RecordingError
+from ..recording import TRUTH_KEYS, Recording
+from . import csv, hdf5, mat, tdms
+from .channels import RawData, assemble
+
+#: file extension -> format name
+FORMATS = {".csv": "csv", ".txt": "csv", ".tsv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5",
+           ".tdms": "tdms", ".mat": "mat"}
+#: format name -> reader(path, group) -> RawData
+READERS: dict[str, Callable[[Path, str | None], RawData]] = {
+    "csv": lambda path, group: csv.read(path), "hdf5": lambda path, group: hdf5.read(path, group=group),
+    "tdms": lambda path, group: tdms.read(path, group=group), "mat": lambda path, group: mat.read(path)}
+#: format name -> writer(recording, path)
+WRITERS: dict[str, Callable[[Recording, Path], None]] = {
+    "csv": csv.write, "hdf5": hdf5.write, "tdms": tdms.write, "mat": mat.write}
+#: formats whose files have groups
+GROUPED = ("hdf5", "tdms")
+MANIFEST_NAME = "manifest.csv"
+
+
+def format_of(path: str | Path) -> str:
+    """Format name of ``path`` from its extension; the error lists the known extensions."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in FORMATS:
+        raise RecordingError(f"{path}: unknown extension {suffix or '(none)'!r}; expected one of "
+                             f"{', '.join(sorted(FORMATS))}")
+    return FORMATS[suffix]
+
+
+def read_raw(path: str | Path, *, group: str | None = None) -> RawData:
+    """What the file at ``path`` holds, before channel selection (see :func:`read_recording`)."""
+    path = Path(path)
+    fmt = format_of(path)
+    if not path.is_file():
+        raise RecordingError(f"{path}: no such file")
+    if group is not None and fmt not in GROUPED:
+        raise RecordingError(f"{path}: group={group!r} applies to HDF5 and TDMS files only, not {fmt}")
+    try:
+        return READERS[fmt](path, group)
+    except ImpactometerError:
+        raise
+    except Exception as exc:  # any failure of the reader library on a malformed file
+        detail = str(exc).splitlines()[0][:200] if str(exc) else ""
+        raise RecordingError(f"{path}: not a readable {fmt} file ({type(exc).__name__}: {detail})") from None
+
+
+def read_recording(path: str | Path, *, force_channel: str | None = None, acceleration_channel: str | None = None,
+                   group: str | None = None, flip_force: bool = False, flip_acceleration: bool = False,
+                   acceleration_includes_gravity: bool = False, sample_rate: float | None = None) -> Recording:
+    """Read a recording from a lab file.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``/``.txt``/``.tsv``, ``.h5``/``.hdf5``, ``.tdms`` or ``.mat``.
+    force_channel, acceleration_channel : str, optional
+        Column names to use (default: a name containing ``force``/``fc``, resp. ``acc``/``a2``).
+    group : str, optional
+        HDF5 or TDMS group holding the channels.
+    flip_force, flip_acceleration : bool
+        Change the sign (force must be positive in compression, acceleration positive downward).
+    acceleration_includes_gravity : bool
+        The accelerometer reads specific force (a − g along the downward axis, −g at rest): g is added back.
+    sample_rate : float, optional
+        Sample rate [Hz] for files that state none.
+
+    Returns
+    -------
+    Recording
+        ``contact_force`` [N], ``piston_acceleration`` [m/s²] when present, other columns by their name (SI when
+        their unit is known); metadata from the file with ``source_channels`` naming the columns used.
+    """
+    for name, flag in (("flip_force", flip_force), ("flip_acceleration", flip_acceleration),
+                       ("acceleration_includes_gravity", acceleration_includes_gravity)):
+        if not isinstance(flag, bool):
+            raise RecordingError(f"{name} must be True or False, got {flag!r}")
+    raw = read_raw(path, group=group)
+    try:
+        return assemble(raw, force_channel=force_channel, acceleration_channel=acceleration_channel,
+                        flip_force=flip_force, flip_acceleration=flip_acceleration,
+                        acceleration_includes_gravity=acceleration_includes_gravity, sample_rate=sample_rate)
+    except ImpactometerError:
+        raise
+    except Exception as exc:
+        raise RecordingError(f"{path}: channels cannot be interpreted ({type(exc).__name__}: {exc})") from None
+
+
+def _targets(path: Path, fmt: str) -> list[Path]:
+    return [path, csv.sidecar_path(path)] if fmt == "csv" else [path]
+
+
+def write_recording(recording: Recording, path: str | Path, *, overwrite: bool = False) -> Path:
+    """Write ``recording`` in the format given by the extension of ``path``; returns the path.
+
+    A CSV file gets a JSON sidecar (``run.csv`` -> ``run.json``) with the metadata and the time base.
+    """
+    if not isinstance(recording, Recording):
+        raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
+    path = Path(path)
+    fmt = format_of(path)
+    if not path.parent.is_dir():
+        raise RecordingError(f"{path}: folder {str(path.parent)!r} does not exist")
+    targets = _targets(path, fmt)
+    for target in targets:
+        if target.exists() and not overwrite:
+            raise RecordingError(f"{target}: exists; pass overwrite=True (--force) to replace it")
+    temporary = [t.with_name(f".{t.stem}.partial-{os.getpid()}{t.suffix}") for t in targets]
+    try:
+        WRITERS[fmt](recording, temporary[0])
+        if fmt == "csv":
+            csv.write_sidecar(recording, temporary[1])
+        for tmp, target in zip(temporary, targets):
+            os.replace(tmp, target)
+    except Exception as exc:
+        for tmp in temporary:
+            tmp.unlink(missing_ok=True)
+        if isinstance(exc, ImpactometerError):
+            raise
+        raise RecordingError(f"{path}: cannot write {fmt} file ({type(exc).__name__}: {exc})") from None
+    return path
+
+
+def _manifest(path: Path) -> dict[str, dict[str, float]]:
+    try:
+        with open(path, encoding="utf-8-sig", newline="") as handle:
+            rows = list(_csv.DictReader(handle))
+    except (OSError, UnicodeDecodeError, _csv.Error) as exc:
+        raise RecordingError(f"{path}: manifest cannot be read ({exc})") from None
+    if not rows:
+        raise RecordingError(f"{path}: manifest has no rows; expected columns file,mass_kg,velocity_m_s"
+                             f"[,pressure_gauge_Pa]")
+    columns = [c.strip() for c in rows[0].keys() if c is not None]
+    missing = [c for c in ("file", "mass_kg", "velocity_m_s") if c not in columns]
+    if missing:
+        raise RecordingError(f"{path}: manifest lacks column(s) {missing}; columns found: {columns}")
+    out: dict[str, dict[str, float]] = {}
+    for i, row in enumerate(rows, start=2):
+        row = {(k or "").strip(): (v or "").strip() for k, v in row.items()}
+        name = row["file"]
+        if not name or name in out:
+            raise RecordingError(f"{path}: line {i}: file must be a distinct non-empty name, got {name!r}")
+        values = {}
+        for key in TRUTH_KEYS:
+            if row.get(key, "") == "":
+                continue
+            try:
+                values[key] = float(row[key])
+            except ValueError:
+                raise RecordingError(f"{path}: line {i}: {key} must be a number, got {row[key]!r}") from None
+            if not math.isfinite(values[key]) or values[key] < 0:
+                raise RecordingError(f"{path}: line {i}: {key} must be a finite number >= 0, got {row[key]!r}")
+        out[name] = values
+    return out
+
+
+def read_calibration_set(folder: str | Path, manifest: str | Path | None = None,
+                         **read_options: Any) -> list[Recording]:
+    """All recordings in ``folder`` (sorted by name), the manifest's truth overriding each file's metadata.
+
+    The manifest (default ``folder/manifest.csv`` when present) has columns ``file,mass_kg,velocity_m_s`` and
+    optionally ``pressure_gauge_Pa``; ``read_options`` go to :func:`read_recording`.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise RecordingError(f"{folder}: not a folder; expected a folder of recordings")
+    manifest_path = Path(manifest) if manifest is not None else folder / MANIFEST_NAME
+    if manifest is not None and not manifest_path.is_file():
+        raise RecordingError(f"{manifest_path}: manifest does not exist")
+    truth = _manifest(manifest_path) if manifest_path.is_file() else {}
+    files = sorted(p for p in folder.iterdir() if p.is_file() and p.suffix.lower() in FORMATS
+                   and not p.name.startswith(".") and p.resolve() != manifest_path.resolve())
+    if not files:
+        raise RecordingError(f"{folder}: no recordings (files ending in {', '.join(sorted(FORMATS))})")
+    unknown = sorted(set(truth) - {p.name for p in files})
+    if unknown:
+        raise RecordingError(f"{manifest_path}: file(s) {unknown} not found in {folder}")
+    recordings = []
+    for path in files:
+        recording = read_recording(path, **read_options)
+        if path.name in truth:
+            recording = dataclasses.replace(recording, metadata=recording.metadata | truth[path.name])
+        recordings.append(recording)
+    return recordings
+
+
+__all__ = ["FORMATS", "READERS", "WRITERS", "format_of", "read_raw", "read_recording", "write_recording",
+           "read_calibration_set"]

@@ -1,0 +1,325 @@
+"""Channel and unit maps shared by the readers: what a file holds (:class:`RawData`) -> a :class:`Recording`.
+
+Every reader turns its file into a :class:`RawData` (named columns with their unit strings, an optional time
+column, an optional sample rate, metadata); :func:`assemble` then finds the force and acceleration channels,
+converts units to SI, applies sign flips and gravity removal, checks the time base and builds the Recording.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import RecordingError
+from ..recording import ACCELERATION, CHANNEL_UNITS, FORCE, Recording
+from ..units import UNITS
+
+#: standard channel -> case-insensitive name fragments that identify it (pvlib VARIABLE_MAP in spirit)
+CHANNEL_PATTERNS = {FORCE: ("force", "fc"), ACCELERATION: ("acc", "a2")}
+#: names of a time column (case-insensitive, unit stripped)
+TIME_NAMES = ("time", "t", "zeit", "temps", "timestamp", "x_time")
+#: unit spellings found in lab files -> key of :data:`impactometer.units.UNITS`
+UNIT_ALIASES = {"m/s**2": "m/s^2", "m s^-2": "m/s^2", "m s-2": "m/s^2", "m/s/s": "m/s^2", "ms^-2": "m/s^2",
+                "gn": "g", "g0": "g", "sec": "s", "seconds": "s", "msec": "ms", "newton": "n", "newtons": "n",
+                "kilonewton": "kn", "μs": "us", "pascal": "pa", "mm/s^2": "mm/s^2", "lbf": "lbf"}
+#: units not in impactometer.units.UNITS, (dimension, factor to SI)
+EXTRA_UNITS = {"mm/s^2": ("acceleration", 1e-3), "lbf": ("force", 4.4482216152605), "kgf": ("force", 9.80665),
+               "pa": ("pressure", 1.0)}
+#: the dimension each standard channel must have
+CHANNEL_DIMENSIONS = {FORCE: "force", ACCELERATION: "acceleration"}
+#: SI unit of each dimension a channel may have
+SI_UNITS = {"force": "N", "acceleration": "m/s^2", "pressure": "Pa", "length": "m", "velocity": "m/s",
+            "time": "s", "mass": "kg", "frequency": "Hz"}
+STANDARD_GRAVITY = 9.80665
+#: a time column is regular when no sample is further than this fraction of a period from the fitted grid
+TIME_JITTER = 0.05
+
+_UNIT_IN_NAME = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
+
+
+@dataclass(kw_only=True)
+class RawData:
+    """What a reader found in a file, before channel selection and unit conversion.
+
+    Attributes
+    ----------
+    columns : Column name as found -> (samples, unit string or None).
+    time : Time column (samples, unit) or None.
+    sample_rate : Sample rate stated by the file [Hz] or None.
+    start_time : Time of the first sample stated by the file [s] or None.
+    metadata : Metadata stated by the file.
+    source : File name used in messages.
+    """
+
+    columns: dict[str, tuple[np.ndarray, str | None]]
+    source: str
+    time: tuple[np.ndarray, str | None] | None = None
+    sample_rate: float | None = None
+    start_time: float | None = None
+    metadata: dict[str, Any] = field(default_factory=dict)
+
+
+def split_unit(name: str) -> tuple[str, str | None]:
+    """``"Force [kN]"`` -> ``("Force", "kN")``; ``"Acceleration (g)"`` -> ``("Acceleration", "g")``."""
+    match = _UNIT_IN_NAME.match(name)
+    if match and match.group(1):
+        return match.group(1), match.group(2) or None
+    return name.strip(), None
+
+
+def unit_factor(unit: str | None, *, dimension: str | None, field: str, source: str) -> tuple[str, float] | None:
+    """(dimension, factor to SI) of ``unit``; None for no unit, or for an unknown unit when ``dimension`` is None.
+
+    With ``dimension`` given, a unit of another dimension or an unknown unit raises a RecordingError.
+    """
+    if unit is None or not unit.strip():
+        return None
+    key = unit.strip().lower()
+    key = UNIT_ALIASES.get(key, UNIT_ALIASES.get(key.replace(" ", ""), key.replace(" ", "")))
+    known = EXTRA_UNITS.get(key) or UNITS.get(key)
+    if known is not None and known[0] not in SI_UNITS:
+        known = None
+    if known is None or (dimension is not None and known[0] != dimension):
+        if dimension is None:
+            return None
+        valid = sorted({u for u, (d, _) in (UNITS | EXTRA_UNITS).items() if d == dimension})
+        raise RecordingError(f"{source}: channel {field!r} has unit {unit!r}; expected a {dimension} unit "
+                             f"({', '.join(valid)})")
+    return known
+
+
+def _matches(name: str, standard: str) -> bool:
+    bare = split_unit(name)[0].lower()
+    return bare == standard or any(fragment in bare for fragment in CHANNEL_PATTERNS[standard])
+
+
+def pick_channel(names: list[str], standard: str, explicit: str | None, *, option: str, source: str,
+                 required: bool, taken: tuple[str, ...] = ()) -> str | None:
+    """The column holding ``standard``: ``explicit`` (exact or without unit, case-insensitive) or by pattern."""
+    if explicit is not None:
+        wanted = explicit.strip().lower()
+        for name in names:
+            if name.lower() == wanted or split_unit(name)[0].lower() == wanted:
+                return name
+        raise RecordingError(f"{source}: {option} {explicit!r} not found; channels found: {names}")
+    candidates = [n for n in names if n not in taken and _matches(n, standard)]
+    exact = [n for n in candidates if split_unit(n)[0].lower() == standard]
+    if exact or candidates:
+        return (exact or candidates)[0]
+    if required:
+        patterns = " or ".join(repr(p) for p in CHANNEL_PATTERNS[standard])
+        raise RecordingError(f"{source}: no {standard} channel (a name containing {patterns}, or pass {option}); "
+                             f"channels found: {names}")
+    return None
+
+
+def _finite(values: np.ndarray, name: str, source: str) -> np.ndarray:
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise RecordingError(f"{source}: channel {name!r} must hold numbers") from None
+    arr = np.squeeze(arr) if arr.ndim > 1 and sum(s > 1 for s in arr.shape) <= 1 else arr
+    if arr.ndim != 1 or arr.size == 0:
+        raise RecordingError(f"{source}: channel {name!r} must be a non-empty 1-D series, got shape {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise RecordingError(f"{source}: channel {name!r} has a non-finite sample ({arr[bad[0]]!r}) at index "
+                             f"{int(bad[0])}; expected finite numbers")
+    return arr
+
+
+def time_base(time: np.ndarray, unit: str | None, source: str) -> tuple[float, float]:
+    """(sample rate [Hz], start time [s]) of a time column; refuses non-monotonic or irregular time."""
+    known = unit_factor(unit, dimension="time", field="time", source=source)
+    t = _finite(time, "time", source) * (1.0 if known is None else known[1])
+    if t.size < 2:
+        raise RecordingError(f"{source}: time must have at least 2 samples, got {t.size}")
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        i = int(np.flatnonzero(steps <= 0)[0])
+        raise RecordingError(f"{source}: time must increase strictly; sample {i + 1} ({t[i + 1]!r} s) does not "
+                             f"follow sample {i} ({t[i]!r} s)")
+    period = (t[-1] - t[0]) / (t.size - 1)
+    deviation = np.abs(t - (t[0] + period * np.arange(t.size)))
+    if deviation.max() > TIME_JITTER * period:
+        i = int(np.argmax(deviation))
+        raise RecordingError(f"{source}: time must be regularly sampled; sample {i} is {deviation[i]:.3g} s off "
+                             f"the grid of period {period:.6g} s (tolerance {TIME_JITTER:g} period)")
+    return 1.0 / period, float(t[0])
+
+
+def plain(value: Any) -> Any:
+    """A JSON-friendly copy of a metadata value (numpy scalars/arrays, bytes, datetimes -> builtins/str)."""
+    if isinstance(value, Mapping):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist()) if value.size <= 1000 else f"<array {value.shape}>"
+    if isinstance(value, np.generic):
+        return plain(value.item())
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    return str(value)
+
+
+def metadata_from_json(text: Any, source: str, field: str) -> dict[str, Any]:
+    """Parse a JSON object of metadata stored in a file; a RecordingError otherwise."""
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", "replace")
+    try:
+        data = json.loads(text)
+    except (TypeError, ValueError) as exc:
+        raise RecordingError(f"{source}: {field} must be valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise RecordingError(f"{source}: {field} must hold a JSON object, got {type(data).__name__}")
+    return data
+
+
+#: attribute names (case-insensitive) stating the time base in HDF5 attributes, TDMS properties, MAT scalars
+RATE_KEYS = ("sample_rate", "sampling_rate", "samplerate", "fs", "sample_rate_hz", "sampling_frequency")
+PERIOD_KEYS = ("dt", "wf_increment", "sample_interval", "sampling_interval", "increment")
+START_KEYS = ("start_time", "t0", "wf_start_offset")
+
+
+def _scalar(value: Any, source: str, field: str) -> float:
+    arr = np.asarray(value)
+    if arr.size != 1 or arr.dtype.kind not in "iuf":
+        raise RecordingError(f"{source}: {field} must be a number, got {plain(value)!r}")
+    number = float(arr.reshape(-1)[0])
+    if not math.isfinite(number):
+        raise RecordingError(f"{source}: {field} must be finite, got {number!r}")
+    return number
+
+
+def time_attributes(attrs: Mapping[str, Any], source: str) -> tuple[float | None, float | None, dict[str, Any]]:
+    """(sample rate [Hz], start time [s], remaining attributes) from file attributes or properties."""
+    rate = start = None
+    rest = {}
+    for key, value in attrs.items():
+        low = str(key).lower()
+        if low in RATE_KEYS:
+            rate = _check_rate(_scalar(value, source, key), source, key)
+        elif low in PERIOD_KEYS:
+            period = _check_rate(_scalar(value, source, key), source, key, unit="[s]")
+            rate = float(f"{1.0 / period:.12g}")  # 1/(1/fs) is not always fs in floating point
+        elif low in START_KEYS:
+            start = _scalar(value, source, key)
+        else:
+            rest[str(key)] = plain(value)
+    return rate, start, rest
+
+
+def _check_rate(value: Any, source: str, field: str, *, unit: str = "[Hz]") -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value) \
+            or value <= 0:
+        raise RecordingError(f"{source}: {field} must be a finite number > 0 {unit}, got {value!r}")
+    return float(value)
+
+
+def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_channel: str | None = None,
+             flip_force: bool = False, flip_acceleration: bool = False,
+             acceleration_includes_gravity: bool = False, sample_rate: float | None = None) -> Recording:
+    """Build a Recording from what a reader found (see :func:`impactometer.io.read_recording`)."""
+    source = raw.source
+    columns = dict(raw.columns)
+    raw_time = raw.time
+    if raw_time is None:
+        for name in list(columns):
+            bare, unit_in_name = split_unit(name)
+            if bare.lower() in TIME_NAMES:
+                values, unit = columns.pop(name)
+                raw_time = (values, unit or unit_in_name)
+                break
+    names = list(columns)
+    if not names:
+        raise RecordingError(f"{source}: no data channels found")
+    force_name = pick_channel(names, FORCE, force_channel, option="force_channel", source=source, required=True)
+    acc_name = pick_channel(names, ACCELERATION, acceleration_channel, option="acceleration_channel",
+                            source=source, required=acceleration_channel is not None, taken=(force_name,))
+    units_in = raw.metadata.get("channel_units") if isinstance(raw.metadata.get("channel_units"), dict) else {}
+    channels: dict[str, np.ndarray] = {}
+    units_out: dict[str, str] = {}
+    origin: dict[str, str] = {}
+    for name, (values, unit) in columns.items():
+        bare, unit_in_name = split_unit(name)
+        unit = unit if unit not in (None, "") else unit_in_name
+        target = FORCE if name == force_name else ACCELERATION if name == acc_name else bare
+        if target in channels:
+            raise RecordingError(f"{source}: two columns give channel {target!r}; rename one or pick channels "
+                                 f"with force_channel / acceleration_channel")
+        arr = _finite(values, name, source)
+        known = unit_factor(unit, dimension=CHANNEL_DIMENSIONS.get(target), field=name, source=source)
+        if known is not None:
+            arr = arr * known[1] if known[1] != 1.0 else arr
+        if target not in CHANNEL_UNITS:
+            noted = SI_UNITS[known[0]] if known is not None else unit or units_in.get(target)
+            if noted:
+                units_out[target] = str(noted)
+        channels[target] = arr
+        origin[target] = name
+    if flip_force:
+        channels[FORCE] = -channels[FORCE]
+    if flip_acceleration or acceleration_includes_gravity:
+        if ACCELERATION not in channels:
+            raise RecordingError(f"{source}: flip_acceleration/acceleration_includes_gravity need an acceleration "
+                                 f"channel; channels found: {names}")
+        if flip_acceleration:
+            channels[ACCELERATION] = -channels[ACCELERATION]
+        if acceleration_includes_gravity:  # specific force along the downward axis reads a − g
+            channels[ACCELERATION] = channels[ACCELERATION] + STANDARD_GRAVITY
+
+    rate, start = raw.sample_rate, raw.start_time
+    if rate is not None:
+        rate = _check_rate(rate, source, "sample rate stated in the file")
+    if raw_time is not None:
+        time_rate, time_start = time_base(raw_time[0], raw_time[1], source)
+        if rate is not None and abs(time_rate - rate) > 1e-3 * rate:
+            raise RecordingError(f"{source}: time column gives {time_rate:g} Hz but the file states {rate:g} Hz")
+        rate, start = rate or time_rate, time_start  # a stated rate is exact, a printed time column rounded
+        if np.size(raw_time[0]) != next(iter(channels.values())).size:
+            raise RecordingError(f"{source}: time has {np.size(raw_time[0])} samples but the channels have "
+                                 f"{next(iter(channels.values())).size}; expected equal lengths")
+    if sample_rate is not None:
+        given = _check_rate(sample_rate, source, "sample_rate")
+        if raw_time is not None and abs(given - rate) > 1e-3 * given:
+            raise RecordingError(f"{source}: sample_rate={given:g} Hz disagrees with the time column "
+                                 f"({rate:g} Hz)")
+        rate = given
+    if rate is None:
+        raise RecordingError(f"{source}: no time column and no sample rate in the file; expected a time column "
+                             f"or pass sample_rate")
+    metadata = {k: v for k, v in raw.metadata.items() if k != "channel_units"}
+    metadata["source_channels"] = origin
+    if units_out:
+        metadata["channel_units"] = units_out
+    flags = {"flip_force": flip_force, "flip_acceleration": flip_acceleration,
+             "acceleration_includes_gravity": acceleration_includes_gravity}
+    metadata["read_options"] = {k: True for k, v in flags.items() if v}
+    if not metadata["read_options"]:
+        del metadata["read_options"]
+    return Recording(sample_rate=rate, channels=channels, start_time=0.0 if start is None else float(start),
+                     metadata=metadata, source=source)
+
+
+def channel_unit(recording: Recording, name: str) -> str:
+    """SI unit of a channel of ``recording`` (standard channels, or as noted in its metadata)."""
+    noted = recording.metadata.get("channel_units")
+    if name in CHANNEL_UNITS:
+        return CHANNEL_UNITS[name]
+    return str(noted.get(name, "")) if isinstance(noted, dict) else ""
+
+
+def metadata_to_json(recording: Recording) -> str:
+    """Metadata of ``recording`` as JSON (numpy values made plain)."""
+    return json.dumps(plain(recording.metadata), sort_keys=True)

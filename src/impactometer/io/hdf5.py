@@ -1,0 +1,88 @@
+"""HDF5 recordings (h5py): one 1-D dataset per channel, the time base and metadata as attributes.
+
+Read: the datasets of the root (or of ``group``; when the root holds none, of its only group with datasets); the
+unit of a dataset from its ``unit``/``units``/``unit_string`` attribute or from its name (``Force [kN]``); the
+sample rate from an attribute (``sample_rate``, ``fs``, ``dt``, ``wf_increment`` ...) of the group or the file, or a
+``time`` dataset; metadata from the ``metadata`` attribute (JSON) and the other scalar attributes.
+
+Write: the format above with ``sample_rate`` [Hz], ``start_time`` [s] and ``metadata`` (JSON) on the root.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from ..errors import RecordingError
+from ..recording import Recording
+from .channels import RawData, channel_unit, metadata_from_json, metadata_to_json, time_attributes
+
+UNIT_ATTRIBUTES = ("unit", "units", "unit_string")
+FORMAT_NAME = "impactometer-recording"
+
+
+def _datasets(group: h5py.Group) -> dict[str, h5py.Dataset]:
+    return {name: item for name, item in group.items()
+            if isinstance(item, h5py.Dataset) and item.dtype.kind in "iuf" and item.size > 1}
+
+
+def _unit(dataset: h5py.Dataset) -> str | None:
+    for key in UNIT_ATTRIBUTES:
+        if key in dataset.attrs:
+            value = dataset.attrs[key]
+            value = value.decode("utf-8", "replace") if isinstance(value, bytes) else value
+            return str(np.asarray(value).reshape(-1)[0]) if np.asarray(value).size else None
+    return None
+
+
+def _node(handle: h5py.File, group: str | None, source: str) -> h5py.Group:
+    groups = [name for name, item in handle.items() if isinstance(item, h5py.Group)]
+    if group is not None:
+        node = handle.get(group)
+        if not isinstance(node, h5py.Group):
+            raise RecordingError(f"{source}: group {group!r} does not exist; groups found: {groups}")
+        return node
+    if _datasets(handle):
+        return handle
+    with_data = [name for name in groups if _datasets(handle[name])]
+    if len(with_data) == 1:
+        return handle[with_data[0]]
+    raise RecordingError(f"{source}: no channel datasets in the root; pass group (groups with datasets: "
+                         f"{with_data or groups})")
+
+
+def read(path: Path, *, group: str | None = None) -> RawData:
+    """What an HDF5 file holds (read-only)."""
+    source = str(path)
+    with h5py.File(path, "r") as handle:
+        node = _node(handle, group, source)
+        datasets = _datasets(node)
+        if not datasets:
+            raise RecordingError(f"{source}: no numeric 1-D datasets in group {node.name!r}")
+        columns = {name: (np.asarray(ds[()]), _unit(ds)) for name, ds in datasets.items()}
+        attrs = dict(handle.attrs)
+        if node is not handle:
+            attrs.update(node.attrs)
+    rate, start, rest = time_attributes(attrs, source)
+    metadata = {}
+    if "metadata" in rest:
+        metadata = metadata_from_json(rest.pop("metadata"), source, "attribute 'metadata'")
+    rest = {k: v for k, v in rest.items() if k not in ("format", "version")}
+    return RawData(columns=columns, source=source, sample_rate=rate, start_time=start, metadata=rest | metadata)
+
+
+def write(recording: Recording, path: Path) -> None:
+    """Write ``recording`` to a new HDF5 file."""
+    with h5py.File(path, "w") as handle:
+        handle.attrs["format"] = FORMAT_NAME
+        handle.attrs["version"] = 1
+        handle.attrs["sample_rate"] = recording.sample_rate
+        handle.attrs["start_time"] = recording.start_time
+        handle.attrs["metadata"] = metadata_to_json(recording)
+        for name, values in recording.channels.items():
+            dataset = handle.create_dataset(name, data=values)
+            unit = channel_unit(recording, name)
+            if unit:
+                dataset.attrs["unit"] = unit

@@ -1,0 +1,94 @@
+"""TDMS recordings (npTDMS), laid out as LabVIEW writes waveforms.
+
+One group holds one channel per signal; each channel carries ``wf_increment`` (sample period [s]),
+``wf_start_offset`` (time of the first sample [s]), ``wf_samples`` and ``unit_string``. Metadata comes from the
+file and group properties (group wins); impactometer also stores its full metadata as JSON in the file property
+``impactometer_metadata``.
+
+Read: ``group`` names the group; without it the only group, or the first group holding a force channel. Channels
+of non-numeric type (strings, timestamps) are skipped.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from nptdms import ChannelObject, GroupObject, RootObject, TdmsFile, TdmsWriter
+
+from ..errors import RecordingError
+from ..recording import FORCE, Recording
+from .channels import RawData, channel_unit, metadata_from_json, metadata_to_json, pick_channel, time_attributes
+
+GROUP = "Recording"
+METADATA_PROPERTY = "impactometer_metadata"
+#: properties LabVIEW puts on every waveform channel that are not metadata
+WAVEFORM_PROPERTIES = ("wf_samples", "wf_start_time", "unit_string", "NI_ChannelName", "NI_UnitDescription")
+
+
+def _group(tdms: TdmsFile, group: str | None, source: str):
+    groups = tdms.groups()
+    names = [g.name for g in groups]
+    if group is not None:
+        for g in groups:
+            if g.name == group:
+                return g
+        raise RecordingError(f"{source}: TDMS group {group!r} does not exist; groups found: {names}")
+    if len(groups) == 1:
+        return groups[0]
+    for g in groups:
+        if pick_channel([c.name for c in g.channels()], FORCE, None, option="force_channel", source=source,
+                        required=False):
+            return g
+    raise RecordingError(f"{source}: no group holds a force channel; pass group (groups found: {names})")
+
+
+def read(path: Path, *, group: str | None = None) -> RawData:
+    """What a TDMS file holds (read-only)."""
+    source = str(path)
+    tdms = TdmsFile.read(path)
+    node = _group(tdms, group, source)
+    columns = {}
+    rates, starts = set(), set()
+    for channel in node.channels():
+        data = channel[:]
+        if not isinstance(data, np.ndarray) or data.dtype.kind not in "iuf" or data.size == 0:
+            continue
+        props = dict(channel.properties)
+        unit = props.get("unit_string")
+        rate, start, _ = time_attributes({k: v for k, v in props.items() if k not in WAVEFORM_PROPERTIES},
+                                         f"{source}: channel {channel.name!r}")
+        if rate is not None:
+            rates.add(rate)
+        if start is not None:
+            starts.add(start)
+        columns[channel.name] = (data, None if unit in (None, "") else str(unit))
+    if not columns:
+        raise RecordingError(f"{source}: group {node.name!r} holds no numeric channel; channels found: "
+                             f"{[c.name for c in node.channels()]}")
+    if len(rates) > 1 or len(starts) > 1:
+        raise RecordingError(f"{source}: channels of group {node.name!r} have different wf_increment or "
+                             f"wf_start_offset ({sorted(rates)} Hz, {sorted(starts)} s); expected one time base")
+    properties = {k: v for k, v in tdms.properties.items() if k != "name"} | dict(node.properties)
+    metadata = {}
+    if METADATA_PROPERTY in properties:
+        metadata = metadata_from_json(properties.pop(METADATA_PROPERTY), source, METADATA_PROPERTY)
+    rate, start, rest = time_attributes(properties, source)
+    return RawData(columns=columns, source=source, sample_rate=next(iter(rates), rate),
+                   start_time=next(iter(starts), start), metadata=rest | metadata)
+
+
+def write(recording: Recording, path: Path, *, group: str = GROUP) -> None:
+    """Write ``recording`` as a LabVIEW-style waveform group."""
+    truth = {k: float(v) for k, v in recording.metadata.items()
+             if k in ("mass_kg", "velocity_m_s", "pressure_gauge_Pa") and isinstance(v, (int, float))}
+    root = RootObject(properties={"name": Path(path).stem, METADATA_PROPERTY: metadata_to_json(recording)} | truth)
+    objects = [root, GroupObject(group, properties={})]
+    for name, values in recording.channels.items():
+        objects.append(ChannelObject(group, name, np.asarray(values, dtype=np.float64), properties={
+            "wf_increment": 1.0 / recording.sample_rate, "wf_start_offset": float(recording.start_time),
+            "wf_samples": int(values.size), "unit_string": channel_unit(recording, name),
+            "NI_ChannelName": name}))
+    with TdmsWriter(str(path)) as writer:
+        writer.write_segment(objects)
+
