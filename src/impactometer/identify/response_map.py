@@ -141,20 +141,18 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         raise ResponseMapError(f"features must be {len(labels)} finite numbers > 0 ({', '.join(labels)}), got "
                                f"{np.asarray(features).tolist()!r}")
     p = _pressure_for(rmap, pressure_gauge, allow_extrapolation)
-    herm, xm, xv, coarse, cm, cv = fast_tables(rmap)
+    herm, xm, xv, coarse, cm, cv, (m_lo, m_hi, v_lo, v_hi) = fast_tables(rmap)
     mass, velocity, residual = fast_search(herm, xm, xv, coarse, cm, cv, rmap.pressures_gauge, p, y, EXTENSION)
-    outside = not (xm[0] - 1e-9 * (xm[-1] - xm[0]) <= mass <= xm[-1] + 1e-9 * (xm[-1] - xm[0])
-                   and xv[0] - 1e-9 * (xv[-1] - xv[0]) <= velocity <= xv[-1] + 1e-9 * (xv[-1] - xv[0]))
+    outside = not (m_lo <= mass <= m_hi and v_lo <= velocity <= v_hi)
     if outside or residual > MISFIT_RESIDUAL:
         _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation)
     if search == "brute":
-        mass, velocity, residual, _, _ = brute_search(rmap, y, p)
+        mass, velocity, residual, _, _ = brute_search(rmap, y, p)  # python floats, like fast_search
     if available_at is None:
         available_at = rmap.feature_params.get("window", math.nan)
-    return MapIdentification(mass=float(mass), velocity=float(velocity), residual=float(residual),
-                             available_at=float(available_at), search=search,
-                             features=dict(zip(labels, y.tolist())), feature_set=rmap.feature_set,
-                             pressure_gauge=p, extrapolated=bool(outside))
+    return MapIdentification(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
+                             search=search, features=dict(zip(labels, y.tolist())), feature_set=rmap.feature_set,
+                             pressure_gauge=p, extrapolated=outside)
 
 
 def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:

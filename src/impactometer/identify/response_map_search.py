@@ -215,7 +215,7 @@ def _subsample(axis: np.ndarray) -> np.ndarray:
 
 
 def fast_tables(rmap: ResponseMap) -> tuple[np.ndarray, ...]:
-    """(herm, xm, xv, coarse, cm, cv) of the fast search, computed once per map and cached on it."""
+    """(herm, xm, xv, coarse, cm, cv, inside box) of the fast search, computed once per map and cached on it."""
     cached = rmap._cache.get("fast")
     if cached is not None:
         return cached
@@ -246,7 +246,9 @@ def fast_tables(rmap: ResponseMap) -> tuple[np.ndarray, ...]:
             for b in range(COARSE):
                 surface(herm, xm, xv, p, w, 1, cm[a], cv[b], out, gm, gv)
                 coarse[:, p, a, b] = out
-    tables = (np.ascontiguousarray(herm), xm.copy(), xv.copy(), coarse, cm, cv)
+    slack_m, slack_v = 1e-9 * (xm[-1] - xm[0]), 1e-9 * (xv[-1] - xv[0])
+    inside = (float(xm[0] - slack_m), float(xm[-1] + slack_m), float(xv[0] - slack_v), float(xv[-1] + slack_v))
+    tables = (np.ascontiguousarray(herm), xm.copy(), xv.copy(), coarse, cm, cv, inside)
     rmap._cache["fast"] = tables
     return tables
 

@@ -1,0 +1,163 @@
+"""Streaming peak-to-peak identification: push chunks of any size, get estimates as soon as the data allows.
+
+The dual form of :func:`~impactometer.identify.peak_to_peak.identify_arrays`: the same compiled trigger runs sample by
+sample, the samples of the current impact sit in a fixed ring buffer (constant memory over endless input), and at
+every pulse end the same solver runs on the buffered segment. After an impact closes (a quiet spell or the maximum
+duration) the identifier re-arms for the next one.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import IdentificationError, ParameterError
+from . import peak_to_peak as p2p
+from . import trigger
+from .result import Identification
+
+
+class StreamingIdentifier:
+    """Identify impacts from an endless stream of contact force [N] and piston acceleration [m/s²] samples.
+
+    Parameters
+    ----------
+    sample_rate : float
+        Sample rate [Hz].
+    variant : {"robust", "paper"}
+    gravity : float
+        Gravitational acceleration [m/s²].
+    start_time : float
+        Time of the first sample pushed [s].
+
+    Notes
+    -----
+    ``push`` returns the new estimates (each an :class:`Identification` whose ``available_at`` is the time of the
+    last sample it used); ``estimates`` keeps those of the current impact and ``completed`` the final answer of
+    every closed impact. The final answer of an impact equals the batch function's on the same samples.
+    """
+
+    def __init__(self, sample_rate: float, *, variant: str = "robust", gravity: float = p2p.GRAVITY,
+                 start_time: float = 0.0, floor: float = 1e-9):
+        if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
+                sample_rate) or sample_rate <= 0:
+            raise ParameterError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
+        if variant not in p2p.VARIANT_SOLVERS:
+            raise ParameterError(f"variant must be one of {sorted(p2p.VARIANT_SOLVERS)}, got {variant!r}")
+        self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, float(gravity)
+        self.start_time, self.floor = float(start_time), float(floor)
+        self.quiet = max(int(p2p.QUIET_TIME * sample_rate), 1)
+        self.max_samples = max(int(p2p.MAX_DURATION * sample_rate), 1)
+        self.capacity = p2p.PRE_SAMPLES + self.max_samples + 2
+        self._force = np.zeros(self.capacity)
+        self._acc = np.zeros(self.capacity)
+        self._fstate, self._istate = trigger.new_state()
+        self._events = np.zeros((self.capacity + 2, 2), dtype=np.int64)
+        self.seen = 0
+        self._start = self._pre = None
+        self._early: Identification | None = None
+        self._last_close = -1
+        self.estimates: list[Identification] = []
+        self.completed: list[Identification] = []
+
+    @property
+    def armed(self) -> bool:
+        """True while waiting for an impact."""
+        return self._start is None
+
+    def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
+        """Feed samples (any number, down to one); return the estimates that became available."""
+        f = np.atleast_1d(np.asarray(force_chunk, dtype=float))
+        a = np.atleast_1d(np.asarray(acceleration_chunk, dtype=float))
+        if f.ndim != 1 or f.shape != a.shape:
+            raise IdentificationError(f"force and acceleration chunks must be 1-D of equal length, got shapes "
+                                      f"{f.shape} and {a.shape}")
+        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(a))):
+            bad = int(np.flatnonzero(~(np.isfinite(f) & np.isfinite(a)))[0])
+            raise IdentificationError(f"non-finite sample at stream index {self.seen + bad}; expected finite "
+                                      "numbers")
+        out: list[Identification] = []
+        step = self.capacity // 4
+        for k in range(0, f.size, step):
+            out.extend(self._push(f[k:k + step], a[k:k + step]))
+        return out
+
+    def _push(self, f, a) -> list[Identification]:
+        n0 = self.seen
+        pos = (n0 + np.arange(f.size)) % self.capacity
+        self._force[pos] = f
+        self._acc[pos] = a
+        n_ev = trigger.run_trigger(f, self._fstate, self._istate, self.floor, self.quiet, self.max_samples,
+                                   self._events)
+        self.seen += f.size
+        out = []
+        for code, index in self._events[:n_ev]:
+            out.extend(self._event(int(code), int(index)))
+        return out
+
+    def _segment(self, stop: int) -> p2p.Segment:
+        idx = np.arange(self._start, stop) % self.capacity
+        return p2p.prepare(self._force[idx], self._acc[idx], self.sample_rate,
+                           self.start_time + self._start / self.sample_rate, self._pre)
+
+    def _event(self, code: int, index: int) -> list[Identification]:
+        if code == trigger.EVENT_TRIGGER:
+            if index <= trigger.WARM_SAMPLES and self._last_close < 0:
+                self._start, self._pre = 0, 0
+            else:
+                self._start = max(index - p2p.PRE_SAMPLES, self._last_close + 1, 0)
+                self._pre = index - self._start
+            self._early = None
+            self.estimates = []
+            return []
+        if self._start is None:
+            return []
+        result = self._solve(index + 1)
+        if code == trigger.EVENT_CLOSE:
+            self._close(index)
+        return result
+
+    def _solve(self, stop: int) -> list[Identification]:
+        seg = self._segment(stop)
+        complete = sum(p.complete for p in seg.pulses)
+        new = []
+        try:
+            if self.variant == "robust" and self._early is None and complete >= 2:
+                self._early = p2p.solve(seg, "robust", self.gravity)
+                new.append(self._early)
+            needed = 3 if self.variant == "robust" else 2
+            if complete >= needed:
+                p2p.check_clipping(seg)
+                new.append(p2p.solve(seg, self.variant, self.gravity, early=self._early))
+        except IdentificationError:
+            return []
+        new = [r for r in new if not self.estimates or r != self.estimates[-1]]
+        self.estimates.extend(new)
+        return new
+
+    def _close(self, index: int) -> None:
+        if self.estimates:
+            self.completed.append(self.estimates[-1])
+        self._start = None
+        self._last_close = index
+
+    def finish(self) -> Identification | None:
+        """End of the stream: the final answer of the running impact (as the batch function gives it), or None."""
+        if self._start is not None:
+            self._solve(self.seen)
+            self._close(self.seen - 1)
+            return self.completed[-1] if self.completed else None
+        return self.completed[-1] if self.completed else None
+
+
+def stream_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64, **options) -> list[Identification]:
+    """Replay arrays through a :class:`StreamingIdentifier` in chunks; every estimate in order of availability."""
+    if not isinstance(chunk, int) or chunk < 1:
+        raise ParameterError(f"chunk must be an integer >= 1 [samples], got {chunk!r}")
+    ident = StreamingIdentifier(sample_rate, **options)
+    out = []
+    for k in range(0, len(force), chunk):
+        out.extend(ident.push(force[k:k + chunk], acceleration[k:k + chunk]))
+    ident.finish()
+    return out
