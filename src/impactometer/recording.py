@@ -63,7 +63,8 @@ class Recording:
                 raise RecordingError(f"{where}channel {name!r} must be a non-empty 1-D array, got shape {arr.shape}")
             bad = np.flatnonzero(~np.isfinite(arr))
             if bad.size:
-                raise RecordingError(f"{where}channel {name!r} has a non-finite sample ({arr[bad[0]]!r}) at index "
+                raise RecordingError(f"{where}channel {name!r} has a non-finite sample "
+                                     f"({float(arr[bad[0]])!r}) at index "
                                      f"{int(bad[0])}; expected finite numbers")
             if length is not None and arr.size != length:
                 raise RecordingError(f"{where}channels must have equal lengths, got {arr.size} samples in "

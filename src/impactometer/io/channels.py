@@ -129,7 +129,8 @@ def _finite(values: np.ndarray, name: str, source: str) -> np.ndarray:
         raise RecordingError(f"{source}: channel {name!r} must be a non-empty 1-D series, got shape {arr.shape}")
     bad = np.flatnonzero(~np.isfinite(arr))
     if bad.size:
-        raise RecordingError(f"{source}: channel {name!r} has a non-finite sample ({arr[bad[0]]!r}) at index "
+        raise RecordingError(f"{source}: channel {name!r} has a non-finite sample "
+                             f"({float(arr[bad[0]])!r}) at index "
                              f"{int(bad[0])}; expected finite numbers")
     return arr
 
