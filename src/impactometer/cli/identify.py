@@ -1,3 +1,141 @@
-"""Commands of this concept (registered on the shared typer app)."""
+"""``impactometer identify`` and ``impactometer stream``: identify M1 and V0 from a recorded file."""
 
-from .app import app  # noqa: F401
+from __future__ import annotations
+
+import json
+import time as clock
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.table import Table
+
+from ..errors import ParameterError
+from .app import app, console, output_path
+
+METHODS = ("peak-to-peak", "response-map")
+ForceOpt = Annotated[Optional[str], typer.Option("--force-channel", help="Name of the contact force channel.")]
+AccOpt = Annotated[Optional[str], typer.Option("--acceleration-channel", help="Name of the piston acceleration "
+                                                                             "channel.")]
+GroupOpt = Annotated[Optional[str], typer.Option("--group", help="HDF5/TDMS group holding the channels.")]
+CfcOpt = Annotated[Optional[int], typer.Option("--cfc", help="Apply a CFC filter (60, 180, 600, 1000) first.")]
+VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
+
+
+def load(path: Path, force_channel, acceleration_channel, group, cfc):
+    """Read the file with the reader's channel options, optionally CFC-filtered."""
+    from ..io import read_recording
+
+    rec = read_recording(path, force_channel=force_channel, acceleration_channel=acceleration_channel, group=group)
+    if cfc is not None:
+        from ..filters import filter_recording
+
+        rec = filter_recording(rec, cfc)
+    return rec
+
+
+def _row(table: Table, label: str, value: float | None, std: float | None, unit: str, fmt: str) -> None:
+    if value is None:
+        return
+    text = format(value, fmt) + (f" ± {format(std, fmt)}" if std is not None else "")
+    table.add_row(label, f"{text} {unit}")
+
+
+def _table(result: dict, title: str) -> Table:
+    table = Table(title=title, show_header=False)
+    for key, sub in (("final", result), ("early", result.get("early"))):
+        if not sub:
+            continue
+        prefix = "" if key == "final" else "early: "
+        _row(table, prefix + "mass M1", sub["mass_kg"], sub.get("mass_std_kg"), "kg", ".4g")
+        _row(table, prefix + "velocity V0", sub["velocity_m_s"], sub.get("velocity_std_m_s"), "m/s", ".4g")
+        _row(table, prefix + "energy", sub["energy_J"], sub.get("energy_std_J"), "J", ".4g")
+        if sub.get("available_at_s") is not None:
+            table.add_row(prefix + "available at", f"{sub['available_at_s'] * 1e3:.3f} ms")
+    for key in ("t00_s", "t01_s", "t11_s"):
+        if result.get(key) is not None:
+            table.add_row(key[:-2], f"{result[key] * 1e3:.3f} ms")
+    return table
+
+
+@app.command()
+def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms, mat).")],
+             method: Annotated[str, typer.Option("--method", help="peak-to-peak or response-map.")] = "peak-to-peak",
+             variant: VariantOpt = "robust",
+             map_path: Annotated[Optional[Path], typer.Option("--map", help="Response map (.h5).")] = None,
+             search: Annotated[str, typer.Option("--search", help="Map search: fast or brute.")] = "fast",
+             allow_extrapolation: Annotated[bool, typer.Option("--allow-extrapolation")] = False,
+             as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+             plot: Annotated[Optional[Path], typer.Option("--plot", help="Save a figure of the instants used.")] = None,
+             force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
+             force_channel: ForceOpt = None, acceleration_channel: AccOpt = None, group: GroupOpt = None,
+             cfc: CfcOpt = None) -> None:
+    """Identify the impacting mass and velocity of the first impact in FILE."""
+    if method not in METHODS:
+        raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
+    output_path(plot, force, field="--plot")
+    rec = load(file, force_channel, acceleration_channel, group, cfc)
+    if method == "response-map":
+        if map_path is None:
+            raise ParameterError("--method response-map needs --map FILE (a response map built with build-map)")
+        from ..identify.response_map import identify_recording
+
+        result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation)
+    else:
+        from ..identify.peak_to_peak import identify as identify_p2p
+
+        result = identify_p2p(rec, variant=variant)
+    data = result.to_dict()
+    if as_json:
+        typer.echo(json.dumps(data))
+    else:
+        console.print(_table(data, f"{file.name}: {method} ({data.get('variant', '')})"))
+    if plot is not None:
+        if method != "peak-to-peak":
+            raise ParameterError("--plot is available for --method peak-to-peak")
+        result.plot(rec).savefig(plot, dpi=120)
+        if not as_json:
+            console.print(f"figure written to {plot}")
+
+
+@app.command()
+def stream(file: Annotated[Path, typer.Argument(help="Recording to replay.")],
+           variant: VariantOpt = "robust",
+           chunk: Annotated[int, typer.Option("--chunk", help="Samples per push.")] = 64,
+           realtime: Annotated[bool, typer.Option("--realtime", help="Replay at the file's sample rate.")] = False,
+           as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate.")] = False,
+           force_channel: ForceOpt = None, acceleration_channel: AccOpt = None, group: GroupOpt = None,
+           cfc: CfcOpt = None) -> None:
+    """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
+    from ..identify.streaming import StreamingIdentifier
+
+    if chunk < 1:
+        raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
+    rec = load(file, force_channel, acceleration_channel, group, cfc)
+    f, a = rec.contact_force, rec.piston_acceleration
+    ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time)
+    t_wall = clock.perf_counter()
+    for k in range(0, f.size, chunk):
+        if realtime:
+            lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
+            if lag > 0:
+                clock.sleep(lag)
+        for est in ident.push(f[k:k + chunk], a[k:k + chunk]):
+            _print_estimate(est, as_json)
+    before = len(ident.completed)
+    ident.finish()
+    if len(ident.completed) == before and not ident.estimates:
+        console.print("no estimate: the stream holds no impact with enough contact pulses")
+
+
+def _print_estimate(est, as_json: bool) -> None:
+    d = est.to_dict()
+    kind = "early" if est.early is None and est.variant == "robust" and est.details.get("onset_rows") == -1 \
+        else "estimate"
+    if as_json:
+        d.pop("early", None)
+        d["kind"] = kind
+        typer.echo(json.dumps(d))
+        return
+    console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {est.mass:8.3f} ± {est.mass_std:.3f} kg  "
+                  f"V0 = {est.velocity:6.4f} ± {est.velocity_std:.4f} m/s  E = {est.energy:8.2f} J", highlight=False)

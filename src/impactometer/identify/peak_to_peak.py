@@ -108,6 +108,9 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     else:
         n_pre, f0, a0 = 0, 0.0, 0.0
         sf, sa = noise_std(force), noise_std(acceleration)
+    # resolution floor: exact (simulated) data still carry rounding and interpolation errors
+    sf = max(sf, 1e-6 * float(np.max(np.abs(force))))
+    sa = max(sa, 1e-6 * float(np.max(np.abs(acceleration))))
     f = force - f0
     a = acceleration - a0
     pulses = detect_pulses(f, sf)

@@ -25,6 +25,8 @@ COARSE = 16
 STARTS = 3
 #: how far outside the map the fast search may look [fraction of each axis range]
 EXTENSION = 0.25
+#: answers this far beyond an edge still count as inside the map [fraction of the axis range]
+EDGE_TOLERANCE = 0.005
 SEARCHES = ("fast", "brute")
 
 
@@ -246,7 +248,7 @@ def fast_tables(rmap: ResponseMap) -> tuple[np.ndarray, ...]:
             for b in range(COARSE):
                 surface(herm, xm, xv, p, w, 1, cm[a], cv[b], out, gm, gv)
                 coarse[:, p, a, b] = out
-    slack_m, slack_v = 1e-9 * (xm[-1] - xm[0]), 1e-9 * (xv[-1] - xv[0])
+    slack_m, slack_v = EDGE_TOLERANCE * (xm[-1] - xm[0]), EDGE_TOLERANCE * (xv[-1] - xv[0])
     inside = (float(xm[0] - slack_m), float(xm[-1] + slack_m), float(xv[0] - slack_v), float(xv[-1] + slack_v))
     tables = (np.ascontiguousarray(herm), xm.copy(), xv.copy(), coarse, cm, cv, inside)
     rmap._cache["fast"] = tables

@@ -95,15 +95,14 @@ def solve_onsets(kin: Kinematics, onsets, onset_std, *, noise_force, noise_accel
     a = np.column_stack([tau, -i_f])
     b = da - g * tau ** 2 / 2.0
     kernel = white_kernel(tau, kin.dt)
-    offset = np.outer(tau ** 2, tau ** 2) / 4.0 / pre_samples if pre_samples > 0 else 0.0
     std_t0 = kin.onset_std0 * kin.dt
     theta = np.linalg.lstsq(a, b, rcond=None)[0]
     for _ in range(3):
         v0, w = theta
         w = max(w, 0.0)
         closing = np.maximum(v0 + g * tau - w * jf - va, 0.0)
-        cov = (noise_acceleration ** 2 + (w * noise_force) ** 2) * (kernel + offset)
-        cov = cov + np.diag((closing * np.asarray(onset_std) * kin.dt) ** 2) + (v0 * std_t0) ** 2
+        white = (noise_acceleration ** 2 + (w * noise_force) ** 2)
+        cov = white * kernel + np.diag((closing * np.asarray(onset_std) * kin.dt) ** 2) + (v0 * std_t0) ** 2
         cov = cov + np.diag(np.full(tau.size, 1e-30 + 1e-12 * float(np.max(np.abs(b))) ** 2))
         chol = np.linalg.cholesky(cov)
         aw = np.linalg.solve(chol, a)
@@ -112,7 +111,15 @@ def solve_onsets(kin: Kinematics, onsets, onset_std, *, noise_force, noise_accel
     resid = bw - aw @ theta
     chi2 = float(resid @ resid)
     dof = tau.size - 2
-    cov_theta = np.linalg.inv(aw.T @ aw)
+    # the offsets left after the pre-trigger correction act on every row alike (∝ τ²): weighting by them would
+    # trade the mass against an offset, so they enter the error only (sandwich covariance)
+    bread = np.linalg.inv(aw.T @ aw)
+    cov_theta = bread
     if dof > 0:
         cov_theta = cov_theta * max(1.0, chi2 / dof)
+    if pre_samples > 0:
+        gain = bread @ aw.T @ np.linalg.inv(chol)  # d theta / d b
+        shape = tau ** 2 / 2.0
+        spread = (noise_acceleration ** 2 + (w * noise_force) ** 2) / pre_samples
+        cov_theta = cov_theta + spread * np.outer(gain @ shape, gain @ shape)
     return theta, cov_theta, chi2, dof
