@@ -29,6 +29,8 @@ WAVEFORM_PROPERTIES = ("wf_samples", "wf_start_time", "unit_string", "NI_Channel
 def _group(tdms: TdmsFile, group: str | None, source: str):
     groups = tdms.groups()
     names = [g.name for g in groups]
+    if not groups:
+        raise RecordingError(f"{source}: no TDMS groups found; expected a group holding one channel per signal")
     if group is not None:
         for g in groups:
             if g.name == group:
