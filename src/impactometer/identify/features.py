@@ -87,6 +87,20 @@ def _check_signals(time, forces) -> tuple[np.ndarray, np.ndarray]:
     return time, forces
 
 
+def smoothed(forces: np.ndarray, smoothing: float, dt: float) -> np.ndarray:
+    """Savitzky-Golay (quadratic) smoothing over ``smoothing`` [s] along the last axis; peaks keep their height.
+
+    The same smoothing is applied to the map's signals and to the measurement, so what bias remains cancels.
+    """
+    samples = int(round(smoothing / dt)) | 1
+    if samples < 5:
+        return forces
+    from scipy.signal import savgol_filter
+
+    return savgol_filter(forces, min(samples, forces.shape[-1] - (1 - forces.shape[-1] % 2)), 2, axis=-1,
+                         mode="interp")
+
+
 def _refined_peak(y: np.ndarray, idx: np.ndarray, low: int, high: int) -> np.ndarray:
     """Parabolic refinement of the sampled maxima ``y[r, idx[r]]`` (rows), within samples [low, high)."""
     rows = np.arange(y.shape[0])
@@ -102,7 +116,7 @@ def _refined_peak(y: np.ndarray, idx: np.ndarray, low: int, high: int) -> np.nda
     return peak
 
 
-def max_impulse(time, forces, *, window: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+def max_impulse(time, forces, *, window: float = 0.02, smoothing: float = 5e-4) -> tuple[np.ndarray, np.ndarray]:
     """Maximum contact force [N] and impulse ∫Fc dt [N·s] over [0, ``window``] after first contact.
 
     Parameters
@@ -113,6 +127,8 @@ def max_impulse(time, forces, *, window: float = 0.02) -> tuple[np.ndarray, np.n
         Contact force [N].
     window : float
         Integration window T [s].
+    smoothing : float
+        Length of the quadratic Savitzky-Golay smoothing applied before taking the maximum [s] (0: none).
 
     Returns
     -------
@@ -128,12 +144,12 @@ def max_impulse(time, forces, *, window: float = 0.02) -> tuple[np.ndarray, np.n
                                f"'max-impulse' with window {window * 1e3:.3g} ms needs at least that long")
     i0 = int(np.searchsorted(time, 0.0))
     i1 = int(np.searchsorted(time, window + 0.5 * dt, side="right"))
-    part = forces[:, i0:i1]
-    if part.shape[1] < 2:
+    if i1 - i0 < 2:
         raise ResponseMapError(f"window {window!r} s holds fewer than 2 samples; expected a window of several "
                                f"sample periods ({dt:g} s)")
+    part = smoothed(forces[:, :i1], smoothing, dt)[:, i0:]
     peak = _refined_peak(part, np.argmax(part, axis=1), 0, part.shape[1])
-    impulse = np.trapezoid(part, time[i0:i1], axis=1)
+    impulse = np.trapezoid(forces[:, i0:i1], time[i0:i1], axis=1)
     return np.column_stack([peak, impulse]), np.full(forces.shape[0], float(window))
 
 
@@ -175,7 +191,8 @@ def _two_pulses(forces, i0, min_samples, fraction, out_index, out_end):
                 start = k
 
 
-def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4) -> tuple[np.ndarray, np.ndarray]:
+def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4,
+          smoothing: float = 5e-4) -> tuple[np.ndarray, np.ndarray]:
     """Amplitudes of the first two contact-force peaks [N] (stage A).
 
     Parameters
@@ -189,6 +206,8 @@ def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4) -
         fraction of the first peak (hysteresis against noise) [-].
     min_duration : float
         Shortest pulse [s]; shorter dips are not taken as the end of a pulse.
+    smoothing : float
+        Length of the quadratic Savitzky-Golay smoothing applied before the search [s] (0: none).
 
     Returns
     -------
@@ -200,6 +219,7 @@ def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4) -
     time, forces = _check_signals(time, forces)
     dt = float(np.median(np.diff(time)))
     i0 = int(np.searchsorted(time, 0.0))
+    forces = smoothed(forces, smoothing, dt)
     index = np.empty((forces.shape[0], 2), dtype=np.int64)
     end = np.empty(forces.shape[0], dtype=np.int64)
     _two_pulses(forces, i0, max(1, int(round(min_duration / dt))), fraction, index, end)
@@ -215,11 +235,13 @@ def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4) -
 #: feature-set name -> FeatureSet
 FEATURE_SETS: dict[str, FeatureSet] = {
     "peaks": FeatureSet(name="peaks", labels=("first_peak", "second_peak"), units=("N", "N"),
-                        defaults={"fraction": 0.05, "min_duration": 5e-4},
-                        limits={"fraction": (1e-3, 0.5), "min_duration": (0.0, 0.05)}, extract=peaks,
+                        defaults={"fraction": 0.05, "min_duration": 5e-4, "smoothing": 5e-4},
+                        limits={"fraction": (1e-3, 0.5), "min_duration": (0.0, 0.05), "smoothing": (0.0, 0.01)},
+                        extract=peaks,
                         description="amplitudes of the first two contact-force peaks"),
     "max-impulse": FeatureSet(name="max-impulse", labels=("max_force", "impulse"), units=("N", "N*s"),
-                              defaults={"window": 0.02}, limits={"window": (1e-4, 1.0)}, extract=max_impulse,
+                              defaults={"window": 0.02, "smoothing": 5e-4},
+                              limits={"window": (1e-4, 1.0), "smoothing": (0.0, 0.01)}, extract=max_impulse,
                               description="maximum contact force and impulse over a window T after first contact"),
 }
 

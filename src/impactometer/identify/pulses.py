@@ -70,6 +70,8 @@ def stage_b_start(pulses: list[Pulse]) -> float | None:
 DETECT_SIGMAS = 5.0
 #: a pulse ends (and a gap may begin) where the force falls below this many noise standard deviations
 RELEASE_SIGMAS = 2.0
+#: a pulse ends only after this many consecutive samples below the release level
+HOLD = 3
 #: resolution floor relative to the largest force when the record is free of noise [-]
 FLOOR_FRACTION = 1e-5
 
@@ -130,11 +132,15 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     above = np.flatnonzero(f > detect)
     while above.size:
         first = int(above[0])
-        below = np.flatnonzero(f[first:] <= release)
+        low = f[first:] <= release
+        held = low[:low.size - HOLD + 1].copy()
+        for k in range(1, HOLD):
+            held &= low[k:low.size - HOLD + 1 + k]
+        below = np.flatnonzero(held)
         end = first + int(below[0]) if below.size else -1
         if spans and spans[-1][3] >= 0:
-            gap = f[spans[-1][3]:first]
-            if gap.size == 0 or gap.mean() > 3.0 * sigma / np.sqrt(gap.size):
+            gap = f[spans[-1][3] + HOLD:max(first - HOLD, spans[-1][3] + HOLD)]
+            if gap.size > 0 and gap.mean() > 3.0 * sigma / np.sqrt(gap.size):
                 spans[-1][3] = end  # not a separation: same pulse
                 first = -1
         if first >= 0:

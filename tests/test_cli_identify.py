@@ -1,0 +1,56 @@
+"""``impactometer identify`` and ``stream`` on a recording file written in the test."""
+
+import json
+
+import numpy as np
+import pytest
+
+from impactometer.cli import main
+from impactometer.io import write_recording
+from impactometer.model import simulate
+from impactometer.recording import Recording
+from impactometer.rig import Scenario
+
+
+@pytest.fixture(scope="module")
+def rec_file(tmp_path_factory):
+    r = simulate(Scenario(mass=25, velocity=1.8, pressure_gauge=1.5e5), duration=0.08)
+    pre = np.zeros(1000)
+    rec = Recording(sample_rate=50e3, channels={"contact_force": np.r_[pre, r.contact_force],
+                                                "piston_acceleration": np.r_[pre, r.a2]},
+                    start_time=-0.02, metadata={"mass_kg": 25.0, "velocity_m_s": 1.8}, source="test")
+    path = tmp_path_factory.mktemp("rec") / "drop.h5"
+    write_recording(rec, path)
+    return path
+
+
+def test_identify_json(rec_file, capsys):
+    main(["identify", str(rec_file), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert data["mass_kg"] == pytest.approx(25.0, rel=5e-3)
+    assert data["velocity_m_s"] == pytest.approx(1.8, rel=2e-3)
+    assert data["method"] == "peak-to-peak" and data["variant"] == "robust"
+    assert data["early"]["available_at_s"] < data["available_at_s"]
+    main(["identify", str(rec_file), "--json", "--variant", "paper"])
+    assert json.loads(capsys.readouterr().out)["variant"] == "paper"
+
+
+def test_identify_table_plot_and_stream(rec_file, tmp_path, capsys):
+    out = tmp_path / "fig.png"
+    main(["identify", str(rec_file), "--plot", str(out)])
+    assert out.stat().st_size > 1000 and "mass M1" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        main(["identify", str(rec_file), "--plot", str(out)])  # exists, no --force
+    assert exc.value.code == 2
+    main(["stream", str(rec_file), "--json", "--chunk", "64"])
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
+    assert lines[0]["kind"] == "early" and lines[-1]["mass_kg"] == pytest.approx(25.0, rel=5e-3)
+
+
+def test_errors_exit_2(rec_file, tmp_path, capsys):
+    for argv in (["identify", str(rec_file), "--method", "magic"], ["identify", str(rec_file), "--method",
+                                                                     "response-map"]):
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2
+    assert "--map" in capsys.readouterr().out

@@ -1,0 +1,113 @@
+"""Round trips of the peak-to-peak identification on simulated drop tests (noise-free and noisy), bad input."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from impactometer.errors import IdentificationError
+from impactometer.identify.peak_to_peak import identify, identify_arrays
+from impactometer.model import simulate
+from impactometer.recording import Recording
+from impactometer.rig import Scenario, get_rig
+
+FS = 50e3
+PRE = 1000  # pre-trigger samples (20 ms)
+
+
+def drop(mass, velocity, pressure, contact, *, noise=0.0, seed=0, duration=0.1):
+    r = simulate(Scenario(mass=mass, velocity=velocity, pressure_gauge=pressure), get_rig(None, contact=contact),
+                 duration=duration, sample_rate=FS)
+    rng = np.random.default_rng(seed)
+    f = np.r_[np.zeros(PRE), r.contact_force]
+    a = np.r_[np.zeros(PRE), r.a2]
+    f = f + noise * np.sqrt(np.mean(r.contact_force ** 2)) * rng.standard_normal(f.size)
+    a = a + noise * np.sqrt(np.mean(r.a2 ** 2)) * rng.standard_normal(a.size)
+    return f, a, -PRE / FS
+
+
+CASES = [(10.0, 1.0, 20e3), (30.0, 2.0, 200e3), (50.0, 3.0, 400e3)]
+
+
+@pytest.mark.parametrize("contact", ["kv", "hunt"])
+@pytest.mark.parametrize("mass,velocity,pressure", CASES)
+def test_robust_noise_free_round_trip(contact, mass, velocity, pressure):
+    """Noise-free: final mass within 0.5 %, velocity within 0.2 %; early within 3 ms of t11, mass 3 %."""
+    f, a, t0 = drop(mass, velocity, pressure, contact)
+    res = identify_arrays(f, a, FS, t0)
+    assert abs(res.mass / mass - 1) < 5e-3
+    assert abs(res.velocity / velocity - 1) < 2e-3
+    assert abs(res.t00) < 2.0 / FS  # first contact is t = 0 of the simulation
+    early = res.early
+    assert early is not None and early.available_at - early.t11 <= 3e-3
+    assert abs(early.mass / mass - 1) < 0.03 and abs(early.velocity / velocity - 1) < 6e-3
+    assert early.available_at < res.available_at
+
+
+@pytest.mark.parametrize("contact,low,high", [("kv", -0.08, -0.02), ("hunt", -0.45, -0.15)])
+def test_paper_variant_shows_the_published_bias(contact, low, high):
+    """Eq. (5) assumes equal velocities at the force peaks: V0 comes out low, more so with Hunt-Crossley."""
+    f, a, t0 = drop(30.0, 2.0, 200e3, contact)
+    res = identify_arrays(f, a, FS, t0, variant="paper")
+    assert low < res.velocity / 2.0 - 1 < high
+    assert res.available_at == res.t11 and res.variant == "paper" and res.early is None
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_robust_with_force_noise_covers_truth(seed):
+    """2 % noise on the force: within 3 standard errors (and 5 %) of the truth."""
+    f, a, t0 = drop(30.0, 2.0, 200e3, "hunt", seed=seed)
+    rng = np.random.default_rng(seed)
+    f = f + 0.02 * np.sqrt(np.mean(f ** 2)) * rng.standard_normal(f.size)
+    res = identify_arrays(f, a, FS, t0)
+    assert abs(res.mass - 30.0) < max(3 * res.mass_std, 0.01 * 30) and abs(res.mass / 30 - 1) < 0.05
+    assert abs(res.velocity - 2.0) < max(3 * res.velocity_std, 0.002 * 2)
+
+
+def test_recording_wrapper_and_dict_keys():
+    f, a, t0 = drop(20.0, 1.5, 100e3, "kv")
+    rec = Recording(sample_rate=FS, channels={"contact_force": f, "piston_acceleration": a}, start_time=t0)
+    res = identify(rec)
+    assert res == identify_arrays(f, a, FS, t0)
+    d = res.to_dict()
+    for key in ("mass_kg", "velocity_m_s", "energy_J", "mass_std_kg", "velocity_std_m_s", "available_at_s",
+                "t00_s", "t01_s", "t11_s", "method", "variant", "early"):
+        assert key in d
+    assert d["method"] == "peak-to-peak" and set(d["early"]) >= {"mass_kg", "velocity_m_s", "available_at_s"}
+    assert d["energy_J"] == pytest.approx(0.5 * d["mass_kg"] * d["velocity_m_s"] ** 2)
+
+
+def test_bad_input_messages():
+    f, a, t0 = drop(30.0, 2.0, 200e3, "kv")
+    with pytest.raises(IdentificationError, match="no impact"):
+        identify_arrays(np.zeros(3000) + np.random.default_rng(0).normal(0, 1, 3000), a[:3000], FS)
+    with pytest.raises(IdentificationError, match="ms more signal"):
+        identify_arrays(f[:PRE + 900], a[:PRE + 900], FS, t0)  # one pulse only
+    with pytest.raises(IdentificationError, match="constant"):
+        identify_arrays(f, np.full(f.size, 1.0), FS)
+    bad = f.copy()
+    bad[5] = np.nan
+    with pytest.raises(IdentificationError, match="index 5"):
+        identify_arrays(bad, a, FS)
+    with pytest.raises(IdentificationError, match="saturated"):
+        identify_arrays(np.minimum(f, 0.6 * f.max()), a, FS, t0)
+    rec = Recording(sample_rate=FS, channels={"contact_force": f})
+    with pytest.raises(IdentificationError, match="piston_acceleration"):
+        identify(rec)
+    with pytest.raises(IdentificationError, match="variant"):
+        identify_arrays(f, a, FS, variant="magic")
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.sampled_from([64, 500, 3000]), st.floats(0.0, 1e4))
+def test_random_signals_never_give_silent_nonsense(seed, n, scale):
+    """Random force/acceleration: an IdentificationError or finite, positive estimates -- never NaN."""
+    rng = np.random.default_rng(seed)
+    f = scale * rng.random(n) ** 8
+    a = rng.standard_normal(n)
+    for variant in ("robust", "paper"):
+        try:
+            res = identify_arrays(f, a, FS, variant=variant)
+        except IdentificationError:
+            continue
+        assert np.isfinite(res.mass) and res.mass > 0 and np.isfinite(res.velocity)

@@ -1,0 +1,66 @@
+"""The streaming identifier agrees with the batch function sample for sample and re-arms between impacts."""
+
+import numpy as np
+import pytest
+
+from impactometer.errors import IdentificationError, ParameterError
+from impactometer.identify.peak_to_peak import identify_arrays
+from impactometer.identify.streaming import StreamingIdentifier, stream_arrays
+from impactometer.model import simulate
+from impactometer.rig import Scenario
+
+FS = 50e3
+
+
+def impact(mass, velocity, seed, pre=2000):
+    r = simulate(Scenario(mass=mass, velocity=velocity, pressure_gauge=2e5), duration=0.08, sample_rate=FS)
+    rng = np.random.default_rng(seed)
+    f = np.r_[np.zeros(pre), r.contact_force] + 20.0 * rng.standard_normal(pre + r.time.size)
+    a = np.r_[np.zeros(pre), r.a2] + 5.0 * rng.standard_normal(pre + r.time.size)
+    return f, a
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 64, 4096])
+def test_streaming_equals_batch(chunk):
+    f, a = impact(30.0, 2.0, seed=3)
+    batch = identify_arrays(f, a, FS, -0.04)
+    ident = StreamingIdentifier(FS, start_time=-0.04)
+    got = []
+    for k in range(0, f.size, chunk):
+        got.extend(ident.push(f[k:k + chunk], a[k:k + chunk]))
+    final = ident.finish()
+    assert final == batch  # identical numbers, early answer included
+    assert got[0] == batch.early and got[0].available_at < got[-1].available_at
+    assert [e.available_at for e in got] == sorted(e.available_at for e in got)
+
+
+def test_rearms_for_the_next_impact_with_constant_memory():
+    f1, a1 = impact(20.0, 1.5, seed=1)
+    f2, a2 = impact(40.0, 2.5, seed=2)
+    quiet = np.random.default_rng(0).normal(0, 20.0, 20000)
+    f = np.r_[f1, quiet, f2, quiet]
+    a = np.r_[a1, np.random.default_rng(1).normal(0, 5.0, 20000), a2, np.random.default_rng(2).normal(0, 5.0, 20000)]
+    ident = StreamingIdentifier(FS)
+    buffers = (ident._force.nbytes, ident._acc.nbytes)
+    stream = []
+    for k in range(0, f.size, 64):
+        stream.extend(ident.push(f[k:k + 64], a[k:k + 64]))
+    ident.finish()
+    assert len(ident.completed) == 2
+    assert ident.completed[0].mass == pytest.approx(20.0, rel=0.05)
+    assert ident.completed[1].mass == pytest.approx(40.0, rel=0.05)
+    assert ident.completed[1].velocity == pytest.approx(2.5, rel=0.01)
+    assert (ident._force.nbytes, ident._acc.nbytes) == buffers
+    assert stream_arrays(f, a, FS, chunk=256)[-1] == ident.completed[1]
+
+
+def test_bad_chunks():
+    ident = StreamingIdentifier(FS)
+    with pytest.raises(IdentificationError, match="equal length"):
+        ident.push(np.zeros(3), np.zeros(4))
+    with pytest.raises(IdentificationError, match="non-finite"):
+        ident.push(np.array([0.0, np.inf]), np.zeros(2))
+    with pytest.raises(ParameterError, match="variant"):
+        StreamingIdentifier(FS, variant="x")
+    with pytest.raises(ParameterError, match="sample_rate"):
+        StreamingIdentifier(-1.0)
