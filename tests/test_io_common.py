@@ -1,0 +1,117 @@
+"""Format dispatch, overwrite protection, read-only reading and calibration sets."""
+
+import hashlib
+import os
+
+import numpy as np
+import pytest
+
+from impactometer.errors import RecordingError
+from impactometer.io import FORMATS, read_calibration_set, read_recording, write_recording
+from impactometer.recording import Recording
+
+EXTENSIONS = (".csv", ".h5", ".tdms", ".mat")
+
+
+def _rec(mass=None, **extra):
+    rng = np.random.default_rng(0)
+    metadata = {} if mass is None else {"mass_kg": mass, "velocity_m_s": 2.0}
+    return Recording(sample_rate=10e3, channels={"contact_force": rng.random(40),
+                                                 "piston_acceleration": rng.normal(size=40)},
+                     metadata=metadata | extra)
+
+
+@pytest.mark.parametrize("ext", EXTENSIONS)
+def test_writing_refuses_to_overwrite_unless_asked(tmp_path, ext):
+    path = write_recording(_rec(1.0), tmp_path / f"r{ext}")
+    before = path.read_bytes()
+    with pytest.raises(RecordingError, match="exists; pass overwrite=True"):
+        write_recording(_rec(2.0), path)
+    assert path.read_bytes() == before
+    write_recording(_rec(2.0), path, overwrite=True)
+    assert read_recording(path).truth("mass_kg") == 2.0
+    assert not [p for p in tmp_path.iterdir() if "partial" in p.name]
+
+
+def test_csv_sidecar_is_protected_too(tmp_path):
+    (tmp_path / "r.json").write_text("{}")
+    with pytest.raises(RecordingError, match=r"r\.json: exists"):
+        write_recording(_rec(), tmp_path / "r.csv")
+    assert not (tmp_path / "r.csv").exists()
+
+
+@pytest.mark.parametrize("ext", EXTENSIONS)
+def test_reading_never_modifies_the_file(tmp_path, ext):
+    path = write_recording(_rec(3.0), tmp_path / f"r{ext}")
+    stamp = os.stat(path).st_mtime_ns
+    digest = hashlib.sha256(path.read_bytes()).hexdigest()
+    listing = sorted(p.name for p in tmp_path.iterdir())
+    read_recording(path)
+    assert os.stat(path).st_mtime_ns == stamp
+    assert hashlib.sha256(path.read_bytes()).hexdigest() == digest
+    assert sorted(p.name for p in tmp_path.iterdir()) == listing
+
+
+def test_unknown_extension_missing_file_and_bad_options(tmp_path):
+    with pytest.raises(RecordingError, match=r"unknown extension '\.xlsx'; expected one of \.csv"):
+        read_recording(tmp_path / "r.xlsx")
+    with pytest.raises(RecordingError, match="unknown extension"):
+        write_recording(_rec(), tmp_path / "r.bin")
+    with pytest.raises(RecordingError, match="no such file"):
+        read_recording(tmp_path / "missing.csv")
+    path = write_recording(_rec(), tmp_path / "r.csv")
+    with pytest.raises(RecordingError, match="group='g' applies to HDF5 and TDMS files only"):
+        read_recording(path, group="g")
+    with pytest.raises(RecordingError, match="flip_force must be True or False"):
+        read_recording(path, flip_force="yes")
+    with pytest.raises(RecordingError, match="folder .* does not exist"):
+        write_recording(_rec(), tmp_path / "nowhere" / "r.csv")
+    assert set(FORMATS.values()) == {"csv", "hdf5", "tdms", "mat"}
+
+
+def test_calibration_set_with_manifest_overriding_metadata(tmp_path):
+    write_recording(_rec(5.0), tmp_path / "a.csv")
+    write_recording(_rec(6.0), tmp_path / "b.h5")
+    write_recording(_rec(), tmp_path / "c.tdms")
+    (tmp_path / "manifest.csv").write_text("file,mass_kg,velocity_m_s,pressure_gauge_Pa\n"
+                                           "b.h5,60.5,3.5,150000\nc.tdms,7,1.25,\n")
+    recs = read_calibration_set(tmp_path)
+    assert [r.source.rsplit("/", 1)[-1] for r in recs] == ["a.csv", "b.h5", "c.tdms"]
+    assert [r.truth("mass_kg") for r in recs] == [5.0, 60.5, 7.0]
+    assert [r.truth("velocity_m_s") for r in recs] == [2.0, 3.5, 1.25]
+    assert recs[1].truth("pressure_gauge_Pa") == 150000.0 and recs[2].truth("pressure_gauge_Pa") is None
+
+
+def test_explicit_manifest_outside_the_folder(tmp_path):
+    folder = tmp_path / "set"
+    folder.mkdir()
+    write_recording(_rec(), folder / "a.mat")
+    manifest = tmp_path / "truth.csv"
+    manifest.write_text("file,mass_kg,velocity_m_s\na.mat,8,2.5\n")
+    (rec,) = read_calibration_set(folder, manifest)
+    assert rec.truth("mass_kg") == 8.0
+
+
+@pytest.mark.parametrize("manifest, match", [
+    ("file,mass_kg\na.csv,3\n", r"lacks column\(s\) \['velocity_m_s'\]"),
+    ("file,mass_kg,velocity_m_s\na.csv,heavy,2\n", "line 2: mass_kg must be a number, got 'heavy'"),
+    ("file,mass_kg,velocity_m_s\na.csv,-3,2\n", "mass_kg must be a finite number >= 0"),
+    ("file,mass_kg,velocity_m_s\nz.csv,3,2\n", r"file\(s\) \['z.csv'\] not found"),
+    ("file,mass_kg,velocity_m_s\na.csv,3,2\na.csv,3,2\n", "distinct non-empty name"),
+    ("file,mass_kg,velocity_m_s\n", "manifest has no rows"),
+])
+def test_bad_manifest(tmp_path, manifest, match):
+    write_recording(_rec(), tmp_path / "a.csv")
+    (tmp_path / "manifest.csv").write_text(manifest)
+    with pytest.raises(RecordingError, match=match):
+        read_calibration_set(tmp_path)
+
+
+def test_empty_or_missing_folder(tmp_path):
+    with pytest.raises(RecordingError, match="no recordings"):
+        read_calibration_set(tmp_path)
+    with pytest.raises(RecordingError, match="not a folder"):
+        read_calibration_set(tmp_path / "none")
+    write_recording(_rec(), tmp_path / "a.csv")
+    with pytest.raises(RecordingError, match="manifest does not exist"):
+        read_calibration_set(tmp_path, tmp_path / "m.csv")
