@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..plotting import _pyplot
-from .tables import Row, finite_values, group_stats, pick
+from .tables import Row, group_stats, pick
 
 #: colour per compared method
 COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "brute": "tab:red",
@@ -23,23 +23,28 @@ def _methods(rows: Sequence[Row], column: str = "method") -> list[str]:
 
 
 def plot_peak_force(rows: Sequence[Row]):
-    """Simulated first-pulse peak force vs the two-body closed form, per case."""
+    """Simulated and recorded first-pulse peak force vs the two-body closed form, per case."""
     plt = _pyplot()
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    closed = finite_values(rows, "closed_form_peak_force")
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
+    closed = np.array([r["closed_form_peak_force"] for r in rows], dtype=float)
     simulated = np.array([r["simulated_peak_force"] for r in rows], dtype=float)
-    mass = np.array([r["mass"] for r in rows])
-    sc = ax[0].scatter(closed / 1e3, simulated / 1e3, c=mass, cmap="viridis", s=14)
-    lim = [0, max(closed.max(), np.nanmax(simulated)) / 1e3 * 1.05] if closed.size else [0, 1]
-    ax[0].plot(lim, lim, "k--", lw=0.8, label="equal")
-    ax[0].set(xlabel="closed form peak force [kN]", ylabel="simulated peak force [kN]", xlim=lim, ylim=lim)
-    ax[0].legend()
+    recorded = np.array([r["recorded_peak_force"] for r in rows], dtype=float)
+    mass = np.array([r["mass"] for r in rows], dtype=float)
+    sc = ax[0].scatter(closed / 1e3, simulated / 1e3, c=mass, cmap="viridis", s=14, label="simulated (1 MHz)")
+    ax[0].scatter(closed / 1e3, recorded / 1e3, c="none", edgecolors="tab:red", s=22, lw=0.7,
+                  label="recorded by the DAQ")
+    top = np.nanmax(np.concatenate([closed, simulated, recorded])) / 1e3 * 1.05 if closed.size else 1.0
+    ax[0].plot([0, top], [0, top], "k--", lw=0.8, label="equal")
+    ax[0].set(xlabel="closed form peak force [kN]", ylabel="first-pulse peak force [kN]", xlim=(0, top),
+              ylim=(0, top))
+    ax[0].legend(fontsize=8)
     fig.colorbar(sc, ax=ax[0], label="M1 [kg]")
-    ax[1].scatter(mass, (simulated / np.maximum(np.array([r["closed_form_peak_force"] for r in rows]), 1e-30) - 1)
-                  * 100, s=14, c=[r["pressure_gauge"] / 1e3 for r in rows], cmap="plasma")
+    pressure = np.array([r["pressure_gauge"] for r in rows], dtype=float) / 1e3
+    sc2 = ax[1].scatter(mass, (simulated / closed - 1) * 100, s=14, c=pressure, cmap="plasma")
     ax[1].axhline(0, color="k", lw=0.8)
     ax[1].set(xlabel="M1 [kg]", ylabel="simulated / closed form − 1 [%]")
-    fig.suptitle("First contact pulse: simulator vs two-body closed form")
+    fig.colorbar(sc2, ax=ax[1], label="p0 [kPa]")
+    fig.suptitle("First contact pulse: simulator and DAQ vs the two-body closed form")
     return fig
 
 

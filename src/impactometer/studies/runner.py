@@ -202,7 +202,9 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     key = options.key(name)
     folder = store.prepare_folder(out, name, key, options.to_dict(), force=force)
     cases = indexed_cases(study, options)
-    size = study.chunk_size
+    size = options.param(name, "chunk_size", study.chunk_size)
+    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
+        raise ParameterError(f"{name}.chunk_size must be an integer >= 1, got {size!r}")
     chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
     results: dict[int, tuple[list[Row], float]] = {}
     for index, chunk in enumerate(chunks):

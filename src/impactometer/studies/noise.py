@@ -1,0 +1,67 @@
+"""Study ``noise`` (the paper's Fig. 6): mean error vs Gaussian noise on the force, the acceleration and both.
+
+Noise is a fraction of each channel's RMS after first contact, as in the paper (0-10 %). Each scenario is
+simulated once; every (channel, level) realisation draws from its own seed, a function of the root seed, the case
+and the realisation only. The paper finds force noise more harmful than acceleration noise.
+"""
+
+from __future__ import annotations
+
+from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, mean_abs, pct, per_method,
+                             seeded_grid, with_noise)
+
+NAME = "noise"
+DEFAULTS = {"levels": [0.0, 0.02, 0.05, 0.1]}
+#: which channels get the noise
+TARGETS = {"force": ("contact_force",), "acceleration": ("piston_acceleration",),
+           "both": ("contact_force", "piston_acceleration")}
+
+
+def _cases(options: StudyOptions) -> list[Row]:
+    return seeded_grid(scenario_grid(options), options)
+
+
+def _variants(options: StudyOptions) -> list[tuple[str, float]]:
+    levels = sorted({float(x) for x in options.param(NAME, "levels", DEFAULTS["levels"])})
+    out = [("none", 0.0)] if 0.0 in levels else []
+    return out + [(target, level) for target in TARGETS for level in levels if level > 0]
+
+
+def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
+    rows = []
+    variants = _variants(options)
+    for case, clean in zip(cases, clean_recordings(cases, options)):
+        for j, (target, level) in enumerate(variants):
+            noise = {channel: (level if channel in TARGETS.get(target, ()) else 0.0)
+                     for channel in ("contact_force", "piston_acceleration")}
+            recording = with_noise(clean, noise, case_seed(options, NAME, case["case"], j))
+            rows += identify_rows(recording, {**case, "noise_on": target, "noise": level})
+    return rows
+
+
+def _aggregate(rows: list[Row]) -> list[Row]:
+    return by_method(rows, ("noise_on", "noise"))
+
+
+def _summary(rows: list[Row]) -> list[Row]:
+    top = max(r["noise"] for r in rows)
+    def text(m):
+        return (f"force {pct(mean_abs(rows, 'mass_error', method=m, noise_on='force', noise=top))} vs "
+                f"acceleration {pct(mean_abs(rows, 'mass_error', method=m, noise_on='acceleration', noise=top))}")
+    return [{"quantity": f"mean mass error at {top * 100:g} % noise on one channel (Fig. 6)", "ours": per_method(rows, text),
+             "paper": "force noise matters more than acceleration noise"},
+            {"quantity": f"mean mass error at {top * 100:g} % noise on both channels",
+             "ours": per_method(rows, lambda m: pct(mean_abs(rows, "mass_error", method=m, noise_on="both",
+                                                             noise=top))),
+             "paper": "needs almost noise-free data"}]
+
+
+def _plot(rows: list[Row], options: StudyOptions):
+    from .plots import plot_noise
+    return plot_noise(rows)
+
+
+STUDY = register(Study(name=NAME, title="Identification error vs Gaussian noise on force, acceleration, both",
+                       figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
+                       plot=_plot, chunk_size=5, requires=REQUIRES, defaults=DEFAULTS))

@@ -1,0 +1,69 @@
+"""Study ``sampling`` (the paper's Fig. 7): mean and maximum error vs sampling frequency (5 kHz … 200 kHz).
+
+Recordings pass the sensor model's anti-alias filter at each rate. The paper reports a mean mass error below 5 %
+above 30-40 kHz with outliers near 20 %, and recommends 50 kHz or more.
+"""
+
+from __future__ import annotations
+
+
+from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, max_abs, mean_abs, pct,
+                             per_method, with_noise)
+
+NAME = "sampling"
+DEFAULTS = {"rates": [5e3, 10e3, 20e3, 30e3, 40e3, 50e3, 100e3, 200e3], "noise": 0.0}
+
+
+def _cases(options: StudyOptions) -> list[Row]:
+    rates = sorted(float(r) for r in options.param(NAME, "rates", DEFAULTS["rates"]))
+    return [{**s, "sample_rate": rate} for rate in rates for s in scenario_grid(options)]
+
+
+def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
+    level = float(options.param(NAME, "noise", DEFAULTS["noise"]))
+    rows = []
+    for rate in dict.fromkeys(c["sample_rate"] for c in cases):
+        group = [c for c in cases if c["sample_rate"] == rate]
+        for case, clean in zip(group, clean_recordings(group, options, sample_rate=rate)):
+            recording = with_noise(clean, {"contact_force": level, "piston_acceleration": level},
+                                   case_seed(options, NAME, case["case"]))
+            rows += identify_rows(recording, {**case, "noise": level})
+    return rows
+
+
+def _aggregate(rows: list[Row]) -> list[Row]:
+    return by_method(rows, ("sample_rate",))
+
+
+def _good_from(rows: list[Row], method: str) -> str:
+    """Lowest rate from which every higher rate has a mean mass error below 5 %."""
+    rates = sorted({r["sample_rate"] for r in rows}, reverse=True)
+    good = None
+    for rate in rates:
+        if not mean_abs(rows, "mass_error", method=method, sample_rate=rate) < 5.0:
+            break
+        good = rate
+    return "never" if good is None else f"{good / 1e3:g} kHz"
+
+
+def _summary(rows: list[Row]) -> list[Row]:
+    rates = sorted({r["sample_rate"] for r in rows})
+    at = min((r for r in rates if r >= 40e3), default=rates[-1])
+    return [{"quantity": "mean mass error below 5 % from (Fig. 7)",
+             "ours": per_method(rows, lambda m: _good_from(rows, m)), "paper": "30-40 kHz"},
+            {"quantity": f"mean / max mass error at {at / 1e3:g} kHz",
+             "ours": per_method(rows, lambda m: f"{pct(mean_abs(rows, 'mass_error', method=m, sample_rate=at))} / "
+                                                f"{pct(max_abs(rows, 'mass_error', method=m, sample_rate=at))}"),
+             "paper": "< 5 % mean, outliers ≈ 20 %"}]
+
+
+def _plot(rows: list[Row], options: StudyOptions):
+    from .plots import plot_mean_error_vs
+    return plot_mean_error_vs(rows, (("sample_rate", "sampling frequency [kHz]", 1e-3),), maximum=True,
+                              title="Mass error vs sampling frequency (mean and max over the grid)")
+
+
+STUDY = register(Study(name=NAME, title="Mean and maximum error vs sampling frequency", figure="Fig. 7",
+                       cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary, plot=_plot,
+                       chunk_size=25, requires=REQUIRES, defaults=DEFAULTS))

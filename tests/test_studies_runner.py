@@ -1,0 +1,122 @@
+"""Study runner: determinism over workers and seeds, resumable chunks, SIGKILL safety, option checks."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from impactometer.errors import ParameterError
+from impactometer.studies import StudyOptions, run_study
+from impactometer.studies.store import atomic_write, read_chunk
+from impactometer.studies.tables import read_csv
+
+SMALL = dict(grid=3, params={"peak-force.chunk_size": 4})  # 27 cases in 7 chunks
+
+
+def test_same_table_whatever_the_number_of_workers(tmp_path):
+    one = run_study("peak-force", tmp_path / "one", StudyOptions(**SMALL), workers=1)
+    two = run_study("peak-force", tmp_path / "two", StudyOptions(**SMALL), workers=2)
+    assert one.chunks == 7 and one.cases == 27
+    assert one.table.read_text() == two.table.read_text()
+
+
+def test_seed_changes_the_noise_and_nothing_else(tmp_path):
+    a = run_study("peak-force", tmp_path / "a", StudyOptions(seed=1, **SMALL), workers=1).rows
+    b = run_study("peak-force", tmp_path / "b", StudyOptions(seed=2, **SMALL), workers=1).rows
+    assert [r["simulated_peak_force"] for r in a] == [r["simulated_peak_force"] for r in b]
+    recorded_a = np.array([r["recorded_peak_force"] for r in a])
+    recorded_b = np.array([r["recorded_peak_force"] for r in b])
+    assert np.all(recorded_a != recorded_b)
+    # 1 % noise on a peak of a few kN moves the recorded peak by a few percent at most
+    np.testing.assert_allclose(recorded_a, recorded_b, rtol=0.05)
+
+
+def test_rerun_reuses_finished_chunks_and_recomputes_damaged_ones(tmp_path):
+    first = run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
+    folder = tmp_path / "peak-force"
+    # a truncated chunk under the final name (as a non-atomic writer could leave) and a stray temporary file
+    text = (folder / "chunk-00002.json").read_text()
+    (folder / "chunk-00002.json").write_text(text[: len(text) // 2])
+    (folder / ".chunk-00003.json.abc.tmp").write_text("{")
+    second = run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
+    assert second.reused_chunks == first.chunks - 1
+    assert second.table.read_text() == first.table.read_text()
+    assert read_chunk(folder, study="peak-force", key=StudyOptions(**SMALL).key("peak-force"), index=2,
+                      cases=[8, 9, 10, 11]) is not None
+
+
+def test_other_options_in_the_same_folder_need_force(tmp_path):
+    run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
+    with pytest.raises(ParameterError, match="other options.*--force"):
+        run_study("peak-force", tmp_path, StudyOptions(seed=5, **SMALL), workers=1)
+    redone = run_study("peak-force", tmp_path, StudyOptions(seed=5, **SMALL), workers=1, force=True)
+    assert redone.reused_chunks == 0
+
+
+def test_a_table_not_written_by_a_study_is_not_overwritten(tmp_path):
+    (tmp_path / "peak-force.csv").write_text("mine\n")
+    with pytest.raises(ParameterError, match="not written by a study run"):
+        run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
+    assert (tmp_path / "peak-force.csv").read_text() == "mine\n"
+
+
+def test_killed_run_loses_no_finished_chunk_and_resumes(tmp_path):
+    out = tmp_path / "killed"
+    options = StudyOptions(grid=4, params={"peak-force.chunk_size": 1})  # 64 one-case chunks
+    command = [sys.executable, "-c", "from impactometer.cli import main; main()", "study", "peak-force",
+               "--out", str(out), "--workers", "1", "--grid", "4", "--set", "peak-force.chunk_size=1"]
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    folder = out / "peak-force"
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(list(folder.glob("chunk-*.json"))) < 8:
+        time.sleep(0.005)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    chunks = sorted(folder.glob("chunk-*.json"))
+    assert 8 <= len(chunks) < 64, "the run must be killed part-way"
+    assert not (out / "peak-force.csv").exists()
+    for path in chunks:  # every file under a final name is complete
+        assert json.loads(path.read_text())["rows"]
+    resumed = run_study("peak-force", out, options, workers=1)
+    assert resumed.reused_chunks >= len(chunks)
+    fresh = run_study("peak-force", tmp_path / "fresh", options, workers=1)
+    assert read_csv(resumed.table.read_text()) == read_csv(fresh.table.read_text())
+
+
+def test_atomic_write_replaces_whole_files(tmp_path):
+    path = tmp_path / "t.csv"
+    atomic_write(path, "a,b\n1,2\n")
+    atomic_write(path, "a,b\n3,4\n")
+    assert path.read_text() == "a,b\n3,4\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["t.csv"]
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"grid": 1}, "grid must be an integer >= 2"),
+    ({"seeds": 0}, "seeds must be an integer >= 1"),
+    ({"seed": -1}, "seed must be an integer >= 0"),
+    ({"noise": 2.0}, r"noise must be a number within \[0, 1\]"),
+    ({"sample_rate": float("nan")}, "sample_rate must be a number"),
+    ({"rig": "drop-stand"}, "rig must be a Rig"),
+])
+def test_options_are_validated(kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        StudyOptions(**kwargs)
+
+
+def test_unknown_study_and_bad_executor_options(tmp_path):
+    with pytest.raises(ParameterError, match="study must be one of .*peak-force"):
+        run_study("nope", tmp_path)
+    with pytest.raises(ParameterError, match="--workers must be an integer >= 1"):
+        run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=0)
+    with pytest.raises(ParameterError, match="--scheduler must be an address"):
+        run_study("peak-force", tmp_path / "s", StudyOptions(**SMALL), scheduler="localhost")
+    with pytest.raises(ParameterError, match="chunk_size must be an integer >= 1"):
+        run_study("peak-force", tmp_path / "c", StudyOptions(grid=2, params={"peak-force.chunk_size": 0}))
