@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +24,7 @@ STANDARD_GRAVITY = 9.81  # [m/s²], the value of the reference model
 def _check(name: str, value: Any, *, low: float | None = None, high: float | None = None,
            low_open: bool = True, unit: str = "") -> None:
     """Raise ParameterError unless ``value`` is a finite real within the bounds."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         raise ParameterError(f"{name} must be a finite number{unit}, got {value!r}")
     if low is not None and (value <= low if low_open else value < low):
         raise ParameterError(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {value!r}")
@@ -238,14 +239,22 @@ class Rig:
         return dataclasses.replace(self, contact=Contact.preset(law))
 
     def replace(self, **changes: Any) -> "Rig":
-        """A copy with dotted-name changes, e.g. ``rig.replace(**{"contact.stiffness": 3e6})``."""
+        """A copy with dotted-name changes, e.g. ``rig.replace(**{"contact.stiffness": 3e6})``.
+
+        Changing ``contact.law`` without giving ``contact.stiffness``/``contact.damping`` takes the new law's
+        defaults for them (the parameters of one law mean nothing to another).
+        """
         data = to_dict(self)
+        valid = parameter_names() + ["name", "contact.law"]
         for key, value in changes.items():
+            if key not in valid:
+                raise ParameterError(f"unknown rig parameter {key!r}; expected one of {valid}")
             section, _, attr = key.rpartition(".")
-            target = data[section] if section else data
-            if section and section not in data or attr not in target:
-                raise ParameterError(f"unknown rig parameter {key!r}; expected one of {parameter_names()}")
-            target[attr] = value
+            (data[section] if section else data)[attr] = value
+        if "contact.law" in changes and contact_law_name(changes["contact.law"]) != self.contact.law:
+            defaults = CONTACT_LAWS[contact_law_name(changes["contact.law"])]
+            for attr, value in defaults.items():
+                data["contact"][attr] = changes.get(f"contact.{attr}", value)
         return from_dict(data)
 
     def to_toml(self, path: str | Path, *, overwrite: bool = False) -> Path:

@@ -51,6 +51,8 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
     if isinstance(text, bool):
         raise UnitError(f"{field} must be a number with an optional {dimension} unit, got {text!r}")
     if isinstance(text, (int, float)):
+        if not math.isfinite(text):
+            raise UnitError(f"{field} must be a finite number, got {text!r}")
         return float(text)
     if not isinstance(text, str):
         raise UnitError(f"{field} must be a number with an optional {dimension} unit, got {text!r}")
@@ -60,6 +62,8 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
                         f"{_example(dimension)}), got {text!r}")
     value = float(match.group(1))
     unit = match.group(2)
+    if not math.isfinite(value):
+        raise UnitError(f"{field} must be a finite number with an optional {dimension} unit, got {text!r}")
     if not unit:
         return value
     key = unit.lower()
@@ -69,10 +73,7 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
         valid = sorted(u for u, (d, _) in UNITS.items() if d == dimension)
         raise UnitError(f"{field}: unknown {dimension} unit {unit!r} in {text!r}; expected one of "
                         f"{', '.join(u.replace('g_mass', 'g') for u in valid)}")
-    result = value * UNITS[key][1]
-    if math.isnan(result):
-        raise UnitError(f"{field} must be a number, got {text!r}")
-    return result
+    return value * UNITS[key][1]
 
 
 def _example(dimension: str) -> str:

@@ -1,10 +1,15 @@
 """Fast batch integrator: adaptive Dormand-Prince 5(4) compiled with numba, parallel over scenarios.
 
-Each scenario is integrated with its own step size; histories are written at the requested sample times
-through the method's 4th-order continuous extension (the same one scipy's ``RK45`` uses).
+The kernel is the algorithm of scipy's ``solve_ivp(method="RK45")`` step for step -- the same tableau, the same
+RMS error norm with ``scale = atol + rtol·max(|y|, |y_new|)``, the same step-size controller (safety 0.9, factors
+0.2-10, no growth right after a rejection) and the same initial step selection -- so that a given ``rtol``/``atol``
+means the same accuracy in both. Each scenario is integrated with its own step size; histories are written at the
+requested sample times through the method's 4th-order continuous extension (scipy's ``RkDenseOutput``).
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit, prange
@@ -15,6 +20,7 @@ OK, TOO_MANY_STEPS, STEP_TOO_SMALL, NOT_FINITE = 0, 1, 2, 3
 STATUS_TEXT = {TOO_MANY_STEPS: "too many steps", STEP_TOO_SMALL: "step size underflow",
                NOT_FINITE: "non-finite state"}
 
+#: Dormand-Prince 5(4) tableau (also used by other compiled kernels of the package)
 _C = np.array([0.0, 1 / 5, 3 / 10, 4 / 5, 8 / 9, 1.0, 1.0])
 _A = np.array([
     [0, 0, 0, 0, 0, 0],
@@ -34,90 +40,162 @@ _P = np.array([
     [0, -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844],
     [0, 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423]])
 
+SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
+ERROR_EXPONENT = -1.0 / 5.0  # -1 / (error estimator order + 1)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _rms(x, scale):
+    acc = 0.0
+    for i in range(x.size):
+        r = x[i] / scale[i]
+        acc += r * r
+    return math.sqrt(acc / x.size)
+
+
+@njit(cache=True, error_model="numpy")
+def initial_step(p, y0, f0, t_end, rtol, atol, max_step, work, f1):
+    """First step size [s], as scipy's ``select_initial_step`` (Hairer, Nørsett & Wanner, Sec. II.4)."""
+    n = y0.size
+    scale = np.empty(n)
+    for i in range(n):
+        scale[i] = atol[i] + abs(y0[i]) * rtol
+    d0 = _rms(y0, scale)
+    d1 = _rms(f0, scale)
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, t_end)
+    for i in range(n):
+        work[i] = y0[i] + h0 * f0[i]
+    d.rhs(work, p, p[d.VALVE_AREA], f1)
+    for i in range(n):
+        work[i] = f1[i] - f0[i]
+    d2 = _rms(work, scale) / h0
+    if d1 <= 1e-15 and d2 <= 1e-15:
+        h1 = max(1e-6, h0 * 1e-3)
+    else:
+        h1 = (0.01 / max(d1, d2)) ** (1.0 / 5.0)
+    return min(100.0 * h0, h1, t_end, max_step)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _write(y, p, channel_index, row, out, i_out, full):
+    """Write the requested channels of state ``y`` into column ``i_out`` of ``out``."""
+    if full:
+        d.channels(y, p, row)
+        for j in range(channel_index.size):
+            out[j, i_out] = row[channel_index[j]]
+    else:
+        for j in range(channel_index.size):
+            out[j, i_out] = y[channel_index[j]]
+
 
 @njit(cache=True, error_model="numpy")
 def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out):
     """Integrate one scenario from t = 0 and write ``channels[channel_index]`` at ``t_out`` into ``out``.
 
-    Returns a status code (0 = success) and the number of accepted steps.
+    Returns a status code (0 = success) and the number of accepted steps. ``max_step`` [s] bounds the step size,
+    ``max_steps`` the number of accepted steps.
     """
     n = y0.size
-    k = np.zeros((7, n))
+    k1, k2, k3, k4, k5, k6, k7 = (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
+                                  np.empty(n), np.empty(n))
     y = y0.copy()
     y_new = np.empty(n)
-    y_stage = np.empty(n)
-    y_dense = np.empty(n)
-    dense = np.empty((4, n))
+    ys = np.empty(n)
+    err = np.empty(n)
+    q1, q2, q3 = np.empty(n), np.empty(n), np.empty(n)
+    scale = np.empty(n)
     row = np.empty(d.N_CHANNEL)
+    full = False
+    for j in range(channel_index.size):
+        if channel_index[j] >= d.N_STATE:
+            full = True
     valve = p[d.VALVE_AREA]
     t = 0.0
     t_end = t_out[-1]
     i_out = 0
     while i_out < t_out.size and t_out[i_out] <= 0.0:
-        d.channels(y, p, row)
-        for j in range(channel_index.size):
-            out[j, i_out] = row[channel_index[j]]
+        _write(y, p, channel_index, row, out, i_out, full)
         i_out += 1
-    d.rhs(y, p, valve, k[0])
-    h = min(1e-6, max_step)
+    d.rhs(y, p, valve, k1)
+    h_abs = initial_step(p, y, k1, t_end, rtol, atol, max_step, ys, k2)
     steps = 0
     while t < t_end:
         if steps >= max_steps:
             return TOO_MANY_STEPS, steps
-        if t + h > t_end:
-            h = t_end - t
-        for s in range(1, 7):
+        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        if h_abs > max_step:
+            h_abs = max_step
+        elif h_abs < min_step:
+            h_abs = min_step
+        rejected = False
+        while True:
+            if h_abs < min_step:
+                return STEP_TOO_SMALL, steps
+            t_new = t + h_abs
+            if t_new > t_end:
+                t_new = t_end
+            h = t_new - t
+            h_abs = abs(h)
             for i in range(n):
-                acc = 0.0
-                for m in range(s):
-                    acc += _A[s, m] * k[m, i]
-                y_stage[i] = y[i] + h * acc
-            d.rhs(y_stage, p, valve, k[s])
-        # y_stage now holds the 5th-order solution (stage 7 is evaluated at it: FSAL)
-        error_norm = 0.0
+                ys[i] = y[i] + h * (0.2 * k1[i])
+            d.rhs(ys, p, valve, k2)
+            for i in range(n):
+                ys[i] = y[i] + h * (3 / 40 * k1[i] + 9 / 40 * k2[i])
+            d.rhs(ys, p, valve, k3)
+            for i in range(n):
+                ys[i] = y[i] + h * (44 / 45 * k1[i] - 56 / 15 * k2[i] + 32 / 9 * k3[i])
+            d.rhs(ys, p, valve, k4)
+            for i in range(n):
+                ys[i] = y[i] + h * (19372 / 6561 * k1[i] - 25360 / 2187 * k2[i] + 64448 / 6561 * k3[i]
+                                    - 212 / 729 * k4[i])
+            d.rhs(ys, p, valve, k5)
+            for i in range(n):
+                ys[i] = y[i] + h * (9017 / 3168 * k1[i] - 355 / 33 * k2[i] + 46732 / 5247 * k3[i]
+                                    + 49 / 176 * k4[i] - 5103 / 18656 * k5[i])
+            d.rhs(ys, p, valve, k6)
+            for i in range(n):
+                y_new[i] = y[i] + h * (35 / 384 * k1[i] + 500 / 1113 * k3[i] + 125 / 192 * k4[i]
+                                       - 2187 / 6784 * k5[i] + 11 / 84 * k6[i])
+            d.rhs(y_new, p, valve, k7)
+            for i in range(n):
+                scale[i] = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+                err[i] = h * (-71 / 57600 * k1[i] + 71 / 16695 * k3[i] - 71 / 1920 * k4[i]
+                              + 17253 / 339200 * k5[i] - 22 / 525 * k6[i] + 1 / 40 * k7[i])
+            error_norm = _rms(err, scale)
+            if error_norm < 1.0:
+                factor = MAX_FACTOR if error_norm == 0.0 else min(MAX_FACTOR, SAFETY * error_norm**ERROR_EXPONENT)
+                if rejected:
+                    factor = min(1.0, factor)
+                h_abs *= factor
+                break
+            if not math.isfinite(error_norm):
+                h_abs *= MIN_FACTOR
+                if h_abs < min_step:
+                    return NOT_FINITE, steps
+            else:
+                h_abs *= max(MIN_FACTOR, SAFETY * error_norm**ERROR_EXPONENT)
+            rejected = True
+        # samples inside (t, t_new]: continuous extension y(t + θh) = y + h·θ·(Q0 + θ·(Q1 + θ·(Q2 + θ·Q3)))
+        if i_out < t_out.size and t_out[i_out] <= t_new:
+            for i in range(n):
+                q1[i] = (_P[0, 1] * k1[i] + _P[2, 1] * k3[i] + _P[3, 1] * k4[i] + _P[4, 1] * k5[i]
+                         + _P[5, 1] * k6[i] + _P[6, 1] * k7[i])
+                q2[i] = (_P[0, 2] * k1[i] + _P[2, 2] * k3[i] + _P[3, 2] * k4[i] + _P[4, 2] * k5[i]
+                         + _P[5, 2] * k6[i] + _P[6, 2] * k7[i])
+                q3[i] = (_P[0, 3] * k1[i] + _P[2, 3] * k3[i] + _P[3, 3] * k4[i] + _P[4, 3] * k5[i]
+                         + _P[5, 3] * k6[i] + _P[6, 3] * k7[i])
+        while i_out < t_out.size and t_out[i_out] <= t_new:
+            theta = (t_out[i_out] - t) / h
+            for i in range(n):
+                ys[i] = y[i] + h * theta * (k1[i] + theta * (q1[i] + theta * (q2[i] + theta * q3[i])))
+            _write(ys, p, channel_index, row, out, i_out, full)
+            i_out += 1
+        t = t_new
         for i in range(n):
-            y_new[i] = y_stage[i]
-            acc = 0.0
-            for m in range(7):
-                acc += _E[m] * k[m, i]
-            scale = atol[i] + rtol * max(abs(y[i]), abs(y_new[i]))
-            e = abs(h * acc) / scale
-            if e > error_norm:
-                error_norm = e
-        if not np.isfinite(error_norm):
-            h *= 0.2
-            if h < 1e-14:
-                return NOT_FINITE, steps
-            continue
-        if error_norm <= 1.0:
-            t_next = t + h
-            if i_out < t_out.size and t_out[i_out] <= t_next:
-                for i in range(n):  # coefficients of the continuous extension on this step
-                    for j in range(4):
-                        acc = 0.0
-                        for m in range(7):
-                            acc += k[m, i] * _P[m, j]
-                        dense[j, i] = h * acc
-            while i_out < t_out.size and t_out[i_out] <= t_next:
-                theta = (t_out[i_out] - t) / h
-                for i in range(n):
-                    y_dense[i] = y[i] + theta * (dense[0, i] + theta * (dense[1, i] + theta * (
-                        dense[2, i] + theta * dense[3, i])))
-                d.channels(y_dense, p, row)
-                for j in range(channel_index.size):
-                    out[j, i_out] = row[channel_index[j]]
-                i_out += 1
-            t = t_next
-            for i in range(n):
-                y[i] = y_new[i]
-                k[0, i] = k[6, i]
-            steps += 1
-            factor = 5.0 if error_norm == 0.0 else min(5.0, 0.9 * error_norm ** -0.2)
-        else:
-            factor = max(0.2, 0.9 * error_norm ** -0.2)
-        h = min(h * factor, max_step)
-        if h < 1e-14:
-            return STEP_TOO_SMALL, steps
+            y[i] = y_new[i]
+            k1[i] = k7[i]
+        steps += 1
     return OK, steps
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.optimize import brentq
+from numba import njit
 
 from .. import rig as rigmod
 from ..errors import ParameterError
@@ -51,7 +51,8 @@ def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
     """Parameter matrix (n, N_PARAM) for arrays of M1 [kg], V0 [m/s], p0 [Pa gauge] and stand overrides.
 
     ``overrides`` maps dotted stand parameter names (``"contact.stiffness"``, ``"cylinder.piston_mass"``) to
-    scalars or arrays broadcast against the scenario arrays. Every row is validated like a single scenario.
+    scalars or arrays broadcast against the scenario arrays. Every row is validated like a single scenario; the
+    error names the first offending row.
     """
     overrides = dict(overrides or {})
     names = rigmod.parameter_names()
@@ -66,32 +67,110 @@ def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
     except TypeError:
         raise ParameterError("mass, velocity, pressure_gauge and overrides must be numbers or numeric arrays") from None
     flat = [np.atleast_1d(a).ravel() for a in arrays]
-    rows = np.empty((flat[0].size, d.N_PARAM))
-    cache: dict[tuple, rigmod.Rig] = {}
-    for i in range(flat[0].size):
-        key = tuple(float(a[i]) for a in flat[3:])
-        if key not in cache:
-            cache[key] = rig.replace(**dict(zip(overrides, key))) if overrides else rig
-        scenario = rigmod.Scenario(mass=float(flat[0][i]), velocity=float(flat[1][i]),
-                                   pressure_gauge=float(flat[2][i]))
-        rows[i] = pack(cache[key], scenario)
+    if flat[0].size == 0:
+        raise ParameterError("mass, velocity, pressure_gauge must hold at least one scenario, got empty arrays")
+    for name, values, unit, zero_ok in (("mass", flat[0], "kg", False), ("velocity", flat[1], "m/s", False),
+                                        ("pressure_gauge", flat[2], "Pa", True)):
+        bad = ~np.isfinite(values) | ((values < 0.0) if zero_ok else (values <= 0.0))
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ParameterError(f"{name}[{i}] must be a finite number {'>=' if zero_ok else '>'} 0 [{unit}], "
+                                 f"got {values[i]!r}")
+    placeholder = rigmod.Scenario(mass=1.0, velocity=1.0, pressure_gauge=0.0)
+    rows = np.repeat(pack(rig, placeholder)[None, :], flat[0].size, axis=0)
+    if overrides:  # one validated stand per distinct combination of override values
+        combos, inverse = np.unique(np.column_stack(flat[3:]), axis=0, return_inverse=True)
+        for j, combo in enumerate(combos):
+            rows[inverse.ravel() == j] = pack(rig.replace(**dict(zip(overrides, map(float, combo)))), placeholder)
+    rows[:, d.MASS], rows[:, d.VELOCITY], rows[:, d.PRESSURE_GAUGE] = flat[0], flat[1], flat[2]
+    rated = _rated_pressure(rig, overrides, flat)
+    over = flat[2] > rated
+    if over.any():
+        i = int(np.flatnonzero(over)[0])
+        raise ParameterError(f"pressure_gauge[{i}] must be <= the rated {rated[i]:g} Pa of {rig.name!r}, "
+                             f"got {flat[2][i]!r}")
     return rows
 
 
-def piston_net_force(u2: float, p: np.ndarray) -> float:
+def _rated_pressure(rig: rigmod.Rig, overrides: dict, flat: list[np.ndarray]) -> np.ndarray:
+    key = "cylinder.rated_pressure_gauge"
+    if key in overrides:
+        return flat[3 + list(overrides).index(key)]
+    return np.full(flat[0].size, rig.cylinder.rated_pressure_gauge)
+
+
+@njit(cache=True, error_model="numpy")
+def settled_pressures(u2, p):
+    """Chamber pressures [Pa] with the piston at rest at ``u2`` [m], charged at the top stop, settled isothermally."""
+    charge = p[d.ATMOSPHERE] + p[d.PRESSURE_GAUGE]
+    lower0, upper0 = d.volumes(0.0, p)
+    lower, upper = d.volumes(u2, p)
+    return charge * lower0 / lower, charge * upper0 / upper
+
+
+@njit(cache=True, error_model="numpy")
+def piston_net_force(u2, p):
     """Downward force on the piston at rest at ``u2`` [m] with no contact, gas settled isothermally [N]."""
-    pl, pu = _settled_pressures(u2, p)
+    pl, pu = settled_pressures(u2, p)
     fp = pneumatic_force(pl, pu, p[d.AREA], p[d.ROD_AREA], p[d.ATMOSPHERE])
     f_top = stop_force(-u2, 0.0, p[d.STOP_K], p[d.STOP_C])
     f_bottom = stop_force(u2 - p[d.STROKE], 0.0, p[d.STOP_K], p[d.STOP_C])
     return p[d.PISTON_MASS] * p[d.GRAVITY] - fp + f_top - f_bottom
 
 
-def _settled_pressures(u2: float, p: np.ndarray) -> tuple[float, float]:
-    charge = p[d.ATMOSPHERE] + p[d.PRESSURE_GAUGE]
-    lower0, upper0 = d.volumes(0.0, p)
-    lower, upper = d.volumes(u2, p)
-    return charge * lower0 / lower, charge * upper0 / upper
+@njit(cache=True, error_model="numpy")
+def equilibrium_position(p):
+    """Rest position u2 [m] of the piston (NaN when the gas cannot carry it off the bottom stop).
+
+    The net force is monotonic in u2 (the stops and the gas spring stiffen downwards), so bisection between a point
+    above the compressed top stop and the bottom of the stroke converges to the unique root, to the last bit.
+    """
+    low = -(10.0 * p[d.PISTON_MASS] * max(p[d.GRAVITY], 1.0) + p[d.PRESSURE_GAUGE] * p[d.AREA]) / p[d.STOP_K] - 1e-9
+    high = min(p[d.STROKE], p[d.LOWER_LENGTH] + p[d.DEAD_LOWER] / p[d.AREA]) * (1.0 - 1e-9)
+    if piston_net_force(high, p) > 0.0:
+        return np.nan
+    for _ in range(200):
+        mid = 0.5 * (low + high)
+        if mid <= low or mid >= high:
+            break
+        if piston_net_force(mid, p) > 0.0:
+            low = mid
+        else:
+            high = mid
+    return low if abs(piston_net_force(low, p)) < abs(piston_net_force(high, p)) else high
+
+
+@njit(cache=True, error_model="numpy")
+def _initial_states(params, out):
+    for s in range(params.shape[0]):
+        p = params[s]
+        u2 = equilibrium_position(p)
+        y = out[s]
+        y[:] = 0.0
+        pl, pu = settled_pressures(u2, p)
+        lower0, upper0 = d.volumes(0.0, p)
+        charge = p[d.ATMOSPHERE] + p[d.PRESSURE_GAUGE]
+        y[d.U1] = u2
+        y[d.V1] = p[d.VELOCITY]
+        y[d.U2] = u2
+        y[d.P_LOWER] = pl
+        y[d.P_UPPER] = pu
+        y[d.M_LOWER] = charge * lower0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
+        y[d.M_UPPER] = charge * upper0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
+
+
+def initial_states(params: np.ndarray) -> np.ndarray:
+    """States at first contact (n, N_STATE) for parameter rows (n, N_PARAM); see :func:`initial_state`."""
+    params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
+    out = np.empty((params.shape[0], d.N_STATE))
+    _initial_states(params, out)
+    bad = np.flatnonzero(np.isnan(out[:, d.U2]))
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterError(f"pressure_gauge is too low to carry the piston: it would rest on the bottom stop; got "
+                             f"{params[i, d.PRESSURE_GAUGE]!r} Pa (scenario {i}); expected a charge that holds "
+                             f"the piston above the bottom of the stroke")
+    return out
 
 
 def initial_state(p: np.ndarray) -> np.ndarray:
@@ -101,22 +180,4 @@ def initial_state(p: np.ndarray) -> np.ndarray:
     the top stop (slightly compressing it) when the gas force can hold it there; otherwise it settles,
     isothermally, at the gas-spring equilibrium below it.
     """
-    lowest = min(p[d.STROKE], p[d.LOWER_LENGTH] + p[d.DEAD_LOWER] / p[d.AREA]) * (1.0 - 1e-9)
-    highest = -10.0 * p[d.PISTON_MASS] * max(p[d.GRAVITY], 1.0) / p[d.STOP_K] - 1e-9 \
-        - p[d.PRESSURE_GAUGE] * p[d.AREA] / p[d.STOP_K]
-    if piston_net_force(lowest, p) > 0.0:
-        raise ParameterError("pressure_gauge is too low to carry the piston: it would rest on the bottom stop; "
-                             f"got {p[d.PRESSURE_GAUGE]!r} Pa")
-    u2 = brentq(piston_net_force, highest, lowest, args=(p,), xtol=1e-16, rtol=1e-15, maxiter=500)
-    pl, pu = _settled_pressures(u2, p)
-    lower0, upper0 = d.volumes(0.0, p)
-    charge = p[d.ATMOSPHERE] + p[d.PRESSURE_GAUGE]
-    y = d.empty_state()
-    y[d.U1] = u2
-    y[d.V1] = p[d.VELOCITY]
-    y[d.U2] = u2
-    y[d.P_LOWER] = pl
-    y[d.P_UPPER] = pu
-    y[d.M_LOWER] = charge * lower0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
-    y[d.M_UPPER] = charge * upper0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
-    return y
+    return initial_states(p)[0]

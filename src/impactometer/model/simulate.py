@@ -12,11 +12,15 @@ from ..rig import Rig, Scenario, get_rig
 from . import dynamics as d
 from . import fast, reference
 from .result import BatchResult, SimulationResult
-from .setup import initial_state, pack, pack_batch
+from .setup import initial_state, initial_states, pack, pack_batch
 
 #: integrator name -> default relative tolerance
-INTEGRATORS = {"fast": 1e-8, "reference": 1e-10}
+INTEGRATORS = {"fast": 1e-9, "reference": 1e-10}
 DEFAULT_BATCH_CHANNELS = ("contact_force", "a2")
+#: default bound of the step size [s] (a contact pulse lasts milliseconds, so none is stepped over)
+MAX_STEP = 1e-3
+#: default bound of the number of accepted steps per scenario
+MAX_STEPS = 10_000_000
 _STATE_SCALE = np.array([0.1, 1.0, 0.1, 1.0, 1e5, 1e5, 1e-3, 1e-4, 100.0])
 
 
@@ -28,7 +32,7 @@ def absolute_tolerance(rtol: float) -> np.ndarray:
 def sample_times(duration: float, sample_rate: float) -> np.ndarray:
     """Sample instants 0, 1/fs, ... up to ``duration`` [s]."""
     for name, value in (("duration", duration), ("sample_rate", sample_rate)):
-        if not np.isfinite(value) or value <= 0:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
             raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
     n = int(np.floor(duration * sample_rate + 1e-9)) + 1
     if n < 2:
@@ -39,17 +43,23 @@ def sample_times(duration: float, sample_rate: float) -> np.ndarray:
     return np.arange(n) / sample_rate
 
 
-def _check_integrator(integrator: str, rtol: float | None) -> float:
+def _check_integrator(integrator: str, rtol: float | None, max_step: float = MAX_STEP,
+                      max_steps: int = MAX_STEPS) -> float:
     if integrator not in INTEGRATORS:
         raise ParameterError(f"integrator must be one of {sorted(INTEGRATORS)}, got {integrator!r}")
     rtol = INTEGRATORS[integrator] if rtol is None else rtol
-    if not np.isfinite(rtol) or not 1e-14 <= rtol <= 1e-3:
+    if not isinstance(rtol, (int, float)) or not np.isfinite(rtol) or not 1e-14 <= rtol <= 1e-3:
         raise ParameterError(f"rtol must be within [1e-14, 1e-3], got {rtol!r}")
+    if not isinstance(max_step, (int, float)) or np.isnan(max_step) or max_step <= 0:
+        raise ParameterError(f"max_step must be > 0 [s] (inf for no bound), got {max_step!r}")
+    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
+        raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
     return float(rtol)
 
 
 def simulate(scenario: Scenario, rig: Rig | None = None, *, duration: float = 0.05, sample_rate: float = 50e3,
-             integrator: str = "fast", rtol: float | None = None) -> SimulationResult:
+             integrator: str = "fast", rtol: float | None = None, max_step: float = MAX_STEP,
+             max_steps: int = MAX_STEPS) -> SimulationResult:
     """Simulate one drop test.
 
     Parameters
@@ -63,13 +73,25 @@ def simulate(scenario: Scenario, rig: Rig | None = None, *, duration: float = 0.
     sample_rate : float
         Rate of the returned histories [Hz].
     integrator : {"fast", "reference"}
-        Compiled Dormand-Prince 5(4) or scipy ``solve_ivp`` (DOP853).
+        Compiled Dormand-Prince 5(4) (scipy's RK45 algorithm) or scipy ``solve_ivp`` (DOP853).
     rtol : float, optional
-        Relative tolerance (default 1e-8 fast, 1e-10 reference).
+        Relative tolerance (default 1e-9 fast, 1e-10 reference); the absolute tolerances are ``rtol`` times the
+        typical scale of each state (0.1 m, 1 m/s, 1e5 Pa, ...).
+    max_step : float
+        Largest integration step [s].
+    max_steps : int
+        Budget of integration steps; exceeding it is a failure.
 
     Returns
     -------
     SimulationResult
+
+    Raises
+    ------
+    ParameterError
+        For an invalid scenario, stand or option.
+    SimulationError
+        When the integrator fails (no partial result is returned).
 
     Notes
     -----
@@ -78,17 +100,18 @@ def simulate(scenario: Scenario, rig: Rig | None = None, *, duration: float = 0.
     if not isinstance(scenario, Scenario):
         raise ParameterError(f"scenario must be a Scenario, got {scenario!r}")
     rig = get_rig(rig)
-    rtol = _check_integrator(integrator, rtol)
+    rtol = _check_integrator(integrator, rtol, max_step, max_steps)
     t = sample_times(duration, sample_rate)
     p = pack(rig, scenario)
     y0 = initial_state(p)
     atol = absolute_tolerance(rtol)
     if integrator == "reference":
-        states = reference.integrate(p, y0, t, rtol=rtol, atol=atol)
+        states = reference.integrate(p, y0, t, rtol=rtol, atol=atol, max_step=max_step, max_steps=max_steps)
         chans = reference.channels_of(states, p)
     else:
         chans = np.empty((d.N_CHANNEL, t.size))
-        status, _ = fast.integrate_one(p, y0, t, np.arange(d.N_CHANNEL), rtol, atol, 1e-4, 50_000_000, chans)
+        status, _ = fast.integrate_one(p, y0, t, np.arange(d.N_CHANNEL), rtol, atol, float(max_step),
+                                       int(max_steps), chans)
         if status != fast.OK:
             raise SimulationError(f"fast integrator failed ({fast.STATUS_TEXT[status]}) for {scenario}")
     return _result(t, chans, p, y0, rig, scenario, integrator)
@@ -124,7 +147,7 @@ def _result(t, chans, p, y0, rig, scenario, integrator) -> SimulationResult:
 def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, overrides=None,
                    duration: float = 0.05, sample_rate: float = 50e3,
                    channels: Sequence[str] = DEFAULT_BATCH_CHANNELS, rtol: float | None = None,
-                   dtype=np.float64) -> BatchResult:
+                   dtype=np.float64, max_step: float = MAX_STEP, max_steps: int = MAX_STEPS) -> BatchResult:
     """Simulate a batch of scenarios in parallel with the compiled integrator.
 
     Parameters
@@ -140,27 +163,37 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
     channels : sequence of str
         Channels to return (any of ``dynamics.CHANNELS``).
     rtol : float, optional
-        Relative tolerance (default 1e-8).
+        Relative tolerance (default 1e-9).
     dtype : numpy dtype
         Storage type of the histories (float32 halves the memory).
+    max_step, max_steps : float, int
+        Largest step [s] and budget of steps per scenario.
 
     Returns
     -------
     BatchResult
+
+    Raises
+    ------
+    ParameterError
+        For invalid scenarios (the message names the first bad row), overrides or options.
+    SimulationError
+        When any scenario fails (no partial result is returned).
     """
     rig = get_rig(rig)
-    rtol = _check_integrator("fast", rtol)
+    rtol = _check_integrator("fast", rtol, max_step, max_steps)
     unknown = [c for c in channels if c not in d.CHANNELS]
     if unknown or not channels:
         raise ParameterError(f"channels must be a non-empty subset of {list(d.CHANNELS)}, got {list(channels)}")
     t = sample_times(duration, sample_rate)
     params = pack_batch(rig, mass, velocity, pressure_gauge, overrides)
-    y0 = np.array([initial_state(row) for row in params])
+    y0 = initial_states(params)
     index = np.array([d.CHANNELS.index(c) for c in channels], dtype=np.int64)
     out = np.empty((params.shape[0], index.size, t.size), dtype=np.float64 if dtype is None else dtype)
     status = np.zeros(params.shape[0], dtype=np.int64)
     steps = np.zeros(params.shape[0], dtype=np.int64)
-    fast.integrate_batch(params, y0, t, index, rtol, absolute_tolerance(rtol), 1e-4, 50_000_000, out, status, steps)
+    fast.integrate_batch(params, y0, t, index, rtol, absolute_tolerance(rtol), float(max_step), int(max_steps), out,
+                         status, steps)
     bad = np.flatnonzero(status != fast.OK)
     if bad.size:
         i = int(bad[0])
@@ -170,3 +203,21 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
     return BatchResult(time=t, data={c: out[:, j, :] for j, c in enumerate(channels)},
                        mass=params[:, d.MASS].copy(), velocity=params[:, d.VELOCITY].copy(),
                        pressure_gauge=params[:, d.PRESSURE_GAUGE].copy(), params=params, steps=steps, rig=rig)
+
+
+def compare_integrators(mass, velocity, pressure_gauge, rig: Rig | None = None, *, duration: float = 0.05,
+                        sample_rate: float = 200e3, rtol: float | None = None,
+                        reference_rtol: float | None = None) -> reference.Agreement:
+    """Agreement of the fast and the reference integrator on a set of scenarios (contact force histories).
+
+    Both are sampled at the same instants; see :func:`.reference.agreement` for the measures.
+    """
+    rig = get_rig(rig)
+    ref_rtol = _check_integrator("reference", reference_rtol)
+    batch = simulate_batch(mass, velocity, pressure_gauge, rig, duration=duration, sample_rate=sample_rate,
+                           channels=("contact_force",), rtol=rtol)
+    reference_force = np.empty_like(batch["contact_force"])
+    for i, (p, y0) in enumerate(zip(batch.params, initial_states(batch.params))):
+        states = reference.integrate(p, y0, batch.time, rtol=ref_rtol, atol=absolute_tolerance(ref_rtol))
+        reference_force[i] = reference.channels_of(states, p)[d.CHANNELS.index("contact_force")]
+    return reference.agreement(batch["contact_force"], reference_force, batch.time)
