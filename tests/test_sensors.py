@@ -47,6 +47,7 @@ def test_causal_anti_alias_delays_both_channels_by_the_stated_delay(clean):
         assert err < 0.03
         assert np.argmax(measured) - np.argmax(truth) == lag
     assert rec.metadata["anti_alias_delay_s"] == pytest.approx(delay)
+    assert record(SCENARIO, duration=0.005).metadata["anti_alias"] == "causal"  # the default design
 
 
 @pytest.mark.parametrize("design", ["zero-phase", "causal"])
