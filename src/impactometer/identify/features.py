@@ -6,7 +6,9 @@ complete (``available_at`` [s] after first contact): an on-line identification c
 
 - ``peaks``: amplitudes of the first two contact-force peaks [N] (the paper's first choice);
 - ``max-impulse``: the maximum force [N] and the impulse ∫Fc dt [N·s] over the window [t00, t00 + T]
-  (the paper's second choice; ``window`` = T).
+  (the paper's second choice; ``window`` = T);
+- ``impulse-profile``: impulses over [t00, t00 + j·T/6], j = 1..6 -- six low-noise numbers for two unknowns
+  (eq. (6) with m > n), the most robust to sensor noise.
 
 Adding a set: write ``extract(time, forces, **params) -> (values (n, m), available_at (n,))`` with NaN rows for
 signals that do not give the features, and register a :class:`FeatureSet`.
@@ -153,6 +155,48 @@ def max_impulse(time, forces, *, window: float = 0.02, smoothing: float = 5e-4) 
     return np.column_stack([peak, impulse]), np.full(forces.shape[0], float(window))
 
 
+PROFILE_COUNT = 6
+
+
+def impulse_profile(time, forces, *, window: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Impulses ∫Fc dt [N·s] from first contact to j·T/6, j = 1..6 (T = ``window``).
+
+    Integrals average the sensor noise out, and six of them over-determine mass and velocity (eq. (6) of the paper
+    with m = 6 > n = 2), which makes the identification far less sensitive to noise than two force maxima.
+
+    Parameters
+    ----------
+    time : (samples,) array
+        Sample instants [s], t = 0 at first contact.
+    forces : (n, samples) or (samples,) array
+        Contact force [N].
+    window : float
+        Longest integration window T [s].
+
+    Returns
+    -------
+    values : (n, 6) array
+        The impulses [N·s].
+    available_at : (n,) array
+        ``window`` [s].
+    """
+    time, forces = _check_signals(time, forces)
+    dt = float(np.median(np.diff(time)))
+    if time[-1] < window - 0.5 * dt:
+        raise ResponseMapError(f"the record covers {time[-1] * 1e3:.3g} ms after first contact; feature set "
+                               f"'impulse-profile' with window {window * 1e3:.3g} ms needs at least that long")
+    i0 = int(np.searchsorted(time, 0.0))
+    ends = [int(np.searchsorted(time, window * j / PROFILE_COUNT + 0.5 * dt, side="right"))
+            for j in range(1, PROFILE_COUNT + 1)]
+    if ends[0] - i0 < 2:
+        raise ResponseMapError(f"window {window!r} s is too short: T/{PROFILE_COUNT} must hold at least 2 samples "
+                               f"({dt:g} s apart)")
+    cumulative = np.concatenate([np.zeros((forces.shape[0], 1)),
+                                 np.cumsum(0.5 * (forces[:, i0 + 1:] + forces[:, i0:-1]) * np.diff(time[i0:]),
+                                           axis=1)], axis=1)
+    return cumulative[:, [e - 1 - i0 for e in ends]], np.full(forces.shape[0], float(window))
+
+
 @njit(cache=True)
 def _two_pulses(forces, i0, min_samples, fraction, out_index, out_end):
     """Indices of the maxima of the first two contact pulses and of the end of the second (-1: not found).
@@ -243,6 +287,12 @@ FEATURE_SETS: dict[str, FeatureSet] = {
                               defaults={"window": 0.02, "smoothing": 5e-4},
                               limits={"window": (1e-4, 1.0), "smoothing": (0.0, 0.01)}, extract=max_impulse,
                               description="maximum contact force and impulse over a window T after first contact"),
+    "impulse-profile": FeatureSet(name="impulse-profile",
+                                  labels=tuple(f"impulse_{j}" for j in range(1, PROFILE_COUNT + 1)),
+                                  units=("N*s",) * PROFILE_COUNT, defaults={"window": 0.02},
+                                  limits={"window": (1e-4, 1.0)}, extract=impulse_profile,
+                                  description=f"impulses from first contact to j·T/{PROFILE_COUNT}, "
+                                              f"j = 1..{PROFILE_COUNT}"),
 }
 
 

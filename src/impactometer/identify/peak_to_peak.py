@@ -22,8 +22,9 @@ from .result import VARIANTS, Identification
 from .robust import MIN_ONSET_ROWS, Kinematics, solve_onsets
 
 GRAVITY = 9.81
-#: pre-trigger samples kept before the trigger (offsets and noise come from them)
-PRE_SAMPLES = 1024
+#: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
+#: offset, double-integrated, is the largest error of the final answer, so keep up to 0.1 s at 50 kHz
+PRE_SAMPLES = 5000
 #: samples next to the trigger left out of the pre-trigger statistics (the foot of the first rise)
 GUARD_SAMPLES = 32
 #: fewest pre-trigger samples for removing offsets
@@ -248,6 +249,16 @@ def early_cut(force, acceleration, sample_rate, start_time, start, ends, pre) ->
     return None
 
 
+def early_answer(cut: Segment | None, gravity: float) -> Identification | None:
+    """The robust answer from the data up to the second pulse, or None when that data allows none."""
+    if cut is None:
+        return None
+    try:
+        return solve(cut, "robust", gravity)
+    except IdentificationError:
+        return None
+
+
 def identify_arrays(force, acceleration, sample_rate: float, start_time: float = 0.0, *, variant: str = "robust",
                     gravity: float = GRAVITY) -> Identification:
     """Identify M1 and V0 from contact force [N] and kinematic piston acceleration [m/s²] arrays.
@@ -285,9 +296,7 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     check_clipping(seg)
     early = None
     if variant == "robust":
-        cut = early_cut(f, a, fs, float(start_time), start, ends, pre)
-        if cut is not None:
-            early = solve(cut, variant, gravity)
+        early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre), gravity)
     return solve(seg, variant, gravity, early=early)
 
 

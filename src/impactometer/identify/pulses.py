@@ -73,7 +73,7 @@ RELEASE_SIGMAS = 2.0
 #: a pulse ends only after this many consecutive samples below the release level
 HOLD = 3
 #: resolution floor relative to the largest force when the record is free of noise [-]
-FLOOR_FRACTION = 1e-5
+FLOOR_FRACTION = 5e-3
 
 
 def noise_std(signal: np.ndarray) -> float:

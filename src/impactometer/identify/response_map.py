@@ -64,6 +64,13 @@ class MapIdentification:
     mass_std: float | None = None
     velocity_std: float | None = None
 
+    @classmethod
+    def _make(cls, **values: Any) -> "MapIdentification":
+        """Build without the dataclass ``__init__`` (each frozen-field assignment costs more than the search)."""
+        obj = cls.__new__(cls)
+        obj.__dict__.update(mass_std=None, velocity_std=None, **values)
+        return obj
+
     @property
     def energy(self) -> float:
         """Impact energy M1·V0²/2 [J]."""
@@ -150,9 +157,9 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         mass, velocity, residual, _, _ = brute_search(rmap, y, p)  # python floats, like fast_search
     if available_at is None:
         available_at = rmap.feature_params.get("window", math.nan)
-    return MapIdentification(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
-                             search=search, features=dict(zip(labels, y.tolist())), feature_set=rmap.feature_set,
-                             pressure_gauge=p, extrapolated=outside)
+    return MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
+                                   search=search, features=dict(zip(labels, y.tolist())),
+                                   feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
 
 
 def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:

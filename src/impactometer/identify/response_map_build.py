@@ -174,7 +174,7 @@ def refine(rmap: ResponseMap, n: int | tuple[int, int]) -> ResponseMap:
 
 
 def _default_duration(features: str, params: Mapping[str, float], sample_rate: float) -> float:
-    if features == "max-impulse":
+    if "window" in params:
         return params["window"] + 2.0 / sample_rate
     return 0.08
 

@@ -21,7 +21,7 @@ from .response_map_build import ResponseMap, spline_basis
 FAST_NODES = 257
 #: nodes per axis of the coarse lookup that starts the fast search
 COARSE = 16
-#: Gauss-Newton starts at most (best coarse nodes, tried in turn until one matches the features exactly)
+#: Gauss-Newton starts at most (best coarse nodes; a further one only while its lookup cost is within 10× the best fit)
 STARTS = 3
 #: how far outside the map the fast search may look [fraction of each axis range]
 EXTENSION = 0.25
@@ -69,14 +69,14 @@ def _hermite(t, out, slope):
 
 
 @njit(cache=True)
-def surface(herm, xm, xv, k0, w, count, m, v, out, dm, dv):
+def surface(herm, xm, xv, k0, w, count, m, v, out, dm, dv, basis):
     """Feature surfaces at (m [kg], v [m/s]) and their partial derivatives, pressure-weighted over layers.
 
-    ``herm`` has shape (features, pressures, n_m, n_v, 4): value, ∂/∂m, ∂/∂v, ∂²/∂m∂v at the nodes.
+    ``herm`` has shape (features, pressures, n_m, n_v, 4): value, ∂/∂m, ∂/∂v, ∂²/∂m∂v at the nodes; ``basis``
+    is a (4, 4) work array.
     """
     i, t, hm = _cell(xm, m)
     j, s, hv = _cell(xv, v)
-    basis = np.empty((4, 4))
     bm, dbm, bv, dbv = basis[0], basis[1], basis[2], basis[3]
     _hermite(t, bm, dbm)
     _hermite(s, bv, dbv)
@@ -109,8 +109,8 @@ def surface(herm, xm, xv, k0, w, count, m, v, out, dm, dv):
 
 
 @njit(cache=True)
-def _objective(herm, xm, xv, k0, w, count, y, m, v, r, jm, jv):
-    surface(herm, xm, xv, k0, w, count, m, v, r, jm, jv)
+def _objective(herm, xm, xv, k0, w, count, y, m, v, r, jm, jv, basis):
+    surface(herm, xm, xv, k0, w, count, m, v, r, jm, jv, basis)
     total = 0.0
     for f in range(y.size):
         r[f] = (r[f] - y[f]) / y[f]
@@ -127,10 +127,11 @@ def _gauss_newton(herm, xm, xv, k0, w, count, y, m, v, box):
     r = np.empty(nf)
     jm = np.empty(nf)
     jv = np.empty(nf)
+    basis = np.empty((4, 4))
     sm = box[1] - box[0]
     sv = box[3] - box[2]
     lam = 1e-6
-    cost = _objective(herm, xm, xv, k0, w, count, y, m, v, r, jm, jv)
+    cost = _objective(herm, xm, xv, k0, w, count, y, m, v, r, jm, jv, basis)
     for _ in range(60):
         a11 = a12 = a22 = g1 = g2 = 0.0
         for f in range(nf):  # scaled variables m/sm, v/sv
@@ -155,17 +156,16 @@ def _gauss_newton(herm, xm, xv, k0, w, count, y, m, v, box):
             dv = -(b11 * g2 - a12 * g1) / det * sv
             mn = min(max(m + dm, box[0]), box[1])
             vn = min(max(v + dv, box[2]), box[3])
-            new = _objective(herm, xm, xv, k0, w, count, y, mn, vn, r, jm, jv)
+            new = _objective(herm, xm, xv, k0, w, count, y, mn, vn, r, jm, jv, basis)
             if new <= cost:
                 step = abs(mn - m) / sm + abs(vn - v) / sv
                 m, v, cost = mn, vn, new
                 lam = max(lam * 0.1, 1e-12)
-                moved = step > 1e-12
+                moved = step > 1e-10
                 break
             lam *= 10.0
         if not moved:
             break
-    cost = _objective(herm, xm, xv, k0, w, count, y, m, v, r, jm, jv)
     return m, v, cost
 
 
@@ -187,12 +187,14 @@ def fast_search(herm, xm, xv, coarse, cm, cv, pressures, p, y, extension):
                 total += d * d
             costs[a * n2 + b] = total
     order = np.empty(STARTS, dtype=np.int64)
+    start_cost = np.empty(STARTS)
     for s in range(STARTS):  # the STARTS best coarse nodes
         k = 0
         for c in range(1, costs.size):
             if costs[c] < costs[k]:
                 k = c
         order[s] = k
+        start_cost[s] = costs[k]
         costs[k] = np.inf
     sm = xm[-1] - xm[0]
     sv = xv[-1] - xv[0]
@@ -200,13 +202,13 @@ def fast_search(herm, xm, xv, coarse, cm, cv, pressures, p, y, extension):
                     xv[-1] + extension * sv])
     best_m, best_v, best = 0.0, 0.0, np.inf
     for s in range(min(STARTS, order.size)):
+        if s > 0 and start_cost[s] > 10.0 * best:
+            break  # the first start reached a fit far better than this node promises: no other basin competes
         a = order[s] // n2
         b = order[s] % n2
         m, v, cost = _gauss_newton(herm, xm, xv, k0, w, count, y, cm[a], cv[b], box)
         if cost < best:
             best_m, best_v, best = m, v, cost
-        if best < 1e-24:  # the features are matched exactly: further starts cannot do better
-            break
     return best_m, best_v, best
 
 
@@ -240,13 +242,13 @@ def fast_tables(rmap: ResponseMap) -> tuple[np.ndarray, ...]:
     cm = np.linspace(xm[0], xm[-1], COARSE)
     cv = np.linspace(xv[0], xv[-1], COARSE)
     coarse = np.empty((nf, n_p, COARSE, COARSE))
-    out, gm, gv = np.empty(nf), np.empty(nf), np.empty(nf)
+    out, gm, gv, basis = np.empty(nf), np.empty(nf), np.empty(nf), np.empty((4, 4))
     for p in range(n_p):
         w = np.zeros(4)
         w[0] = 1.0
         for a in range(COARSE):
             for b in range(COARSE):
-                surface(herm, xm, xv, p, w, 1, cm[a], cv[b], out, gm, gv)
+                surface(herm, xm, xv, p, w, 1, cm[a], cv[b], out, gm, gv, basis)
                 coarse[:, p, a, b] = out
     slack_m, slack_v = EDGE_TOLERANCE * (xm[-1] - xm[0]), EDGE_TOLERANCE * (xv[-1] - xv[0])
     inside = (float(xm[0] - slack_m), float(xm[-1] + slack_m), float(xv[0] - slack_v), float(xv[-1] + slack_v))

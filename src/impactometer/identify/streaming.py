@@ -57,6 +57,7 @@ class StreamingIdentifier:
         self.seen = 0
         self._start = self._pre = None
         self._early: Identification | None = None
+        self._early_done = False
         self._last_close = -1
         self.estimates: list[Identification] = []
         self.completed: list[Identification] = []
@@ -108,7 +109,7 @@ class StreamingIdentifier:
             else:
                 self._start = max(index - p2p.PRE_SAMPLES, self._last_close + 1, 0)
                 self._pre = index - self._start
-            self._early = None
+            self._early, self._early_done = None, False
             self.estimates = []
             return []
         if self._start is None:
@@ -123,9 +124,11 @@ class StreamingIdentifier:
         complete = sum(p.complete for p in seg.pulses)
         new = []
         try:
-            if self.variant == "robust" and self._early is None and complete >= 2:
-                self._early = p2p.solve(seg, "robust", self.gravity)
-                new.append(self._early)
+            if self.variant == "robust" and not self._early_done and complete >= 2:
+                self._early_done = True
+                self._early = p2p.early_answer(seg, self.gravity)
+                if self._early is not None:
+                    new.append(self._early)
             needed = 3 if self.variant == "robust" else 2
             if complete >= needed:
                 p2p.check_clipping(seg)
