@@ -120,7 +120,7 @@ class _Dask:
             raise ParameterError("--scheduler needs Dask distributed; install the extra: "
                                  "pip install 'impactometer[dask]'") from None
         try:
-            self.client = Client(address, timeout="10s", set_as_default=False)
+            self.client = Client(address, timeout="5s", set_as_default=False)
         except (OSError, TimeoutError, ValueError) as exc:
             raise ParameterError(f"--scheduler: cannot connect to {address!r} ({exc}); expected the address of a "
                                  f"running Dask scheduler, e.g. tcp://HOST:8786") from None
@@ -132,7 +132,7 @@ class _Dask:
         futures = {self.client.submit(evaluate_chunk, name, cases, options, pure=False): index
                    for index, cases in tasks}
         try:
-            for future in as_completed(list(futures)):
+            for future in as_completed(list(futures), loop=self.client.loop):
                 yield futures[future], future.result()
         finally:
             for future in futures:

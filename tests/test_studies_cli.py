@@ -1,0 +1,56 @@
+"""``impactometer study``: in-process CLI runs, files written, errors in one line with exit status 2."""
+
+from __future__ import annotations
+
+import pytest
+
+from impactometer.cli import main
+
+
+def _run(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    return exc.value.code, capsys.readouterr().out
+
+
+def test_study_writes_table_figure_and_report(tmp_path, capsys):
+    main(["study", "peak-force", "--out", str(tmp_path), "--grid", "2", "--workers", "1", "--contact", "hunt"])
+    out = capsys.readouterr().out
+    assert "report written to" in out
+    for name in ("peak-force.csv", "peak-force.png", "index.html"):
+        assert (tmp_path / name).stat().st_size > 0
+    assert (tmp_path / "peak-force.csv").read_text().count("hunt-crossley") == 8
+    # rerun: everything reused
+    main(["study", "peak-force", "--out", str(tmp_path), "--grid", "2", "--workers", "1", "--contact", "hunt"])
+    assert "1/1" in capsys.readouterr().out
+
+
+def test_other_options_need_force(tmp_path, capsys):
+    main(["study", "peak-force", "--out", str(tmp_path), "--grid", "2", "--workers", "1"])
+    capsys.readouterr()
+    code, out = _run(["study", "peak-force", "--out", str(tmp_path), "--grid", "2", "--workers", "1",
+                      "--seed", "3"], capsys)
+    assert code == 2 and "other options" in out and "--force" in out
+    main(["study", "peak-force", "--out", str(tmp_path), "--grid", "2", "--workers", "1", "--seed", "3", "--force"])
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["study", "nope", "--out", "x"], "study must be one of"),
+    (["study", "peak-force"], "--out is required"),
+    (["study", "peak-force", "--out", "x", "--noise", "3kg"], "--noise"),
+    (["study", "peak-force", "--out", "x", "--grid", "1"], "grid must be an integer >= 2"),
+    (["study", "peak-force", "--out", "x", "--set", "chunk_size=3"], "--set must look like STUDY.SETTING=VALUE"),
+    (["study", "peak-force", "--out", "x", "--contact", "glue"], "contact.law must be one of"),
+])
+def test_bad_input_is_one_line_and_exit_2(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, out = _run(argv, capsys)
+    assert code == 2
+    assert message in out and "Traceback" not in out
+    assert not (tmp_path / "x").exists()
+
+
+def test_list_shows_every_study(capsys):
+    main(["study", "list"])
+    out = capsys.readouterr().out
+    assert "peak-force" in out and "noise" in out and "sampling" in out
