@@ -1,3 +1,100 @@
-"""Commands of this concept (registered on the shared typer app)."""
+"""``impactometer absorb``: the closed loop identify → control on one impact, every strategy side by side."""
 
-from .app import app  # noqa: F401
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.markup import escape
+from rich.table import Table
+
+from ..rig import get_rig
+from .app import app, console, output_path, quantity
+from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, RigOpt, VelocityOpt, scenario_from_options
+
+#: rows of the metrics table: (label, key of AbsorptionMetrics.to_dict(), format)
+TABLE_ROWS = (
+    ("control starts [ms]", "control_start_s", lambda v: f"{v * 1e3:.2f}"),
+    ("peak force, stage A [N]", "peak_force_stage_a_N", lambda v: f"{v:.0f}"),
+    ("peak force after control start [N]", "peak_force_controlled_N", lambda v: f"{v:.0f}"),
+    ("  same, CFC 60 body load [N]", "peak_force_controlled_cfc60_N", lambda v: f"{v:.0f}"),
+    ("max deceleration after start [m/s²]", "max_deceleration_m_s2", lambda v: f"{v:.0f}"),
+    ("energy absorbed after start [J]", "energy_absorbed_J", lambda v: f"{v:.1f}"),
+    ("efficiency η", "efficiency", lambda v: f"{v:.3f}"),
+    ("  η with CFC 60 force", "efficiency_cfc60", lambda v: f"{v:.3f}"),
+    ("stroke used [mm]", "stroke_used_m", lambda v: f"{v * 1e3:.1f}"),
+    ("bottomed out", "bottomed_out", lambda v: "YES" if v else "no"),
+    ("time to stop [ms]", "time_to_stop_s", lambda v: f"{v * 1e3:.1f}"),
+    ("rebound [mm]", "rebound_m", lambda v: f"{v * 1e3:.1f}"),
+)
+
+
+def metrics_table(result) -> Table:
+    """Rich table: one column per strategy."""
+    data = result.to_dict()
+    ident = data["identification"]
+    title = (f"{result.scenario.mass:g} kg at {result.scenario.velocity:.3f} m/s, p0 = "
+             f"{result.scenario.pressure_gauge / 1e3:g} kPa; identification {ident['method']}")
+    if ident["error"] is None and ident["method"] != "oracle":
+        title += f": M1 = {ident['mass_kg']:.2f} kg, V0 = {ident['velocity_m_s']:.3f} m/s"
+    table = Table(title=title)
+    table.add_column("metric")
+    for name in data["strategies"]:
+        table.add_column(name, justify="right")
+    for label, key, fmt in TABLE_ROWS:
+        cells = []
+        for values in data["strategies"].values():
+            value = values.get(key)
+            cells.append("—" if value is None else fmt(value))
+        table.add_row(escape(label), *cells)
+    bound = data["efficiency_max"]
+    table.add_row("bound η_max (all strategies)", *(["—" if bound is None else f"{bound:.3f}"]
+                                                     * len(data["strategies"])))
+    return table
+
+
+@app.command()
+def absorb(
+    mass: MassOpt = "30kg",
+    height: HeightOpt = None,
+    velocity: VelocityOpt = None,
+    pressure: PressureOpt = "200kPa",
+    strategy: Annotated[str, typer.Option("--strategy", help="all, closed, constant or realtime.")] = "all",
+    identify: Annotated[str, typer.Option("--identify", help="robust, paper, oracle or response-map.")] = "robust",
+    response_map: Annotated[Optional[Path], typer.Option("--response-map", help="Map file for --identify response-map.")] = None,
+    noise: Annotated[str, typer.Option("--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the sensor noise.")] = 0,
+    contact: ContactOpt = None,
+    rig: RigOpt = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as one JSON object.")] = False,
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG figure of the force histories (Fig. 10b).")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing figure.")] = False,
+) -> None:
+    """Absorb one impact: identify M1 and V0 from noisy sensors, then control valve Z with each strategy."""
+    from ..control.loop import absorb as run_absorb
+    from ..control.strategies import strategy_names
+
+    stand = get_rig(rig, contact=contact)
+    if height is None and velocity is None:
+        height = "0.3m"
+    scenario = scenario_from_options(mass, height, velocity, pressure, stand)
+    names = strategy_names(strategy)
+    output_path(plot, force, field="--plot")
+    if response_map is not None and not response_map.is_file():
+        from ..errors import ParameterError
+
+        raise ParameterError(f"--response-map: {str(response_map)!r} does not exist")
+    result = run_absorb(scenario, stand, strategy=names, identification=identify,
+                        noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=response_map)
+    if as_json:
+        print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
+    else:
+        console.print(metrics_table(result))
+        for note in result.notes:
+            console.print(f"[yellow]note:[/yellow] {note}")
+    if plot is not None:
+        result.plot().savefig(plot, dpi=120)
+        if not as_json:
+            console.print(f"figure written to {plot}")

@@ -74,11 +74,23 @@ def pneumatic_force(pressure_lower, pressure_upper, area, rod_area, atmospheric_
     return pressure_lower * area - pressure_upper * (area - rod_area) - atmospheric_pressure * rod_area
 
 
+#: pressure ratio above which the orifice flow is taken linear in the pressure difference (laminar transition);
+#: the isentropic law has an infinite slope at p_down/p_up -> 1, which stalls any integrator when chambers equalise
+LAMINAR_RATIO = 0.999
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _flow_function(ratio, gamma):
+    """Dimensionless flow function ψ of the isentropic orifice at pressure ratio p_down/p_up (unchoked)."""
+    return math.sqrt(2.0 * gamma / (gamma - 1.0) * (ratio ** (2.0 / gamma) - ratio ** ((gamma + 1.0) / gamma)))
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def orifice_mass_flow(p_up, t_up, p_down, area, discharge_coefficient, gamma, gas_constant):
     """Compressible flow through an orifice [kg/s] from the upstream to the downstream side (>= 0).
 
-    Choked when p_down/p_up is below the critical ratio (2/(γ+1))^(γ/(γ−1)), isentropic otherwise.
+    Choked when p_down/p_up is below the critical ratio (2/(γ+1))^(γ/(γ−1)), isentropic otherwise; above the
+    laminar transition ratio ``LAMINAR_RATIO`` the flow falls linearly to zero with the pressure difference.
     """
     if area <= 0.0 or p_up <= p_down:
         return 0.0
@@ -86,6 +98,8 @@ def orifice_mass_flow(p_up, t_up, p_down, area, discharge_coefficient, gamma, ga
     critical = (2.0 / (gamma + 1.0)) ** (gamma / (gamma - 1.0))
     if ratio <= critical:
         psi = math.sqrt(gamma * (2.0 / (gamma + 1.0)) ** ((gamma + 1.0) / (gamma - 1.0)))
+    elif ratio <= LAMINAR_RATIO:
+        psi = _flow_function(ratio, gamma)
     else:
-        psi = math.sqrt(2.0 * gamma / (gamma - 1.0) * (ratio ** (2.0 / gamma) - ratio ** ((gamma + 1.0) / gamma)))
+        psi = _flow_function(LAMINAR_RATIO, gamma) * (1.0 - ratio) / (1.0 - LAMINAR_RATIO)
     return discharge_coefficient * area * p_up * psi / math.sqrt(gas_constant * t_up)

@@ -1,0 +1,12 @@
+"""Adaptive impact absorption (paper section 6, Fig. 10): valve Z, absorption strategies and the closed loop
+identify → control.
+
+``absorb(scenario, strategy="all")`` runs the loop on one impact; ``study.absorption_table()`` over the paper's
+125-case grid.
+"""
+
+from .loop import AbsorptionResult, absorb
+from .strategies import STRATEGIES, get_strategy
+from .valve import Absorber, ValveDrive, valve_mass_flow
+
+__all__ = ["AbsorptionResult", "Absorber", "STRATEGIES", "ValveDrive", "absorb", "get_strategy", "valve_mass_flow"]
