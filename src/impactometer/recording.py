@@ -9,7 +9,7 @@ the first sample (negative when pre-trigger samples are present). Metadata keys 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -108,3 +108,130 @@ class Recording:
         """A known-truth metadata value (``mass_kg``, ``velocity_m_s``, ``pressure_gauge_Pa``) or None."""
         value = self.metadata.get(key)
         return None if value is None else float(value)
+
+    def unit(self, name: str) -> str:
+        """SI unit of channel ``name`` (standard channels, else as noted in ``metadata['channel_units']``)."""
+        self.channel(name)
+        noted = self.metadata.get("channel_units")
+        if name in CHANNEL_UNITS:
+            return CHANNEL_UNITS[name]
+        return str(noted.get(name, "")) if isinstance(noted, dict) else ""
+
+    def with_metadata(self, **changes: Any) -> "Recording":
+        """A copy with metadata keys added or replaced."""
+        return replace(self, metadata={**self.metadata, **changes})
+
+    @classmethod
+    def read(cls, path, **options: Any) -> "Recording":
+        """Read a lab file; see :func:`impactometer.io.read_recording` for the options."""
+        from .io import read_recording
+
+        return read_recording(path, **options)
+
+    def write(self, path, *, overwrite: bool = False):
+        """Write to ``path`` in the format of its extension; see :func:`impactometer.io.write_recording`."""
+        from .io import write_recording
+
+        return write_recording(self, path, overwrite=overwrite)
+
+    def plot(self, axes=None, *, inspection: "Inspection | None" = None):
+        """Force and acceleration vs time with the contact pulses marked; returns the figure."""
+        from .plotting_recordings import plot_recording
+
+        return plot_recording(self, axes, inspection=inspection)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ChannelSummary:
+    """Range and white-noise estimate of one channel, in its SI unit."""
+
+    unit: str
+    minimum: float
+    maximum: float
+    noise: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Inspection:
+    """What ``impactometer inspect`` reports about a recording.
+
+    Attributes
+    ----------
+    duration, sample_rate, start_time : Record length [s], sample rate [Hz], time of the first sample [s].
+    channels : Channel name -> :class:`ChannelSummary`.
+    peak_force, peak_force_time : Largest contact force [N] and when [s] (None without a force channel).
+    force_offset : Offset removed before pulse detection [N] (median of the pre-trigger samples, else 0).
+    pulses : Contact pulses (``identify.pulses.Pulse``), the last one ``sustained`` when it is stage B.
+    stage_b_start : Start of sustained contact [s] or None.
+    truth : Known-truth metadata present in the recording.
+    """
+
+    duration: float
+    sample_rate: float
+    start_time: float
+    samples: int
+    channels: dict[str, ChannelSummary]
+    peak_force: float | None
+    peak_force_time: float | None
+    force_offset: float
+    pulses: list
+    stage_b_start: float | None
+    truth: dict[str, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (SI units, keys suffixed with the unit)."""
+        return {"duration_s": self.duration, "sample_rate_Hz": self.sample_rate, "start_time_s": self.start_time,
+                "samples": self.samples,
+                "channels": {name: {"unit": c.unit, "min": c.minimum, "max": c.maximum, "noise": c.noise}
+                             for name, c in self.channels.items()},
+                "peak_force_N": self.peak_force, "peak_force_time_s": self.peak_force_time,
+                "force_offset_N": self.force_offset,
+                "pulses": [{"start_s": p.start, "peak_time_s": p.peak_time, "end_s": p.end,
+                            "peak_force_N": p.peak_force, "impulse_Ns": p.impulse, "sustained": p.sustained}
+                           for p in self.pulses],
+                "stage_b_start_s": self.stage_b_start, "truth": dict(self.truth)}
+
+
+#: a pulse lasting longer than this multiple of the first pulse is sustained contact (stage B)
+SUSTAINED_FACTOR = 4.0
+#: fewest pre-trigger samples from which the force offset is estimated
+MIN_OFFSET_SAMPLES = 10
+
+
+def inspect_recording(recording: Recording) -> Inspection:
+    """Duration, rate, channels with ranges and noise, peak force, contact pulses and stage B of ``recording``.
+
+    Pulses come from the noise-aware detector of :mod:`impactometer.identify.pulses` (detection at 5 σ of the
+    estimated white noise, release at 2 σ), on the force minus its pre-trigger median.
+    """
+    from .identify.pulses import Pulse, detect_pulses, noise_std, stage_b_start
+
+    if not isinstance(recording, Recording):
+        raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
+    channels = {name: ChannelSummary(unit=recording.unit(name), minimum=float(x.min()), maximum=float(x.max()),
+                                     noise=noise_std(x)) for name, x in recording.channels.items()}
+    pulses: list = []
+    peak = peak_time = None
+    offset = 0.0
+    if FORCE in recording.channels:
+        t, f = recording.time, recording.contact_force
+        before = f[t < 0]
+        offset = float(np.median(before)) if before.size >= MIN_OFFSET_SAMPLES else 0.0
+        f = f - offset
+        k = int(np.argmax(f))
+        peak, peak_time = float(f[k]), float(t[k])
+        for span in detect_pulses(f, channels[FORCE].noise):
+            stop = span.end if span.complete else f.size - 1
+            first = pulses[0].end - pulses[0].start if pulses else None
+            sustained = not span.complete or (first is not None and t[stop] - t[span.zero] > SUSTAINED_FACTOR * first)
+            pulses.append(Pulse(start=float(t[span.zero]), peak_time=float(t[span.peak]), end=float(t[stop]),
+                                peak_force=float(f[span.peak]),
+                                impulse=float(np.trapezoid(f[span.zero:stop + 1], t[span.zero:stop + 1])),
+                                sustained=bool(sustained)))
+            if sustained:
+                break
+    return Inspection(duration=recording.duration, sample_rate=recording.sample_rate,
+                      start_time=recording.start_time, samples=len(recording), channels=channels, peak_force=peak,
+                      peak_force_time=peak_time, force_offset=offset, pulses=pulses,
+                      stage_b_start=stage_b_start(pulses),
+                      truth={k: recording.truth(k) for k in TRUTH_KEYS if recording.truth(k) is not None})

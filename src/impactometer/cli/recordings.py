@@ -1,3 +1,152 @@
-"""Commands of this concept (registered on the shared typer app)."""
+"""``impactometer record`` (simulated recording as a lab file) and ``impactometer inspect`` (what a file holds)."""
 
-from .app import app  # noqa: F401
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.markup import escape
+from rich.table import Table
+
+from ..errors import ParameterError
+from ..rig import get_rig
+from .app import app, console, output_path, quantity
+from .simulate import (ContactOpt, DurationOpt, HeightOpt, MassOpt, PressureOpt, RateOpt, RigOpt, VelocityOpt,
+                       scenario_from_options)
+
+ForceChannelOpt = Annotated[Optional[str], typer.Option("--force-channel", help="Name of the contact force "
+                                                                                 "channel.")]
+AccChannelOpt = Annotated[Optional[str], typer.Option("--acceleration-channel", help="Name of the piston "
+                                                                                      "acceleration channel.")]
+GroupOpt = Annotated[Optional[str], typer.Option("--group", help="HDF5/TDMS group holding the channels.")]
+
+
+def _fraction(text: str | None, field: str) -> float | None:
+    value = quantity(text, "fraction", field)
+    if value is not None and not 0 <= value <= 10:
+        raise ParameterError(f"{field} must be within [0, 1000%], got {text!r}")
+    return value
+
+
+@app.command()
+def record(
+    out: Annotated[Path, typer.Option("--out", help="Output file; format from the extension (.csv, .h5, .tdms, "
+                                                    ".mat).")],
+    mass: MassOpt = "30kg",
+    height: HeightOpt = None,
+    velocity: VelocityOpt = None,
+    pressure: PressureOpt = "200kPa",
+    contact: ContactOpt = None,
+    rig: RigOpt = None,
+    duration: DurationOpt = "50ms",
+    sample_rate: RateOpt = "50kHz",
+    noise: Annotated[str, typer.Option("--noise", help="Noise std as a fraction of each channel's RMS (e.g. 2%).")]
+    = "0",
+    force_noise: Annotated[Optional[str], typer.Option("--force-noise", help="Noise of the force channel "
+                                                                             "(overrides --noise).")] = None,
+    acceleration_noise: Annotated[Optional[str], typer.Option("--acceleration-noise", help="Noise of the "
+                                                              "acceleration channel (overrides --noise).")] = None,
+    seed: Annotated[Optional[int], typer.Option("--seed", help="Seed of the noise.")] = None,
+    pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Time recorded before first contact.")] = "0",
+    anti_alias: Annotated[str, typer.Option("--anti-alias", help="causal (default), zero-phase or none.")]
+    = "causal",
+    adc_bits: Annotated[Optional[int], typer.Option("--adc-bits", help="ADC resolution; auto range ±1.25·peak.")]
+    = None,
+    include_gravity: Annotated[bool, typer.Option("--include-gravity", help="Accelerometer reads a − g.")] = False,
+    extra: Annotated[Optional[list[str]], typer.Option("--extra", help="Extra channel (piston_displacement, "
+                                                                       "pressure_lower, ...); repeatable.")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
+) -> None:
+    """Simulate one drop test and write what the stand's sensors and DAQ would record."""
+    from ..io import format_of, write_recording
+    from ..sensors import record as make_recording
+
+    format_of(out)
+    output_path(out, force)
+    stand = get_rig(rig, contact=contact)
+    if height is None and velocity is None:
+        height = "0.2m"
+    scenario = scenario_from_options(mass, height, velocity, pressure, stand)
+    level = _fraction(noise, "--noise")
+    levels = {"contact_force": _fraction(force_noise, "--force-noise"),
+              "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise")}
+    levels = {name: level if value is None else value for name, value in levels.items()}
+    rec = make_recording(scenario, stand, sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
+                         duration=quantity(duration, "time", "--duration"), noise=levels, seed=seed,
+                         pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"), anti_alias=anti_alias,
+                         adc_bits=adc_bits, include_gravity=include_gravity, extra_channels=tuple(extra or ()))
+    write_recording(rec, out, overwrite=force)
+    console.print(f"{len(rec)} samples at {rec.sample_rate:g} Hz ({scenario.mass:g} kg at "
+                  f"{scenario.velocity:.4g} m/s, p0 = {scenario.pressure_gauge / 1e3:g} kPa, "
+                  f"{stand.contact.law}) written to {out}", highlight=False)
+
+
+def _inspection_tables(rec, result) -> list[Table]:
+    head = Table(title=escape(rec.source), show_header=False)
+    head.add_row("duration", f"{result.duration * 1e3:.3f} ms ({result.samples} samples)")
+    head.add_row("sample rate", f"{result.sample_rate:g} Hz")
+    head.add_row("start time", f"{result.start_time * 1e3:.3f} ms")
+    if result.peak_force is not None:
+        head.add_row("peak force", f"{result.peak_force:.1f} N at {result.peak_force_time * 1e3:.3f} ms")
+        head.add_row("force offset removed", f"{result.force_offset:.3g} N")
+        b = result.stage_b_start
+        head.add_row("stage B (sustained contact) from", "none in record" if b is None else f"{b * 1e3:.3f} ms")
+    for key, value in result.truth.items():
+        head.add_row(f"truth {key}", f"{value:g}")
+    channels = Table(title="channels")
+    for column in ("name", "unit", "min", "max", "noise std"):
+        channels.add_column(column, justify="left" if column in ("name", "unit") else "right")
+    for name, c in result.channels.items():
+        channels.add_row(escape(name), escape(c.unit), f"{c.minimum:.4g}", f"{c.maximum:.4g}", f"{c.noise:.3g}")
+    pulses = Table(title="contact pulses")
+    for column in ("#", "start (ms)", "peak (ms)", "end (ms)", "peak force (N)", "impulse (N·s)", "stage"):
+        pulses.add_column(column, justify="right")
+    for i, p in enumerate(result.pulses, start=1):
+        pulses.add_row(str(i), f"{p.start * 1e3:.3f}", f"{p.peak_time * 1e3:.3f}", f"{p.end * 1e3:.3f}",
+                       f"{p.peak_force:.1f}", f"{p.impulse:.4g}", "B" if p.sustained else "A")
+    return [head, channels] + ([pulses] if result.pulses else [])
+
+
+@app.command()
+def inspect(
+    file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms, mat).")],
+    force_channel: ForceChannelOpt = None,
+    acceleration_channel: AccChannelOpt = None,
+    group: GroupOpt = None,
+    flip_force: Annotated[bool, typer.Option("--flip-force", help="Change the sign of the force.")] = False,
+    flip_acceleration: Annotated[bool, typer.Option("--flip-acceleration", help="Change the sign of the "
+                                                                                "acceleration.")] = False,
+    acceleration_includes_gravity: Annotated[bool, typer.Option("--acceleration-includes-gravity",
+                                                                help="Add g back (sensor reads a − g).")] = False,
+    sample_rate: Annotated[Optional[str], typer.Option("--sample-rate", help="For files without a time base.")]
+    = None,
+    cfc: Annotated[Optional[int], typer.Option("--cfc", help="CFC filter class first (60, 180, 600, 1000).")]
+    = None,
+    plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG of force and acceleration, pulses marked.")]
+    = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
+) -> None:
+    """Print what FILE holds: duration, rate, channels and units, peak force, contact pulses, stage B, noise."""
+    from ..filters import filter_recording
+    from ..io import read_recording
+    from ..recording import inspect_recording
+
+    output_path(plot, force, field="--plot")
+    rec = read_recording(file, force_channel=force_channel, acceleration_channel=acceleration_channel, group=group,
+                         flip_force=flip_force, flip_acceleration=flip_acceleration,
+                         acceleration_includes_gravity=acceleration_includes_gravity,
+                         sample_rate=quantity(sample_rate, "frequency", "--sample-rate"))
+    if cfc is not None:
+        rec = filter_recording(rec, cfc)
+    result = inspect_recording(rec)
+    if as_json:
+        console.print_json(json.dumps(result.to_dict()))
+    else:
+        for table in _inspection_tables(rec, result):
+            console.print(table)
+    if plot is not None:
+        rec.plot(inspection=result).savefig(plot, dpi=120)
+        console.print(f"figure written to {plot}")

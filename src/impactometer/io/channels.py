@@ -313,14 +313,6 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
                      metadata=metadata, source=source)
 
 
-def channel_unit(recording: Recording, name: str) -> str:
-    """SI unit of a channel of ``recording`` (standard channels, or as noted in its metadata)."""
-    noted = recording.metadata.get("channel_units")
-    if name in CHANNEL_UNITS:
-        return CHANNEL_UNITS[name]
-    return str(noted.get(name, "")) if isinstance(noted, dict) else ""
-
-
 def metadata_to_json(recording: Recording) -> str:
     """Metadata of ``recording`` as JSON (numpy values made plain)."""
     return json.dumps(plain(recording.metadata), sort_keys=True)

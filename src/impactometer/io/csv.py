@@ -19,7 +19,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..recording import Recording
-from .channels import RawData, channel_unit, metadata_from_json, plain
+from .channels import RawData, metadata_from_json, plain
 
 SEPARATORS = (";", "\t", ",")
 RESERVED_SIDECAR_KEYS = ("sample_rate", "start_time")
@@ -115,7 +115,7 @@ def read(path: Path) -> RawData:
 
 def write(recording: Recording, path: Path) -> None:
     """Write the samples of ``recording`` as CSV (``time [s]`` first, SI units)."""
-    header = ["time [s]"] + [f"{name} [{channel_unit(recording, name)}]" if channel_unit(recording, name)
+    header = ["time [s]"] + [f"{name} [{recording.unit(name)}]" if recording.unit(name)
                              else name for name in recording.channels]
     table = np.column_stack([recording.time] + list(recording.channels.values()))
     with open(path, "w", encoding="utf-8", newline="") as handle:

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..recording import Recording
-from .channels import RawData, channel_unit, metadata_from_json, metadata_to_json, time_attributes
+from .channels import RawData, metadata_from_json, metadata_to_json, time_attributes
 
 UNIT_ATTRIBUTES = ("unit", "units", "unit_string")
 FORMAT_NAME = "impactometer-recording"
@@ -83,6 +83,6 @@ def write(recording: Recording, path: Path) -> None:
         handle.attrs["metadata"] = metadata_to_json(recording)
         for name, values in recording.channels.items():
             dataset = handle.create_dataset(name, data=values)
-            unit = channel_unit(recording, name)
+            unit = recording.unit(name)
             if unit:
                 dataset.attrs["unit"] = unit

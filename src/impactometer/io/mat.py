@@ -21,7 +21,7 @@ import scipy.io
 
 from ..errors import RecordingError
 from ..recording import Recording
-from .channels import RawData, channel_unit, metadata_from_json, metadata_to_json, plain, time_attributes
+from .channels import RawData, metadata_from_json, metadata_to_json, plain, time_attributes
 
 #: MATLAB char arrays in v7.3 files are stored as uint16 with this attribute
 _MATLAB_CLASS = "MATLAB_class"
@@ -99,6 +99,6 @@ def write(recording: Recording, path: Path) -> None:
     content: dict[str, Any] = {names[n]: values.reshape(-1, 1) for n, values in recording.channels.items()}
     content["sample_rate"] = float(recording.sample_rate)
     content["start_time"] = float(recording.start_time)
-    content["units"] = {names[n]: channel_unit(recording, n) for n in recording.channels}
+    content["units"] = {names[n]: recording.unit(n) for n in recording.channels}
     content["metadata_json"] = metadata_to_json(recording)
     scipy.io.savemat(path, content, do_compression=True, oned_as="column")

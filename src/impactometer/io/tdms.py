@@ -18,7 +18,7 @@ from nptdms import ChannelObject, GroupObject, RootObject, TdmsFile, TdmsWriter
 
 from ..errors import RecordingError
 from ..recording import FORCE, Recording
-from .channels import RawData, channel_unit, metadata_from_json, metadata_to_json, pick_channel, time_attributes
+from .channels import RawData, metadata_from_json, metadata_to_json, pick_channel, time_attributes
 
 GROUP = "Recording"
 METADATA_PROPERTY = "impactometer_metadata"
@@ -89,7 +89,7 @@ def write(recording: Recording, path: Path, *, group: str = GROUP) -> None:
     for name, values in recording.channels.items():
         objects.append(ChannelObject(group, name, np.asarray(values, dtype=np.float64), properties={
             "wf_increment": 1.0 / recording.sample_rate, "wf_start_offset": float(recording.start_time),
-            "wf_samples": int(values.size), "unit_string": channel_unit(recording, name),
+            "wf_samples": int(values.size), "unit_string": recording.unit(name),
             "NI_ChannelName": name}))
     with TdmsWriter(str(path)) as writer:
         writer.write_segment(objects)

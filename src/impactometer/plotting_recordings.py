@@ -1,0 +1,54 @@
+"""Figures of recordings (``impactometer inspect --plot``). matplotlib is imported lazily."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .plotting import _pyplot, shade_pulses
+from .recording import ACCELERATION, FORCE
+
+
+def plot_recording(recording, axes=None, *, inspection=None):
+    """Contact force and piston acceleration vs time (ms), contact pulses shaded and their peaks marked.
+
+    Parameters
+    ----------
+    recording : Recording
+    axes : sequence of two matplotlib Axes, optional
+    inspection : Inspection, optional
+        Result of :func:`impactometer.recording.inspect_recording` (computed when not given).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from .recording import inspect_recording
+
+    plt = _pyplot()
+    names = [name for name in (FORCE, ACCELERATION) if name in recording.channels] or list(recording.channels)[:2]
+    if axes is None:
+        fig, axes = plt.subplots(len(names), 1, figsize=(9, 3.2 * len(names) + 0.5), sharex=True,
+                                 constrained_layout=True, squeeze=False)
+        axes = axes[:, 0]
+    else:
+        axes = np.atleast_1d(axes)
+        fig = axes[0].figure
+    if inspection is None:
+        inspection = inspect_recording(recording)
+    t = recording.time * 1e3
+    colors = {FORCE: "k", ACCELERATION: "tab:red"}
+    for ax, name in zip(axes, names):
+        ax.plot(t, recording.channel(name), color=colors.get(name, "tab:blue"), lw=0.8)
+        ax.set_ylabel(f"{name} [{recording.unit(name)}]" if recording.unit(name) else name)
+        ax.set_xlim(t[0], t[-1])
+        ax.grid(alpha=0.3)
+        shade_pulses(ax, inspection.pulses)
+    if FORCE in names and inspection.pulses:
+        ax = axes[names.index(FORCE)]
+        ax.plot([p.peak_time * 1e3 for p in inspection.pulses],
+                [p.peak_force + inspection.force_offset for p in inspection.pulses], "v", color="tab:blue",
+                label="pulse peaks")
+        ax.legend(loc="upper right")
+    axes[-1].set_xlabel("time [ms]")
+    axes[0].set_title(f"{recording.source}: {inspection.samples} samples at {recording.sample_rate:g} Hz")
+    return fig
