@@ -1,9 +1,12 @@
 """Early answer of the robust variant: the first two pulses only.
 
-Two onsets give one onset row for two unknowns, so rows from the contact phase are added: while the bodies
-touch, the compression δ(t) (linear in (V0, w), see :mod:`robust`) is a function of the force plus damping,
-modelled as δ = c1·Fc^(2/3) + c2·Fc + (d1 + d2·Fc^(2/3))·δ' with (c1, c2, d1, d2) nuisance unknowns; it covers
-Kelvin-Voigt (δ = Fc/k − (c/k)·δ') and Hunt-Crossley (δ ≈ (Fc/k)^(2/3)·(1 − α·δ')).
+Two onsets give one onset row for two unknowns, so the contact phase is used as well: while the bodies touch,
+the measured force must follow one contact law of the compression δ and its rate δ' (both linear in (V0, w), see
+:mod:`robust`), the same law in both pulses. The law is modelled as Fc = k·δ^n + c·δ^m·δ' with (k, c, n, m) nuisance
+unknowns -- Kelvin-Voigt is n = 1, m = 0 and Hunt-Crossley n = m = 3/2 -- and fitted to the force samples of both
+pulses together with the onset row of the second pulse (δ = 0 there), by nonlinear least squares in units of the
+force noise. The covariance adds the propagated double-integrated acceleration noise and residual offsets to the
+force-noise part (sandwich form), inflated by the reduced chi-square when it exceeds 1.
 """
 
 from __future__ import annotations
@@ -11,45 +14,81 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
+from .robust import white_kernel
+
+#: starting (n, m) exponents of the law: Kelvin-Voigt and Hunt-Crossley
+LAW_STARTS = ((1.0, 0.0), (1.5, 1.5))
+#: bounds of the exponents n and m
+N_BOUNDS, M_BOUNDS = (0.8, 2.5), (-0.5, 2.5)
+
+
+def _law(delta, rate, k, c, n, m, dscale):
+    x = np.maximum(delta / dscale, 1e-12)
+    return np.where(delta > 0, k * x ** n + c * x ** m * rate, 0.0)
+
 
 def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples):
-    """(V0, w) from the onset row of the second pulse and the contact rows of the first two pulses.
+    """(V0, w) from the force samples of the first two pulses and the onset of the second.
 
-    Returns theta, cov, chi2, dof like :func:`robust.solve_onsets`; the covariance is the Gauss-Newton one scaled
-    by the residual variance (rows weighted by the propagated noise of δ).
+    Returns theta, cov, chi2, dof like :func:`robust.solve_onsets`.
     """
     idx = np.concatenate([np.arange(p.first, p.end, dtype=float) for p in pulses])
     tau, f, jf, i_f, _, va, da = kin.at(idx)
     g = kin.gravity
-    f23 = np.cbrt(np.maximum(f, 0.0)) ** 2
     t1, _, jf1, if1, _, va1, da1 = kin.at(np.array([onset1]))
-    scale_t = max(float(tau.max()), kin.dt)
-    sigma_row = np.sqrt((noise_acceleration ** 2 + 1e-30) * kin.dt * np.maximum(tau, kin.dt) ** 3 / 3.0)
-    floor = 1e-6 * max(float(np.max(np.abs(da - g * tau ** 2 / 2))), 1e-9)
-    sigma_row = np.maximum(sigma_row, floor)
-    sigma_onset = max(float(np.sqrt(noise_acceleration ** 2 * kin.dt * t1[0] ** 3 / 3.0
-                                    + (onset1_std * kin.dt) ** 2)), floor)
+    sigma_f = max(noise_force, 1e-9 * float(np.max(f)))
+    fpeak = float(np.max(f))
 
-    def residuals(x):
-        v0, w, c1, c2, d1, d2 = x
+    def kinematics(v0, w):
         delta = v0 * tau + g * tau ** 2 / 2 - w * i_f - da
         rate = v0 + g * tau - w * jf - va
-        model = c1 * f23 + c2 * f + (d1 * 1e-4 + d2 * f23) * rate
-        onset = v0 * t1 + g * t1 ** 2 / 2 - w * if1 - da1
-        return np.concatenate([(delta - model) / sigma_row, onset / sigma_onset])
+        return delta, rate
 
-    # start: the paper-like guess V0 from the first peak, mass from the impulse balance
-    v_guess = max(float(va[np.argmax(f[: np.searchsorted(idx, pulses[0].end) ])]), 0.1)
-    x0 = np.array([2.0 * v_guess, 1.0 / 20.0, 0.0, 1e-7, 0.0, 0.0])
-    x0[0] = max(float(da1[0] - g * t1[0] ** 2 / 2 + x0[1] * if1[0]) / max(t1[0], kin.dt), 0.1)
-    fit = least_squares(residuals, x0, method="lm", x_scale="jac", max_nfev=400)
+    # scale of the compression from a rough first guess: V0 from the onset row with a mass of M2-scale
+    sigma_onset = float(np.sqrt(noise_acceleration ** 2 * kin.dt * t1[0] ** 3 / 3.0 + (onset1_std * kin.dt) ** 2))
+
+    def residuals(x, dscale):
+        v0, w, k, c, n, m = x
+        delta, rate = kinematics(v0, w)
+        model = _law(delta, rate, k, c, n, m, dscale)
+        onset = (v0 * t1[0] + g * t1[0] ** 2 / 2 - w * if1[0] - da1[0]) / max(sigma_onset, 1e-12)
+        return np.append((f - model) / sigma_f, onset)
+
+    best = None
+    for w0 in (1.0 / 10.0, 1.0 / 50.0):
+        v0 = max(float(da1[0] - g * t1[0] ** 2 / 2 + w0 * if1[0]) / max(t1[0], kin.dt), 0.05)
+        delta0, _ = kinematics(v0, w0)
+        dscale = max(float(np.max(delta0)), 1e-6)
+        for n0, m0 in LAW_STARTS:
+            x0 = np.array([v0, w0, fpeak, 0.0 if m0 == 0 else 0.3 * fpeak, n0, m0])
+            lower = [0.0, 0.0, 0.0, -np.inf, N_BOUNDS[0], M_BOUNDS[0]]
+            upper = [np.inf, np.inf, np.inf, np.inf, N_BOUNDS[1], M_BOUNDS[1]]
+            try:
+                fit = least_squares(residuals, x0, args=(dscale,), bounds=(lower, upper), x_scale="jac",
+                                    max_nfev=300)
+            except (ValueError, np.linalg.LinAlgError):
+                continue
+            if best is None or fit.cost < best[0].cost:
+                best = (fit, dscale)
+    fit, dscale = best
     jac = fit.jac
     chi2 = float(fit.fun @ fit.fun)
     dof = fit.fun.size - 6
     try:
-        cov = np.linalg.inv(jac.T @ jac)
+        bread = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
-        cov = np.full((6, 6), np.inf)
-    cov = cov * max(1.0, chi2 / max(dof, 1))
-    del scale_t
+        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof
+    cov = bread * max(1.0, chi2 / max(dof, 1))
+    # correlated part: the double-integrated acceleration noise and residual offset shift δ at every sample
+    v0, w, k, c, n, m = fit.x
+    delta, rate = kinematics(v0, w)
+    eps = 1e-6 * dscale
+    slope = (_law(delta + eps, rate, k, c, n, m, dscale) - _law(delta - eps, rate, k, c, n, m, dscale)) / (2 * eps)
+    dr = np.append(-slope / sigma_f, 1.0 / max(sigma_onset, 1e-12))
+    taus = np.append(tau, t1[0])
+    kernel = noise_acceleration ** 2 * white_kernel(taus, kin.dt)
+    if pre_samples > 0:
+        kernel = kernel + noise_acceleration ** 2 / pre_samples * np.outer(taus ** 2, taus ** 2) / 4.0
+    gain = bread @ jac.T
+    cov = cov + gain @ (dr[:, None] * kernel * dr[None, :]) @ gain.T
     return fit.x[:2], cov[:2, :2], chi2, dof

@@ -166,14 +166,14 @@ def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolat
     measured = ", ".join(f"{k} = {v:.4g}" for k, v in zip(rmap.labels, y))
     span = (f"mass {rmap.masses[0]:g}-{rmap.masses[-1]:g} kg, velocity {rmap.velocities[0]:.3g}-"
             f"{rmap.velocities[-1]:.3g} m/s")
-    if outside:
+    if residual > MISFIT_RESIDUAL:
+        text = (f"features ({measured}) fit nowhere in or near the map ({span}): the best eq. (7) residual is "
+                f"{residual:.2g} > {MISFIT_RESIDUAL:g}, at {mass:.3g} kg and {velocity:.3g} m/s")
+        hint = "expected a map of the same stand, contact law and feature parameters as the measurement"
+    else:
         text = (f"features ({measured}) lie outside the map ({span}); the nearest impact explaining them is about "
                 f"{mass:.3g} kg at {velocity:.3g} m/s (eq. (7) residual {residual:.2g})")
         hint = "build a map that spans it (map build --mass/--height) or pass --allow-extrapolation"
-    else:
-        text = (f"features ({measured}) fit nowhere in the map ({span}): the best eq. (7) residual is {residual:.2g} "
-                f"> {MISFIT_RESIDUAL:g}")
-        hint = "expected a map of the same stand, contact law and feature parameters as the measurement"
     if not allow_extrapolation:
         raise ResponseMapError(f"{text}; {hint}")
     warnings.warn(f"{text}; answering by extrapolation", UserWarning, stacklevel=3)
