@@ -9,8 +9,28 @@ import pytest
 from impactometer.errors import RecordingError
 from impactometer.io import FORMATS, read_calibration_set, read_recording, write_recording
 from impactometer.recording import Recording
+from impactometer.rig import Scenario
+from impactometer.sensors import record
 
 EXTENSIONS = (".csv", ".h5", ".tdms", ".mat")
+
+
+@pytest.fixture(scope="module")
+def simulated():
+    return record(Scenario(mass=30.0, velocity=2.0), duration=0.01, noise=0.02, seed=3, pre_trigger=0.001,
+                  extra_channels=["pressure_lower", "piston_displacement"])
+
+
+@pytest.mark.parametrize("ext", EXTENSIONS)
+def test_round_trip_is_exact(tmp_path, simulated, ext):
+    back = read_recording(write_recording(simulated, tmp_path / f"run{ext}"))
+    assert back.sample_rate == simulated.sample_rate and back.start_time == simulated.start_time
+    assert list(back.channels) == list(simulated.channels)
+    for name, values in simulated.channels.items():
+        np.testing.assert_array_equal(back.channel(name), values)
+        assert back.unit(name) == simulated.unit(name)
+    for key, value in simulated.metadata.items():
+        assert back.metadata[key] == value, key
 
 
 def _rec(mass=None, **extra):

@@ -9,28 +9,16 @@ import pytest
 from impactometer.errors import RecordingError
 from impactometer.io import read_recording, write_recording
 from impactometer.recording import Recording
-from impactometer.rig import Scenario
-from impactometer.sensors import record
 
 DATA = Path(__file__).parent / "data"
 G = 9.80665
 
 
-@pytest.fixture(scope="module")
-def recording():
-    return record(Scenario(mass=30.0, velocity=2.0), duration=0.01, noise=0.02, seed=3, pre_trigger=0.001,
-                  extra_channels=["pressure_lower"])
-
-
-def test_round_trip_is_exact(tmp_path, recording):
-    path = write_recording(recording, tmp_path / "run.csv")
+def test_written_header_names_the_si_units(tmp_path):
+    rec = Recording(sample_rate=1e3, channels={"contact_force": [1.0, 2.0], "piston_acceleration": [0.0, 1.0],
+                                               "pressure_lower": [3e5, 3e5]})
+    path = write_recording(rec, tmp_path / "run.csv")
     assert (tmp_path / "run.json").is_file()
-    back = read_recording(path)
-    assert back.sample_rate == recording.sample_rate and back.start_time == recording.start_time
-    for name, values in recording.channels.items():
-        np.testing.assert_array_equal(back.channel(name), values)
-    for key in ("mass_kg", "velocity_m_s", "pressure_gauge_Pa", "seed", "noise"):
-        assert back.metadata[key] == recording.metadata[key]
     header = path.read_text().splitlines()[0]
     assert header == "time [s],contact_force [N],piston_acceleration [m/s^2],pressure_lower [Pa]"
 

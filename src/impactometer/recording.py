@@ -24,6 +24,26 @@ CHANNEL_UNITS = {FORCE: "N", ACCELERATION: "m/s^2", "u1": "m", "u2": "m", "pisto
 TRUTH_KEYS = ("mass_kg", "velocity_m_s", "pressure_gauge_Pa")
 
 
+def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np.ndarray:
+    """``values`` as a non-empty 1-D float array of finite samples; a RecordingError naming ``source`` otherwise.
+
+    With ``squeeze``, a row or column vector (e.g. MATLAB's n×1) is accepted as 1-D.
+    """
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise RecordingError(f"{source}: channel {name!r} must hold numbers") from None
+    if squeeze and arr.ndim > 1 and sum(s > 1 for s in arr.shape) <= 1:
+        arr = arr.reshape(-1)
+    if arr.ndim != 1 or arr.size == 0:
+        raise RecordingError(f"{source}: channel {name!r} must be a non-empty 1-D array, got shape {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise RecordingError(f"{source}: channel {name!r} has a non-finite sample ({float(arr[bad[0]])!r}) at "
+                             f"index {int(bad[0])}; expected finite numbers")
+    return arr
+
+
 @dataclass(frozen=True, kw_only=True)
 class Recording:
     """Regularly sampled channels of one test.
@@ -55,17 +75,7 @@ class Recording:
         length = None
         clean = {}
         for name, values in self.channels.items():
-            try:
-                arr = np.asarray(values, dtype=float)
-            except (TypeError, ValueError):
-                raise RecordingError(f"{where}channel {name!r} must hold numbers") from None
-            if arr.ndim != 1 or arr.size == 0:
-                raise RecordingError(f"{where}channel {name!r} must be a non-empty 1-D array, got shape {arr.shape}")
-            bad = np.flatnonzero(~np.isfinite(arr))
-            if bad.size:
-                raise RecordingError(f"{where}channel {name!r} has a non-finite sample "
-                                     f"({float(arr[bad[0]])!r}) at index "
-                                     f"{int(bad[0])}; expected finite numbers")
+            arr = samples(values, name, self.source)
             if length is not None and arr.size != length:
                 raise RecordingError(f"{where}channels must have equal lengths, got {arr.size} samples in "
                                      f"{name!r} and {length} before")

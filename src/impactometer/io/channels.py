@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import RecordingError
-from ..recording import ACCELERATION, CHANNEL_UNITS, FORCE, Recording
+from ..recording import ACCELERATION, CHANNEL_UNITS, FORCE, Recording, samples
 from ..units import UNITS
 
 #: standard channel -> case-insensitive name fragments that identify it (pvlib VARIABLE_MAP in spirit)
@@ -119,26 +119,10 @@ def pick_channel(names: list[str], standard: str, explicit: str | None, *, optio
     return None
 
 
-def _finite(values: np.ndarray, name: str, source: str) -> np.ndarray:
-    try:
-        arr = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise RecordingError(f"{source}: channel {name!r} must hold numbers") from None
-    arr = np.squeeze(arr) if arr.ndim > 1 and sum(s > 1 for s in arr.shape) <= 1 else arr
-    if arr.ndim != 1 or arr.size == 0:
-        raise RecordingError(f"{source}: channel {name!r} must be a non-empty 1-D series, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
-        raise RecordingError(f"{source}: channel {name!r} has a non-finite sample "
-                             f"({float(arr[bad[0]])!r}) at index "
-                             f"{int(bad[0])}; expected finite numbers")
-    return arr
-
-
 def time_base(time: np.ndarray, unit: str | None, source: str) -> tuple[float, float]:
     """(sample rate [Hz], start time [s]) of a time column; refuses non-monotonic or irregular time."""
     known = unit_factor(unit, dimension="time", field="time", source=source)
-    t = _finite(time, "time", source) * (1.0 if known is None else known[1])
+    t = samples(time, "time", source, squeeze=True) * (1.0 if known is None else known[1])
     if t.size < 2:
         raise RecordingError(f"{source}: time must have at least 2 samples, got {t.size}")
     steps = np.diff(t)
@@ -259,7 +243,7 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
         if target in channels:
             raise RecordingError(f"{source}: two columns give channel {target!r}; rename one or pick channels "
                                  f"with force_channel / acceleration_channel")
-        arr = _finite(values, name, source)
+        arr = samples(values, name, source, squeeze=True)
         known = unit_factor(unit, dimension=CHANNEL_DIMENSIONS.get(target), field=name, source=source)
         if known is not None:
             arr = arr * known[1] if known[1] != 1.0 else arr

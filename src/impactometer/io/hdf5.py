@@ -75,7 +75,7 @@ def read(path: Path, *, group: str | None = None) -> RawData:
 
 def write(recording: Recording, path: Path) -> None:
     """Write ``recording`` to a new HDF5 file."""
-    with h5py.File(path, "w") as handle:
+    with h5py.File(path, "w", track_order=True) as handle:  # channels come back in their order
         handle.attrs["format"] = FORMAT_NAME
         handle.attrs["version"] = 1
         handle.attrs["sample_rate"] = recording.sample_rate
