@@ -21,6 +21,7 @@ DEFAULT_BATCH_CHANNELS = ("contact_force", "a2")
 MAX_STEP = 1e-3
 #: default bound of the number of accepted steps per scenario
 MAX_STEPS = 10_000_000
+_CHUNK_BYTES = 64 * 2**20
 _STATE_SCALE = np.array([0.1, 1.0, 0.1, 1.0, 1e5, 1e5, 1e-3, 1e-4, 100.0])
 
 
@@ -189,17 +190,28 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
     params = pack_batch(rig, mass, velocity, pressure_gauge, overrides)
     y0 = initial_states(params)
     index = np.array([d.CHANNELS.index(c) for c in channels], dtype=np.int64)
-    out = np.empty((params.shape[0], index.size, t.size), dtype=np.float64 if dtype is None else dtype)
+    dtype = np.dtype(np.float64 if dtype is None else dtype)
+    if dtype not in (np.float32, np.float64):
+        raise ParameterError(f"dtype must be float32 or float64, got {dtype}")
+    out = np.empty((params.shape[0], index.size, t.size), dtype=dtype)
     status = np.zeros(params.shape[0], dtype=np.int64)
     steps = np.zeros(params.shape[0], dtype=np.int64)
-    fast.integrate_batch(params, y0, t, index, rtol, absolute_tolerance(rtol), float(max_step), int(max_steps), out,
-                         status, steps)
+    # the kernel writes float64; narrower output goes through a float64 buffer a chunk at a time
+    chunk = params.shape[0] if dtype == np.float64 else max(1, _CHUNK_BYTES // (8 * index.size * t.size))
+    for start in range(0, params.shape[0], chunk):
+        rows = slice(start, start + chunk)
+        target = out[rows] if dtype == np.float64 else np.empty(out[rows].shape)
+        fast.integrate_batch(params[rows], y0[rows], t, index, rtol, absolute_tolerance(rtol), float(max_step),
+                             int(max_steps), target, status[rows], steps[rows])
+        if dtype != np.float64:
+            out[rows] = target
     bad = np.flatnonzero(status != fast.OK)
     if bad.size:
         i = int(bad[0])
         raise SimulationError(f"fast integrator failed ({fast.STATUS_TEXT[int(status[i])]}) for {bad.size} "
-                              f"scenario(s), first: mass={params[i, d.MASS]!r} kg, "
-                              f"velocity={params[i, d.VELOCITY]!r} m/s, pressure_gauge={params[i, d.PRESSURE_GAUGE]!r} Pa")
+                              f"scenario(s), first: mass={float(params[i, d.MASS])!r} kg, "
+                              f"velocity={float(params[i, d.VELOCITY])!r} m/s, "
+                              f"pressure_gauge={float(params[i, d.PRESSURE_GAUGE])!r} Pa")
     return BatchResult(time=t, data={c: out[:, j, :] for j, c in enumerate(channels)},
                        mass=params[:, d.MASS].copy(), velocity=params[:, d.VELOCITY].copy(),
                        pressure_gauge=params[:, d.PRESSURE_GAUGE].copy(), params=params, steps=steps, rig=rig)
