@@ -66,7 +66,7 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
         raise UnitError(f"{field} must be a finite number with an optional {dimension} unit, got {text!r}")
     if not unit:
         return value
-    key = unit.lower()
+    key = unit.lower().replace("\u03bc", "\u00b5")  # Greek mu (as upper/lower-casing makes it) -> micro sign
     if dimension == "mass" and key == "g":
         key = "g_mass"
     if key not in UNITS or UNITS[key][0] != dimension:
