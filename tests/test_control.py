@@ -186,3 +186,27 @@ def test_metrics_of_a_constant_deceleration_are_ideal():
     assert m.max_deceleration == pytest.approx(15.0, rel=1e-9)
     assert not m.bottomed_out and not m.rebounded
     assert m.energy_absorbed == pytest.approx(0.5 * 20 * 4 + 20 * 9.81 * 4 / 30, rel=1e-6)
+
+
+def test_closed_capacity_is_the_work_of_the_adiabatic_gas_spring():
+    rig = get_rig()
+    p = pack(rig, SCENARIO)
+    u0, travel, p_lower, p_upper = 0.05, 0.12, 4.2e5, 0.9e5
+    c, gamma = rig.cylinder, rig.gas.gamma
+    s = np.linspace(u0, u0 + travel, 200001)
+    lower0, upper0 = d.volumes(u0, p)
+    lower = c.area * (c.lower_length - s)
+    upper = c.annulus_area * (c.upper_length + s)
+    force = (p_lower * (lower0 / lower) ** gamma * c.area - p_upper * (upper0 / upper) ** gamma * c.annulus_area
+             - rig.gas.atmospheric_pressure * c.rod_area + rig.friction.force)
+    assert loop.closed_capacity(p, p_lower, p_upper, u0, travel) == pytest.approx(np.trapezoid(force, s), rel=1e-8)
+
+
+def test_realtime_keeps_enough_gas_to_stop_a_heavy_fast_impact_at_low_pressure():
+    scenario = Scenario(mass=50.0, velocity=3.0, pressure_gauge=20e3)
+    p = pack(get_rig(), scenario)
+    control = loop.control_vector(strategy=loop.REALTIME, start=0.035, mass=50.0, velocity=3.0, usable_stroke=0.19,
+                                  charge_pressure=float(initial_state(p)[d.P_LOWER]))
+    result, _ = loop.simulate_controlled(scenario, control=control, duration=0.4, sample_rate=50e3)
+    assert result.bottom_stop_force.max() == 0.0 and "ended_at_bottom" not in result.extra
+    assert result.u1.max() < 0.19 + 0.005  # usable stroke + contact compression at the bounce peaks

@@ -122,6 +122,26 @@ def _pneumatic(p_lower, p_upper, p):
     return p_lower * p[d.AREA] - p_upper * (p[d.AREA] - p[d.ROD_AREA]) - p[d.ATMOSPHERE] * p[d.ROD_AREA]
 
 
+#: the real-time controller closes the valve when the closed gas spring can absorb less than this multiple of the
+#: energy still to be absorbed within the remaining stroke
+CAPACITY_MARGIN = 1.2
+
+
+@njit(cache=True, error_model="numpy")
+def closed_capacity(p, p_lower, p_upper, piston_displacement, travel):
+    """Work [J] the closed cylinder absorbs while the piston moves ``travel`` [m] down from ``piston_displacement``
+    with chamber pressures ``p_lower``, ``p_upper`` [Pa]: adiabatic compression of the lower chamber, minus the
+    work of the expanding upper chamber and of the atmosphere on the rod, plus the friction."""
+    gamma = p[d.GAMMA]
+    lower, upper = d.volumes(piston_displacement, p)
+    lower_end, upper_end = d.volumes(piston_displacement + travel, p)
+    if lower_end <= 0.0:
+        return math.inf
+    work = p_lower * lower / (gamma - 1.0) * ((lower / lower_end) ** (gamma - 1.0) - 1.0)
+    work -= p_upper * upper / (gamma - 1.0) * (1.0 - (upper / upper_end) ** (gamma - 1.0))
+    return work + (p[d.FRICTION] - p[d.ATMOSPHERE] * p[d.ROD_AREA]) * travel
+
+
 @njit(cache=True, error_model="numpy")
 def realtime_command(p, ctrl, drive, velocity, displacement, p_lower, p_upper, piston_velocity,
                      piston_displacement, out):
@@ -155,6 +175,13 @@ def realtime_command(p, ctrl, drive, velocity, displacement, p_lower, p_upper, p
     annulus = area - p[d.ROD_AREA]
     vol_lower, vol_upper = d.volumes(piston_displacement, p)
     vol_lower = max(vol_lower, 1e-3 * area * p[d.LOWER_LENGTH])
+    # supervisor: keep enough gas for the closed spring to stop both bodies within the remaining stroke (and so
+    # to carry their weight at its end: the gas force grows along the stroke)
+    needed = 0.5 * (mass * velocity * velocity + p[d.PISTON_MASS] * piston_velocity * piston_velocity) \
+        + (mass + p[d.PISTON_MASS]) * g * max(remaining, 0.0)
+    if remaining <= 0.0 or closed_capacity(p, p_lower, p_upper, piston_displacement, remaining) \
+            < CAPACITY_MARGIN * needed:
+        return 0.0
     p_down = p[d.ATMOSPHERE] if drive[ROUTE] != 0.0 else p_upper
     # rate of the gas force with the valve closed, and its change per unit mass flow out of the lower chamber
     closed_rate = gamma * piston_velocity * (p_lower * area * area / vol_lower + p_upper * annulus * annulus

@@ -51,7 +51,7 @@ def case_rows(case: dict[str, float], rig: Rig, *, noise: float, seed: int, iden
                          "pressure_gauge_Pa": scenario.pressure_gauge, "strategy": label or name,
                          "identification": ident["method"], "identified_mass_kg": ident["mass_kg"],
                          "identified_velocity_m_s": ident["velocity_m_s"], "identification_error": ident["error"],
-                         **metrics, "efficiency_max": summary["efficiency_max"],
+                         "valve_area_m2": None, **metrics, "efficiency_max": summary["efficiency_max"],
                          "bound_force_N": summary["bound_force_N"], "over_capacity": summary["over_capacity"],
                          "contact_law": rig.contact.law, "noise": noise, "seed": seed})
     return rows
