@@ -1,0 +1,94 @@
+"""``impactometer simulate`` and ``impactometer demo``, run in-process."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+from impactometer.cli import main
+from impactometer.rig import get_rig
+
+
+def run(args, capsys):
+    """Run the CLI; return (exit status, stdout)."""
+    try:
+        main(args)
+        status = 0
+    except SystemExit as exc:
+        status = exc.code
+    return status, capsys.readouterr().out
+
+
+def test_simulate_writes_histories_and_figure(tmp_path, capsys):
+    out, fig = tmp_path / "run.h5", tmp_path / "run.png"
+    status, text = run(["simulate", "--mass", "30kg", "--height", "0.2m", "--pressure", "200kPa",
+                        "--duration", "20ms", "--sample-rate", "50kHz", "--out", str(out), "--plot", str(fig)],
+                       capsys)
+    assert status == 0
+    assert "peak contact force" in text and "energy balance error" in text
+    assert fig.stat().st_size > 10_000 and fig.read_bytes()[:4] == b"\x89PNG"
+    with h5py.File(out) as f:
+        assert f.attrs["mass"] == 30.0
+        assert f.attrs["velocity"] == pytest.approx(math.sqrt(2 * 9.81 * 0.2))
+        assert f.attrs["pressure_gauge"] == 200e3
+        assert f.attrs["sample_rate"] == pytest.approx(50e3)
+        assert json.loads(f.attrs["rig"])["contact"]["law"] == "kelvin-voigt"
+        time, force = f["time"][:], f["contact_force"][:]
+    assert time.size == 1001 and time[-1] == pytest.approx(0.02)
+    assert force.max() > 1000.0  # [N]: a real impact was simulated
+
+
+def test_simulate_options_velocity_contact_and_rig_file(tmp_path, capsys):
+    stand = tmp_path / "stand.toml"
+    get_rig().replace(**{"friction.force": 0.0}).to_toml(stand)
+    out = tmp_path / "hunt.h5"
+    status, _ = run(["simulate", "--mass", "20", "--velocity", "1.5m/s", "--pressure", "1bar", "--contact",
+                     "hunt", "--rig", str(stand), "--duration", "0.01", "--out", str(out)], capsys)
+    assert status == 0
+    with h5py.File(out) as f:
+        rig = json.loads(f.attrs["rig"])
+        assert (rig["contact"]["law"], rig["friction"]["force"]) == ("hunt-crossley", 0.0)
+        assert (f.attrs["mass"], f.attrs["velocity"], f.attrs["pressure_gauge"]) == (20.0, 1.5, 1e5)
+        assert np.all(f["friction_force"][:] == 0.0)
+
+
+def test_simulate_refuses_to_overwrite_without_force(tmp_path, capsys):
+    out = tmp_path / "run.h5"
+    out.write_bytes(b"precious")
+    args = ["simulate", "--velocity", "1m/s", "--duration", "5ms", "--out", str(out)]
+    status, text = run(args, capsys)
+    assert status == 2 and "exists; pass --force" in text
+    assert out.read_bytes() == b"precious"
+    status, _ = run(args + ["--force"], capsys)
+    assert status == 0 and h5py.is_hdf5(out)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--pressure", "200kPaa"], "--pressure: unknown pressure unit 'kPaa'"),
+    (["--mass", "heavy"], "--mass must be a number with an optional mass unit"),
+    (["--mass", "-3kg"], "mass must be > 0"),
+    (["--height", "nan"], "--height must be a finite number"),
+    (["--pressure", "500kPa"], "pressure_gauge must be <= the rated 400000 Pa"),
+    (["--pressure", "-1kPa"], "pressure_gauge must be >= 0"),
+    (["--contact", "glue"], "contact.law must be one of"),
+    (["--velocity", "2m/s", "--height", "0.2m"], "give exactly one of --height and --velocity"),
+    (["--duration", "50kHz"], "--duration: unknown time unit 'kHz'"),
+    (["--rig", "stand.yaml"], "rig must be one of"),
+])
+def test_bad_input_exits_2_with_one_line(args, message, capsys):
+    status, text = run(["simulate", *args], capsys)
+    assert status == 2
+    assert text.count("\n") == 1 and text.startswith("error:")
+    assert message in text
+
+
+def test_demo_writes_its_figure(tmp_path, capsys):
+    fig = tmp_path / "x.png"
+    status, text = run(["demo", "--out", str(fig)], capsys)
+    assert status == 0
+    assert fig.read_bytes()[:4] == b"\x89PNG"
+    assert "contact pulses" in text and "peak contact force" in text
