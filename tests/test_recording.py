@@ -22,6 +22,19 @@ def test_time_base_and_properties():
         rec.piston_acceleration
 
 
+def test_from_a_regular_time_vector():
+    t = -0.001 + np.arange(20) / 4e3
+    rec = Recording.from_time(t, {"contact_force": np.ones(20)}, metadata={"mass_kg": 2.0})
+    assert rec.sample_rate == pytest.approx(4e3, rel=1e-12) and rec.start_time == pytest.approx(-0.001)
+    np.testing.assert_allclose(rec.time, t, atol=1e-15)
+    with pytest.raises(RecordingError, match="time must be regularly sampled"):
+        Recording.from_time(np.r_[t[:10], t[10:] + 1e-4], {"contact_force": np.ones(20)})
+    with pytest.raises(RecordingError, match="time must increase strictly"):
+        Recording.from_time(t[::-1], {"contact_force": np.ones(20)})
+    with pytest.raises(RecordingError, match="expected equal lengths"):
+        Recording.from_time(t, {"contact_force": np.ones(19)})
+
+
 @pytest.mark.parametrize("kwargs, match", [
     (dict(sample_rate=0.0), "sample_rate must be a finite number > 0"),
     (dict(sample_rate=-5.0), "sample_rate must be a finite number > 0"),

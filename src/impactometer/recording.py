@@ -132,6 +132,22 @@ class Recording:
         return replace(self, metadata={**self.metadata, **changes})
 
     @classmethod
+    def from_time(cls, time, channels: dict[str, Any], *, metadata: dict[str, Any] | None = None,
+                  source: str = "memory") -> "Recording":
+        """A recording from a regular time vector [s] instead of a sample rate.
+
+        The time must increase strictly and stay within 5 % of a period of a regular grid.
+        """
+        from .io.channels import time_base
+
+        rate, start = time_base(time, None, source)
+        if np.size(time) != len(next(iter(channels.values()), [])):
+            raise RecordingError(f"{source}: time has {np.size(time)} samples but the channels have "
+                                 f"{len(next(iter(channels.values()), []))}; expected equal lengths")
+        return cls(sample_rate=rate, channels=channels, start_time=start, metadata=dict(metadata or {}),
+                   source=source)
+
+    @classmethod
     def read(cls, path, **options: Any) -> "Recording":
         """Read a lab file; see :func:`impactometer.io.read_recording` for the options."""
         from .io import read_recording
