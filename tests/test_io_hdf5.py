@@ -27,6 +27,7 @@ def _daq_file(path, *, attrs=None, group="daq", n=100):
         g.create_dataset("Force", data=np.sin(t * 1e3)).attrs["units"] = "kN"
         g.create_dataset("Accel", data=np.cos(t * 1e3)).attrs["unit"] = b"g"
         g.create_dataset("status", data=np.array([b"ok"]))
+        g.create_dataset("calibration matrix", data=np.eye(3))
         for key, value in (attrs if attrs is not None else {"dt": 1e-5, "t0": -2e-4, "mass_kg": 12.5,
                                                              "operator": "B"}).items():
             g.attrs[key] = value

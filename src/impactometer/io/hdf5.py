@@ -24,8 +24,10 @@ FORMAT_NAME = "impactometer-recording"
 
 
 def _datasets(group: h5py.Group) -> dict[str, h5py.Dataset]:
+    """Numeric vector datasets (1-D, n×1 or 1×n) of ``group``; matrices and strings are not channels."""
     return {name: item for name, item in group.items()
-            if isinstance(item, h5py.Dataset) and item.dtype.kind in "iuf" and item.size > 1}
+            if isinstance(item, h5py.Dataset) and item.dtype.kind in "iuf" and item.size > 1
+            and sum(s > 1 for s in item.shape) == 1}
 
 
 def _unit(dataset: h5py.Dataset) -> str | None:
