@@ -155,6 +155,7 @@ def test_apply_sensors_degrades_a_recording_without_decimation():
                     metadata={"mass_kg": 12.0})
     out = apply_sensors(rec, noise=0.1, seed=1)
     assert out.metadata["mass_kg"] == 12.0 and out.start_time == -0.001 and out.sample_rate == 10e3
+    assert "anti_alias" not in out.metadata and out.metadata["noise"] == {"contact_force": 0.1}
     assert np.std(out.contact_force - rec.contact_force) == pytest.approx(0.1 * np.sqrt(np.mean(
         rec.contact_force[10:] ** 2)), rel=0.15)
 

@@ -353,9 +353,13 @@ def apply_sensors(data: Recording | Mapping[str, Any], *, input_rate: float | No
                        rngs=[np.random.default_rng(seed)], adc_bits=adc_bits, adc_range=adc_range,
                        gravity_offset=g if include_gravity else None, trigger=trigger)
     meta = dict(base.metadata)
-    meta.update({"noise": {k: v for k, v in levels.items() if v > 0}, "seed": seed, "anti_alias": design,
-                 "anti_alias_delay_s": anti_alias_delay(design, out_rate) if factor > 1 else 0.0,
-                 "adc_bits": adc_bits, "acceleration_includes_gravity": bool(include_gravity)})
+    meta.update({"noise": {k: v for k, v in levels.items() if v > 0}, "seed": seed})
+    if adc_bits is not None:
+        meta["adc_bits"] = adc_bits
+    if include_gravity:
+        meta["acceleration_includes_gravity"] = True
+    if factor > 1:  # without decimation no anti-alias filter acts: the recording's own notes stay
+        meta.update({"anti_alias": design, "anti_alias_delay_s": anti_alias_delay(design, out_rate)})
     meta.update(metadata or {})
     return Recording(sample_rate=out_rate, channels=outputs[0], start_time=first_t, metadata=meta,
                      source=base.source)
