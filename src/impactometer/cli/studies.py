@@ -58,7 +58,9 @@ def study(
         "--scheduler", help="Run on a Dask cluster: scheduler address tcp://HOST:PORT.")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Root seed of every noise realisation.")] = 0,
     seeds: Annotated[int, typer.Option("--seeds", help="Noise realisations per case.")] = 1,
-    grid: Annotated[int, typer.Option("--grid", help="Values per axis of the M1×V0×p0 grid (5: 125 cases).")] = 5,
+    grid: Annotated[Optional[int], typer.Option(
+        "--grid", help="Values per axis of the M1×V0×p0 grid (5: the paper's 125 cases; default: per study).")]
+    = None,
     noise: Annotated[str, typer.Option("--noise", help="Sensor noise of the non-noise studies (% of RMS).")] = "1%",
     sample_rate: Annotated[str, typer.Option("--sample-rate", help="DAQ rate of the non-sampling studies.")]
     = "50kHz",

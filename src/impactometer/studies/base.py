@@ -37,7 +37,9 @@ class StudyOptions:
     ----------
     rig : The stand (contact law included).
     seed : Root seed of every noise realisation.
-    grid : Values per axis of the M1 × V0 × p0 grid over the paper's ranges (5 gives the paper's 125 cases).
+    grid : Values per axis of the M1 × V0 × p0 grid over the paper's ranges (5 gives the paper's 125 cases);
+        None lets each study use its default size (chosen so that all studies run in about two minutes on two
+        cores).
     seeds : Noise realisations per case where a study adds noise.
     noise : Sensor noise of the studies that are not about noise, as a fraction of each channel's RMS.
     sample_rate : DAQ sample rate of the studies that are not about sampling [Hz].
@@ -48,7 +50,7 @@ class StudyOptions:
 
     rig: Rig = field(default_factory=get_rig)
     seed: int = 0
-    grid: int = 5
+    grid: int | None = None
     seeds: int = 1
     noise: float = 0.01
     sample_rate: float = 50e3
@@ -61,6 +63,8 @@ class StudyOptions:
             raise ParameterError(f"rig must be a Rig, got {self.rig!r}")
         for name, low in (("seed", 0), ("grid", 2), ("seeds", 1)):
             value = getattr(self, name)
+            if name == "grid" and value is None:
+                continue
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
                 raise ParameterError(f"{name} must be an integer >= {low}, got {value!r}")
         for name, low, high in (("noise", 0.0, 1.0), ("sample_rate", 1e3, 1e7), ("duration", 1e-3, 1.0),
@@ -78,7 +82,7 @@ class StudyOptions:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready description (the stand in full)."""
-        return {"rig": to_dict(self.rig), "seed": int(self.seed), "grid": int(self.grid), "seeds": int(self.seeds),
+        return {"rig": to_dict(self.rig), "seed": int(self.seed), "grid": self.grid, "seeds": int(self.seeds),
                 "noise": float(self.noise), "sample_rate": float(self.sample_rate),
                 "duration": float(self.duration), "pre_trigger": float(self.pre_trigger),
                 "params": {k: self.params[k] for k in sorted(self.params)}}
@@ -165,9 +169,14 @@ def case_seed(options: StudyOptions, study: str, case: int, *more: int) -> np.ra
     return np.random.SeedSequence(int(options.seed), spawn_key=(zlib.crc32(study.encode()), int(case), *more))
 
 
-def scenario_grid(options: StudyOptions, *, pressures=None) -> list[Row]:
-    """The M1 × V0 × p0 grid, ``options.grid`` values per axis over the paper's ranges (pressures optional)."""
-    n = options.grid
+def grid_size(options: StudyOptions, default: int) -> int:
+    """Values per grid axis: ``options.grid`` when given, else the study's ``default``."""
+    return default if options.grid is None else int(options.grid)
+
+
+def scenario_grid(options: StudyOptions, default: int = 5, *, pressures=None) -> list[Row]:
+    """The M1 × V0 × p0 grid over the paper's ranges: ``options.grid`` (else ``default``) values per axis."""
+    n = grid_size(options, default)
     masses = np.linspace(*PAPER_RANGES["mass"], n)
     velocities = np.linspace(*PAPER_RANGES["velocity"], n)
     pressures = np.linspace(*PAPER_RANGES["pressure_gauge"], n) if pressures is None else np.asarray(pressures)

@@ -11,7 +11,7 @@ from functools import partial
 
 import numpy as np
 
-from .base import PAPER_RANGES, Row, Study, StudyOptions, register
+from .base import PAPER_RANGES, Row, Study, StudyOptions, grid_size, register
 from .identification import REQUIRES, by_method, evaluate_noisy, max_abs, pct, per_method, seeded_grid
 
 NAME = "cases"
@@ -21,7 +21,7 @@ DEFAULTS = {"pressures": [20e3, 100e3], "velocities": [1.0, 2.0, 3.0]}
 def _cases(options: StudyOptions) -> list[Row]:
     pressures = [float(p) for p in options.param(NAME, "pressures", DEFAULTS["pressures"])]
     velocities = [float(v) for v in options.param(NAME, "velocities", DEFAULTS["velocities"])]
-    masses = np.linspace(*PAPER_RANGES["mass"], options.grid)
+    masses = np.linspace(*PAPER_RANGES["mass"], grid_size(options, 5))
     scenarios = [{"mass": float(m), "velocity": v, "pressure_gauge": p}
                  for p in pressures for v in velocities for m in masses]
     return seeded_grid(scenarios, options)

@@ -123,32 +123,58 @@ def plot_noise(rows: Sequence[Row]):
     return fig
 
 
-def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = True, title: str = "",
-                    timing: bool = True):
-    """Figs. 8-9: mean |mass| and |velocity| error (and time per identification) vs ``x``, one line per search
-    method and feature set."""
+def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = True, title: str = ""):
+    """Figs. 8-9: mean |mass| and |velocity| error [%] (and time per identification) vs ``x``, one line per
+    search method, feature set and test set."""
     plt = _pyplot()
-    panels = ["mass_error", "velocity_error"] + (["seconds_per_identification"] if timing else [])
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.8 * len(panels), 3.8), squeeze=False,
+    panels = [("mass_error_mean", "mean |mass error| [%]", 100.0),
+              ("velocity_error_mean", "mean |velocity error| [%]", 100.0)]
+    if any("time_per_identification_s" in r for r in rows):
+        panels.append(("time_per_identification_s", "time per identification [ms]", 1e3))
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 4.0), squeeze=False,
                              constrained_layout=True)
-    series = list(dict.fromkeys((r.get("search", ""), r.get("features", "")) for r in rows))
-    for ax, panel in zip(axes[0], panels):
-        for search, features in series:
-            chosen = sorted(pick(rows, search=search, features=features) if search or features else rows,
-                            key=lambda r: r[x])
-            values = np.array([r.get(panel, np.nan) for r in chosen], dtype=float)
-            if panel != "seconds_per_identification":
-                values = values * 100
-            label = " ".join(s for s in (search, features) if s)
-            ax.plot([r[x] for r in chosen], values, "o-", color=_color(search), label=label or None,
-                    ls="-" if features in ("", "peaks") else "--")
-        ax.set(xlabel=xlabel, ylabel=("time per identification [s]" if panel.startswith("seconds")
-                                      else f"mean |{panel.split('_')[0]} error| [%]"))
+    keys = [k for k in ("search", "feature_set", "cases") if any(k in r for r in rows)]
+    series = list(dict.fromkeys(tuple(r.get(k) for k in keys) for r in rows))
+    styles = ["-", "--", ":", "-."]
+    feature_sets = list(dict.fromkeys(r.get("feature_set") for r in rows))
+    for ax, (column, label, scale) in zip(axes[0], panels):
+        for values in series:
+            chosen = sorted(pick(rows, **dict(zip(keys, values))), key=lambda r: r[x])
+            setting = dict(zip(keys, values))
+            ls = styles[feature_sets.index(setting.get("feature_set")) % len(styles)]
+            marker = "s" if setting.get("cases") == "grid125" else "o"
+            ax.plot([r[x] for r in chosen], [r[column] * scale for r in chosen], ls=ls, marker=marker, ms=4,
+                    color=_color(setting.get("search", "")), label=" / ".join(str(v) for v in values))
+        ax.set(xlabel=xlabel, ylabel=label)
         ax.set_yscale("log")
         if log_x:
             ax.set_xscale("log")
         ax.grid(alpha=0.3, which="both")
-    if series and any(a or b for a, b in series):
-        axes[0][0].legend(fontsize=8)
+    axes[0][-1].legend(fontsize=7)
     fig.suptitle(title)
+    return fig
+
+
+def plot_strategy_distributions(rows: Sequence[Row]):
+    """Absorber strategies side by side: distributions of efficiency, peak force after control and stroke."""
+    plt = _pyplot()
+    strategies = list(dict.fromkeys(r["strategy"] for r in rows))
+    panels = [("efficiency", "efficiency η [-]", 1.0), ("peak_force_controlled_N", "peak force after control [kN]",
+                                                         1e-3), ("stroke_used_m", "stroke used [mm]", 1e3)]
+    fig, axes = plt.subplots(1, len(panels), figsize=(14, 4.2), constrained_layout=True)
+    for ax, (column, label, scale) in zip(axes, panels):
+        data = []
+        for strategy in strategies:
+            values = np.array([np.nan if r.get(column) is None else float(r[column]) * scale for r in rows
+                               if r["strategy"] == strategy])
+            data.append(values[np.isfinite(values)])
+        ax.boxplot([d if d.size else np.array([np.nan]) for d in data], showfliers=True)
+        ax.set_xticks(range(1, len(strategies) + 1), strategies, rotation=20, fontsize=8)
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    bound = np.array([np.nan if r.get("efficiency_max") is None else float(r["efficiency_max"]) for r in rows])
+    if np.isfinite(bound).any():
+        axes[0].axhline(np.nanmedian(bound), color="k", ls="--", lw=0.8, label="median bound η_max")
+        axes[0].legend(fontsize=8)
+    fig.suptitle("Absorber strategies over the impact grid")
     return fig
