@@ -77,18 +77,6 @@ def initial_step(p, y0, f0, t_end, rtol, atol, max_step, work, f1):
     return min(100.0 * h0, h1, t_end, max_step)
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _write(y, p, channel_index, row, out, i_out, full):
-    """Write the requested channels of state ``y`` into column ``i_out`` of ``out``."""
-    if full:
-        d.channels(y, p, row)
-        for j in range(channel_index.size):
-            out[j, i_out] = row[channel_index[j]]
-    else:
-        for j in range(channel_index.size):
-            out[j, i_out] = y[channel_index[j]]
-
-
 @njit(cache=True, error_model="numpy")
 def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out):
     """Integrate one scenario from t = 0 and write ``channels[channel_index]`` at ``t_out`` into ``out``.
@@ -115,7 +103,9 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
     t_end = t_out[-1]
     i_out = 0
     while i_out < t_out.size and t_out[i_out] <= 0.0:
-        _write(y, p, channel_index, row, out, i_out, full)
+        d.channels(y, p, row)
+        for j in range(channel_index.size):
+            out[j, i_out] = row[channel_index[j]]
         i_out += 1
     d.rhs(y, p, valve, k1)
     h_abs = initial_step(p, y, k1, t_end, rtol, atol, max_step, ys, k2)
@@ -189,7 +179,13 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
             theta = (t_out[i_out] - t) / h
             for i in range(n):
                 ys[i] = y[i] + h * theta * (k1[i] + theta * (q1[i] + theta * (q2[i] + theta * q3[i])))
-            _write(ys, p, channel_index, row, out, i_out, full)
+            if full:  # written out here: a call per sample costs as much as the channels themselves
+                d.channels(ys, p, row)
+                for j in range(channel_index.size):
+                    out[j, i_out] = row[channel_index[j]]
+            else:
+                for j in range(channel_index.size):
+                    out[j, i_out] = ys[channel_index[j]]
             i_out += 1
         t = t_new
         for i in range(n):

@@ -1,0 +1,173 @@
+"""Speed of the compiled batch integrator against scipy ``solve_ivp``, and its agreement with the reference.
+
+Run: ``python benchmarks/bench_simulate.py`` (add ``--skip-agreement`` to leave out the 125-case grid check).
+
+In one process it
+1. simulates a batch of drop tests (50 ms, 50 kHz, contact force + piston acceleration) with the fast integrator;
+2. simulates a sample of the same scenarios with ``solve_ivp(method="RK45")`` -- the same Dormand-Prince 5(4) pair,
+   the same rtol/atol/max_step -- once with the model's right-hand side as plain Python (every compiled function
+   replaced by its ``py_func``, recursively) and once with the compiled right-hand side; the solve_ivp timings
+   leave out computing the output channels from the states, which favours solve_ivp;
+3. checks that both reach the same accuracy (contact-force peaks against a DOP853 rtol 1e-12 solution);
+4. reports the fast batch's throughput and peak memory for 10 000 scenarios;
+5. measures the fast-vs-reference agreement on the paper's 125-case grid for both contact laws.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import time
+import tracemalloc
+import types
+
+import numba
+import numpy as np
+from numba.core.registry import CPUDispatcher
+from scipy.integrate import solve_ivp
+
+from impactometer.model import dynamics as d
+from impactometer.model import reference, simulate_batch
+from impactometer.model.setup import initial_states
+from impactometer.model.simulate import INTEGRATORS, MAX_STEP, absolute_tolerance, compare_integrators
+from impactometer.rig import get_rig
+
+DURATION, SAMPLE_RATE = 0.05, 50e3
+
+
+def plain_python(function, _memo={}):
+    """``function`` (a numba dispatcher) as plain Python, with every compiled function it calls replaced too."""
+    if function not in _memo:
+        source = function.py_func
+        namespace = dict(source.__globals__)
+        for name in source.__code__.co_names:
+            if isinstance(namespace.get(name), CPUDispatcher):
+                namespace[name] = plain_python(namespace[name])
+        _memo[function] = types.FunctionType(source.__code__, namespace, source.__name__, source.__defaults__,
+                                             source.__closure__)
+    return _memo[function]
+
+
+def scenarios(n, seed=1):
+    """Random scenarios over the paper's ranges: M1 10-50 kg, V0 1-3 m/s, p0 20-400 kPa."""
+    rng = np.random.default_rng(seed)
+    return rng.uniform(10, 50, n), rng.uniform(1, 3, n), rng.uniform(20e3, 400e3, n)
+
+
+def time_fast(mass, velocity, pressure, rig, rtol, repeat=3):
+    """Best wall time and best CPU time (all threads) [s] of ``simulate_batch`` over ``repeat`` runs, and the
+    last result."""
+    best, best_cpu = np.inf, np.inf
+    for _ in range(repeat):
+        start, start_cpu = time.perf_counter(), time.process_time()
+        batch = simulate_batch(mass, velocity, pressure, rig, duration=DURATION, sample_rate=SAMPLE_RATE,
+                               rtol=rtol)
+        best, best_cpu = min(best, time.perf_counter() - start), min(best_cpu, time.process_time() - start_cpu)
+    return best, best_cpu, batch
+
+
+def time_solve_ivp(params, rhs, rtol, t_eval, method="RK45"):
+    """Wall and CPU time [s] of solve_ivp over every parameter row with right-hand side ``rhs``, and the force
+    histories."""
+    atol = absolute_tolerance(rtol)
+    solutions = []
+    start, start_cpu = time.perf_counter(), time.process_time()
+    for p, y0 in zip(params, initial_states(params)):
+        valve = float(p[d.VALVE_AREA])
+
+        def fun(_t, y, p=p, valve=valve):
+            dy = np.empty_like(y)
+            rhs(y, p, valve, dy)
+            return dy
+
+        solutions.append(solve_ivp(fun, (0.0, t_eval[-1]), y0, method=method, t_eval=t_eval, rtol=rtol, atol=atol,
+                                   max_step=MAX_STEP))
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
+    force = d.CHANNELS.index("contact_force")
+    forces = np.array([reference.channels_of(sol.y, p)[force] if sol.status == 0 else np.full(t_eval.size, np.nan)
+                       for sol, p in zip(solutions, params)])
+    return elapsed, cpu, forces
+
+
+def peak_error(forces, exact):
+    return float(np.max(np.abs(forces.max(axis=1) / exact.max(axis=1) - 1.0)))
+
+
+def speed(n_fast, n_scipy, rtol):
+    rig = get_rig()
+    mass, velocity, pressure = scenarios(n_fast)
+    simulate_batch(mass[:2], velocity[:2], pressure[:2], rig, duration=DURATION, sample_rate=SAMPLE_RATE)  # compile
+    fast_time, fast_cpu, batch = time_fast(mass, velocity, pressure, rig, rtol)
+    params = batch.params[:n_scipy]
+    t_eval = batch.time
+    python = time_solve_ivp(params, plain_python(d.rhs), rtol, t_eval)
+    compiled = time_solve_ivp(params, d.rhs, rtol, t_eval)
+    exact = time_solve_ivp(params, d.rhs, 1e-12, t_eval, method="DOP853")[2]
+    fast_rate, fast_cpu_rate = n_fast / fast_time, n_fast / fast_cpu
+    print(f"\n## Speed: {DURATION * 1e3:g} ms at {SAMPLE_RATE / 1e3:g} kHz, rtol {rtol:g} (atol = rtol x state scale), "
+          f"max_step {MAX_STEP:g} s, {numba.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f}")
+    print("| integrator | scenarios | wall [s] | scenarios/s (wall) | fast / this (wall) | scenarios per CPU-s | "
+          "fast / this (CPU) | peak-force error vs DOP853 1e-12 |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    fast_error = peak_error(batch["contact_force"][:n_scipy], exact)
+    print(f"| fast batch (numba, parallel) | {n_fast} | {fast_time:.3f} | {fast_rate:,.0f} | 1 | {fast_cpu_rate:,.0f} "
+          f"| 1 | {fast_error:.1e} |")
+    for name, (elapsed, cpu, forces) in (("solve_ivp RK45 + plain-Python rhs", python),
+                                         ("solve_ivp RK45 + compiled rhs", compiled)):
+        rate, cpu_rate = n_scipy / elapsed, n_scipy / cpu
+        print(f"| {name} | {n_scipy} | {elapsed:.3f} | {rate:,.1f} | {fast_rate / rate:,.0f} | {cpu_rate:,.1f} | "
+              f"{fast_cpu_rate / cpu_rate:,.0f} | {peak_error(forces, exact):.1e} |")
+    print(f"mean accepted steps per scenario (fast): {batch.steps.mean():.0f}")
+
+
+def throughput(n, dtype):
+    rig = get_rig()
+    mass, velocity, pressure = scenarios(n, seed=2)
+    tracemalloc.start()
+    start = time.perf_counter()
+    batch = simulate_batch(mass, velocity, pressure, rig, duration=DURATION, sample_rate=SAMPLE_RATE, dtype=dtype)
+    elapsed = time.perf_counter() - start
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    histories = sum(a.nbytes for a in batch.data.values())
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"| {n} | {np.dtype(dtype).name} | {elapsed:.2f} | {n / elapsed:,.0f} | {histories / 2**20:,.0f} | "
+          f"{peak / 2**20:,.0f} | {rss:,.0f} |")
+
+
+def agreement():
+    grid = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0],
+                       [20e3, 115e3, 210e3, 305e3, 400e3], indexing="ij")
+    print(f"\n## Fast (rtol {INTEGRATORS['fast']:g}) vs reference (DOP853, rtol {INTEGRATORS['reference']:g}), "
+          "125 scenarios, 50 ms at 200 kHz")
+    print("| contact law | pulses compared | max rel. diff. peak force | max rel. diff. impulse | "
+          "max diff. pulse-peak time [µs] | pulse-count mismatches |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for law in ("kelvin-voigt", "hunt-crossley"):
+        a = compare_integrators(*grid, get_rig(contact=law), duration=0.05, sample_rate=200e3)
+        print(f"| {law} | {a.pulses} | {a.peak_force:.1e} | {a.impulse:.1e} | {a.peak_time * 1e6:.3f} | "
+              f"{a.pulse_count_mismatches} |")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--fast-scenarios", type=int, default=2000)
+    parser.add_argument("--scipy-scenarios", type=int, default=20)
+    parser.add_argument("--throughput-scenarios", type=int, default=10_000)
+    parser.add_argument("--skip-agreement", action="store_true")
+    args = parser.parse_args()
+    for rtol in (INTEGRATORS["fast"], 1e-8):
+        speed(args.fast_scenarios, args.scipy_scenarios, rtol)
+    print(f"\n## Throughput and memory (rtol {INTEGRATORS['fast']:g}, contact force + piston acceleration)")
+    print("| scenarios | histories dtype | wall time [s] | scenarios/s | histories [MiB] | tracemalloc peak [MiB] | "
+          "process peak RSS [MiB] |")
+    print("|---:|---|---:|---:|---:|---:|---:|")
+    for dtype in (np.float32, np.float64):
+        throughput(args.throughput_scenarios, dtype)
+    if not args.skip_agreement:
+        agreement()
+
+
+if __name__ == "__main__":
+    main()
