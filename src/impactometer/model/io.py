@@ -18,6 +18,8 @@ def save_simulation(result: SimulationResult, path: str | Path, *, overwrite: bo
     path = Path(path)
     if path.exists() and not overwrite:
         raise ParameterError(f"output file {str(path)!r} exists; pass overwrite=True (CLI: --force) to replace it")
+    if not path.parent.is_dir():
+        raise ParameterError(f"output file {str(path)!r}: folder {str(path.parent)!r} does not exist")
     with h5py.File(path, "w") as f:
         f.attrs["kind"] = "impactometer-simulation"
         f.attrs["sample_rate"] = result.sample_rate

@@ -196,14 +196,15 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
     out = np.empty((params.shape[0], index.size, t.size), dtype=dtype)
     status = np.zeros(params.shape[0], dtype=np.int64)
     steps = np.zeros(params.shape[0], dtype=np.int64)
-    # the kernel writes float64; narrower output goes through a float64 buffer a chunk at a time
+    # the kernel writes float64; narrower output goes through one float64 buffer, a chunk of scenarios at a time
     chunk = params.shape[0] if dtype == np.float64 else max(1, _CHUNK_BYTES // (8 * index.size * t.size))
+    buffer = None if dtype == np.float64 else np.empty((min(chunk, params.shape[0]), index.size, t.size))
     for start in range(0, params.shape[0], chunk):
         rows = slice(start, start + chunk)
-        target = out[rows] if dtype == np.float64 else np.empty(out[rows].shape)
+        target = out[rows] if buffer is None else buffer[:out[rows].shape[0]]
         fast.integrate_batch(params[rows], y0[rows], t, index, rtol, absolute_tolerance(rtol), float(max_step),
                              int(max_steps), target, status[rows], steps[rows])
-        if dtype != np.float64:
+        if buffer is not None:
             out[rows] = target
     bad = np.flatnonzero(status != fast.OK)
     if bad.size:
