@@ -24,7 +24,7 @@ from ..recording import Recording
 from .features import FEATURE_SETS, extract_features
 from .response_map_build import (PRESSURE_TOLERANCE, ResponseMap, build_map_from_recordings, build_map_simulated,
                                  refine)
-from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_search, fast_tables
+from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
 from .response_map_store import load_map, save_map
 
 __all__ = ["FEATURE_SETS", "MapIdentification", "ResponseMap", "build_map_from_recordings", "build_map_simulated",
@@ -32,6 +32,8 @@ __all__ = ["FEATURE_SETS", "MapIdentification", "ResponseMap", "build_map_from_r
 
 #: eq. (7) residual above which the features are said to fit nowhere in the map (≈ 7 % feature mismatch)
 MISFIT_RESIDUAL = 0.01
+#: eq. (7) residual of the best fit inside the map up to which no fit outside it is sought (≈ 0.7 % mismatch)
+INSIDE_RESIDUAL = 1e-4
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -136,7 +138,10 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
     Notes
     -----
     Implements eqs. (6)-(7) of the reference paper. Whether the measurement lies inside the map is decided by the
-    continuous inversion for both searches (the brute minimum always sits on a node).
+    continuous inversion for both searches (the brute minimum always sits on a node): the best fit inside the map
+    is taken when its residual is at most :data:`INSIDE_RESIDUAL`; otherwise the search extends 25 % beyond the
+    map's edges, and an answer found out there is refused (or, with ``allow_extrapolation``, returned with a
+    warning).
     """
     if search not in SEARCHES:
         raise ParameterError(f"search must be one of {list(SEARCHES)}, got {search!r}")
@@ -149,8 +154,9 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
                                f"{np.asarray(features).tolist()!r}")
     p = _pressure_for(rmap, pressure_gauge, allow_extrapolation)
     herm, xm, xv, coarse, cm, cv, (m_lo, m_hi, v_lo, v_hi) = fast_tables(rmap)
-    mass, velocity, residual = fast_search(herm, xm, xv, coarse, cm, cv, rmap.pressures_gauge, p, y, EXTENSION)
-    outside = not (m_lo <= mass <= m_hi and v_lo <= velocity <= v_hi)
+    mass, velocity, residual, extended = locate(herm, xm, xv, coarse, cm, cv, rmap.pressures_gauge, p, y,
+                                                INSIDE_RESIDUAL, EXTENSION)
+    outside = extended and not (m_lo <= mass <= m_hi and v_lo <= velocity <= v_hi)
     if outside or residual > MISFIT_RESIDUAL:
         _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation)
     if search == "brute":

@@ -77,35 +77,35 @@ def surface(herm, xm, xv, k0, w, count, m, v, out, dm, dv, basis):
     """
     i, t, hm = _cell(xm, m)
     j, s, hv = _cell(xv, v)
-    bm, dbm, bv, dbv = basis[0], basis[1], basis[2], basis[3]
-    _hermite(t, bm, dbm)
-    _hermite(s, bv, dbv)
+    _hermite(t, basis[0], basis[1])
+    _hermite(s, basis[2], basis[3])
     for f in range(herm.shape[0]):
-        out[f] = 0.0
-        dm[f] = 0.0
-        dv[f] = 0.0
+        val = 0.0
+        gm = 0.0
+        gv = 0.0
         for q in range(count):
-            layer = herm[f, k0 + q]
-            val = 0.0
-            gm = 0.0
-            gv = 0.0
+            wq = w[q]
+            k = k0 + q
             for a in range(2):
+                ma = basis[0, 2 * a]
+                mb = basis[0, 2 * a + 1] * hm
+                da = basis[1, 2 * a]
+                db = basis[1, 2 * a + 1] * hm
                 for b in range(2):
-                    node = layer[i + a, j + b]
-                    c0 = node[0]
-                    c1 = node[1] * hm
-                    c2 = node[2] * hv
-                    c3 = node[3] * hm * hv
-                    ma, mb = bm[2 * a], bm[2 * a + 1]
-                    da, db = dbm[2 * a], dbm[2 * a + 1]
-                    va, vb = bv[2 * b], bv[2 * b + 1]
-                    ea, eb = dbv[2 * b], dbv[2 * b + 1]
+                    va = basis[2, 2 * b]
+                    vb = basis[2, 2 * b + 1] * hv
+                    ea = basis[3, 2 * b]
+                    eb = basis[3, 2 * b + 1] * hv
+                    c0 = herm[f, k, i + a, j + b, 0] * wq
+                    c1 = herm[f, k, i + a, j + b, 1] * wq
+                    c2 = herm[f, k, i + a, j + b, 2] * wq
+                    c3 = herm[f, k, i + a, j + b, 3] * wq
                     val += ma * va * c0 + mb * va * c1 + ma * vb * c2 + mb * vb * c3
                     gm += da * va * c0 + db * va * c1 + da * vb * c2 + db * vb * c3
                     gv += ma * ea * c0 + mb * ea * c1 + ma * eb * c2 + mb * eb * c3
-            out[f] += w[q] * val
-            dm[f] += w[q] * gm / hm
-            dv[f] += w[q] * gv / hv
+        out[f] = val
+        dm[f] = gm / hm
+        dv[f] = gv / hv
 
 
 @njit(cache=True)
@@ -154,6 +154,8 @@ def _gauss_newton(herm, xm, xv, k0, w, count, y, m, v, box):
                 continue
             dm = -(b22 * g1 - a12 * g2) / det * sm
             dv = -(b11 * g2 - a12 * g1) / det * sv
+            if abs(dm) / sm + abs(dv) / sv < 1e-10 and lam < 1e-3:
+                break  # converged: the Gauss-Newton step is below the resolution that matters
             mn = min(max(m + dm, box[0]), box[1])
             vn = min(max(v + dv, box[2]), box[3])
             new = _objective(herm, xm, xv, k0, w, count, y, mn, vn, r, jm, jv, basis)
@@ -210,6 +212,17 @@ def fast_search(herm, xm, xv, coarse, cm, cv, pressures, p, y, extension):
         if cost < best:
             best_m, best_v, best = m, v, cost
     return best_m, best_v, best
+
+
+@njit(cache=True)
+def locate(herm, xm, xv, coarse, cm, cv, pressures, p, y, inside_residual, extension):
+    """Best fit inside the map; when its residual exceeds ``inside_residual``, the best fit up to ``extension``
+    beyond the edges. Returns (mass [kg], velocity [m/s], residual, searched beyond the edges)."""
+    m, v, cost = fast_search(herm, xm, xv, coarse, cm, cv, pressures, p, y, 0.0)
+    if cost <= inside_residual:
+        return m, v, cost, False
+    m, v, cost = fast_search(herm, xm, xv, coarse, cm, cv, pressures, p, y, extension)
+    return m, v, cost, True
 
 
 def _subsample(axis: np.ndarray) -> np.ndarray:

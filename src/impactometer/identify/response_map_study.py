@@ -66,11 +66,11 @@ def _identify_all(rmap, ys, search):
     identify_features(ys[0], rmap, search=search, allow_extrapolation=True)  # warm-up (caches, compilation)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)  # out-of-map answers are counted instead
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         results = [identify_features(y, rmap, search=search, allow_extrapolation=True) for y in ys]
-        elapsed = time.perf_counter() - start
+        elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
     return (np.array([r.mass for r in results]), np.array([r.velocity for r in results]),
-            sum(r.extrapolated for r in results), elapsed / len(ys))
+            sum(r.extrapolated for r in results), elapsed / len(ys), cpu / len(ys))
 
 
 def _row(**values) -> dict:
@@ -91,7 +91,8 @@ def map_size_table(*, rig: Rig | str | None = None, sizes: Sequence[int] = PAPER
 
     A ``base_grid`` × ``base_grid`` map is simulated at each test pressure and refined by interpolation to every
     size (one map per pressure for ``grid125``). Rows: feature_set, cases, size, search, n_cases, mass/velocity
-    error mean and max [-], time_per_identification_s, extrapolated (answers outside the map).
+    error mean and max [-], time_per_identification_s (wall clock), cpu_per_identification_s (process CPU time),
+    extrapolated (answers outside the map).
     """
     rig = get_rig(rig)
     rows = []
@@ -109,18 +110,19 @@ def map_size_table(*, rig: Rig | str | None = None, sizes: Sequence[int] = PAPER
                 for size in sizes:
                     rmap = base if size == base_grid else refine(base, int(size))
                     for search in searches:
-                        m_id, v_id, n_out, seconds = _identify_all(rmap, ys, search)
-                        entry = acc.setdefault((size, search), [[], [], 0, 0.0])
+                        m_id, v_id, n_out, seconds, cpu = _identify_all(rmap, ys, search)
+                        entry = acc.setdefault((size, search), [[], [], 0, 0.0, 0.0])
                         entry[0].append(m_id / m_true[sel])
                         entry[1].append(v_id / v_true[sel])
                         entry[2] += n_out
                         entry[3] += seconds * sel.sum()
+                        entry[4] += cpu * sel.sum()
                     del rmap
-            for (size, search), (mr, vr, n_out, total) in acc.items():
+            for (size, search), (mr, vr, n_out, total, cpu) in acc.items():
                 mr, vr = np.concatenate(mr), np.concatenate(vr)
                 rows.append(_row(feature_set=features, cases=case, size=int(size), search=search, n_cases=mr.size,
                                  **_error_columns(mr, vr, 1.0, 1.0), time_per_identification_s=total / mr.size,
-                                 extrapolated=int(n_out)))
+                                 cpu_per_identification_s=cpu / mr.size, extrapolated=int(n_out)))
     return rows
 
 
@@ -143,7 +145,7 @@ def window_table(*, rig: Rig | str | None = None, windows: Sequence[float] = tup
         for size in sizes:
             rmap = base if size == base_grid else refine(base, int(size))
             for search in searches:
-                m_id, v_id, n_out, _ = _identify_all(rmap, ys, search)
+                m_id, v_id, n_out, _, _ = _identify_all(rmap, ys, search)
                 rows.append(_row(window_s=float(window), size=int(size), search=search, n_cases=m_true.size,
                                  **_error_columns(m_id, v_id, m_true, v_true), extrapolated=int(n_out)))
     return rows

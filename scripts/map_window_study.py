@@ -1,0 +1,31 @@
+"""Fig. 9 analogue: identification error vs the integration window T of the `max-impulse` features.
+
+    python scripts/map_window_study.py [--sizes 10,50,500]
+
+10 seeded random impacts (masses 10-50 kg, drop heights 5-50 cm, 200 kPa), the paper's 10×10 map per window,
+refined to each size; prints a markdown table.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from impactometer.identify.response_map_study import window_table
+
+from map_size_study import ERRORS, markdown
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", default="10,50,500")
+    args = parser.parse_args()
+    rows = window_table(windows=tuple(np.arange(2, 42, 2) * 1e-3), sizes=[int(s) for s in args.sizes.split(",")])
+    for row in rows:
+        row["window_ms"] = round(1e3 * row["window_s"], 3)
+    print(markdown(rows, ["window_ms", "size", "search", "n_cases", *ERRORS, "extrapolated"], ERRORS))
+
+
+if __name__ == "__main__":
+    main()
