@@ -118,7 +118,7 @@ def speed(n_fast, n_scipy, rtol):
         rate, cpu_rate = n_scipy / elapsed, n_scipy / cpu
         print(f"| {name} | {n_scipy} | {elapsed:.3f} | {rate:,.1f} | {fast_rate / rate:,.0f} | {cpu_rate:,.1f} | "
               f"{fast_cpu_rate / cpu_rate:,.0f} | {peak_error(forces, exact):.1e} |")
-    print(f"mean accepted steps per scenario (fast): {batch.steps.mean():.0f}")
+    print(f"\nmean accepted steps per scenario (fast): {batch.steps.mean():.0f}")
 
 
 def throughput(n, dtype):
