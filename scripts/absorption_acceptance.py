@@ -19,13 +19,24 @@ from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from impactometer.control.plots import plot_distributions
-from impactometer.control.study import ORACLE, absorption_table, acceptance_summary, grid_cases
+from impactometer.control.study import ORACLE, absorption_table, acceptance_summary, grid_cases, read_table
 from impactometer.rig import get_rig
 
 
 def _chunk(args):
     cases, seed, noise, contact = args
     return absorption_table(cases, get_rig(contact=contact), noise=noise, seed=seed)
+
+
+def _run(args):
+    cases = grid_cases(args.grid)
+    # case i gets seed + i whatever the chunking: absorption_table adds the index within the chunk
+    size = math.ceil(len(cases) / (4 * args.workers))
+    jobs = [(cases[k:k + size], args.seed + k, args.noise, args.contact) for k in range(0, len(cases), size)]
+    start = time.perf_counter()
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        rows = [row for part in pool.map(_chunk, jobs) for row in part]
+    return rows, time.perf_counter() - start
 
 
 def main() -> None:
@@ -37,25 +48,22 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--contact", default="kelvin-voigt")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
+    parser.add_argument("--summarise", action="store_true", help="only summarise an existing table (and redraw its figure)")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     table = args.out / f"absorption-{args.contact}.csv"
     figure = args.out / f"absorption-{args.contact}.png"
-    for path in (table, figure):
-        if path.exists() and not args.force:
-            raise SystemExit(f"{path} exists; pass --force to overwrite it")
-    cases = grid_cases(args.grid)
-    # case i gets seed + i whatever the chunking: absorption_table adds the index within the chunk
-    size = math.ceil(len(cases) / (4 * args.workers))
-    jobs = [(cases[k:k + size], args.seed + k, args.noise, args.contact) for k in range(0, len(cases), size)]
-    start = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        rows = [row for part in pool.map(_chunk, jobs) for row in part]
-    elapsed = time.perf_counter() - start
-    with table.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    if args.summarise:
+        rows, elapsed = read_table(table), math.nan
+    else:
+        for path in (table, figure):
+            if path.exists() and not args.force:
+                raise SystemExit(f"{path} exists; pass --force to overwrite it")
+        rows, elapsed = _run(args)
+        with table.open("w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
     plot_distributions(rows, quantities=("efficiency", "efficiency_cfc60", "peak_force_controlled_N",
                                          "stroke_used_m")).savefig(figure, dpi=110)
     s = acceptance_summary(rows)

@@ -143,6 +143,20 @@ def closed_capacity(p, p_lower, p_upper, piston_displacement, travel):
 
 
 @njit(cache=True, error_model="numpy")
+def must_close(p, ctrl, velocity, piston_velocity, piston_displacement, p_lower, p_upper):
+    """Supervisor of both valve strategies: True when the closed spring can no longer absorb, with margin, the
+    kinetic energy of both bodies and their weight's work over the remaining usable stroke (it then also carries
+    their weight at the end of the stroke, since the gas force grows along it)."""
+    remaining = ctrl[U_END] - piston_displacement
+    if remaining <= 0.0:
+        return True
+    mass = ctrl[MASS_HAT]
+    needed = 0.5 * (mass * velocity * velocity + p[d.PISTON_MASS] * piston_velocity * piston_velocity) \
+        + (mass + p[d.PISTON_MASS]) * p[d.GRAVITY] * remaining
+    return closed_capacity(p, p_lower, p_upper, piston_displacement, remaining) < CAPACITY_MARGIN * needed
+
+
+@njit(cache=True, error_model="numpy")
 def realtime_command(p, ctrl, drive, velocity, displacement, p_lower, p_upper, piston_velocity,
                      piston_displacement, out):
     """Valve command [m²] of the real-time strategy from the controller's estimates; target force into ``out[0]``.
@@ -175,12 +189,7 @@ def realtime_command(p, ctrl, drive, velocity, displacement, p_lower, p_upper, p
     annulus = area - p[d.ROD_AREA]
     vol_lower, vol_upper = d.volumes(piston_displacement, p)
     vol_lower = max(vol_lower, 1e-3 * area * p[d.LOWER_LENGTH])
-    # supervisor: keep enough gas for the closed spring to stop both bodies within the remaining stroke (and so
-    # to carry their weight at its end: the gas force grows along the stroke)
-    needed = 0.5 * (mass * velocity * velocity + p[d.PISTON_MASS] * piston_velocity * piston_velocity) \
-        + (mass + p[d.PISTON_MASS]) * g * max(remaining, 0.0)
-    if remaining <= 0.0 or closed_capacity(p, p_lower, p_upper, piston_displacement, remaining) \
-            < CAPACITY_MARGIN * needed:
+    if must_close(p, ctrl, velocity, piston_velocity, piston_displacement, p_lower, p_upper):
         return 0.0
     p_down = p[d.ATMOSPHERE] if drive[ROUTE] != 0.0 else p_upper
     # rate of the gas force with the valve closed, and its change per unit mass flow out of the lower chamber
@@ -254,7 +263,8 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
         strategy = int(ctrl[STRATEGY])
         if t >= ctrl[T_START] and strategy != CLOSED and not latched:
             if strategy == CONSTANT:
-                if ctrl[CLOSE_ON_STOP] != 0.0 and velocity <= 0.0:
+                if ctrl[CLOSE_ON_STOP] != 0.0 and (velocity <= 0.0 or must_close(p, ctrl, velocity, v2, u2, pl_f,
+                                                                                   pu_f)):
                     latched = True
                 else:
                     command = ctrl[AREA_CONSTANT]

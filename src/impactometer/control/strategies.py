@@ -2,9 +2,10 @@
 controller parameters of the compiled loop (:mod:`impactometer.control.simulate`).
 
 - ``closed``: the valve stays closed (gas spring).
-- ``constant``: one opening, held from the control start until the estimated mass velocity reaches zero (then the
-  valve closes and holds), chosen by optimisation with the model for the identified M1 and V0: the opening with
-  the lowest peak contact force after the control start whose stroke stays within the usable stroke.
+- ``constant``: one opening, held from the control start until the estimated mass velocity reaches zero or the
+  closed gas spring is needed to stop the bodies within the remaining stroke (then the valve closes for good),
+  chosen by optimisation with the model for the identified M1 and V0: the opening with the lowest peak contact
+  force after the control start whose stroke stays within the usable stroke.
 - ``realtime``: feedback on the chamber pressures that holds the contact force at F* = M1·(v²/(2·s_remaining) + g),
   with v and the mass displacement propagated from the identified V0 by the momentum balance of the mass
   (measured contact force), and the piston velocity from the integrated piston acceleration.
@@ -120,7 +121,7 @@ def optimal_constant_area(context: ControlContext, *, candidates: int = 9, refin
 
 
 def plan_constant(context: ControlContext) -> np.ndarray:
-    """The optimised constant opening, closed again once the estimated mass velocity reaches zero."""
+    """The optimised constant opening (closed for good once the mass stops or its stroke runs short)."""
     return context.base(loop.CONSTANT, area=optimal_constant_area(context))
 
 

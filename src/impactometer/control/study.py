@@ -103,7 +103,8 @@ def acceptance_summary(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
 
     Medians of the efficiency per strategy and of the bound η_max; cases where the identified real-time strategy
     bottoms out and the oracle does not; the relative difference of the identified and oracle peak force after the
-    control start (median and largest).
+    control start (median and largest; cases where the oracle's mass never touches the rod again after the control
+    start are left out).
     """
     by: dict[tuple, dict[str, dict]] = {}
     for row in rows:
@@ -120,7 +121,8 @@ def acceptance_summary(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                        and r["realtime"]["bottomed_out"] and not r[ORACLE]["bottomed_out"]]
     peak_ratio = [r["realtime"]["peak_force_controlled_N"] / r[ORACLE]["peak_force_controlled_N"] - 1.0
                   for r in by.values() if "realtime" in r and ORACLE in r
-                  and _finite(r["realtime"]["peak_force_controlled_N"]) and _finite(r[ORACLE]["peak_force_controlled_N"])]
+                  and _finite(r["realtime"]["peak_force_controlled_N"]) and _finite(r[ORACLE]["peak_force_controlled_N"])
+                  and r[ORACLE]["peak_force_controlled_N"] > 0.0]
     failed = sum(1 for r in by.values() if any(row["identification_error"] for name, row in r.items()
                                                    if name != ORACLE))
     out = {"cases": len(by), "identification_failed": failed, "efficiency_max_median": float(np.median(bound))
@@ -138,3 +140,21 @@ def acceptance_summary(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
 
 def _finite(value) -> bool:
     return value is not None and not isinstance(value, bool) and math.isfinite(float(value))
+
+
+def read_table(path) -> list[dict[str, Any]]:
+    """Rows of an absorption table saved as CSV (numbers, booleans and empty cells restored)."""
+    import csv
+
+    def value(text: str):
+        if text == "":
+            return None
+        if text in ("True", "False"):
+            return text == "True"
+        try:
+            return float(text)
+        except ValueError:
+            return text
+
+    with open(path, newline="") as handle:
+        return [{key: value(text) for key, text in row.items()} for row in csv.DictReader(handle)]
