@@ -18,6 +18,8 @@ from .robust import white_kernel
 
 #: starting (n, m) exponents of the law: Kelvin-Voigt and Hunt-Crossley
 LAW_STARTS = ((1.0, 0.0), (1.5, 1.5))
+#: starting 1/M1 [1/kg] (the fit is started from each, with each law, and the best kept)
+START_INVERSE_MASSES = (1.0 / 20.0,)
 #: bounds of the exponents n and m
 N_BOUNDS, M_BOUNDS = (0.8, 2.5), (-0.5, 2.5)
 
@@ -55,7 +57,7 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
         return np.append((f - model) / sigma_f, onset)
 
     best = None
-    for w0 in (1.0 / 10.0, 1.0 / 50.0):
+    for w0 in START_INVERSE_MASSES:
         v0 = max(float(da1[0] - g * t1[0] ** 2 / 2 + w0 * if1[0]) / max(t1[0], kin.dt), 0.05)
         delta0, _ = kinematics(v0, w0)
         dscale = max(float(np.max(delta0)), 1e-6)

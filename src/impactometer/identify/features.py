@@ -27,6 +27,11 @@ from numba import njit
 from ..errors import ParameterError, ResponseMapError
 
 
+#: every extractor takes ``time`` ((samples,) array: sample instants [s], t = 0 at first contact) and ``forces``
+#: ((n, samples) or (samples,) array: contact force [N])
+SIGNALS = "time [s] (t = 0 at first contact), forces [N] of shape (n, samples) or (samples,)"
+
+
 @dataclass(frozen=True, kw_only=True)
 class FeatureSet:
     """A named way of reducing a force signal to characteristic numbers.
@@ -89,6 +94,16 @@ def _check_signals(time, forces) -> tuple[np.ndarray, np.ndarray]:
     return time, forces
 
 
+def _windowed(time, forces, window: float, name: str) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Checked signals, sample period [s] and first-contact index of a feature set that needs ``window`` [s]."""
+    time, forces = _check_signals(time, forces)
+    dt = float(np.median(np.diff(time)))
+    if time[-1] < window - 0.5 * dt:
+        raise ResponseMapError(f"the record covers {time[-1] * 1e3:.3g} ms after first contact; feature set "
+                               f"{name!r} with window {window * 1e3:.3g} ms needs at least that long")
+    return time, forces, dt, int(np.searchsorted(time, 0.0))
+
+
 def smoothed(forces: np.ndarray, smoothing: float, dt: float) -> np.ndarray:
     """Savitzky-Golay (quadratic) smoothing over ``smoothing`` [s] along the last axis; peaks keep their height.
 
@@ -123,10 +138,7 @@ def max_impulse(time, forces, *, window: float = 0.02, smoothing: float = 5e-4) 
 
     Parameters
     ----------
-    time : (samples,) array
-        Sample instants [s], t = 0 at first contact.
-    forces : (n, samples) or (samples,) array
-        Contact force [N].
+    time, forces : see :data:`SIGNALS`.
     window : float
         Integration window T [s].
     smoothing : float
@@ -139,12 +151,7 @@ def max_impulse(time, forces, *, window: float = 0.02, smoothing: float = 5e-4) 
     available_at : (n,) array
         ``window`` [s]: the features are complete T after first contact.
     """
-    time, forces = _check_signals(time, forces)
-    dt = float(np.median(np.diff(time)))
-    if time[-1] < window - 0.5 * dt:
-        raise ResponseMapError(f"the record covers {time[-1] * 1e3:.3g} ms after first contact; feature set "
-                               f"'max-impulse' with window {window * 1e3:.3g} ms needs at least that long")
-    i0 = int(np.searchsorted(time, 0.0))
+    time, forces, dt, i0 = _windowed(time, forces, window, "max-impulse")
     i1 = int(np.searchsorted(time, window + 0.5 * dt, side="right"))
     if i1 - i0 < 2:
         raise ResponseMapError(f"window {window!r} s holds fewer than 2 samples; expected a window of several "
@@ -166,10 +173,7 @@ def impulse_profile(time, forces, *, window: float = 0.02) -> tuple[np.ndarray, 
 
     Parameters
     ----------
-    time : (samples,) array
-        Sample instants [s], t = 0 at first contact.
-    forces : (n, samples) or (samples,) array
-        Contact force [N].
+    time, forces : see :data:`SIGNALS`.
     window : float
         Longest integration window T [s].
 
@@ -180,12 +184,7 @@ def impulse_profile(time, forces, *, window: float = 0.02) -> tuple[np.ndarray, 
     available_at : (n,) array
         ``window`` [s].
     """
-    time, forces = _check_signals(time, forces)
-    dt = float(np.median(np.diff(time)))
-    if time[-1] < window - 0.5 * dt:
-        raise ResponseMapError(f"the record covers {time[-1] * 1e3:.3g} ms after first contact; feature set "
-                               f"'impulse-profile' with window {window * 1e3:.3g} ms needs at least that long")
-    i0 = int(np.searchsorted(time, 0.0))
+    time, forces, dt, i0 = _windowed(time, forces, window, "impulse-profile")
     ends = [int(np.searchsorted(time, window * j / PROFILE_COUNT + 0.5 * dt, side="right"))
             for j in range(1, PROFILE_COUNT + 1)]
     if ends[0] - i0 < 2:
@@ -241,10 +240,7 @@ def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4,
 
     Parameters
     ----------
-    time : (samples,) array
-        Sample instants [s], t = 0 at first contact.
-    forces : (n, samples) or (samples,) array
-        Contact force [N].
+    time, forces : see :data:`SIGNALS`.
     fraction : float
         A pulse ends when the force falls below this fraction of its maximum; the next one starts above twice this
         fraction of the first peak (hysteresis against noise) [-].
@@ -308,6 +304,17 @@ def extract_batch(time, forces, name: str = "max-impulse",
     """Features of many force histories: ``(values (n, m), available_at (n,))`` with NaN rows where not found."""
     fs = get_feature_set(name)
     return fs.extract(time, forces, **fs.params(params))
+
+
+def recording_signal(recording) -> tuple[np.ndarray, np.ndarray]:
+    """(time [s], contact force [N]) of a :class:`~impactometer.recording.Recording`, with the delay its
+    anti-alias filter added (metadata ``anti_alias_delay_s``) taken out of the time base, so that fixed windows
+    after first contact see the same part of the signal as in a simulation."""
+    delay = recording.metadata.get("anti_alias_delay_s") or 0.0
+    if isinstance(delay, bool) or not isinstance(delay, (int, float)) or not math.isfinite(delay) or delay < 0:
+        raise ResponseMapError(f"{recording.source}: metadata anti_alias_delay_s must be a number >= 0 [s], got "
+                               f"{delay!r}")
+    return recording.time - float(delay), recording.contact_force
 
 
 def extract_features(time, force, name: str = "max-impulse",

@@ -12,8 +12,8 @@ FOOT_EXPONENTS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5)
 FOOT_TOP = 0.1
 #: smallest standard error of an onset [samples] (the foot is never exactly a power law)
 MIN_STD = 0.1
-#: onset grid resolution [samples]
-GRID_STEP = 1.0 / 32.0
+#: onset grid resolution [samples]: a coarse scan over all foot models, then a fine one around the best
+COARSE_STEP, GRID_STEP = 0.25, 1.0 / 32.0
 
 
 def _fit_sse(t, f, t0_grid, exponent):
@@ -62,23 +62,34 @@ def onset_index(force: np.ndarray, span: PulseSpan, noise: float) -> tuple[float
     lo = max(min(span.zero, span.first - 2 * rise) - 2, 0)
     t = np.arange(lo, stop, dtype=float)
     f = f_all[lo:stop]
-    grid = np.arange(lo, span.first + 1e-9, GRID_STEP)
-    best = None
-    for exponent, extra in [(p, 0) for p in FOOT_EXPONENTS] + [(None, 1)]:
-        sse = _fit_sse(t, f, grid, exponent) + 2.0 * sigma ** 2 * extra
-        k = int(np.argmin(sse))
-        if best is None or sse[k] < best[0][best[1]]:
-            best = (sse, k)
-    sse, k = best
-    # the scatter of the fit: the noise, or the misfit of the foot model when larger
-    scatter2 = max(sigma ** 2, sse[k] / max(t.size - 3, 1))
-    inside = np.flatnonzero(sse <= sse[k] + scatter2)
-    # the contiguous run around the minimum
-    lo_k = hi_k = k
-    while lo_k - 1 in inside:
-        lo_k -= 1
-    while hi_k + 1 in inside:
-        hi_k += 1
-    onset = 0.5 * (grid[lo_k] + grid[hi_k])
-    std = max(0.5 * (grid[hi_k] - grid[lo_k]), MIN_STD)
+    families = [(p, 0) for p in FOOT_EXPONENTS] + [(None, 1)]
+
+    def scan(grid, candidates):
+        best = None
+        for exponent, extra in candidates:
+            sse = _fit_sse(t, f, grid, exponent) + 2.0 * sigma ** 2 * extra
+            k = int(np.argmin(sse))
+            if best is None or sse[k] < best[0][best[1]]:
+                best = (sse, k, exponent, extra)
+        return best
+
+    def interval(grid, sse, k):
+        # the contiguous run around the minimum where the squares stay within one scatter of it
+        scatter2 = max(sigma ** 2, sse[k] / max(t.size - 3, 1))  # the noise, or the misfit of the foot model
+        inside = sse <= sse[k] + scatter2
+        lo_k = hi_k = k
+        while lo_k > 0 and inside[lo_k - 1]:
+            lo_k -= 1
+        while hi_k < grid.size - 1 and inside[hi_k + 1]:
+            hi_k += 1
+        return lo_k, hi_k
+
+    coarse = np.arange(lo, span.first + 1e-9, COARSE_STEP)
+    sse, k, exponent, extra = scan(coarse, families)
+    lo_k, hi_k = interval(coarse, sse, k)
+    fine = np.arange(coarse[max(lo_k - 1, 0)], coarse[min(hi_k + 1, coarse.size - 1)] + 1e-9, GRID_STEP)
+    sse, k, _, _ = scan(fine, [(exponent, extra)])
+    lo_k, hi_k = interval(fine, sse, k)
+    onset = 0.5 * (fine[lo_k] + fine[hi_k])
+    std = max(0.5 * (fine[hi_k] - fine[lo_k]), MIN_STD)
     return float(onset), float(std)

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import ParameterError, ResponseMapError
 from ..recording import Recording
-from .features import FEATURE_SETS, extract_features
+from .features import FEATURE_SETS, extract_features, recording_signal
 from .response_map_build import (PRESSURE_TOLERANCE, ResponseMap, build_map_from_recordings, build_map_simulated,
                                  refine)
 from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
@@ -208,13 +208,13 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
     """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
 
     The recording must have the map's sample rate, stand and contact law (when its metadata names them); its
-    charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis).
+    charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis), and the
+    delay of its anti-alias filter (``anti_alias_delay_s``) is taken out of its time base.
     """
     if not isinstance(recording, Recording):
         raise ParameterError(f"recording must be a Recording, got {type(recording).__name__}")
     rmap = map_or_path if isinstance(map_or_path, ResponseMap) else load_map(map_or_path)
     check_recording(recording, rmap)
-    values, available = extract_features(recording.time, recording.contact_force, rmap.feature_set,
-                                         rmap.feature_params)
+    values, available = extract_features(*recording_signal(recording), rmap.feature_set, rmap.feature_params)
     return identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
                              allow_extrapolation=allow_extrapolation, available_at=available)

@@ -19,7 +19,7 @@ from .. import __version__
 from ..errors import ParameterError, ResponseMapError
 from ..recording import Recording
 from ..rig import Rig, from_dict, get_rig, to_dict
-from .features import extract_batch, extract_features, get_feature_set
+from .features import extract_batch, extract_features, get_feature_set, recording_signal
 
 SCHEMA_VERSION = 1
 #: largest map (number of stored feature values) refine or build will create: 800 MB in float64
@@ -367,7 +367,7 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
     stand = get_rig(rig if rig is not None else (names.pop() if names else None))
     fs = get_feature_set(features)
     params = fs.params(feature_params)
-    y = np.array([extract_features(r.time, r.contact_force, features, params)[0] for r in recs])
+    y = np.array([extract_features(*recording_signal(r), features, params)[0] for r in recs])
     n_m, n_v = (grid, grid) if isinstance(grid, (int, np.integer)) else tuple(grid)
     masses = np.linspace(*(mass_range or (truth[:, 0].min(), truth[:, 0].max())), int(n_m))
     velocities = np.linspace(*(velocity_range or (truth[:, 1].min(), truth[:, 1].max())), int(n_v))
