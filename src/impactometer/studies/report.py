@@ -102,9 +102,14 @@ def render(results: list[dict[str, Any]]) -> str:
             f"{_table(r.get('aggregate', []))}</section>")
     options = results[0]["options"] if results else {}
     rig = options.get("rig", {})
-    setup = (f"stand {html.escape(str(rig.get('name', '?')))}, contact {html.escape(str(rig.get('contact', {})))}, "
-             f"seed {options.get('seed')}, grid {options.get('grid')} per axis, {options.get('seeds')} noise "
-             f"seed(s), base noise {options.get('noise')}, {options.get('sample_rate')} Hz") if options else ""
+    contact = rig.get("contact", {})
+    grid = options.get("grid")
+    setup = (f"Stand {rig.get('name', '?')}, contact {contact.get('law')} (stiffness {contact.get('stiffness'):g}, "
+             f"damping {contact.get('damping'):g}); root seed {options.get('seed')}; "
+             f"{'each study' + chr(39) + 's default grid' if grid is None else f'{grid} values per grid axis'}; "
+             f"{options.get('seeds')} noise realisation(s) per case; base noise {options.get('noise', 0) * 100:g} % "
+             f"of RMS at {options.get('sample_rate', 0) / 1e3:g} kHz.") if options else ""
+    setup = html.escape(setup)
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     return f"""<!DOCTYPE html>
 {MARKER}

@@ -1,0 +1,75 @@
+"""Every registered study: tidy rows with the methods side by side, per-case seeding independent of chunking,
+aggregate, summary and figure from the rows. Tiny sizes: one or two work units per study."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from impactometer.studies import STUDIES, StudyOptions, get_study, load_studies
+from impactometer.studies.base import indexed_cases
+
+load_studies()
+
+#: per study: settings for a tiny run, the columns every row has, the column whose values are compared methods
+TINY = {
+    "cases": ({"cases.pressures": [100e3], "cases.velocities": [2.0]}, {"mass_error", "velocity_error"}, "method"),
+    "parameters": ({}, {"mass_error", "velocity_error", "available_at"}, "method"),
+    "noise": ({"noise.levels": [0.0, 0.05]}, {"noise_on", "noise", "mass_error"}, "method"),
+    "sampling": ({"sampling.rates": [20e3, 50e3]}, {"sample_rate", "mass_error"}, "method"),
+    "map-size": ({"map-size.sizes": [25], "map-size.grid125_sizes": [10], "map-size.features": ["peaks"]},
+                 {"size", "mass_error_mean", "velocity_error_mean", "time_per_identification_s"}, "search"),
+    "window": ({"window.windows": [0.01]}, {"window_s", "mass_error_mean", "velocity_error_mean"}, "search"),
+    "absorption": ({}, {"strategy", "efficiency", "peak_force_controlled_N"}, "strategy"),
+    "peak-force": ({}, {"simulated_peak_force", "recorded_peak_force", "closed_form_peak_force"}, None),
+}
+EXPECTED_METHODS = {"method": {"paper", "robust-early", "robust"}, "search": {"brute", "fast"},
+                    "strategy": {"closed", "constant", "realtime", "realtime (oracle)"}}
+
+
+def _ready(name):
+    study = get_study(name)
+    if study.missing():
+        pytest.skip(f"study {name!r} needs {study.missing()}, not present in this tree")
+    return study
+
+
+def test_every_study_is_covered_here():
+    assert set(STUDIES) == set(TINY)
+
+
+@pytest.mark.parametrize("name", list(TINY))
+def test_study_rows_aggregate_summary_and_figure(name):
+    study = _ready(name)
+    params, columns, methods = TINY[name]
+    options = StudyOptions(grid=2, params=params)
+    cases = indexed_cases(study, options)
+    rows = study.evaluate(cases[:1], options)
+    assert rows and all(columns <= set(row) for row in rows)
+    assert all(row["case"] == 0 for row in rows)
+    if methods:
+        assert {row[methods] for row in rows} == EXPECTED_METHODS[methods]
+    assert study.aggregate(rows)
+    for line in study.summary(rows):
+        assert set(line) == {"quantity", "ours", "paper"} and all(isinstance(v, str) for v in line.values())
+    fig = study.plot(rows, options)
+    assert fig.axes
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+
+
+def test_noise_of_a_case_does_not_depend_on_its_chunk():
+    study = _ready("noise")
+    options = StudyOptions(grid=2, seed=4, params={"noise.levels": [0.05]})
+    cases = indexed_cases(study, options)
+    together = study.evaluate(cases[:2], options)
+    alone = study.evaluate(cases[1:2], options)
+    second = [r for r in together if r["case"] == 1]
+    assert len(second) == len(alone) == 9  # force, acceleration, both × paper, robust-early, robust
+    for a, b in zip(second, alone):
+        assert a.keys() == b.keys()
+        for key in a:
+            same = a[key] == b[key] or (isinstance(a[key], float) and math.isnan(a[key]) and math.isnan(b[key]))
+            assert same, key
