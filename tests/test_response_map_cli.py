@@ -8,21 +8,12 @@ import json
 import numpy as np
 import pytest
 
-from impactometer.cli import main
 from impactometer.identify.response_map import identify_recording, load_map
 from impactometer.io import write_recording
 from impactometer.rig import get_rig
 from impactometer.sensors import record_batch
 
-
-def run(args, capsys):
-    """Run the CLI; return (exit status, stdout)."""
-    try:
-        main(args)
-        status = 0
-    except SystemExit as exc:
-        status = exc.code
-    return status, capsys.readouterr().out
+from test_cli_simulate import run
 
 
 def test_build_refine_and_info(tmp_path, capsys):

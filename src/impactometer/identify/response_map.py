@@ -215,6 +215,8 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
         raise ParameterError(f"recording must be a Recording, got {type(recording).__name__}")
     rmap = map_or_path if isinstance(map_or_path, ResponseMap) else load_map(map_or_path)
     check_recording(recording, rmap)
-    values, available = extract_features(*recording_signal(recording), rmap.feature_set, rmap.feature_params)
+    time, force = recording_signal(recording)
+    values, available = extract_features(time, force, rmap.feature_set, rmap.feature_params)
+    delay = recording.time[0] - time[0]  # the filter delay: the features are complete that much later
     return identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
-                             allow_extrapolation=allow_extrapolation, available_at=available)
+                             allow_extrapolation=allow_extrapolation, available_at=available + delay)
