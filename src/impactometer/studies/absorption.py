@@ -83,4 +83,4 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Adaptive absorption: closed, constant, realtime (identified and oracle)",
                        figure="Fig. 10b", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=_plot, chunk_size=2, requires=REQUIRES, defaults=DEFAULTS))
+                       plot=_plot, chunk_size=1, requires=REQUIRES, defaults=DEFAULTS))

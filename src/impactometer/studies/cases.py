@@ -12,7 +12,7 @@ from functools import partial
 import numpy as np
 
 from .base import PAPER_RANGES, Row, Study, StudyOptions, grid_size, register
-from .identification import REQUIRES, by_method, evaluate_noisy, max_abs, pct, per_method, seeded_grid
+from .identification import REQUIRES, with_failures, by_method, evaluate_noisy, max_abs, pct, per_method, seeded_grid
 
 NAME = "cases"
 DEFAULTS = {"pressures": [20e3, 100e3], "velocities": [1.0, 2.0, 3.0]}
@@ -47,5 +47,5 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Per-case mass and velocity error at chosen pressures",
                        figure="Figs. 3-4", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
-                       aggregate=_aggregate, summary=_summary, plot=_plot, chunk_size=10, requires=REQUIRES,
+                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=5, requires=REQUIRES,
                        defaults=DEFAULTS))

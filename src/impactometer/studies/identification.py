@@ -100,6 +100,20 @@ def per_method(rows: Sequence[Row], text, **equal) -> str:
     return "; ".join(f"{m} {text(m, **equal)}" for m in present)
 
 
+def failure_line(rows: Sequence[Row]) -> Row:
+    """Summary line: failed identifications per method (means above are over the successful ones)."""
+    return {"quantity": "failed identifications (excluded from the means above)",
+            "ours": per_method(rows, lambda m: f"{failures(rows, method=m)} of {len(pick(rows, method=m))}"),
+            "paper": "not stated"}
+
+
+def with_failures(summary):
+    """``summary`` followed by the :func:`failure_line` of the same rows."""
+    def lines(rows: Sequence[Row]) -> list[Row]:
+        return [*summary(rows), failure_line(rows)]
+    return lines
+
+
 def pct(value: float) -> str:
     """A percentage for the summary."""
     return "–" if not math.isfinite(value) else f"{value:.3g} %"

@@ -8,7 +8,7 @@ and the realisation only. The paper finds force noise more harmful than accelera
 from __future__ import annotations
 
 from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
-from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, mean_abs, pct, per_method,
+from .identification import (REQUIRES, with_failures, by_method, clean_recordings, identify_rows, mean_abs, pct, per_method,
                              seeded_grid, with_noise)
 
 NAME = "noise"
@@ -65,5 +65,5 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 
 STUDY = register(Study(name=NAME, title="Identification error vs Gaussian noise on force, acceleration, both",
-                       figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=_plot, chunk_size=5, requires=REQUIRES, defaults=DEFAULTS))
+                       figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=with_failures(_summary),
+                       plot=_plot, chunk_size=2, requires=REQUIRES, defaults=DEFAULTS))

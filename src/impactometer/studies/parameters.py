@@ -9,7 +9,7 @@ from __future__ import annotations
 from functools import partial
 
 from .base import Row, Study, StudyOptions, register, scenario_grid
-from .identification import REQUIRES, by_method, evaluate_noisy, mean_abs, pct, per_method, seeded_grid
+from .identification import REQUIRES, with_failures, by_method, evaluate_noisy, mean_abs, pct, per_method, seeded_grid
 
 NAME = "parameters"
 AXES = (("mass", "M1 [kg]", 1.0), ("pressure_gauge", "p0 [kPa]", 1e-3), ("velocity", "V0 [m/s]", 1.0))
@@ -51,4 +51,4 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Mean mass error vs impacting mass, pressure and velocity",
                        figure="Fig. 5", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
-                       aggregate=_aggregate, summary=_summary, plot=_plot, chunk_size=10, requires=REQUIRES))
+                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=10, requires=REQUIRES))

@@ -64,9 +64,13 @@ def plot_case_bars(rows: Sequence[Row]):
             chosen = pick(subset, method=method)
             for ax, column in zip(row_axes, ("mass_error", "velocity_error")):
                 values = np.array([r[column] for r in chosen], dtype=float) * 100
-                ax.bar(x[:values.size] + (j - (len(methods) - 1) / 2) * width, values, width, label=method,
-                       color=_color(method))
+                at = x[:values.size] + (j - (len(methods) - 1) / 2) * width
+                ax.bar(at, values, width, label=method, color=_color(method))
+                failed = ~np.isfinite(values)
+                ax.plot(at[failed], np.zeros(failed.sum()), "x", color=_color(method), ms=7,
+                        label=f"{method} failed" if failed.any() and ax is row_axes[0] else None)
         for ax, what in zip(row_axes, ("mass", "velocity")):
+            ax.set_yscale("symlog", linthresh=2.0)
             ax.axhline(0, color="k", lw=0.6)
             ax.set_xticks(x, labels, fontsize=6)
             ax.set_ylabel(f"{what} error [%]")
