@@ -150,3 +150,8 @@ def test_agreement_measures_a_shift():
     result = agreement(pulse(3e-3)[None, :], pulse(3.0005e-3)[None, :], time)
     assert result.pulses == 1 and result.peak_time == pytest.approx(5e-7, rel=1e-3)
     assert result.peak_force < 1e-3 and result.impulse < 1e-3
+
+
+def test_single_channel_by_name(stand):
+    batch = simulate_batch([10.0, 20.0], 2.0, 200e3, stand, channels="contact_force", duration=0.01)
+    assert list(batch.data) == ["contact_force"] and batch["contact_force"].shape == (2, 501)

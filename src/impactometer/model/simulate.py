@@ -183,6 +183,7 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
     """
     rig = get_rig(rig)
     rtol = _check_integrator("fast", rtol, max_step, max_steps)
+    channels = (channels,) if isinstance(channels, str) else tuple(channels)
     unknown = [c for c in channels if c not in d.CHANNELS]
     if unknown or not channels:
         raise ParameterError(f"channels must be a non-empty subset of {list(d.CHANNELS)}, got {list(channels)}")
