@@ -35,8 +35,8 @@ N_CONTROL = 12
 TIME_CONSTANT, MAX_RATE, MAX_AREA, ROUTE = range(4)
 N_DRIVE = 4
 # sensor rows of the noise matrix
-SENSOR_FORCE, SENSOR_ACCELERATION, SENSOR_P_LOWER, SENSOR_P_UPPER = range(4)
-N_SENSOR = 4
+SENSOR_FORCE, SENSOR_ACCELERATION, SENSOR_P_LOWER, SENSOR_P_UPPER, SENSOR_DISPLACEMENT = range(5)
+N_SENSOR = 5
 # extra output rows
 EXTRA = ("valve_area", "valve_command", "target_force", "estimated_velocity",
          "estimated_piston_displacement")
@@ -214,11 +214,11 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
     """Closed-loop simulation sampled at ``sample_rate`` for ``out.shape[1]`` samples.
 
     ``noise`` (N_SENSOR, n) is added to the sensors the controller reads (contact force, piston acceleration,
-    chamber pressures); ``out`` (N_CHANNEL, n) receives the model channels and ``extra`` (N_EXTRA, n) the valve
-    opening, the command, the target force and the controller's estimates: the mass velocity propagated from the
-    identified V0 by the momentum balance v1 = V0 + g·t − ∫F dt / M1, and the piston displacement from the
-    twice-integrated piston acceleration (the piston starts at rest at the top stop). Returns a status code and the
-    index of the last sample written.
+    chamber pressures, piston displacement); ``out`` (N_CHANNEL, n) receives the model channels and ``extra``
+    (N_EXTRA, n) the valve opening, the command, the target force and the controller's estimates: the mass
+    velocity propagated from the identified V0 by the momentum balance v1 = V0 + g·t − ∫F dt / M1, and the
+    filtered piston displacement. The piston velocity is the integrated piston acceleration (the piston starts at
+    rest). Returns a status code and the index of the last sample written.
     """
     n = out.shape[1]
     dt = 1.0 / sample_rate
@@ -231,8 +231,8 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
     target = np.zeros(1)
     g = p[d.GRAVITY]
     impulse = 0.0  # ∫F dt of the measured contact force
-    v2 = 0.0  # piston velocity and displacement from the integrated acceleration
-    u2 = 0.0
+    v2 = 0.0  # piston velocity from the integrated acceleration
+    u2 = y0[d.U2]  # filtered piston displacement
     f_prev = 0.0
     a_prev = 0.0
     alpha = dt / (ctrl[TAU_FILTER] + dt)
@@ -249,13 +249,12 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
         accel = row[10] + noise[SENSOR_ACCELERATION, j]
         if j > 0:
             impulse += 0.5 * (f_prev + force) * dt
-            v2_old = v2
             v2 += 0.5 * (a_prev + accel) * dt
-            u2 += 0.5 * (v2_old + v2) * dt
         f_prev = force
         a_prev = accel
         pl_f += alpha * (y[d.P_LOWER] + noise[SENSOR_P_LOWER, j] - pl_f)
         pu_f += alpha * (y[d.P_UPPER] + noise[SENSOR_P_UPPER, j] - pu_f)
+        u2 += alpha * (y[d.U2] + noise[SENSOR_DISPLACEMENT, j] - u2)
         mass = ctrl[MASS_HAT]
         velocity = ctrl[VELOCITY_HAT] + g * t - impulse / mass
         command = 0.0
@@ -334,7 +333,7 @@ def simulate_controlled(scenario, rig=None, *, control: np.ndarray | None = None
     duration, sample_rate : float
         Simulated time after first contact [s] and the controller/sensor rate [Hz].
     sensor_noise : ndarray, optional
-        Noise (N_SENSOR, n_samples) added to the sensors the controller reads [N, m/s², Pa, Pa].
+        Noise (N_SENSOR, n_samples) added to the sensors the controller reads [N, m/s², Pa, Pa, m].
     rtol : float
         Relative tolerance of the integrator.
 

@@ -7,8 +7,10 @@ controller parameters of the compiled loop (:mod:`impactometer.control.simulate`
   chosen by optimisation with the model for the identified M1 and V0: the opening with the lowest peak contact
   force after the control start whose stroke stays within the usable stroke.
 - ``realtime``: feedback on the chamber pressures that holds the contact force at F* = M1·(v²/(2·s_remaining) + g),
-  with v and the mass displacement propagated from the identified V0 by the momentum balance of the mass
-  (measured contact force), and the piston velocity from the integrated piston acceleration.
+  with v propagated from the identified V0 by the momentum balance of the mass (measured contact force), the
+  remaining stroke from the measured piston displacement and the piston velocity from the integrated piston
+  acceleration. Both valve strategies close the valve for good when the closed gas spring is needed to stop the
+  bodies within the remaining stroke (``control.simulate.must_close``).
 """
 
 from __future__ import annotations
