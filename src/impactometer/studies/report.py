@@ -63,6 +63,9 @@ def _table(rows: list[dict[str, Any]], *, limit: int = 200) -> str:
 
 def collect(out: str | Path) -> list[dict[str, Any]]:
     """Results of every study run found in ``out``, in registry order (unknown ones last)."""
+    from . import load_studies
+
+    load_studies()
     out = Path(out)
     order = {name: i for i, name in enumerate(STUDIES)}
     found = []
@@ -87,18 +90,18 @@ def timing_rows(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def render(results: list[dict[str, Any]]) -> str:
     """HTML text of the report."""
-    from . import load_studies
-
-    load_studies()
     sections = []
     for r in results:
         name = html.escape(r["name"])
         figure = f" (the paper's {html.escape(r['figure'])})" if r.get("figure") else ""
+        opts = r.get("options", {})
+        run = html.escape(f"contact {opts.get('rig', {}).get('contact', {}).get('law')}, seed {opts.get('seed')}, "
+                          f"grid {opts.get('grid') or 'default'}, settings {opts.get('params') or 'default'}")
         sections.append(
             f"<section id='{name}'><h2>{name}: {html.escape(r.get('title', ''))}{figure}</h2>"
             f"<p><img src='{name}.png' alt='figure of study {name}'></p>"
             f"<p class='note'>{r['cases']} cases, {r['rows']} rows; full table: <a href='{name}.csv'>{name}.csv"
-            f"</a>; wall time {r['wall_time']:.1f} s, compute time {r['compute_time']:.1f} s</p>"
+            f"</a>; {run}; wall time {r['wall_time']:.1f} s, compute time {r['compute_time']:.1f} s</p>"
             f"{_table(r.get('aggregate', []))}</section>")
     options = results[0]["options"] if results else {}
     rig = options.get("rig", {})
