@@ -54,3 +54,13 @@ def test_list_shows_every_study(capsys):
     main(["study", "list"])
     out = capsys.readouterr().out
     assert "peak-force" in out and "noise" in out and "sampling" in out
+
+
+def test_report_rebuilds_the_page_and_prints_markdown(tmp_path, capsys):
+    main(["study", "peak-force", "--out", str(tmp_path), "--grid", "2", "--workers", "1"])
+    (tmp_path / "index.html").unlink()
+    capsys.readouterr()
+    main(["study", "report", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert (tmp_path / "index.html").exists()
+    assert "| peak-force | 8 | 8 | 1 |" in out and "| total |" in out and "| study | quantity | ours | paper |" in out

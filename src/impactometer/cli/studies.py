@@ -51,7 +51,8 @@ def _parse_params(items: list[str] | None) -> dict:
 
 @app.command()
 def study(
-    name: Annotated[str, typer.Argument(help="A study name, 'all', or 'list' to show the studies.")],
+    name: Annotated[str, typer.Argument(
+        help="A study name, 'all', 'list' (show the studies) or 'report' (rebuild DIR/index.html, print Markdown).")],
     out: Annotated[Optional[Path], typer.Option("--out", help="Output folder (tables, figures, index.html).")] = None,
     workers: Annotated[Optional[int], typer.Option("--workers", help="Local processes (default: all cores).")] = None,
     scheduler: Annotated[Optional[str], typer.Option(
@@ -80,6 +81,13 @@ def study(
         return
     if out is None:
         raise ParameterError("--out is required: the folder for the tables, figures and index.html")
+    if name == "report":
+        from ..studies.report import markdown, write_report
+
+        path = write_report(out, force=force)
+        console.print(markdown(out), highlight=False, markup=False, soft_wrap=True)
+        console.print(f"report written to {path}")
+        return
     load_studies()
     if name == "all":
         names = available_studies()

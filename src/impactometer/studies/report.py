@@ -147,3 +147,23 @@ def write_report(out: str | Path, *, force: bool = False) -> Path:
             raise ParameterError(f"--out: {str(path)!r} exists and was not written by impactometer; pass --force "
                                  f"to overwrite it")
     return store.atomic_write(path, render(collect(out)))
+
+
+def markdown(out: str | Path) -> str:
+    """The run table and the summary of the study runs in ``out`` as Markdown tables (for READMEs)."""
+    results = collect(out)
+
+    def table(rows: list[dict[str, Any]]) -> str:
+        if not rows:
+            return "(no study runs found)\n"
+        cols = columns(rows)
+        lines = ["| " + " | ".join(cols) + " |", "| " + " | ".join("---" for _ in cols) + " |"]
+        lines += ["| " + " | ".join(fmt(r.get(c, "")).replace("|", "/") for c in cols) + " |" for r in rows]
+        return "\n".join(lines) + "\n"
+
+    timing = timing_rows(results)
+    total = {"study": "total", "cases": sum(r["cases"] for r in timing), "rows": sum(r["rows"] for r in timing),
+             "chunks": sum(r["chunks"] for r in timing), "reused chunks": sum(r["reused chunks"] for r in timing),
+             "workers": "", "wall time [s]": sum(r["wall time [s]"] for r in timing),
+             "compute time [s]": sum(r["compute time [s]"] for r in timing)} if timing else None
+    return table(timing + ([total] if total else [])) + "\n" + table(summary_rows(results))
