@@ -29,9 +29,9 @@ PRE_SAMPLES = 5000
 GUARD_SAMPLES = 32
 #: fewest pre-trigger samples for removing offsets
 MIN_PRE_SAMPLES = 32
-#: quiet spell that ends an impact [s] and longest impact [s]
-QUIET_TIME = 0.05
-MAX_DURATION = 0.25
+#: quiet spell that ends an impact [s] (a mass rebounding at 1.5 m/s is airborne for 0.3 s) and longest impact [s]
+QUIET_TIME = 0.3
+MAX_DURATION = 1.0
 
 
 @dataclass(frozen=True)
@@ -114,7 +114,7 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     sa = max(sa, 1e-6 * float(np.max(np.abs(acceleration))))
     f = force - f0
     a = acceleration - a0
-    pulses = detect_pulses(f, sf)
+    pulses = detect_pulses(f, sf, start=max(n_pre, 0))  # nothing before the pre-trigger statistics' end
     return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses)
 
 

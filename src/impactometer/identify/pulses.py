@@ -115,31 +115,39 @@ def detection_levels(noise: float, force_scale: float) -> tuple[float, float]:
     return DETECT_SIGMAS * sigma, RELEASE_SIGMAS * sigma
 
 
-def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None = None) -> list[PulseSpan]:
+def _held(mask: np.ndarray, hold: int) -> np.ndarray:
+    """Positions where ``mask`` holds for ``hold`` consecutive samples (an array ``hold - 1`` shorter)."""
+    out = mask[:mask.size - hold + 1].copy()
+    for k in range(1, hold):
+        out &= mask[k:mask.size - hold + 1 + k]
+    return out
+
+
+def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None = None,
+                  start: int = 0) -> list[PulseSpan]:
     """Contact pulses of an offset-free ``force`` [N] with white noise of standard deviation ``noise`` [N].
 
-    A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ and ends where it falls below ``RELEASE_SIGMAS``·σ.
-    A gap between two pulses counts as a separation only when the force in it is consistent with zero (its mean
-    within 3σ/√n of zero, n = samples in the gap); otherwise both are merged into one pulse. A pulse still
-    running at the end of the data has ``end = -1``.
+    A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ for ``HOLD`` consecutive samples (not before
+    sample ``start``) and ends where it stays below ``RELEASE_SIGMAS``·σ for ``HOLD`` samples. A gap between two
+    pulses counts as a separation only when the force in it is consistent with zero (the mean of its middle half
+    within 3σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still running at the end of
+    the data has ``end = -1``.
     """
     f = np.asarray(force, dtype=float)
     scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)
     detect, release = detection_levels(noise, scale)
     sigma = detect / DETECT_SIGMAS
     spans: list[list[int]] = []
-    i, n = 0, f.size
-    above = np.flatnonzero(f > detect)
+    i, n = max(int(start), 0), f.size
+    above = np.flatnonzero(_held(f > detect, HOLD))
+    above = above[above >= i]
     while above.size:
         first = int(above[0])
-        low = f[first:] <= release
-        held = low[:low.size - HOLD + 1].copy()
-        for k in range(1, HOLD):
-            held &= low[k:low.size - HOLD + 1 + k]
-        below = np.flatnonzero(held)
+        below = np.flatnonzero(_held(f[first:] <= release, HOLD))
         end = first + int(below[0]) if below.size else -1
         if spans and spans[-1][3] >= 0:
-            gap = f[spans[-1][3] + HOLD:max(first - HOLD, spans[-1][3] + HOLD)]
+            quarter = (first - spans[-1][3]) // 4  # the middle half: away from the tail and the next foot
+            gap = f[spans[-1][3] + quarter:first - quarter]
             if gap.size > 0 and gap.mean() > 3.0 * sigma / np.sqrt(gap.size):
                 spans[-1][3] = end  # not a separation: same pulse
                 first = -1
