@@ -155,3 +155,14 @@ def test_agreement_measures_a_shift():
 def test_single_channel_by_name(stand):
     batch = simulate_batch([10.0, 20.0], 2.0, 200e3, stand, channels="contact_force", duration=0.01)
     assert list(batch.data) == ["contact_force"] and batch["contact_force"].shape == (2, 501)
+
+
+def test_helper_input_is_checked():
+    from impactometer.model.setup import initial_states
+
+    with pytest.raises(ParameterError, match="time and force must be 1-D arrays of equal length"):
+        pulse_peaks(np.arange(5.0), np.zeros(4))
+    with pytest.raises(ParameterError, match=r"params must have shape \(n, 25\)"):
+        initial_states(np.zeros((2, 3)))
+    with pytest.raises(ParameterError, match="force histories must have equal shapes"):
+        agreement(np.zeros((2, 5)), np.zeros((3, 5)), np.arange(5.0))

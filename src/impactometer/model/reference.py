@@ -86,6 +86,10 @@ def pulse_peaks(time: np.ndarray, force: np.ndarray) -> tuple[np.ndarray, np.nda
     The peak time is refined by the parabola through the largest sample of the pulse and its two neighbours; a
     pulse whose largest sample is at its edge keeps that sample's time.
     """
+    time, force = np.asarray(time, dtype=float), np.asarray(force, dtype=float)
+    if time.ndim != 1 or time.shape != force.shape or time.size < 3:
+        raise ParameterError(f"time and force must be 1-D arrays of equal length >= 3, got shapes {time.shape} "
+                             f"and {force.shape}")
     above = np.concatenate(([False], force > 0.0, [False]))
     edges = np.flatnonzero(np.diff(above.astype(np.int8)))
     times, peaks = [], []

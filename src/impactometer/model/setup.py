@@ -162,6 +162,8 @@ def _initial_states(params, out):
 def initial_states(params: np.ndarray) -> np.ndarray:
     """States at first contact (n, N_STATE) for parameter rows (n, N_PARAM); see :func:`initial_state`."""
     params = np.ascontiguousarray(np.atleast_2d(params), dtype=float)
+    if params.ndim != 2 or params.shape[1] != d.N_PARAM:
+        raise ParameterError(f"params must have shape (n, {d.N_PARAM}) (see pack/pack_batch), got {params.shape}")
     out = np.empty((params.shape[0], d.N_STATE))
     _initial_states(params, out)
     bad = np.flatnonzero(np.isnan(out[:, d.U2]))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 
 import numpy as np
@@ -25,6 +26,10 @@ _CHUNK_BYTES = 64 * 2**20
 _STATE_SCALE = np.array([0.1, 1.0, 0.1, 1.0, 1e5, 1e5, 1e-3, 1e-4, 100.0])
 
 
+def _real(value) -> bool:
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
 def absolute_tolerance(rtol: float) -> np.ndarray:
     """Per-state absolute tolerance matching a relative tolerance ``rtol`` on the state's typical scale."""
     return rtol * _STATE_SCALE
@@ -33,7 +38,7 @@ def absolute_tolerance(rtol: float) -> np.ndarray:
 def sample_times(duration: float, sample_rate: float) -> np.ndarray:
     """Sample instants 0, 1/fs, ... up to ``duration`` [s]."""
     for name, value in (("duration", duration), ("sample_rate", sample_rate)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or value <= 0:
+        if not _real(value) or not np.isfinite(value) or value <= 0:
             raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
     n = int(np.floor(duration * sample_rate + 1e-9)) + 1
     if n < 2:
@@ -49,9 +54,9 @@ def _check_integrator(integrator: str, rtol: float | None, max_step: float = MAX
     if integrator not in INTEGRATORS:
         raise ParameterError(f"integrator must be one of {sorted(INTEGRATORS)}, got {integrator!r}")
     rtol = INTEGRATORS[integrator] if rtol is None else rtol
-    if not isinstance(rtol, (int, float)) or not np.isfinite(rtol) or not 1e-14 <= rtol <= 1e-3:
+    if not _real(rtol) or not np.isfinite(rtol) or not 1e-14 <= rtol <= 1e-3:
         raise ParameterError(f"rtol must be within [1e-14, 1e-3], got {rtol!r}")
-    if not isinstance(max_step, (int, float)) or np.isnan(max_step) or max_step <= 0:
+    if not _real(max_step) or np.isnan(max_step) or max_step <= 0:
         raise ParameterError(f"max_step must be > 0 [s] (inf for no bound), got {max_step!r}")
     if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
         raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
