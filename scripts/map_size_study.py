@@ -2,6 +2,7 @@
 
     python scripts/map_size_study.py                 # Fig. 8: both test sets, sizes 10..3000, all feature sets
     python scripts/map_size_study.py --recordings    # map from 10×10 recordings at 1 % noise, held-back recordings
+    python scripts/map_size_study.py --sizes 3000 --cases random --n-random 100   # brute vs fast, more impacts
 
 Prints markdown tables (the ones quoted in docs/response_map.md).
 """
@@ -41,6 +42,7 @@ def main() -> None:
     parser.add_argument("--sizes", default=",".join(str(s) for s in PAPER_SIZES))
     parser.add_argument("--features", default="peaks,max-impulse,impulse-profile")
     parser.add_argument("--cases", default="random,grid125")
+    parser.add_argument("--n-random", type=int, default=10, help="number of random test impacts")
     args = parser.parse_args()
     start = time.perf_counter()
     print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} cores\n")
@@ -49,7 +51,8 @@ def main() -> None:
         print(markdown(rows, ["feature_set", "search", "map_grid", "n_cases", *ERRORS, "extrapolated"], ERRORS))
     else:
         rows = map_size_table(sizes=[int(s) for s in args.sizes.split(",")],
-                              feature_sets=tuple(args.features.split(",")), cases=tuple(args.cases.split(",")))
+                              feature_sets=tuple(args.features.split(",")), cases=tuple(args.cases.split(",")),
+                              n_random=args.n_random)
         print(markdown(rows, ["feature_set", "cases", "size", "search", "n_cases", *ERRORS,
                               "time_per_identification_s", "cpu_per_identification_s", "extrapolated"], ERRORS,
                        ("time_per_identification_s", "cpu_per_identification_s")))
