@@ -136,7 +136,9 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     f = np.asarray(force, dtype=float)
     scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)
     detect, release = detection_levels(noise, scale)
-    sigma = detect / DETECT_SIGMAS
+    # the gap test uses the noise itself: the resolution floor of the levels is for edges (ringing), and any
+    # positive force in the middle of a gap means the bodies still touch
+    gap_sigma = max(float(noise), 1e-6 * scale, 1e-12)
     spans: list[list[int]] = []
     i, n = max(int(start), 0), f.size
     above = np.flatnonzero(_held(f > detect, HOLD))
@@ -148,7 +150,7 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
         if spans and spans[-1][3] >= 0:
             quarter = (first - spans[-1][3]) // 4  # the middle half: away from the tail and the next foot
             gap = f[spans[-1][3] + quarter:first - quarter]
-            if gap.size > 0 and gap.mean() > 3.0 * sigma / np.sqrt(gap.size):
+            if gap.size > 0 and gap.mean() > 3.0 * gap_sigma / np.sqrt(gap.size):
                 spans[-1][3] = end  # not a separation: same pulse
                 first = -1
         if first >= 0:
