@@ -90,9 +90,7 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
     y = y0.copy()
     y_new = np.empty(n)
     ys = np.empty(n)
-    err = np.empty(n)
     q1, q2, q3 = np.empty(n), np.empty(n), np.empty(n)
-    scale = np.empty(n)
     row = np.empty(d.N_CHANNEL)
     full = False
     for j in range(channel_index.size):
@@ -148,11 +146,13 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
                 y_new[i] = y[i] + h * (35 / 384 * k1[i] + 500 / 1113 * k3[i] + 125 / 192 * k4[i]
                                        - 2187 / 6784 * k5[i] + 11 / 84 * k6[i])
             d.rhs(y_new, p, valve, k7)
+            squares = 0.0  # RMS of the error estimate over scale = atol + rtol·max(|y|, |y_new|)
             for i in range(n):
-                scale[i] = atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
-                err[i] = h * (-71 / 57600 * k1[i] + 71 / 16695 * k3[i] - 71 / 1920 * k4[i]
-                              + 17253 / 339200 * k5[i] - 22 / 525 * k6[i] + 1 / 40 * k7[i])
-            error_norm = _rms(err, scale)
+                e = h * (-71 / 57600 * k1[i] + 71 / 16695 * k3[i] - 71 / 1920 * k4[i]
+                         + 17253 / 339200 * k5[i] - 22 / 525 * k6[i] + 1 / 40 * k7[i])
+                e /= atol[i] + max(abs(y[i]), abs(y_new[i])) * rtol
+                squares += e * e
+            error_norm = math.sqrt(squares / n)
             if error_norm < 1.0:
                 factor = MAX_FACTOR if error_norm == 0.0 else min(MAX_FACTOR, SAFETY * error_norm**ERROR_EXPONENT)
                 if rejected:
