@@ -13,7 +13,7 @@ distributed = pytest.importorskip("dask.distributed", reason="Dask distributed i
 def test_dask_cluster_matches_local_run(tmp_path):
     options = StudyOptions(grid=3, seed=11, params={"peak-force.chunk_size": 5})
     local = run_study("peak-force", tmp_path / "local", options, workers=1)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=True, host="127.0.0.1",
                                   dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
         remote = run_study("peak-force", tmp_path / "dask", options, scheduler=cluster.scheduler_address)
