@@ -65,6 +65,9 @@ def study(
     noise: Annotated[str, typer.Option("--noise", help="Sensor noise of the non-noise studies (% of RMS).")] = "1%",
     sample_rate: Annotated[str, typer.Option("--sample-rate", help="DAQ rate of the non-sampling studies.")]
     = "50kHz",
+    duration: Annotated[str, typer.Option("--duration", help="Record length after first contact.")] = "100ms",
+    pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Record length before first contact.")]
+    = "50ms",
     contact: Annotated[Optional[str], typer.Option(
         "--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")] = None,
     rig: Annotated[Optional[str], typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
@@ -97,6 +100,8 @@ def study(
     options = StudyOptions(rig=get_rig(rig, contact=contact), seed=seed, seeds=seeds, grid=grid,
                            noise=_fraction(noise, "--noise"),
                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
+                           duration=quantity(duration, "time", "--duration"),
+                           pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"),
                            params=_parse_params(setting))
     columns = (TextColumn("{task.description:<14}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                TextColumn("ETA"), TimeRemainingColumn())

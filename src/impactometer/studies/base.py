@@ -43,8 +43,9 @@ class StudyOptions:
     seeds : Noise realisations per case where a study adds noise.
     noise : Sensor noise of the studies that are not about noise, as a fraction of each channel's RMS.
     sample_rate : DAQ sample rate of the studies that are not about sampling [Hz].
-    duration : Record length after first contact [s].
-    pre_trigger : Record length before first contact [s] (used by the identification to remove offsets).
+    duration : Record length after first contact [s] (long enough for several contact pulses).
+    pre_trigger : Record length before first contact [s]; the identification learns the noise and the offsets
+        from it (at 5 kHz a few milliseconds are only a handful of samples).
     params : Study-specific settings (e.g. ``{"noise.levels": [0, 0.05]}``); see each study's ``defaults``.
     """
 
@@ -54,8 +55,8 @@ class StudyOptions:
     seeds: int = 1
     noise: float = 0.01
     sample_rate: float = 50e3
-    duration: float = 0.05
-    pre_trigger: float = 0.002
+    duration: float = 0.1
+    pre_trigger: float = 0.05
     params: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:

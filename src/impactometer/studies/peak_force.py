@@ -100,7 +100,7 @@ def _aggregate(rows: list[Row]) -> list[Row]:
 def _summary(rows: list[Row]) -> list[Row]:
     err = finite_values(rows, "ratio_error")
     rec = finite_values(rows, "recorded_error")
-    return [{"quantity": "first-pulse peak force, simulated vs closed form V0·sqrt(k·μ) with preload (max deviation)",
+    return [{"quantity": "first-pulse peak force, simulated vs two-body closed form with preload (max deviation)",
              "ours": f"{np.max(np.abs(err)) * 100:.2f} % over {err.size} cases" if err.size else "no data",
              "paper": "model check (no figure)"},
             {"quantity": "first-pulse peak as recorded by the DAQ vs simulated (mean deviation)",
