@@ -74,3 +74,12 @@ def test_a_foreign_index_html_is_not_overwritten(tmp_path):
     assert (tmp_path / "index.html").read_text() == "<html>my page</html>"
     write_report(tmp_path, force=True)
     assert MARKER in (tmp_path / "index.html").read_text()
+
+
+def test_a_foreign_index_html_is_refused_before_any_work(tmp_path):
+    from impactometer.studies import run_studies
+
+    (tmp_path / "index.html").write_text("<html>my page</html>")
+    with pytest.raises(ParameterError, match="not written by impactometer"):
+        run_studies(["peak-force"], tmp_path, StudyOptions(grid=2), workers=1)
+    assert not (tmp_path / "peak-force").exists()

@@ -77,7 +77,7 @@ def study(
     = False,
 ) -> None:
     """Run a study of the paper (or all of them): tables (CSV), figures (PNG) and DIR/index.html."""
-    from ..studies import StudyOptions, available_studies, get_study, load_studies, run_studies
+    from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
 
     if name == "list":
         _print_list()
@@ -94,6 +94,9 @@ def study(
     load_studies()
     if name == "all":
         names = available_studies()
+        for skipped, study_obj in STUDIES.items():
+            if skipped not in names:
+                console.print(f"skipped study {skipped}: needs {', '.join(study_obj.missing())}")
     else:
         get_study(name)
         names = [name]

@@ -132,12 +132,9 @@ def render(results: list[dict[str, Any]]) -> str:
 """
 
 
-def write_report(out: str | Path, *, force: bool = False) -> Path:
-    """Write ``out/index.html`` from every study run found in ``out``; a foreign index.html needs ``force``."""
-    out = Path(out)
-    if not out.is_dir():
-        raise ParameterError(f"--out: {str(out)!r} is not a folder of study runs")
-    path = out / "index.html"
+def check_target(out: str | Path, *, force: bool = False) -> Path:
+    """``out/index.html``, refused if it exists and was not written by impactometer (unless ``force``)."""
+    path = Path(out) / "index.html"
     if path.exists() and not force:
         try:
             ours = MARKER in path.read_text(encoding="utf-8", errors="replace")[:500]
@@ -146,7 +143,15 @@ def write_report(out: str | Path, *, force: bool = False) -> Path:
         if not ours:
             raise ParameterError(f"--out: {str(path)!r} exists and was not written by impactometer; pass --force "
                                  f"to overwrite it")
-    return store.atomic_write(path, render(collect(out)))
+    return path
+
+
+def write_report(out: str | Path, *, force: bool = False) -> Path:
+    """Write ``out/index.html`` from every study run found in ``out``; a foreign index.html needs ``force``."""
+    out = Path(out)
+    if not out.is_dir():
+        raise ParameterError(f"--out: {str(out)!r} is not a folder of study runs")
+    return store.atomic_write(check_target(out, force=force), render(collect(out)))
 
 
 def markdown(out: str | Path) -> str:

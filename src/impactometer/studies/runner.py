@@ -253,6 +253,10 @@ def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | N
     names = list(names)
     for name in names:
         get_study(name)
+    if report:
+        from .report import check_target
+
+        check_target(out, force=force)
     executor = backend(workers, scheduler)
     try:
         runs = [run_study(name, out, options, force=force, progress=progress, executor=executor)
