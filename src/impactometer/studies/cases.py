@@ -47,5 +47,6 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Per-case mass and velocity error at chosen pressures",
                        figure="Figs. 3-4", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
-                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=5, requires=REQUIRES,
+                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=5,
+                       requires=REQUIRES,
                        defaults=DEFAULTS))

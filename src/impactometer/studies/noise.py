@@ -8,8 +8,8 @@ and the realisation only. The paper finds force noise more harmful than accelera
 from __future__ import annotations
 
 from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
-from .identification import (REQUIRES, with_failures, by_method, clean_recordings, identify_rows, mean_abs, pct, per_method,
-                             seeded_grid, with_noise)
+from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, mean_abs, pct, per_method,
+                             seeded_grid, with_failures, with_noise)
 
 NAME = "noise"
 #: default values per grid axis (27 scenarios; ``--grid 5`` gives the paper's 125)
@@ -51,8 +51,8 @@ def _summary(rows: list[Row]) -> list[Row]:
     def text(m):
         return (f"force {pct(mean_abs(rows, 'mass_error', method=m, noise_on='force', noise=top))} vs "
                 f"acceleration {pct(mean_abs(rows, 'mass_error', method=m, noise_on='acceleration', noise=top))}")
-    return [{"quantity": f"mean mass error at {top * 100:g} % noise on one channel (Fig. 6)", "ours": per_method(rows, text),
-             "paper": "force noise matters more than acceleration noise"},
+    return [{"quantity": f"mean mass error at {top * 100:g} % noise on one channel (Fig. 6)",
+             "ours": per_method(rows, text), "paper": "force noise matters more than acceleration noise"},
             {"quantity": f"mean mass error at {top * 100:g} % noise on both channels",
              "ours": per_method(rows, lambda m: pct(mean_abs(rows, "mass_error", method=m, noise_on="both",
                                                              noise=top))),
@@ -65,5 +65,5 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 
 STUDY = register(Study(name=NAME, title="Identification error vs Gaussian noise on force, acceleration, both",
-                       figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=with_failures(_summary),
-                       plot=_plot, chunk_size=2, requires=REQUIRES, defaults=DEFAULTS))
+                       figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate,
+                       summary=with_failures(_summary), plot=_plot, chunk_size=2, requires=REQUIRES, defaults=DEFAULTS))

@@ -51,4 +51,5 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Mean mass error vs impacting mass, pressure and velocity",
                        figure="Fig. 5", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
-                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=10, requires=REQUIRES))
+                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=10,
+                       requires=REQUIRES))

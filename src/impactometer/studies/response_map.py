@@ -102,7 +102,8 @@ def _map_summary(rows: list[Row]) -> list[Row]:
         return f"{search} mass {min(r['mass_error_mean'] for r in chosen) * 100:.2g} %, velocity " \
                f"{min(r['velocity_error_mean'] for r in chosen) * 100:.2g} %"
     return [{"quantity": "mass error / velocity error, response map (Fig. 8)",
-             "ours": "; ".join(_ratio_text(rows, s) for s in ("brute", "fast")), "paper": "velocity 5-10× more accurate"},
+             "ours": "; ".join(_ratio_text(rows, s) for s in ("brute", "fast")),
+             "paper": "velocity 5-10× more accurate"},
             {"quantity": f"time per identification at {largest}×{largest}",
              "ours": "; ".join(timing(s) for s in ("brute", "fast")), "paper": "> 350 ms (brute force, 3000×3000)"},
             {"quantity": f"mean error at {largest}×{largest}, 10 random impacts (best feature set)",

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 
 from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
-from .identification import (REQUIRES, with_failures, by_method, clean_recordings, identify_rows, max_abs, mean_abs, pct,
-                             per_method, with_noise)
+from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, max_abs, mean_abs, pct,
+                             per_method, with_failures, with_noise)
 
 NAME = "sampling"
 #: default values per grid axis (27 scenarios; ``--grid 5`` gives the paper's 125)
@@ -69,5 +69,5 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 
 STUDY = register(Study(name=NAME, title="Mean and maximum error vs sampling frequency", figure="Fig. 7",
-                       cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=with_failures(_summary), plot=_plot,
-                       chunk_size=7, requires=REQUIRES, defaults=DEFAULTS))
+                       cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=with_failures(_summary),
+                       plot=_plot, chunk_size=7, requires=REQUIRES, defaults=DEFAULTS))
