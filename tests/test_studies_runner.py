@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -120,3 +121,22 @@ def test_unknown_study_and_bad_executor_options(tmp_path):
         run_study("peak-force", tmp_path / "s", StudyOptions(**SMALL), scheduler="localhost")
     with pytest.raises(ParameterError, match="chunk_size must be an integer >= 1"):
         run_study("peak-force", tmp_path / "c", StudyOptions(grid=2, params={"peak-force.chunk_size": 0}))
+
+
+def test_a_failing_chunk_names_its_study_and_cases_and_keeps_finished_chunks(tmp_path, monkeypatch):
+    from impactometer.errors import SimulationError
+    from impactometer.studies import STUDIES, get_study
+
+    study = get_study("peak-force")
+    original = study.evaluate
+
+    def flaky(cases, options):
+        if cases[0]["case"] >= 8:
+            raise SimulationError("integrator failed")
+        return original(cases, options)
+
+    monkeypatch.setitem(STUDIES, "peak-force", dataclasses.replace(study, evaluate=flaky))
+    with pytest.raises(SimulationError, match=r"study 'peak-force', cases 8-11: integrator failed"):
+        run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
+    assert len(list((tmp_path / "peak-force").glob("chunk-*.json"))) == 2
+    assert not (tmp_path / "peak-force.csv").exists()

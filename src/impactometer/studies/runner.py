@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ImpactometerError, ParameterError
 from . import store
 from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases
 from .tables import to_csv
@@ -51,7 +51,11 @@ def evaluate_chunk(name: str, cases: list[Row], options: StudyOptions) -> tuple[
 
     load_studies()
     start = time.perf_counter()
-    rows = [_plain(row) for row in get_study(name).evaluate(cases, options)]
+    try:
+        rows = [_plain(row) for row in get_study(name).evaluate(cases, options)]
+    except ImpactometerError as exc:
+        where = f"cases {cases[0]['case']}-{cases[-1]['case']}" if cases else "no cases"
+        raise type(exc)(f"study {name!r}, {where}: {exc}") from exc
     return rows, time.perf_counter() - start
 
 
