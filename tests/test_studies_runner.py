@@ -125,7 +125,9 @@ def test_unknown_study_and_bad_executor_options(tmp_path):
 
 def test_a_failing_chunk_names_its_study_and_cases_and_keeps_finished_chunks(tmp_path, monkeypatch):
     from impactometer.errors import SimulationError
-    from impactometer.studies import STUDIES, get_study
+    from impactometer.studies import STUDIES, get_study, load_studies
+
+    load_studies()
 
     study = get_study("peak-force")
     original = study.evaluate
