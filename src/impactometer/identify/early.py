@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from .robust import white_kernel
+from .robust import kernel_form
 
 #: starting (n, m) exponents of the law: Kelvin-Voigt and Hunt-Crossley
 LAW_STARTS = ((1.0, 0.0), (1.5, 1.5))
@@ -56,6 +56,26 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
         onset = (v0 * t1[0] + g * t1[0] ** 2 / 2 - w * if1[0] - da1[0]) / max(sigma_onset, 1e-12)
         return np.append((f - model) / sigma_f, onset)
 
+    def jacobian(x, dscale):
+        v0, w, k, c, n, m = x
+        delta, rate = kinematics(v0, w)
+        touch = delta > 0
+        xs = np.maximum(delta / dscale, 1e-12)
+        xn, xm = xs ** n, xs ** m
+        log_x = np.log(xs)
+        d_delta = np.where(touch, (k * n * xn + c * m * xm * rate) / xs / dscale, 0.0)
+        d_rate = np.where(touch, c * xm, 0.0)
+        jac = np.empty((f.size + 1, 6))
+        jac[:-1, 0] = d_delta * tau + d_rate
+        jac[:-1, 1] = -d_delta * i_f - d_rate * jf
+        jac[:-1, 2] = np.where(touch, xn, 0.0)
+        jac[:-1, 3] = np.where(touch, xm * rate, 0.0)
+        jac[:-1, 4] = np.where(touch, k * xn * log_x, 0.0)
+        jac[:-1, 5] = np.where(touch, c * xm * rate * log_x, 0.0)
+        jac[:-1] /= -sigma_f
+        jac[-1] = [t1[0] / max(sigma_onset, 1e-12), -if1[0] / max(sigma_onset, 1e-12), 0.0, 0.0, 0.0, 0.0]
+        return jac
+
     best = None
     for w0 in START_INVERSE_MASSES:
         v0 = max(float(da1[0] - g * t1[0] ** 2 / 2 + w0 * if1[0]) / max(t1[0], kin.dt), 0.05)
@@ -66,8 +86,8 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
             lower = [0.0, 0.0, 0.0, -np.inf, N_BOUNDS[0], M_BOUNDS[0]]
             upper = [np.inf, np.inf, np.inf, np.inf, N_BOUNDS[1], M_BOUNDS[1]]
             try:
-                fit = least_squares(residuals, x0, args=(dscale,), bounds=(lower, upper), x_scale="jac",
-                                    max_nfev=300)
+                fit = least_squares(residuals, x0, jac=jacobian, args=(dscale,), bounds=(lower, upper),
+                                    x_scale="jac", max_nfev=300)
             except (ValueError, np.linalg.LinAlgError):
                 continue
             if best is None or fit.cost < best[0].cost:
@@ -88,9 +108,9 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     slope = (_law(delta + eps, rate, k, c, n, m, dscale) - _law(delta - eps, rate, k, c, n, m, dscale)) / (2 * eps)
     dr = np.append(-slope / sigma_f, 1.0 / max(sigma_onset, 1e-12))
     taus = np.append(tau, t1[0])
-    kernel = noise_acceleration ** 2 * white_kernel(taus, kin.dt)
+    weights = (bread @ jac.T) * dr[None, :]  # d theta / d(error of δ at each row)
+    cov = cov + noise_acceleration ** 2 * kernel_form(weights, taus, kin.dt)
     if pre_samples > 0:
-        kernel = kernel + noise_acceleration ** 2 / pre_samples * np.outer(taus ** 2, taus ** 2) / 4.0
-    gain = bread @ jac.T
-    cov = cov + gain @ (dr[:, None] * kernel * dr[None, :]) @ gain.T
+        shift = weights @ (taus ** 2 / 2.0)
+        cov = cov + noise_acceleration ** 2 / pre_samples * np.outer(shift, shift)
     return fit.x[:2], cov[:2, :2], chi2, dof

@@ -8,7 +8,7 @@ same prepared segment: the first impact found by the trigger, offsets removed wi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -46,6 +46,9 @@ class Segment:
     noise_acceleration: float
     pre_samples: int
     pulses: list[PulseSpan]
+    #: (zero, first, peak, noise) of a pulse -> its onset and standard error [samples], shared by segments cut from
+    #: the same data with the same start (the early and the final answer, successive streaming estimates)
+    onset_cache: dict = field(default_factory=dict, compare=False)
 
     def time_of(self, index: float) -> float:
         """Time [s] of a (fractional) sample index of the segment."""
@@ -100,7 +103,7 @@ def resolution_floor(force: np.ndarray) -> float:
 
 
 def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
-            pre: int) -> Segment:
+            pre: int, *, cache: dict | None = None) -> Segment:
     """Offsets and noise from the first ``pre`` samples (less the guard), then the pulses of the impact."""
     n_pre = pre - GUARD_SAMPLES
     if n_pre >= MIN_PRE_SAMPLES:
@@ -115,7 +118,7 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     f = force - f0
     a = acceleration - a0
     pulses = detect_pulses(f, sf, start=max(n_pre, 0))  # nothing before the pre-trigger statistics' end
-    return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses)
+    return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses, {} if cache is None else cache)
 
 
 def check_clipping(seg: Segment) -> None:
@@ -155,7 +158,7 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     """
     _need_pulses(seg, 2, "the paper variant")
     p1, p2 = seg.pulses[0], seg.pulses[1]
-    t00, _ = onset_index(seg.force, p1, seg.noise_force)
+    t00, _ = segment_onset(seg, p1)
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity)
     tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, p2.peak], dtype=float))
     denominator = (va[1] - va[0]) - gravity * (tau[1] - tau[0])
@@ -171,8 +174,16 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
                                                     "noise_acceleration_m_s2": seg.noise_acceleration})
 
 
+def segment_onset(seg: Segment, pulse: PulseSpan) -> tuple[float, float]:
+    """Sub-sample onset and its standard error [samples] of a pulse of the segment (cached)."""
+    key = (pulse.zero, pulse.first, pulse.peak, seg.noise_force)
+    if key not in seg.onset_cache:
+        seg.onset_cache[key] = onset_index(seg.force, pulse, seg.noise_force)
+    return seg.onset_cache[key]
+
+
 def _onsets(seg: Segment, pulses) -> tuple[np.ndarray, np.ndarray]:
-    pairs = [onset_index(seg.force, p, seg.noise_force) for p in pulses]
+    pairs = [segment_onset(seg, p) for p in pulses]
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
@@ -235,15 +246,16 @@ def _pulse_ends(events, trig: int, stop: int) -> list[int]:
     return [int(i) for c, i in events if c == trigger.EVENT_PULSE_END and trig < i < stop]
 
 
-def segment_of(force, acceleration, sample_rate, start_time, start, stop, pre) -> Segment:
+def segment_of(force, acceleration, sample_rate, start_time, start, stop, pre, cache=None) -> Segment:
     """Prepared segment [start, stop) of the arrays."""
-    return prepare(force[start:stop], acceleration[start:stop], sample_rate, start_time + start / sample_rate, pre)
+    return prepare(force[start:stop], acceleration[start:stop], sample_rate, start_time + start / sample_rate, pre,
+                   cache=cache)
 
 
-def early_cut(force, acceleration, sample_rate, start_time, start, ends, pre) -> Segment | None:
+def early_cut(force, acceleration, sample_rate, start_time, start, ends, pre, cache=None) -> Segment | None:
     """The segment up to the first pulse end after which two complete pulses are known (None if never)."""
     for end in ends:
-        seg = segment_of(force, acceleration, sample_rate, start_time, start, end + 1, pre)
+        seg = segment_of(force, acceleration, sample_rate, start_time, start, end + 1, pre, cache)
         if sum(p.complete for p in seg.pulses) >= 2:
             return seg
     return None
@@ -292,11 +304,11 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
         raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {gravity!r}")
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = _segment_bounds(f, fs)
-    seg = segment_of(f, a, fs, float(start_time), start, stop, pre)
+    seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
     check_clipping(seg)
     early = None
     if variant == "robust":
-        early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre), gravity)
+        early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
     return solve(seg, variant, gravity, early=early)
 
 

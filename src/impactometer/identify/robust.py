@@ -66,10 +66,33 @@ class Kinematics:
 
 
 def white_kernel(tau: np.ndarray, dt: float) -> np.ndarray:
-    """Covariance of the double integral of unit-variance white noise sampled at step ``dt`` [s⁴·s⁻¹...]."""
+    """Covariance of the double integral (from τ = 0) of unit-variance white noise sampled at step ``dt``.
+
+    K(s, t) = dt·∫₀^min(s,t) (s − u)(t − u) du [s⁵ → multiply by the noise variance [m²/s⁴] to get m²].
+    """
     s, t = np.meshgrid(tau, tau, indexing="ij")
     m = np.minimum(s, t)
     return dt * (s * t * m - (s + t) * m ** 2 / 2.0 + m ** 3 / 3.0)
+
+
+def kernel_form(weights: np.ndarray, tau: np.ndarray, dt: float) -> np.ndarray:
+    """``weights @ white_kernel(tau, dt) @ weights.T`` in O(P·n) without forming the n×n kernel.
+
+    The kernel factors as B·Bᵀ with B[j, u] = √(dt·h)·(τj − u)₊ over nodes u spaced h = dt (midpoint rule), so
+    weights·B follows from suffix sums of the weights sorted by τ.
+    """
+    weights = np.atleast_2d(weights)
+    order = np.argsort(tau)
+    t = np.asarray(tau, dtype=float)[order]
+    w = weights[:, order]
+    if t.size == 0 or t[-1] <= 0:
+        return np.zeros((weights.shape[0], weights.shape[0]))
+    nodes = (np.arange(int(np.ceil(t[-1] / dt))) + 0.5) * dt
+    a0 = np.concatenate([np.cumsum(w[:, ::-1], axis=1)[:, ::-1], np.zeros((w.shape[0], 1))], axis=1)
+    a1 = np.concatenate([np.cumsum((w * t)[:, ::-1], axis=1)[:, ::-1], np.zeros((w.shape[0], 1))], axis=1)
+    first = np.searchsorted(t, nodes, side="right")  # first j with τj > u
+    wb = np.sqrt(dt * dt) * (a1[:, first] - nodes * a0[:, first])
+    return wb @ wb.T
 
 
 def solve_onsets(kin: Kinematics, onsets, onset_std, *, noise_force, noise_acceleration, pre_samples):

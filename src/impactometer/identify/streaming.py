@@ -11,11 +11,27 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from ..errors import IdentificationError, ParameterError
 from . import peak_to_peak as p2p
 from . import trigger
 from .result import Identification
+
+
+@njit(cache=True)
+def _store(force, acceleration, ring_force, ring_acceleration, seen):
+    """Copy a chunk into the ring buffers; the index of the first non-finite sample (nothing copied) or -1."""
+    n = force.shape[0]
+    for i in range(n):
+        if not (np.isfinite(force[i]) and np.isfinite(acceleration[i])):
+            return i
+    capacity = ring_force.shape[0]
+    for i in range(n):
+        j = (seen + i) % capacity
+        ring_force[j] = force[i]
+        ring_acceleration[j] = acceleration[i]
+    return -1
 
 
 class StreamingIdentifier:
@@ -53,11 +69,13 @@ class StreamingIdentifier:
         self._force = np.zeros(self.capacity)
         self._acc = np.zeros(self.capacity)
         self._fstate, self._istate = trigger.new_state()
-        self._events = np.zeros((self.capacity + 2, 2), dtype=np.int64)
+        self._step = self.capacity // 4
+        self._events = np.zeros((2 * self._step + 2, 2), dtype=np.int64)
         self.seen = 0
         self._start = self._pre = None
         self._early: Identification | None = None
         self._early_done = False
+        self._onsets: dict = {}
         self._last_close = -1
         self.estimates: list[Identification] = []
         self.completed: list[Identification] = []
@@ -69,29 +87,30 @@ class StreamingIdentifier:
 
     def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
         """Feed samples (any number, down to one); return the estimates that became available."""
-        f = np.atleast_1d(np.asarray(force_chunk, dtype=float))
-        a = np.atleast_1d(np.asarray(acceleration_chunk, dtype=float))
+        f = np.asarray(force_chunk, dtype=np.float64)
+        a = np.asarray(acceleration_chunk, dtype=np.float64)
+        if f.ndim == 0:
+            f, a = f.reshape(1), a.reshape(-1)
         if f.ndim != 1 or f.shape != a.shape:
             raise IdentificationError(f"force and acceleration chunks must be 1-D of equal length, got shapes "
                                       f"{f.shape} and {a.shape}")
-        if not (np.all(np.isfinite(f)) and np.all(np.isfinite(a))):
-            bad = int(np.flatnonzero(~(np.isfinite(f) & np.isfinite(a)))[0])
-            raise IdentificationError(f"non-finite sample at stream index {self.seen + bad}; expected finite "
-                                      "numbers")
+        if f.size <= self._step:
+            return self._push(f, a)
         out: list[Identification] = []
-        step = self.capacity // 4
-        for k in range(0, f.size, step):
-            out.extend(self._push(f[k:k + step], a[k:k + step]))
+        for k in range(0, f.size, self._step):
+            out.extend(self._push(f[k:k + self._step], a[k:k + self._step]))
         return out
 
     def _push(self, f, a) -> list[Identification]:
-        n0 = self.seen
-        pos = (n0 + np.arange(f.size)) % self.capacity
-        self._force[pos] = f
-        self._acc[pos] = a
+        bad = _store(f, a, self._force, self._acc, self.seen)
+        if bad >= 0:
+            raise IdentificationError(f"non-finite sample at stream index {self.seen + bad}; expected finite "
+                                      "numbers")
         n_ev = trigger.run_trigger(f, self._fstate, self._istate, self.floor, self.quiet, self.max_samples,
                                    self._events)
         self.seen += f.size
+        if n_ev == 0:
+            return []
         out = []
         for code, index in self._events[:n_ev]:
             out.extend(self._event(int(code), int(index)))
@@ -100,7 +119,7 @@ class StreamingIdentifier:
     def _segment(self, stop: int) -> p2p.Segment:
         idx = np.arange(self._start, stop) % self.capacity
         return p2p.prepare(self._force[idx], self._acc[idx], self.sample_rate,
-                           self.start_time + self._start / self.sample_rate, self._pre)
+                           self.start_time + self._start / self.sample_rate, self._pre, cache=self._onsets)
 
     def _event(self, code: int, index: int) -> list[Identification]:
         if code == trigger.EVENT_TRIGGER:
@@ -110,6 +129,7 @@ class StreamingIdentifier:
                 self._start = max(index - p2p.PRE_SAMPLES, self._last_close + 1, 0)
                 self._pre = index - self._start
             self._early, self._early_done = None, False
+            self._onsets = {}
             self.estimates = []
             return []
         if self._start is None:
