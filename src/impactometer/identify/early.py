@@ -99,7 +99,7 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     try:
         bread = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
-        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof
+        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0))
     cov = bread * max(1.0, chi2 / max(dof, 1))
     # correlated part: the double-integrated acceleration noise and residual offset shift δ at every sample
     v0, w, k, c, n, m = fit.x
@@ -113,4 +113,4 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     if pre_samples > 0:
         shift = weights @ (taus ** 2 / 2.0)
         cov = cov + noise_acceleration ** 2 / pre_samples * np.outer(shift, shift)
-    return fit.x[:2], cov[:2, :2], chi2, dof
+    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus)

@@ -19,7 +19,7 @@ from .early import solve_early
 from .onsets import onset_index
 from .pulses import PulseSpan, detect_pulses, noise_std
 from .result import VARIANTS, Identification
-from .robust import MIN_ONSET_ROWS, Kinematics, solve_onsets
+from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
 
 GRAVITY = 9.81
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
@@ -202,11 +202,15 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
                   available_at=seg.time_of(pulses[-1].end))
     noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                  pre_samples=seg.pre_samples)
+    contact = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
     if len(pulses) - 1 >= MIN_ONSET_ROWS:
-        theta, cov, chi2, dof = solve_onsets(kin, onsets[1:], stds[1:], **noise)
+        theta, cov, chi2, dof, sens = solve_onsets(kin, onsets[1:], stds[1:], **noise)
         rows = len(pulses) - 1
+        # the contact phase of the first two pulses adds information the onsets do not hold
+        theta, cov = combine((theta, cov, sens), (contact[0], contact[1], contact[4]),
+                             noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples, dt=kin.dt)
     else:
-        theta, cov, chi2, dof = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
+        theta, cov, chi2, dof, _ = contact
         rows = -1
     velocity, w = float(theta[0]), float(theta[1])
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity):

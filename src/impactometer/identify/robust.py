@@ -140,9 +140,34 @@ def solve_onsets(kin: Kinematics, onsets, onset_std, *, noise_force, noise_accel
     cov_theta = bread
     if dof > 0:
         cov_theta = cov_theta * max(1.0, chi2 / dof)
+    gain = bread @ aw.T @ np.linalg.inv(chol)  # d theta / d b = d theta / d(error of D2 at each row)
     if pre_samples > 0:
-        gain = bread @ aw.T @ np.linalg.inv(chol)  # d theta / d b
         shape = tau ** 2 / 2.0
         spread = (noise_acceleration ** 2 + (w * noise_force) ** 2) / pre_samples
         cov_theta = cov_theta + spread * np.outer(gain @ shape, gain @ shape)
-    return theta, cov_theta, chi2, dof
+    return theta, cov_theta, chi2, dof, (gain, tau)
+
+
+def combine(first, second, *, noise_acceleration, pre_samples, dt):
+    """Best linear unbiased combination of two estimates of (V0, w) that share the acceleration noise.
+
+    ``first`` and ``second`` are (theta, cov, (gain, tau)) with ``gain`` = d theta / d(error of D2 at the times
+    ``tau``); their cross-covariance follows from the double-integrated acceleration noise and the residual
+    offset. Returns (theta, cov).
+    """
+    (t1, c1, (g1, tau1)), (t2, c2, (g2, tau2)) = first, second
+    weights = np.zeros((4, tau1.size + tau2.size))
+    weights[:2, :tau1.size] = g1
+    weights[2:, tau1.size:] = g2
+    cross = noise_acceleration ** 2 * kernel_form(weights, np.concatenate([tau1, tau2]), dt)[:2, 2:]
+    if pre_samples > 0:
+        cross = cross + noise_acceleration ** 2 / pre_samples * np.outer(g1 @ (tau1 ** 2 / 2), g2 @ (tau2 ** 2 / 2))
+    sigma = np.block([[c1, cross], [cross.T, c2]])
+    h = np.vstack([np.eye(2), np.eye(2)])
+    try:
+        info = h.T @ np.linalg.solve(sigma, h)
+        cov = np.linalg.inv(info)
+        theta = cov @ (h.T @ np.linalg.solve(sigma, np.concatenate([t1, t2])))
+    except np.linalg.LinAlgError:
+        return t1, c1
+    return theta, cov
