@@ -9,6 +9,7 @@ identified real-time strategy where the oracle does not, peak force after the co
 from __future__ import annotations
 
 import math
+from collections import defaultdict
 
 import numpy as np
 
@@ -63,7 +64,8 @@ def _aggregate(rows: list[Row]) -> list[Row]:
 def _summary(rows: list[Row]) -> list[Row]:
     from ..control.study import ORACLE, acceptance_summary
 
-    s = acceptance_summary(rows)
+    s = {k: (math.nan if v is None else v) for k, v in acceptance_summary(rows).items()}
+    s = defaultdict(lambda: math.nan, s)
     return [{"quantity": "median absorber efficiency: realtime (identified) / closed valve / bound η_max",
              "ours": f"{s['realtime: median efficiency']:.3g} / {s['closed: median efficiency']:.3g} / "
                      f"{s['efficiency_max_median']:.3g} over {s['cases']} impacts",

@@ -156,7 +156,7 @@ def backend(workers: int | None = None, scheduler: str | None = None):
             raise ParameterError(f"--scheduler must be an address like tcp://HOST:PORT, got {scheduler!r}")
         return _Dask(scheduler)
     if workers is None:
-        workers = os.cpu_count() or 1
+        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise ParameterError(f"--workers must be an integer >= 1, got {workers!r}")
     return _Serial() if workers == 1 else _Pool(workers)
