@@ -45,8 +45,8 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 def _plot(rows: list[Row], options: StudyOptions):
     from .plots import plot_mean_error_vs
-    return plot_mean_error_vs(rows, AXES, title=f"Mean mass error vs scenario parameters (noise "
-                                                f"{options.noise * 100:g} % of RMS)")
+    title = f"Mean identification error vs scenario parameters (noise {options.noise * 100:g} % of RMS)"
+    return plot_mean_error_vs(rows, AXES, errors=("mass_error", "velocity_error"), title=title)
 
 
 STUDY = register(Study(name=NAME, title="Mean mass error vs impacting mass, pressure and velocity",

@@ -80,27 +80,31 @@ def plot_case_bars(rows: Sequence[Row]):
 
 
 def plot_mean_error_vs(rows: Sequence[Row], parameters: Sequence[tuple[str, str, float]], *,
-                       error: str = "mass_error", title: str = "", log_y: bool = True, maximum: bool = False):
-    """Mean (and optionally max) |error| vs each parameter, one panel per parameter, one line per method.
-
-    ``parameters`` lists (column, axis label, scale applied to the column for display).
-    """
+                       errors: Sequence[str] = ("mass_error",), title: str = "", maximum: bool = False,
+                       log_x: bool = False, reference: tuple[float, str] | None = None):
+    """Mean (and optionally max) |error| [%] vs each parameter: one column per parameter, one row per error,
+    one line per method. ``parameters`` lists (column, axis label, display scale); ``reference`` draws a
+    horizontal line (value [%], label) on the first row."""
     plt = _pyplot()
-    fig, axes = plt.subplots(1, len(parameters), figsize=(4.6 * len(parameters), 3.8), squeeze=False,
-                             constrained_layout=True)
-    for ax, (column, label, scale) in zip(axes[0], parameters):
-        for method in _methods(rows):
-            stats = sorted(group_stats(pick(rows, method=method), (column,), (error,)), key=lambda s: s[column])
-            x = np.array([s[column] for s in stats]) * scale
-            ax.plot(x, [s[f"mean_abs_{error}"] for s in stats], "o-", color=_color(method), label=f"{method} mean")
-            if maximum:
-                ax.plot(x, [s[f"max_abs_{error}"] for s in stats], "v:", color=_color(method),
-                        label=f"{method} max")
-        ax.set(xlabel=label, ylabel=f"|{error.replace('_', ' ')}| [%]")
-        if log_y:
-            ax.set_yscale("log")
-        ax.grid(alpha=0.3, which="both")
-    axes[0][0].legend(fontsize=8)
+    fig, axes = plt.subplots(len(errors), len(parameters), figsize=(4.8 * max(len(parameters), 2), 3.8 * len(errors)),
+                             squeeze=False, constrained_layout=True)
+    for i, error in enumerate(errors):
+        for ax, (column, label, scale) in zip(axes[i], parameters):
+            for method in _methods(rows):
+                stats = sorted(group_stats(pick(rows, method=method), (column,), (error,)), key=lambda s: s[column])
+                x = np.array([s[column] for s in stats]) * scale
+                ax.plot(x, [s[f"mean_abs_{error}"] for s in stats], "o-", color=_color(method),
+                        label=f"{method} mean")
+                if maximum:
+                    ax.plot(x, [s[f"max_abs_{error}"] for s in stats], "v:", color=_color(method),
+                            label=f"{method} max")
+            if reference is not None and i == 0:
+                ax.axhline(reference[0], color="k", ls="--", lw=0.8, label=reference[1])
+            ax.set(xlabel=label, ylabel=f"|{error.replace('_', ' ')}| [%]", yscale="log")
+            if log_x:
+                ax.set_xscale("log")
+            ax.grid(alpha=0.3, which="both")
+    axes[0][0].legend(fontsize=7)
     fig.suptitle(title)
     return fig
 
