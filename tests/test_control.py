@@ -6,6 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from impactometer.control import controller as ctl
 from impactometer.control import simulate as loop
 from impactometer.control.bound import closed_curve, efficiency_bound
 from impactometer.control.metrics import absorption_metrics
@@ -26,13 +27,13 @@ def _control(strategy, **kw):
     y0 = initial_state(p)
     base = dict(strategy=strategy, start=0.02, mass=SCENARIO.mass, velocity=SCENARIO.velocity,
                 usable_stroke=0.19, charge_pressure=float(y0[d.P_LOWER]))
-    return loop.control_vector(**{**base, **kw})
+    return ctl.control_vector(**{**base, **kw})
 
 
 def test_closed_valve_rhs_is_the_model_rhs_exactly():
     rng = np.random.default_rng(1)
     p = pack(get_rig(), SCENARIO)
-    drive = loop.drive_vector(get_rig(), ValveDrive())
+    drive = ctl.drive_vector(get_rig(), ValveDrive())
     for _ in range(50):
         y = initial_state(p) * (1.0 + 0.3 * rng.standard_normal(d.N_STATE))
         y[d.U1] = rng.uniform(0.0, 0.1)
@@ -55,7 +56,7 @@ def test_closed_loop_with_closed_valve_reproduces_the_reference_simulation():
 
 
 def test_flow_between_chambers_conserves_gas_mass_and_energy():
-    result, history = loop.simulate_controlled(SCENARIO, control=_control(loop.CONSTANT, area=3e-5),
+    result, history = loop.simulate_controlled(SCENARIO, control=_control(ctl.CONSTANT, area=3e-5),
                                                duration=0.08, sample_rate=20e3)
     assert history["valve_area"].max() > 1e-5  # the valve did open
     total = result.gas_mass_lower + result.gas_mass_upper
@@ -66,7 +67,7 @@ def test_flow_between_chambers_conserves_gas_mass_and_energy():
 
 def test_venting_to_atmosphere_removes_gas_from_the_lower_chamber_only():
     drive = ValveDrive(route="atmosphere")
-    result, _ = loop.simulate_controlled(SCENARIO, control=_control(loop.CONSTANT, area=3e-5), drive=drive,
+    result, _ = loop.simulate_controlled(SCENARIO, control=_control(ctl.CONSTANT, area=3e-5), drive=drive,
                                          duration=0.06, sample_rate=20e3)
     assert result.gas_mass_lower[-1] < 0.9 * result.gas_mass_lower[0]
     assert np.allclose(result.gas_mass_upper, result.gas_mass_upper[0], rtol=1e-12)
@@ -91,7 +92,7 @@ def test_choked_orifice_flow_matches_the_closed_form():
 
 def test_actuator_lag_and_rate_limit():
     tau = 2e-3
-    control = _control(loop.CONSTANT, area=4e-5, start=0.01, close_on_stop=False)
+    control = _control(ctl.CONSTANT, area=4e-5, start=0.01, close_on_stop=False)
     _, history = loop.simulate_controlled(SCENARIO, control=control, drive=ValveDrive(time_constant=tau),
                                           duration=0.02, sample_rate=50e3)
     t = np.arange(history["valve_area"].size) / 50e3
@@ -199,13 +200,13 @@ def test_closed_capacity_is_the_work_of_the_adiabatic_gas_spring():
     upper = c.annulus_area * (c.upper_length + s)
     force = (p_lower * (lower0 / lower) ** gamma * c.area - p_upper * (upper0 / upper) ** gamma * c.annulus_area
              - rig.gas.atmospheric_pressure * c.rod_area + rig.friction.force)
-    assert loop.closed_capacity(p, p_lower, p_upper, u0, travel) == pytest.approx(np.trapezoid(force, s), rel=1e-8)
+    assert ctl.closed_capacity(p, p_lower, p_upper, u0, travel) == pytest.approx(np.trapezoid(force, s), rel=1e-8)
 
 
 def test_realtime_keeps_enough_gas_to_stop_a_heavy_fast_impact_at_low_pressure():
     scenario = Scenario(mass=50.0, velocity=3.0, pressure_gauge=20e3)
     p = pack(get_rig(), scenario)
-    control = loop.control_vector(strategy=loop.REALTIME, start=0.035, mass=50.0, velocity=3.0, usable_stroke=0.19,
+    control = ctl.control_vector(strategy=ctl.REALTIME, start=0.035, mass=50.0, velocity=3.0, usable_stroke=0.19,
                                   charge_pressure=float(initial_state(p)[d.P_LOWER]))
     result, _ = loop.simulate_controlled(scenario, control=control, duration=0.4, sample_rate=50e3)
     assert result.bottom_stop_force.max() == 0.0 and "ended_at_bottom" not in result.extra

@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import IdentificationError, ParameterError
 from ..identify.pulses import contact_pulses
 from ..rig import Rig, Scenario, get_rig
+from . import controller as ctl
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound
 from .metrics import AbsorptionMetrics, absorption_metrics
@@ -268,15 +269,15 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     noise_matrix = sensor_noise(closed, noise, seed)
     runs = {}
     for name in names:
-        control = get_strategy(name)(context) if found.error is None else context.base(loop.CLOSED)
-        if control[loop.STRATEGY] == loop.CLOSED:
+        control = get_strategy(name)(context) if found.error is None else context.base(ctl.CLOSED)
+        if control[ctl.STRATEGY] == ctl.CLOSED:
             result = closed
             history = {key: np.zeros_like(closed.time) for key in loop.EXTRA}
         else:
             result, history = loop.simulate_controlled(scenario, rig, control=control, drive=absorber.drive,
                                                        duration=duration, sample_rate=sample_rate,
                                                        sensor_noise=noise_matrix)
-        area = float(control[loop.AREA_CONSTANT]) if control[loop.STRATEGY] == loop.CONSTANT else math.nan
+        area = float(control[ctl.AREA_CONSTANT]) if control[ctl.STRATEGY] == ctl.CONSTANT else math.nan
         runs[name] = StrategyRun(strategy=name, result=result, controller=history,
                                  metrics=absorption_metrics(result, start), valve_area_constant=area)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,

@@ -1,5 +1,5 @@
 """Absorption strategies: a registry from name to a planner that turns what the impactometer knows into the
-controller parameters of the compiled loop (:mod:`impactometer.control.simulate`).
+controller parameters of the compiled loop (:mod:`impactometer.control.controller`).
 
 - ``closed``: the valve stays closed (gas spring).
 - ``constant``: one opening, held from the control start until the estimated mass velocity reaches zero or the
@@ -10,7 +10,7 @@ controller parameters of the compiled loop (:mod:`impactometer.control.simulate`
   with v propagated from the identified V0 by the momentum balance of the mass (measured contact force), the
   remaining stroke from the measured piston displacement and the piston velocity from the integrated piston
   acceleration. Both valve strategies close the valve for good when the closed gas spring is needed to stop the
-  bodies within the remaining stroke (``control.simulate.must_close``).
+  bodies within the remaining stroke (``control.controller.must_close``).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import ControlError, ParameterError
 from ..rig import Rig, Scenario
+from . import controller as ctl
 from . import simulate as loop
 from .valve import Absorber
 
@@ -54,7 +55,7 @@ class ControlContext:
 
     def base(self, strategy: int, **extra) -> np.ndarray:
         """Controller vector with the common fields filled."""
-        return loop.control_vector(strategy=strategy, start=self.start, mass=self.mass, velocity=self.velocity,
+        return ctl.control_vector(strategy=strategy, start=self.start, mass=self.mass, velocity=self.velocity,
                                    usable_stroke=self.absorber.usable_stroke(self.rig),
                                    charge_pressure=self.charge_pressure,
                                    charge_temperature=self.charge_temperature, **extra)
@@ -62,12 +63,12 @@ class ControlContext:
 
 def plan_closed(context: ControlContext) -> np.ndarray:
     """Valve closed throughout."""
-    return context.base(loop.CLOSED)
+    return context.base(ctl.CLOSED)
 
 
 def plan_realtime(context: ControlContext) -> np.ndarray:
     """Real-time force control from the control start (see the module notes)."""
-    return context.base(loop.REALTIME, max_force=context.absorber.rated_force * 4.0,
+    return context.base(ctl.REALTIME, max_force=context.absorber.rated_force * 4.0,
                         tau_control=REALTIME_TAU_CONTROL, tau_filter=REALTIME_TAU_FILTER)
 
 
@@ -82,7 +83,7 @@ def constant_outcome(context: ControlContext, area: float) -> tuple[float, float
     """Peak contact force after the control start [N] and largest mass displacement [m] predicted by the model for
     a constant opening ``area`` [m²] with the identified M1 and V0 (noise-free sensors)."""
     scenario = Scenario(mass=context.mass, velocity=context.velocity, pressure_gauge=context.pressure_gauge)
-    control = context.base(loop.CONSTANT, area=area)
+    control = context.base(ctl.CONSTANT, area=area)
     result, _ = loop.simulate_controlled(scenario, context.rig, control=control, drive=context.absorber.drive,
                                          duration=context.duration, sample_rate=PLANNING_RATE)
     after = result.time >= context.start
@@ -124,7 +125,7 @@ def optimal_constant_area(context: ControlContext, *, candidates: int = 9, refin
 
 def plan_constant(context: ControlContext) -> np.ndarray:
     """The optimised constant opening (closed for good once the mass stops or its stroke runs short)."""
-    return context.base(loop.CONSTANT, area=optimal_constant_area(context))
+    return context.base(ctl.CONSTANT, area=optimal_constant_area(context))
 
 
 #: strategy name -> planner(context) -> controller vector
