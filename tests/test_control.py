@@ -5,6 +5,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from impactometer.control import controller as ctl
 from impactometer.control import simulate as loop
@@ -211,3 +213,17 @@ def test_realtime_keeps_enough_gas_to_stop_a_heavy_fast_impact_at_low_pressure()
     result, _ = loop.simulate_controlled(scenario, control=control, duration=0.4, sample_rate=50e3)
     assert result.bottom_stop_force.max() == 0.0 and "ended_at_bottom" not in result.extra
     assert result.u1.max() < 0.19 + 0.005  # usable stroke + contact compression at the bounce peaks
+
+
+@settings(max_examples=60, deadline=None)
+@given(p_up=st.floats(1.2e5, 2e6), ratio=st.floats(0.0, 1.5), temperature=st.floats(200.0, 600.0),
+       area=st.floats(0.0, 5e-5))
+def test_valve_flow_properties(p_up, ratio, temperature, area):
+    flow = valve_mass_flow(p_up, temperature, max(ratio * p_up, 1.0), area)
+    assert flow >= 0.0
+    if ratio >= 1.0 or area == 0.0:
+        assert flow == 0.0
+    # linear in the opening, and more flow for a higher upstream pressure at the same downstream pressure
+    assert valve_mass_flow(p_up, temperature, max(ratio * p_up, 1.0), area / 2) == pytest.approx(flow / 2, rel=1e-12,
+                                                                                                abs=1e-18)
+    assert valve_mass_flow(1.1 * p_up, temperature, max(ratio * p_up, 1.0), area) >= flow

@@ -116,3 +116,15 @@ def test_cli_absorb_bad_input(args, match, capsys):
         main(["absorb", *args])
     assert exit_info.value.code == 2
     assert match in capsys.readouterr().out
+
+
+def test_distribution_figure(tmp_path):
+    from impactometer.control.plots import plot_distributions
+
+    rows = [{"mass_kg": 30.0, "velocity_m_s": 2.0, "pressure_gauge_Pa": 2e5, "strategy": name, "efficiency": eff,
+             "efficiency_max": 0.9, "peak_force_controlled_N": 1e3 / eff, "stroke_used_m": 0.1}
+            for name, eff in (("closed", 0.3), ("realtime", 0.6))]
+    fig = plot_distributions(rows)
+    assert [a.get_title() for a in fig.axes] == ["efficiency", "peak_force_controlled_N", "stroke_used_m"]
+    assert [t.get_text() for t in fig.axes[0].get_xticklabels()] == ["closed", "realtime", "bound η_max"]
+    fig.savefig(tmp_path / "d.png")

@@ -13,7 +13,6 @@ a controlled stroke at 2 % noise, as much as the whole stroke margin.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -283,7 +282,3 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,
                             over_capacity=bool(over or bound.over_capacity), notes=tuple(notes))
 
-
-def absorb_many(scenarios: list[Scenario], rig=None, **options: Mapping[str, Any]) -> list[AbsorptionResult]:
-    """:func:`absorb` for each scenario (same options)."""
-    return [absorb(s, rig, **options) for s in scenarios]

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ControlError, ParameterError
+from ..errors import ParameterError
 from ..rig import Rig, Scenario
 from . import controller as ctl
 from . import simulate as loop
@@ -149,8 +149,3 @@ def strategy_names(selection: str | list[str] | tuple[str, ...]) -> list[str]:
         raise ParameterError("strategy selection must name at least one strategy, got an empty list")
     return names
 
-
-def require_context(context) -> None:
-    """ControlError unless ``context`` is a ControlContext."""
-    if not isinstance(context, ControlContext):
-        raise ControlError(f"context must be a ControlContext, got {type(context).__name__}")
