@@ -23,7 +23,7 @@ DEFAULTS = {"noise": 0.02, "identification": "robust"}
 
 
 def _cases(options: StudyOptions) -> list[Row]:
-    return scenario_grid(options, GRID)
+    return scenario_grid(options, GRID)  # one noise realisation per impact (the summary is per impact)
 
 
 def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:

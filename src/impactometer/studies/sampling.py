@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
 from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, max_abs, mean_abs, pct,
-                             per_method, with_failures, with_noise)
+                             per_method, seeded_grid, with_failures, with_noise)
 
 NAME = "sampling"
 #: default values per grid axis (27 scenarios; ``--grid 5`` gives the paper's 125)
@@ -20,8 +20,11 @@ DEFAULTS = {"rates": [5e3, 10e3, 20e3, 30e3, 40e3, 50e3, 100e3], "noise": 0.0}
 
 def _cases(options: StudyOptions) -> list[Row]:
     rates = sorted(float(r) for r in options.param(NAME, "rates", DEFAULTS["rates"]))
+    scenarios = scenario_grid(options, GRID)
+    if float(options.param(NAME, "noise", DEFAULTS["noise"])) > 0:
+        scenarios = seeded_grid(scenarios, options)  # noise realisations only where there is noise
     # scenario-major order: every chunk holds a mix of cheap and expensive rates (balanced workers)
-    return [{**s, "sample_rate": rate} for s in scenario_grid(options, GRID) for rate in rates]
+    return [{**s, "sample_rate": rate} for s in scenarios for rate in rates]
 
 
 def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
