@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from impactometer import simulate_batch
 from impactometer.errors import ParameterError, ResponseMapError
@@ -105,7 +109,7 @@ def test_features_that_fit_nowhere_are_refused():
         identify_features([1.0, 1e6], polynomial_map())
 
 
-@pytest.mark.parametrize("bad", [[1.0], [np.nan, 1.0], [-5.0, 1.0], [0.0, 2.0]])
+@pytest.mark.parametrize("bad", [[1.0], [np.nan, 1.0], [-5.0, 1.0], [0.0, 2.0], ["a", "b"], None])
 def test_bad_feature_vectors_are_refused(bad):
     with pytest.raises(ResponseMapError, match="features must be 2 finite numbers > 0"):
         identify_features(bad, polynomial_map())
@@ -183,3 +187,23 @@ def test_simulated_map_with_too_short_records_for_peaks_is_refused():
     with pytest.raises(ResponseMapError, match="found no features.*use a longer duration"):
         build_map_simulated(RIG, 200e3, masses=MASSES[:3], velocities=VELOCITIES[:3], features="peaks",
                             duration=0.01)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=0, max_size=3),
+       st.sampled_from(["fast", "brute"]), st.booleans())
+def test_any_feature_vector_gives_an_answer_or_a_response_map_error(values, search, allow):
+    rmap = _SMALL_MAP
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            result = identify_features(values, rmap, search=search, allow_extrapolation=allow)
+    except ResponseMapError:
+        return
+    assert np.isfinite(result.mass) and np.isfinite(result.velocity) and result.residual >= 0
+    span_m, span_v = rmap.masses[-1] - rmap.masses[0], rmap.velocities[-1] - rmap.velocities[0]
+    assert rmap.masses[0] - 0.26 * span_m <= result.mass <= rmap.masses[-1] + 0.26 * span_m
+    assert rmap.velocities[0] - 0.26 * span_v <= result.velocity <= rmap.velocities[-1] + 0.26 * span_v
+
+
+_SMALL_MAP = refine(polynomial_map(), 20)

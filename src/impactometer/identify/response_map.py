@@ -147,11 +147,14 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         raise ParameterError(f"search must be one of {list(SEARCHES)}, got {search!r}")
     if not isinstance(rmap, ResponseMap):
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
-    y = np.asarray(features, dtype=float)
     labels = rmap.labels
+    try:
+        y = np.asarray(features, dtype=float)
+    except (TypeError, ValueError):
+        y = np.empty(0)
     if y.shape != (len(labels),) or not all(0.0 < x < math.inf for x in y.tolist()):
         raise ResponseMapError(f"features must be {len(labels)} finite numbers > 0 ({', '.join(labels)}), got "
-                               f"{np.asarray(features).tolist()!r}")
+                               f"{features!r}")
     p = _pressure_for(rmap, pressure_gauge, allow_extrapolation)
     herm, xm, xv, coarse, cm, cv, (m_lo, m_hi, v_lo, v_hi) = fast_tables(rmap)
     mass, velocity, residual, extended = locate(herm, xm, xv, coarse, cm, cv, rmap.pressures_gauge, p, y,
