@@ -29,10 +29,13 @@ PRESSURE_TOLERANCE = (1e3, 0.01)
 
 
 def _axis(values, name: str, unit: str) -> np.ndarray:
-    arr = np.asarray(values, dtype=float).ravel()
+    try:
+        arr = np.asarray(values, dtype=float).ravel()
+    except (TypeError, ValueError):
+        arr = np.array([np.nan])
     if arr.size < 1 or not np.all(np.isfinite(arr)) or np.any(np.diff(arr) <= 0):
         raise ResponseMapError(f"{name} must be a non-empty, finite, strictly increasing axis {unit}, got "
-                               f"{np.asarray(values).ravel()[:6].tolist()}")
+                               f"{str(values)[:80]}")
     return arr
 
 
@@ -144,16 +147,21 @@ def _check_size(n_features: int, n_p: int, n_m: int, n_v: int) -> None:
                              "grid or one map per pressure")
 
 
+def grid_size(n: int | tuple[int, int], field: str) -> tuple[int, int]:
+    """N -> (N, N); (n_m, n_v) checked: integers >= 2."""
+    sizes = (n, n) if isinstance(n, (int, np.integer)) else tuple(n) if isinstance(n, (tuple, list)) else (n,)
+    if len(sizes) != 2 or any(isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2 for k in sizes):
+        raise ParameterError(f"{field}: grid size must be an integer >= 2 or a pair of them, got {n!r}")
+    return int(sizes[0]), int(sizes[1])
+
+
 def refine(rmap: ResponseMap, n: int | tuple[int, int]) -> ResponseMap:
     """The map interpolated to an N×N (or n_m × n_v) grid, uniform in mass and velocity over the same ranges.
 
     Interpolation is the tensor-product not-a-knot cubic spline through the map's nodes, layer by layer along the
     pressure axis (which is kept as it is).
     """
-    n_m, n_v = (n, n) if isinstance(n, (int, np.integer)) else tuple(n)
-    for name, k in (("mass", n_m), ("velocity", n_v)):
-        if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2:
-            raise ParameterError(f"refine: {name} grid size must be an integer >= 2, got {k!r}")
+    n_m, n_v = grid_size(n, "refine")
     _check_size(len(rmap.labels), rmap.pressures_gauge.size, n_m, n_v)
     masses = np.linspace(rmap.masses[0], rmap.masses[-1], n_m)
     velocities = np.linspace(rmap.velocities[0], rmap.velocities[-1], n_v)
@@ -220,21 +228,24 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     velocities = _axis(velocities, "velocities", "[m/s]")
     pressures = _axis(np.atleast_1d(pressure_gauge), "pressure_gauge", "[Pa gauge]")
     _check_size(fs.size, pressures.size, masses.size, velocities.size)
-    if not math.isfinite(sample_rate) or sample_rate <= 0:
+    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(sample_rate) \
+            or sample_rate <= 0:
         raise ParameterError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
     duration = _default_duration(features, params, sample_rate) if duration is None else float(duration)
     from ..model import simulate_batch
 
     grid_p, grid_m, grid_v = (a.ravel() for a in np.meshgrid(pressures, masses, velocities, indexing="ij"))
     values = np.empty((grid_m.size, fs.size))
-    bar = _progress(progress, grid_m.size, "simulating the response map")
-    for start in range(0, grid_m.size, max(1, int(chunk_size))):
-        part = slice(start, start + max(1, int(chunk_size)))
-        batch = simulate_batch(grid_m[part], grid_v[part], grid_p[part], rig, duration=duration,
-                               sample_rate=sample_rate, channels=("contact_force",))
-        values[part], _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
-        bar.advance(part.stop - part.start)
-    bar.close()
+    from rich.progress import Progress
+
+    with Progress(transient=True, disable=not progress) as bar:
+        task = bar.add_task("simulating the response map", total=grid_m.size)
+        for start in range(0, grid_m.size, max(1, int(chunk_size))):
+            part = slice(start, start + max(1, int(chunk_size)))
+            batch = simulate_batch(grid_m[part], grid_v[part], grid_p[part], rig, duration=duration,
+                                   sample_rate=sample_rate, channels=("contact_force",))
+            values[part], _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
+            bar.advance(task, part.stop - part.start)
     bad = np.flatnonzero(~np.all(np.isfinite(values) & (values > 0), axis=1))
     if bad.size:
         i = int(bad[0])
@@ -248,33 +259,6 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
                        rig=to_dict(rig), provenance=_provenance("simulation", base_grid=[masses.size, velocities.size],
                                                                 duration_s=duration, integrator="fast"))
     return rmap if refine_to is None else refine(rmap, refine_to)
-
-
-class _NoBar:
-    def advance(self, n: int) -> None:
-        pass
-
-    def close(self) -> None:
-        pass
-
-
-class _RichBar:
-    def __init__(self, total: int, text: str) -> None:
-        from rich.progress import Progress
-
-        self._progress = Progress(transient=True)
-        self._progress.start()
-        self._task = self._progress.add_task(text, total=total)
-
-    def advance(self, n: int) -> None:
-        self._progress.advance(self._task, n)
-
-    def close(self) -> None:
-        self._progress.stop()
-
-
-def _progress(show: bool, total: int, text: str):
-    return _RichBar(total, text) if show else _NoBar()
 
 
 def _pressure_groups(pressures: np.ndarray) -> list[np.ndarray]:
@@ -368,9 +352,10 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
     fs = get_feature_set(features)
     params = fs.params(feature_params)
     y = np.array([extract_features(*recording_signal(r), features, params)[0] for r in recs])
-    n_m, n_v = (grid, grid) if isinstance(grid, (int, np.integer)) else tuple(grid)
-    masses = np.linspace(*(mass_range or (truth[:, 0].min(), truth[:, 0].max())), int(n_m))
-    velocities = np.linspace(*(velocity_range or (truth[:, 1].min(), truth[:, 1].max())), int(n_v))
+    n_m, n_v = grid_size(grid, "grid")
+    masses = _axis(np.linspace(*(mass_range or (truth[:, 0].min(), truth[:, 0].max())), n_m), "mass range", "[kg]")
+    velocities = _axis(np.linspace(*(velocity_range or (truth[:, 1].min(), truth[:, 1].max())), n_v),
+                       "velocity range", "[m/s]")
     groups = _pressure_groups(truth[:, 2])
     _check_size(fs.size, len(groups), masses.size, velocities.size)
     layers, methods = [], set()

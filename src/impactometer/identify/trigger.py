@@ -66,12 +66,10 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
                 d = x - fstate[_MEAN]
                 if index < WARM_SAMPLES:  # plain running mean and variance while learning
                     rate = 1.0 / (index + 1)
-                else:  # weighted, with outliers clipped so that a slow rise cannot drag the baseline along
+                elif d > 3.0 * sigma or d < -3.0 * sigma:  # outliers (the rise of a pulse) are not learnt
+                    rate = 0.0
+                else:
                     rate = alpha
-                    if d > 3.0 * sigma:
-                        d = 3.0 * sigma
-                    elif d < -3.0 * sigma:
-                        d = -3.0 * sigma
                 fstate[_MEAN] += rate * d
                 fstate[_VAR] = (1.0 - rate) * (fstate[_VAR] + rate * d * d)
             continue
