@@ -118,7 +118,7 @@ def test_bad_feature_vectors_are_refused(bad):
 def test_bad_arguments_are_refused():
     with pytest.raises(ParameterError, match=r"search must be one of \['fast', 'brute'\]"):
         identify_features([1.0, 2.0], polynomial_map(), search="grid")
-    with pytest.raises(ParameterError, match="integer >= 2"):
+    with pytest.raises(ParameterError, match="grid size must be an integer >= 2"):
         refine(polynomial_map(), 1)
     with pytest.raises(ParameterError, match="above the limit"):
         refine(polynomial_map(), 100_000)
