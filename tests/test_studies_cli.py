@@ -64,3 +64,24 @@ def test_report_rebuilds_the_page_and_prints_markdown(tmp_path, capsys):
     out = capsys.readouterr().out
     assert (tmp_path / "index.html").exists()
     assert "| peak-force | 8 | 8 | 1 |" in out and "| total |" in out and "| study | quantity | ours | paper |" in out
+
+
+def test_ctrl_c_exits_130_and_keeps_finished_chunks(tmp_path):
+    import json
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    command = [sys.executable, "-c", "from impactometer.cli import main; main()", "study", "peak-force", "--out",
+               str(tmp_path), "--workers", "1", "--grid", "3", "--set", "peak-force.chunk_size=1"]
+    proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and len(list((tmp_path / "peak-force").glob("chunk-*.json"))) < 3:
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 130, out
+    assert "interrupted: the finished chunks are kept" in out and "Traceback" not in out
+    chunks = list((tmp_path / "peak-force").glob("chunk-*.json"))
+    assert 3 <= len(chunks) < 27 and all(json.loads(p.read_text())["rows"] for p in chunks)

@@ -6,6 +6,7 @@ import time
 from pathlib import Path
 from typing import Annotated, Optional
 
+import click
 import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
     TimeRemainingColumn
@@ -115,8 +116,12 @@ def study(
         def progress(study_name: str, done: int, total: int) -> None:
             bar.update(tasks[study_name], completed=done, total=total)
 
-        runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
-                           progress=progress)
+        try:
+            runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
+                               progress=progress)
+        except KeyboardInterrupt:
+            console.print(f"interrupted: the finished chunks are kept in {out}; rerun the same command to resume")
+            raise click.exceptions.Abort() from None
     table = Table(title=f"studies in {out} ({time.perf_counter() - start:.1f} s)")
     for column in ("study", "cases", "reused chunks", "wall [s]", "compute [s]", "table"):
         table.add_column(column)
