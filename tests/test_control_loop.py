@@ -62,7 +62,8 @@ def test_over_capacity_is_reported():
 
 @pytest.mark.parametrize("kwargs, match", [
     ({"strategy": "open"}, "strategy must be one of"), ({"identification": "guess"}, "identification"),
-    ({"noise": -0.1}, "noise"), ({"seed": -1}, "seed"), ({"absorber": "big"}, "absorber")])
+    ({"noise": -0.1}, "noise"), ({"seed": -1}, "seed"), ({"absorber": "big"}, "absorber"),
+    ({"control_start": math.nan}, "control_start"), ({"duration": -1.0}, "duration")])
 def test_invalid_absorb_arguments(kwargs, match):
     with pytest.raises(ParameterError, match=match):
         absorb(SCENARIO, **kwargs)
@@ -110,7 +111,8 @@ def test_cli_absorb_table(capsys):
 
 @pytest.mark.parametrize("args, match", [
     (["--strategy", "open"], "strategy must be one of"), (["--identify", "guess"], "identification"),
-    (["--noise", "-3%"], "noise"), (["--mass", "-30kg"], "mass")])
+    (["--noise", "-3%"], "noise"), (["--mass", "-30kg"], "mass"),
+    (["--response-map", "map.h5"], "--identify response-map")])
 def test_cli_absorb_bad_input(args, match, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["absorb", *args])

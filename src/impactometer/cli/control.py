@@ -10,6 +10,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from ..errors import ParameterError
 from ..rig import get_rig
 from .app import app, console, output_path, quantity
 from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, RigOpt, VelocityOpt, scenario_from_options
@@ -82,9 +83,9 @@ def absorb(
     scenario = scenario_from_options(mass, height, velocity, pressure, stand)
     names = strategy_names(strategy)
     output_path(plot, force, field="--plot")
+    if response_map is not None and identify != "response-map":
+        raise ParameterError(f"--response-map is only used with --identify response-map, got --identify {identify}")
     if response_map is not None and not response_map.is_file():
-        from ..errors import ParameterError
-
         raise ParameterError(f"--response-map: {str(response_map)!r} does not exist")
     result = run_absorb(scenario, stand, strategy=names, identification=identify,
                         noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=response_map)

@@ -177,7 +177,7 @@ def sensor_noise(closed_result, noise: float, seed: int) -> np.ndarray:
     return np.array(rows)
 
 
-def _check(scenario, noise, seed, identification, absorber) -> None:
+def _check(scenario, noise, seed, identification, absorber, control_start) -> None:
     if not isinstance(scenario, Scenario):
         raise ParameterError(f"scenario must be a Scenario, got {scenario!r}")
     if isinstance(noise, bool) or not isinstance(noise, (int, float)) or not 0.0 <= noise <= 1.0:
@@ -188,6 +188,9 @@ def _check(scenario, noise, seed, identification, absorber) -> None:
         raise ParameterError(f"identification must be one of {list(IDENTIFICATIONS)}, got {identification!r}")
     if not isinstance(absorber, Absorber):
         raise ParameterError(f"absorber must be an Absorber, got {absorber!r}")
+    if control_start is not None and (isinstance(control_start, bool) or not isinstance(control_start, (int, float))
+                                      or not math.isfinite(control_start) or control_start < 0):
+        raise ParameterError(f"control_start must be a finite time >= 0 [s] or None, got {control_start!r}")
 
 
 def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | list[str] = "all",
@@ -230,7 +233,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         ``.metrics`` by strategy, ``.bound`` (η_max), ``.plot()``.
     """
     absorber = Absorber() if absorber is None else absorber
-    _check(scenario, noise, seed, identification, absorber)
+    _check(scenario, noise, seed, identification, absorber, control_start)
     names = strategy_names(strategy)
     rig = get_rig(rig)
     scenario.check_against(rig)
