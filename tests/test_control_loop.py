@@ -130,3 +130,18 @@ def test_distribution_figure(tmp_path):
     assert [a.get_title() for a in fig.axes] == ["efficiency", "peak_force_controlled_N", "stroke_used_m"]
     assert [t.get_text() for t in fig.axes[0].get_xticklabels()] == ["closed", "realtime", "bound η_max"]
     fig.savefig(tmp_path / "d.png")
+
+
+def test_loop_with_a_response_map():
+    from impactometer.identify.response_map_build import build_map_simulated
+
+    rmap = build_map_simulated(pressure_gauge=200e3, masses=np.linspace(10, 50, 21), velocities=np.linspace(1, 3, 21))
+    scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3)
+    result = absorb(scenario, strategy="realtime", identification="response-map", response_map=rmap, duration=0.1)
+    assert result.identified.method == "response-map" and result.identified.error is None
+    # the map identifies the impact to a few percent at 2 % noise, within the first pulses
+    assert result.identified.mass == pytest.approx(30.0, rel=0.05)
+    assert result.identified.velocity == pytest.approx(2.0, rel=0.02)
+    assert 0.0 < result.control_start < 0.05
+    with pytest.raises(ParameterError, match="response_map"):
+        absorb(scenario, strategy="realtime", identification="response-map", duration=0.1)
