@@ -104,8 +104,9 @@ def prepare_folder(out: Path, study: str, key: str, options: dict[str, Any], *, 
         if previous.get("key") != key:
             if not force:
                 raise ParameterError(
-                    f"--out: {str(folder)!r} holds a '{study}' run with other options (key "
-                    f"{previous.get('key')!r}, this run {key!r}); pass --force to discard it or choose another --out")
+                    f"--out: {str(folder)!r} holds a '{study}' run with other options "
+                    f"({_differences(previous.get('options'), options)}); pass --force to discard it or choose "
+                    f"another --out")
             for old in folder.glob("chunk-*.json"):
                 old.unlink()
             (folder / RESULT).unlink(missing_ok=True)
@@ -118,6 +119,18 @@ def prepare_folder(out: Path, study: str, key: str, options: dict[str, Any], *, 
     atomic_write(manifest, json.dumps({"schema": SCHEMA, "study": study, "key": key, "options": options},
                                       indent=1, default=repr))
     return folder
+
+
+def _differences(before: Any, after: dict[str, Any]) -> str:
+    """Short description of the options that differ between two runs."""
+    if not isinstance(before, dict):
+        return "unreadable manifest"
+    changed = []
+    for name in sorted(set(before) | set(after)):
+        old, new = before.get(name), after.get(name)
+        if json.dumps(old, sort_keys=True, default=repr) != json.dumps(new, sort_keys=True, default=repr):
+            changed.append(f"{name}: {old!r} → {new!r}" if name != "rig" else "the stand")
+    return "; ".join(changed) or "another version of the study"
 
 
 def write_result(folder: Path, result: dict[str, Any]) -> Path:
