@@ -24,6 +24,12 @@ from impactometer.rig import get_rig
 from impactometer.sensors import record_batch
 
 
+#: rows of the table -> options of identify()
+VARIANTS = {"paper": {"variant": "paper"}, "robust": {"variant": "robust"},
+            "robust + contact phase": {"variant": "robust", "contact_phase": True}}
+NAMES = ("paper", "robust early", "robust", "robust + contact phase")
+
+
 def grid(values: int):
     m, v, p = np.meshgrid(np.linspace(10, 50, values), np.linspace(1, 3, values), np.linspace(20e3, 400e3, values),
                           indexing="ij")
@@ -36,16 +42,16 @@ def evaluate(recordings):
     for rec in recordings:
         m, v = rec.truth("mass_kg"), rec.truth("velocity_m_s")
         answers = {}
-        for variant in ("paper", "robust"):
+        for name, options in VARIANTS.items():
             try:
-                res = identify(rec, variant=variant)
+                res = identify(rec, **options)
             except IdentificationError:
-                answers[variant] = None
+                answers[name] = None
                 continue
-            answers[variant] = res
-            if variant == "robust":
+            answers[name] = res
+            if name == "robust":
                 answers["robust early"] = res.early
-        for name in ("paper", "robust early", "robust"):
+        for name in NAMES:
             res = answers.get(name)
             if res is None:
                 rows.append((name, np.nan, np.nan, np.nan, np.nan, False, False))
@@ -58,7 +64,7 @@ def evaluate(recordings):
 
 def summarise(rows, law: str, noise: float) -> list[str]:
     out = []
-    for name in ("paper", "robust early", "robust"):
+    for name in NAMES:
         sel = [r for r in rows if r[0] == name]
         ok = [r for r in sel if np.isfinite(r[1])]
         refused = len(sel) - len(ok)

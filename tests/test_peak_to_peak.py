@@ -111,3 +111,12 @@ def test_random_signals_never_give_silent_nonsense(seed, n, scale):
         except IdentificationError:
             continue
         assert np.isfinite(res.mass) and res.mass > 0 and np.isfinite(res.velocity)
+
+
+@pytest.mark.parametrize("contact", ["kv", "hunt"])
+def test_contact_phase_option_round_trip(contact):
+    """Adding the contact-phase fit keeps the noise-free answer within the same tolerances."""
+    f, a, t0 = drop(30.0, 2.0, 200e3, contact)
+    res = identify_arrays(f, a, FS, t0, contact_phase=True)
+    assert abs(res.mass / 30.0 - 1) < 5e-3 and abs(res.velocity / 2.0 - 1) < 2e-3
+    assert res.mass_std > 0 and res.velocity_std > 0

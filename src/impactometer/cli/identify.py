@@ -20,6 +20,8 @@ AccOpt = Annotated[Optional[str], typer.Option("--acceleration-channel", help="N
 GroupOpt = Annotated[Optional[str], typer.Option("--group", help="HDF5/TDMS group holding the channels.")]
 CfcOpt = Annotated[Optional[int], typer.Option("--cfc", help="Apply a CFC filter (60, 180, 600, 1000) first.")]
 VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
+ContactOpt = Annotated[bool, typer.Option("--contact-phase", help="robust: add the contact-phase fit of the first "
+                                                                   "two pulses to the final answer.")]
 
 
 def load(path: Path, force_channel, acceleration_channel, group, cfc):
@@ -62,6 +64,7 @@ def _table(result: dict, title: str) -> Table:
 def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms, mat).")],
              method: Annotated[str, typer.Option("--method", help="peak-to-peak or response-map.")] = "peak-to-peak",
              variant: VariantOpt = "robust",
+             contact_phase: ContactOpt = False,
              map_path: Annotated[Optional[Path], typer.Option("--map", help="Response map (.h5).")] = None,
              search: Annotated[str, typer.Option("--search", help="Map search: fast or brute.")] = "fast",
              allow_extrapolation: Annotated[bool, typer.Option("--allow-extrapolation")] = False,
@@ -84,7 +87,7 @@ def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 
-        result = identify_p2p(rec, variant=variant)
+        result = identify_p2p(rec, variant=variant, contact_phase=contact_phase)
     data = result.to_dict()
     if as_json:
         typer.echo(json.dumps(data))
@@ -101,6 +104,7 @@ def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms
 @app.command()
 def stream(file: Annotated[Path, typer.Argument(help="Recording to replay.")],
            variant: VariantOpt = "robust",
+           contact_phase: ContactOpt = False,
            chunk: Annotated[int, typer.Option("--chunk", help="Samples per push.")] = 64,
            realtime: Annotated[bool, typer.Option("--realtime", help="Replay at the file's sample rate.")] = False,
            as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate.")] = False,
@@ -113,7 +117,8 @@ def stream(file: Annotated[Path, typer.Argument(help="Recording to replay.")],
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
     rec = load(file, force_channel, acceleration_channel, group, cfc)
     f, a = rec.contact_force, rec.piston_acceleration
-    ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time)
+    ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
+                                contact_phase=contact_phase)
     t_wall = clock.perf_counter()
     for k in range(0, f.size, chunk):
         if realtime:

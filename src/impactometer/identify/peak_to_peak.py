@@ -29,6 +29,8 @@ PRE_SAMPLES = 5000
 GUARD_SAMPLES = 32
 #: fewest pre-trigger samples for removing offsets
 MIN_PRE_SAMPLES = 32
+#: smallest trigger level [N]: exact (simulated) records have no noise to set one
+TRIGGER_FLOOR = 1e-9
 #: quiet spell that ends an impact [s] (a mass rebounding at 1.5 m/s is airborne for 0.3 s) and longest impact [s]
 QUIET_TIME = 0.3
 MAX_DURATION = 1.0
@@ -95,13 +97,6 @@ def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.nd
     return events[:n]
 
 
-def resolution_floor(force: np.ndarray) -> float:
-    """Smallest meaningful force step [N]: the channel's quantisation, or 1e-9 of its range for exact data."""
-    steps = np.diff(np.unique(force[: min(force.size, 4096)]))
-    step = float(steps.min()) if steps.size else 0.0
-    return max(step, 1e-9 * float(np.max(np.abs(force))), 1e-12)
-
-
 def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
             pre: int, *, cache: dict | None = None) -> Segment:
     """Offsets and noise from the first ``pre`` samples (less the guard), then the pulses of the impact."""
@@ -131,8 +126,11 @@ def check_clipping(seg: Segment) -> None:
                                   "clipped, its range must be raised")
 
 
-def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None) -> Identification:
-    """Identify from a prepared segment with the named variant."""
+def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
+          contact_phase: bool = False) -> Identification:
+    """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`)."""
+    if variant == "robust":
+        return solve_robust(seg, gravity, early, contact_phase=contact_phase)
     return VARIANT_SOLVERS[variant](seg, gravity, early)
 
 
@@ -187,10 +185,14 @@ def _onsets(seg: Segment, pulses) -> tuple[np.ndarray, np.ndarray]:
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
-def solve_robust(seg: Segment, gravity: float, early: Identification | None = None) -> Identification:
+def solve_robust(seg: Segment, gravity: float, early: Identification | None = None, *,
+                 contact_phase: bool = False) -> Identification:
     """Zero relative displacement at every complete pulse's onset; GLS with propagated noise (module notes).
 
-    With fewer than three separated pulses the contact-phase rows of the early solver are added.
+    With only two separated pulses the contact phase gives the answer (:mod:`early`). With ``contact_phase`` the
+    onset answer is combined with the contact-phase fit of the first two pulses (best linear unbiased, with the
+    shared acceleration noise): on the built-in stand at 5 % noise this lowers the velocity error by a third
+    and leaves the mass error as it is, at the price of depending on the contact-law family.
     """
     _need_pulses(seg, 2, "the robust variant")
     pulses = [p for p in seg.pulses if p.complete]
@@ -202,15 +204,16 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
                   available_at=seg.time_of(pulses[-1].end))
     noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                  pre_samples=seg.pre_samples)
-    contact = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
     if len(pulses) - 1 >= MIN_ONSET_ROWS:
         theta, cov, chi2, dof, sens = solve_onsets(kin, onsets[1:], stds[1:], **noise)
         rows = len(pulses) - 1
-        # the contact phase of the first two pulses adds information the onsets do not hold
-        theta, cov = combine((theta, cov, sens), (contact[0], contact[1], contact[4]),
-                             noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples, dt=kin.dt)
+        if contact_phase:
+            contact = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
+            theta, cov = combine((theta, cov, sens), (contact[0], contact[1], contact[4]),
+                                 noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples,
+                                 dt=kin.dt)
     else:
-        theta, cov, chi2, dof, _ = contact
+        theta, cov, chi2, dof, _ = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
         rows = -1
     velocity, w = float(theta[0]), float(theta[1])
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity):
@@ -229,7 +232,7 @@ VARIANT_SOLVERS = {"robust": solve_robust, "paper": solve_paper}
 
 def _segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, list[int], int]:
     """First impact: (start, stop) sample indices of its segment and the pulse-end indices in it."""
-    events = run_trigger(force, sample_rate, floor=resolution_floor(force))
+    events = run_trigger(force, sample_rate, floor=TRIGGER_FLOOR)
     trig = [int(i) for c, i in events if c == trigger.EVENT_TRIGGER]
     if not trig:
         raise IdentificationError("no impact found: the contact force never leaves its noise; expected at least "
@@ -276,7 +279,7 @@ def early_answer(cut: Segment | None, gravity: float) -> Identification | None:
 
 
 def identify_arrays(force, acceleration, sample_rate: float, start_time: float = 0.0, *, variant: str = "robust",
-                    gravity: float = GRAVITY) -> Identification:
+                    gravity: float = GRAVITY, contact_phase: bool = False) -> Identification:
     """Identify M1 and V0 from contact force [N] and kinematic piston acceleration [m/s²] arrays.
 
     Parameters
@@ -291,6 +294,9 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
         The robust method (default) or eqs. (3)-(5) of the reference paper.
     gravity : float
         Gravitational acceleration [m/s²].
+    contact_phase : bool
+        ``robust`` only: combine the onset equations with the contact-phase fit of the first two pulses
+        (see :func:`solve_robust`).
 
     Returns
     -------
@@ -313,10 +319,11 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     early = None
     if variant == "robust":
         early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
-    return solve(seg, variant, gravity, early=early)
+    return solve(seg, variant, gravity, early=early, contact_phase=contact_phase)
 
 
-def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY) -> Identification:
+def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY,
+             contact_phase: bool = False) -> Identification:
     """Identify M1 and V0 from a :class:`~impactometer.recording.Recording` (see :func:`identify_arrays`)."""
     if not isinstance(recording, Recording):
         raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
@@ -329,4 +336,4 @@ def identify(recording: Recording, *, variant: str = "robust", gravity: float = 
                                       f"contact_force and piston_acceleration, found {sorted(recording.channels)}"
                                       ) from None
     return identify_arrays(channels["contact_force"], channels["piston_acceleration"], recording.sample_rate,
-                           recording.start_time, variant=variant, gravity=gravity)
+                           recording.start_time, variant=variant, gravity=gravity, contact_phase=contact_phase)

@@ -165,6 +165,10 @@ def combine(first, second, *, noise_acceleration, pre_samples, dt):
     sigma = np.block([[c1, cross], [cross.T, c2]])
     h = np.vstack([np.eye(2), np.eye(2)])
     try:
+        # the two must agree within their errors; where they do not, both are less certain than stated (Birge)
+        diff = t1 - t2
+        spread = np.linalg.solve(c1 + c2 - cross - cross.T, diff) @ diff / 2.0
+        sigma = sigma * max(1.0, float(spread))
         info = h.T @ np.linalg.solve(sigma, h)
         cov = np.linalg.inv(info)
         theta = cov @ (h.T @ np.linalg.solve(sigma, np.concatenate([t1, t2])))

@@ -46,6 +46,10 @@ class StreamingIdentifier:
         Gravitational acceleration [m/s²].
     start_time : float
         Time of the first sample pushed [s].
+    floor : float
+        Smallest trigger level [N] (the force channel's resolution).
+    contact_phase : bool
+        ``robust`` only: see :func:`~impactometer.identify.peak_to_peak.identify_arrays`.
 
     Notes
     -----
@@ -55,7 +59,7 @@ class StreamingIdentifier:
     """
 
     def __init__(self, sample_rate: float, *, variant: str = "robust", gravity: float = p2p.GRAVITY,
-                 start_time: float = 0.0, floor: float = 1e-9):
+                 start_time: float = 0.0, floor: float = p2p.TRIGGER_FLOOR, contact_phase: bool = False):
         if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
                 sample_rate) or sample_rate <= 0:
             raise ParameterError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
@@ -63,6 +67,7 @@ class StreamingIdentifier:
             raise ParameterError(f"variant must be one of {sorted(p2p.VARIANT_SOLVERS)}, got {variant!r}")
         self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, float(gravity)
         self.start_time, self.floor = float(start_time), float(floor)
+        self.contact_phase = bool(contact_phase)
         self.quiet = max(int(p2p.QUIET_TIME * sample_rate), 1)
         self.max_samples = max(int(p2p.MAX_DURATION * sample_rate), 1)
         self.capacity = p2p.PRE_SAMPLES + self.max_samples + 2
@@ -152,7 +157,8 @@ class StreamingIdentifier:
             needed = 3 if self.variant == "robust" else 2
             if complete >= needed:
                 p2p.check_clipping(seg)
-                new.append(p2p.solve(seg, self.variant, self.gravity, early=self._early))
+                new.append(p2p.solve(seg, self.variant, self.gravity, early=self._early,
+                                     contact_phase=self.contact_phase))
         except IdentificationError:
             return []
         new = [r for r in new if not self.estimates or r != self.estimates[-1]]
