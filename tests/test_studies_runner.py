@@ -49,8 +49,12 @@ def test_rerun_reuses_finished_chunks_and_recomputes_damaged_ones(tmp_path):
     second = run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
     assert second.reused_chunks == first.chunks - 1
     assert second.table.read_text() == first.table.read_text()
-    assert read_chunk(folder, study="peak-force", key=StudyOptions(**SMALL).key("peak-force"), index=2,
-                      cases=[8, 9, 10, 11]) is not None
+    chunk = json.loads((folder / "chunk-00002.json").read_text())
+    assert [c["case"] for c in chunk["cases"]] == [8, 9, 10, 11]
+    key = StudyOptions(**SMALL).key("peak-force")
+    assert read_chunk(folder, study="peak-force", key=key, index=2, cases=chunk["cases"]) is not None
+    other = [{**c, "mass": c["mass"] + 1.0} for c in chunk["cases"]]  # same indices, other scenarios
+    assert read_chunk(folder, study="peak-force", key=key, index=2, cases=other) is None
 
 
 def test_other_options_in_the_same_folder_need_force(tmp_path):

@@ -174,7 +174,7 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     out : path
         Output folder (created if missing).
     options : StudyOptions, optional
-        Stand, grid, seeds, noise, ... (defaults: the paper's 125-case grid on the built-in stand).
+        Stand, grid, seeds, noise, ... (defaults: each study's default size on the built-in stand).
     workers : int, optional
         Local processes (default: all cores; 1 runs in this process).
     scheduler : str, optional
@@ -212,7 +212,7 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
     results: dict[int, tuple[list[Row], float]] = {}
     for index, chunk in enumerate(chunks):
-        found = store.read_chunk(folder, study=name, key=key, index=index, cases=[c["case"] for c in chunk])
+        found = store.read_chunk(folder, study=name, key=key, index=index, cases=chunk)
         if found is not None:
             results[index] = (found["rows"], float(found["seconds"]))
     reused = len(results)
@@ -224,8 +224,8 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     runner = backend(workers, scheduler) if own else executor
     try:
         for index, (rows, seconds) in (runner.run(name, tasks, options) if tasks else ()):
-            store.write_chunk(folder, study=name, key=key, index=index, cases=[c["case"] for c in chunks[index]],
-                              rows=rows, seconds=seconds)
+            store.write_chunk(folder, study=name, key=key, index=index, cases=chunks[index], rows=rows,
+                              seconds=seconds)
             results[index] = (rows, seconds)
             done += len(chunks[index])
             if progress:

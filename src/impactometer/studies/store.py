@@ -10,7 +10,8 @@ Layout of ``DIR``::
 
 Every file is written to a temporary name in the same folder, flushed, synced and renamed with ``os.replace``:
 a killed run leaves either the previous file or the new one, never a half-written file under the final name.
-A chunk is read back only if it parses and names the same study, options key, chunk number and cases.
+A chunk is read back only if it parses and names the same study, options key, chunk number and cases (in full,
+so a study whose case list changed never reuses a stale chunk).
 """
 
 from __future__ import annotations
@@ -62,16 +63,16 @@ def chunk_path(folder: Path, index: int) -> Path:
     return folder / f"chunk-{index:05d}.json"
 
 
-def write_chunk(folder: Path, *, study: str, key: str, index: int, cases: list[int], rows: list[dict],
+def write_chunk(folder: Path, *, study: str, key: str, index: int, cases: list[dict], rows: list[dict],
                 seconds: float) -> Path:
-    """Persist one finished chunk."""
+    """Persist one finished chunk: its cases (in full), rows and compute time [s]."""
     payload = {"schema": SCHEMA, "study": study, "key": key, "chunk": index, "cases": cases, "seconds": seconds,
                "rows": rows}
     return atomic_write(chunk_path(folder, index), json.dumps(payload, allow_nan=True))
 
 
-def read_chunk(folder: Path, *, study: str, key: str, index: int, cases: list[int]) -> dict[str, Any] | None:
-    """A persisted chunk if present and valid for these options, else None."""
+def read_chunk(folder: Path, *, study: str, key: str, index: int, cases: list[dict]) -> dict[str, Any] | None:
+    """A persisted chunk if present and valid for these options and exactly these cases, else None."""
     path = chunk_path(folder, index)
     try:
         payload = json.loads(path.read_text(encoding="utf-8"))
