@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import time
 from pathlib import Path
 from typing import Annotated, Optional
@@ -26,18 +27,17 @@ def _print_list() -> None:
 
     load_studies()
     table = Table(title="studies")
-    for column in ("name", "paper", "title", "status"):
+    for column in ("name", "paper", "title", "settings (--set NAME.SETTING=JSON)", "status"):
         table.add_column(column)
     for name, study in STUDIES.items():
         missing = study.missing()
-        table.add_row(name, study.figure or "–", study.title,
+        settings = ", ".join(f"{k}={json.dumps(v)}" for k, v in {**study.defaults, "chunk_size": study.chunk_size}.items())
+        table.add_row(name, study.figure or "–", study.title, settings,
                       "ready" if not missing else f"needs {', '.join(missing)}")
     console.print(table)
 
 
 def _parse_params(items: list[str] | None) -> dict:
-    import json
-
     params = {}
     for item in items or []:
         key, sep, value = item.partition("=")

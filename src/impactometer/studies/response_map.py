@@ -19,7 +19,7 @@ MAP_SIZE = "map-size"
 WINDOW = "window"
 MAP_DEFAULTS = {"sizes": [10, 25, 50, 100, 250, 500, 1000, 3000], "grid125_sizes": [10, 50],
                 "features": ["peaks", "max-impulse"], "searches": ["brute", "fast"], "n_random": 10}
-WINDOW_DEFAULTS = {"windows": [0.002 * k for k in range(1, 16)], "sizes": [50], "searches": ["brute", "fast"],
+WINDOW_DEFAULTS = {"windows": [round(0.002 * k, 3) for k in range(1, 16)], "sizes": [50], "searches": ["brute", "fast"],
                    "n_random": 10}
 
 
