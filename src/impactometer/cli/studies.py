@@ -31,7 +31,8 @@ def _print_list() -> None:
         table.add_column(column)
     for name, study in STUDIES.items():
         missing = study.missing()
-        settings = ", ".join(f"{k}={json.dumps(v)}" for k, v in {**study.defaults, "chunk_size": study.chunk_size}.items())
+        defaults = {**study.defaults, "chunk_size": study.chunk_size}
+        settings = ", ".join(f"{k}={json.dumps(v)}" for k, v in defaults.items())
         table.add_row(name, study.figure or "–", study.title, settings,
                       "ready" if not missing else f"needs {', '.join(missing)}")
     console.print(table)
