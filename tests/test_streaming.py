@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from impactometer.errors import IdentificationError, ParameterError
 from impactometer.identify.peak_to_peak import identify_arrays
@@ -64,3 +66,16 @@ def test_bad_chunks():
         StreamingIdentifier(FS, variant="x")
     with pytest.raises(ParameterError, match="sample_rate"):
         StreamingIdentifier(-1.0)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.lists(st.integers(1, 700), min_size=1, max_size=12))
+def test_random_signals_and_chunks(seed, chunks):
+    """Random signals in random chunks: only finite, positive estimates or none -- never an exception."""
+    rng = np.random.default_rng(seed)
+    ident = StreamingIdentifier(FS)
+    for size in chunks:
+        f = rng.normal(0.0, 10.0, size) + (rng.random(size) < 0.02) * rng.uniform(0, 5e3, size)
+        for est in ident.push(f, rng.normal(0.0, 3.0, size)):
+            assert np.isfinite(est.mass) and est.mass > 0 and np.isfinite(est.velocity)
+    ident.finish()

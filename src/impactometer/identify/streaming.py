@@ -75,7 +75,7 @@ class StreamingIdentifier:
         self._acc = np.zeros(self.capacity)
         self._fstate, self._istate = trigger.new_state()
         self._step = self.capacity // 4
-        self._events = np.zeros((2 * self._step + 2, 2), dtype=np.int64)
+        self._events = np.zeros((3 * self._step + 2, 2), dtype=np.int64)
         self.seen = 0
         self._start = self._pre = None
         self._early: Identification | None = None
@@ -139,23 +139,23 @@ class StreamingIdentifier:
             return []
         if self._start is None:
             return []
-        result = self._solve(index + 1)
+        result = self._solve(index + 1, final=code != trigger.EVENT_PAST_PEAK)
         if code == trigger.EVENT_CLOSE:
             self._close(index)
         return result
 
-    def _solve(self, stop: int) -> list[Identification]:
+    def _solve(self, stop: int, final: bool = True) -> list[Identification]:
         seg = self._segment(stop)
         complete = sum(p.complete for p in seg.pulses)
         new = []
         try:
-            if self.variant == "robust" and not self._early_done and complete >= 2:
+            if self.variant == "robust" and not self._early_done and p2p.early_ready(seg):
                 self._early_done = True
                 self._early = p2p.early_answer(seg, self.gravity)
                 if self._early is not None:
                     new.append(self._early)
             needed = 3 if self.variant == "robust" else 2
-            if complete >= needed:
+            if final and complete >= needed:
                 p2p.check_clipping(seg)
                 new.append(p2p.solve(seg, self.variant, self.gravity, early=self._early,
                                      contact_phase=self.contact_phase))

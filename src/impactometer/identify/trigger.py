@@ -12,7 +12,9 @@ import numpy as np
 from numba import njit
 
 IDLE, ACTIVE = 0, 1
-EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE = 1, 2, 3
+EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE, EVENT_PAST_PEAK = 1, 2, 3, 4
+#: a pulse is past its peak when the force has fallen below this fraction of its maximum so far
+PAST_PEAK_FRACTION = 0.5
 #: time constant of the running baseline and noise level [samples]
 BASELINE_SAMPLES = 256
 #: samples the baseline learns from before the trigger may fire
@@ -22,22 +24,22 @@ TRIGGER_SIGMAS = 8.0
 #: pulse detection and release levels in the kernel [running standard deviations]
 PULSE_SIGMAS, RELEASE_SIGMAS = 5.0, 2.0
 
-# float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline
-_MEAN, _VAR, _SIGMA, _BASE = range(4)
-# int state: mode, samples seen, index of trigger, samples since trigger, quiet run, inside a pulse
-_MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE = range(6)
+# float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline, maximum of the pulse
+_MEAN, _VAR, _SIGMA, _BASE, _PMAX = range(5)
+# int state: mode, samples seen, index of trigger, samples since trigger, quiet run, inside a pulse, past peak
+_MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE, _PAST = range(7)
 
 
 def new_state() -> tuple[np.ndarray, np.ndarray]:
     """Fresh (float, int) state arrays of the trigger."""
-    return np.zeros(4), np.zeros(6, dtype=np.int64)
+    return np.zeros(5), np.zeros(7, dtype=np.int64)
 
 
 @njit(cache=True)
 def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events):
     """Advance the trigger over ``force``; write (code, absolute sample index) rows into ``events``.
 
-    Returns the number of events written. ``floor`` [N] is the smallest trigger level (resolution of the
+    Returns the number of events written (at most two per sample: a pulse past its peak and its end). ``floor`` [N] is the smallest trigger level (resolution of the
     channel), ``quiet_samples`` the release run that closes an impact, ``max_samples`` the longest impact.
     """
     alpha = 1.0 / BASELINE_SAMPLES
@@ -59,6 +61,8 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
                 istate[_INSIDE] = 1
                 fstate[_SIGMA] = sigma if sigma * PULSE_SIGMAS > floor else floor / PULSE_SIGMAS
                 fstate[_BASE] = fstate[_MEAN]
+                fstate[_PMAX] = x - fstate[_MEAN]
+                istate[_PAST] = 0
                 events[n_events, 0] = EVENT_TRIGGER
                 events[n_events, 1] = index
                 n_events += 1
@@ -76,6 +80,14 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
         istate[_SINCE] += 1
         y = x - fstate[_BASE]
         if istate[_INSIDE] == 1:
+            if y > fstate[_PMAX]:
+                fstate[_PMAX] = y
+            elif istate[_PAST] == 0 and y < PAST_PEAK_FRACTION * fstate[_PMAX] \
+                    and fstate[_PMAX] > 2.0 * PULSE_SIGMAS * fstate[_SIGMA]:
+                istate[_PAST] = 1
+                events[n_events, 0] = EVENT_PAST_PEAK
+                events[n_events, 1] = index
+                n_events += 1
             if y < RELEASE_SIGMAS * fstate[_SIGMA]:
                 istate[_INSIDE] = 0
                 istate[_QUIET] = 1
@@ -86,6 +98,8 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
             if y > PULSE_SIGMAS * fstate[_SIGMA]:
                 istate[_INSIDE] = 1
                 istate[_QUIET] = 0
+                istate[_PAST] = 0
+                fstate[_PMAX] = y
             elif y < RELEASE_SIGMAS * fstate[_SIGMA]:
                 istate[_QUIET] += 1
         if istate[_QUIET] >= quiet_samples or istate[_SINCE] >= max_samples:
