@@ -14,7 +14,7 @@ from .identification import (REQUIRES, by_method, clean_recordings, identify_row
 NAME = "noise"
 #: default values per grid axis (27 scenarios; ``--grid 5`` gives the paper's 125)
 GRID = 3
-DEFAULTS = {"levels": [0.0, 0.05, 0.1]}
+DEFAULTS = {"levels": [0.0, 0.02, 0.05, 0.1]}
 #: which channels get the noise
 TARGETS = {"force": ("contact_force",), "acceleration": ("piston_acceleration",),
            "both": ("contact_force", "piston_acceleration")}
