@@ -143,4 +143,5 @@ def _print_estimate(est, as_json: bool) -> None:
         typer.echo(json.dumps(d))
         return
     console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {est.mass:8.3f} ± {est.mass_std:.3f} kg  "
-                  f"V0 = {est.velocity:6.4f} ± {est.velocity_std:.4f} m/s  E = {est.energy:8.2f} J", highlight=False)
+                  f"V0 = {est.velocity:6.4f} ± {est.velocity_std:.4f} m/s  E = {est.energy:8.2f} J", highlight=False,
+                  soft_wrap=True)
