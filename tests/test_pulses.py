@@ -51,3 +51,18 @@ def test_legacy_contact_pulses_and_stage_b():
     assert pulses[0].impulse == pytest.approx(np.trapezoid(r.contact_force[r.time <= pulses[0].end],
                                                            r.time[r.time <= pulses[0].end]), rel=1e-3)
     assert stage_b_start(pulses) in (None, pulses[-1].start)
+
+
+def test_sustained_start_with_noise():
+    """A long run of bounces ends in sustained contact: found with and without noise, at the same place."""
+    from impactometer.identify.pulses import sustained_start
+
+    r = simulate(Scenario(mass=50, velocity=3, pressure_gauge=4e5), get_rig(None, contact="hunt"), duration=0.1)
+    clean = detect_pulses(r.contact_force, 0.0)
+    b_clean = sustained_start(clean, size=r.time.size)
+    assert b_clean is not None and r.time[b_clean] > 0.01  # after a few bounces
+    sigma = 0.02 * np.sqrt(np.mean(r.contact_force ** 2))
+    noisy = r.contact_force + np.random.default_rng(5).normal(0, sigma, r.time.size)
+    b_noisy = sustained_start(detect_pulses(noisy, noise_std(noisy)), size=r.time.size)
+    assert abs(b_noisy - b_clean) <= 20
+    assert sustained_start(clean[:1], size=r.time.size) is None

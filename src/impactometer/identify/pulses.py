@@ -167,3 +167,19 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
         stop = n if end < 0 else end
         out.append(PulseSpan(zero=zero, first=first, peak=first + int(np.argmax(f[first:stop])), end=end))
     return out
+
+
+def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 4.0) -> int | None:
+    """Sample index where sustained contact (stage B) starts, or None.
+
+    Stage B is the first pulse that lasts longer than ``factor`` times the first pulse or is still running at the
+    end of the data (``size`` samples), provided it is not the first pulse itself.
+    """
+    if len(spans) < 2 or not spans[0].complete:
+        return None
+    first = spans[0].end - spans[0].first
+    for span in spans[1:]:
+        length = (size if not span.complete else span.end) - span.first
+        if not span.complete or length > factor * first:
+            return span.zero
+    return None
