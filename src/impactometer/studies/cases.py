@@ -12,7 +12,7 @@ from functools import partial
 import numpy as np
 
 from .base import PAPER_RANGES, Row, Study, StudyOptions, grid_size, register
-from .identification import REQUIRES, with_failures, by_method, evaluate_noisy, max_abs, pct, per_method, seeded_grid
+from .identification import REQUIRES, by_method, evaluate_noisy, max_abs, pct, per_method, seeded_grid, with_failures
 
 NAME = "cases"
 DEFAULTS = {"pressures": [20e3, 100e3], "velocities": [1.0, 2.0, 3.0]}

@@ -15,7 +15,7 @@ import numpy as np
 from ..errors import ImpactometerError
 from ..recording import Recording
 from .base import Row, StudyOptions, relative_error
-from .tables import finite_values, group_stats, pick
+from .tables import finite_values, group_stats, percent_labels, pick
 
 #: the module the peak-to-peak studies need
 REQUIRES = ("impactometer.identify.peak_to_peak",)
@@ -74,7 +74,7 @@ def identify_rows(recording: Recording, case: Row) -> list[Row]:
 
 def by_method(rows: Sequence[Row], by: Sequence[str] = ()) -> list[Row]:
     """Mean/max |mass error| and |velocity error| [%] per method (and per ``by`` columns)."""
-    return group_stats(rows, (*by, "method"), ("mass_error", "velocity_error"))
+    return percent_labels(group_stats(rows, (*by, "method"), ("mass_error", "velocity_error")))
 
 
 def mean_abs(rows: Sequence[Row], column: str, **equal) -> float:

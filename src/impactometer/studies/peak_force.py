@@ -18,7 +18,7 @@ from ..model import simulate_batch
 from ..rig import Rig
 from ..sensors import record_batch
 from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
-from .tables import finite_values, group_stats
+from .tables import finite_values, group_stats, percent_labels
 
 NAME = "peak-force"
 
@@ -94,7 +94,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
 
 
 def _aggregate(rows: list[Row]) -> list[Row]:
-    return group_stats(rows, ("contact_law", "mass"), ("ratio_error", "recorded_error"))
+    return percent_labels(group_stats(rows, ("contact_law", "mass"), ("ratio_error", "recorded_error")))
 
 
 def _summary(rows: list[Row]) -> list[Row]:

@@ -69,6 +69,16 @@ def group_stats(rows: Iterable[Row], by: Sequence[str], values: Sequence[str], *
     return out
 
 
+def percent_labels(rows: Iterable[Row]) -> list[Row]:
+    """Rows of :func:`group_stats` with readable headers: ``mean_abs_x`` -> ``mean |x| [%]``."""
+    def label(key: str) -> str:
+        for stat in ("mean", "max"):
+            if key.startswith(f"{stat}_abs_"):
+                return f"{stat} |{key[len(stat) + 5:].replace('_', ' ')}| [%]"
+        return key
+    return [{label(k): v for k, v in row.items()} for row in rows]
+
+
 def _finite(value: Any) -> bool:
     return isinstance(value, (int, float, np.floating, np.integer)) and math.isfinite(float(value))
 
