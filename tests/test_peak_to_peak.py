@@ -120,3 +120,18 @@ def test_contact_phase_option_round_trip(contact):
     res = identify_arrays(f, a, FS, t0, contact_phase=True)
     assert abs(res.mass / 30.0 - 1) < 5e-3 and abs(res.velocity / 2.0 - 1) < 2e-3
     assert res.mass_std > 0 and res.velocity_std > 0
+
+
+@pytest.mark.parametrize("contact", ["kv", "hunt"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_sensor_recording_with_five_percent_noise(contact, seed):
+    """Recorded by the sensor model (anti-alias, 5 % noise on both channels, 50 ms pre-trigger): the truth lies
+    within 3 standard errors, and the errors are below 5 % (mass) and 2 % (velocity)."""
+    from impactometer.sensors import record
+
+    rec = record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3), get_rig(None, contact=contact),
+                 duration=0.1, noise=0.05, seed=seed, pre_trigger=0.05)
+    res = identify(rec)
+    assert abs(res.mass - 30.0) < 3 * res.mass_std and abs(res.mass / 30.0 - 1) < 0.05
+    assert abs(res.velocity - 2.0) < 3 * res.velocity_std and abs(res.velocity / 2.0 - 1) < 0.02
+    assert res.early is not None and res.early.available_at - res.t11 <= 3e-3
