@@ -88,6 +88,8 @@ def fmt(value: Any) -> str:
     if isinstance(value, (float, np.floating)):
         if not math.isfinite(value):
             return "–"
+        if value == round(value) and abs(value) < 1e9:
+            return str(int(value))  # grid values such as 20000 Pa or 50000 Hz
         return f"{value:.4g}"
     return str(value)
 
