@@ -131,7 +131,8 @@ def plot_noise(rows: Sequence[Row]):
     return fig
 
 
-def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = True, title: str = ""):
+def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = True, title: str = "",
+                    x_scale: float = 1.0):
     """Figs. 8-9: mean |mass| and |velocity| error [%] (and time per identification) vs ``x``, one line per
     search method, feature set and test set."""
     plt = _pyplot()
@@ -151,7 +152,7 @@ def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = T
             setting = dict(zip(keys, values))
             ls = styles[feature_sets.index(setting.get("feature_set")) % len(styles)]
             marker = "s" if setting.get("cases") == "grid125" else "o"
-            ax.plot([r[x] for r in chosen], [r[column] * scale for r in chosen], ls=ls, marker=marker, ms=4,
+            ax.plot([r[x] * x_scale for r in chosen], [r[column] * scale for r in chosen], ls=ls, marker=marker, ms=4,
                     color=_color(setting.get("search", "")), label=" / ".join(str(v) for v in values))
         ax.set(xlabel=xlabel, ylabel=label)
         ax.set_yscale("log")

@@ -138,7 +138,7 @@ def _map_plot(rows: list[Row], options: StudyOptions):
 
 def _window_plot(rows: list[Row], options: StudyOptions):
     from .plots import plot_map_tables
-    return plot_map_tables(rows, "window_s", "integration window T [s]", log_x=False,
+    return plot_map_tables(rows, "window_s", "integration window T [ms]", log_x=False, x_scale=1e3,
                            title="Response map (max-impulse): error vs integration window")
 
 
