@@ -6,7 +6,11 @@ the same instant); the bound η_max. Writes the per-case table (CSV), the distri
 acceptance figures as a Markdown table.
 
     python scripts/absorption_acceptance.py --out absorption-acceptance [--grid 5] [--noise 0.02] [--workers 2]
-                                            [--contact kelvin-voigt|hunt-crossley]
+                                            [--contact kelvin-voigt|hunt-crossley] [--bounce-gate]
+                                            [--max-area 5e-5]
+
+``--bounce-gate`` runs the real-time strategy with the bounce gate (``Absorber(bounce_gate=True)``), ``--max-area``
+replaces the valve's largest opening A_max [m²] (a what-if for a larger valve); both change the output file names.
 """
 
 from __future__ import annotations
@@ -18,21 +22,31 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import numpy as np
+
+from impactometer.control import Absorber
 from impactometer.control.plots import plot_distributions
 from impactometer.control.study import ORACLE, absorption_table, acceptance_summary, grid_cases, read_table
 from impactometer.rig import get_rig
 
 
+def _rig(contact: str, max_area: float | None):
+    rig = get_rig(contact=contact)
+    return rig if max_area is None else rig.replace(**{"valve.max_area": max_area})
+
+
 def _chunk(args):
-    cases, seed, noise, contact = args
-    return absorption_table(cases, get_rig(contact=contact), noise=noise, seed=seed)
+    cases, seed, noise, contact, max_area, gate = args
+    return absorption_table(cases, _rig(contact, max_area), noise=noise, seed=seed,
+                            absorber=Absorber(bounce_gate=gate))
 
 
 def _run(args):
     cases = grid_cases(args.grid)
     # case i gets seed + i whatever the chunking: absorption_table adds the index within the chunk
     size = math.ceil(len(cases) / (4 * args.workers))
-    jobs = [(cases[k:k + size], args.seed + k, args.noise, args.contact) for k in range(0, len(cases), size)]
+    jobs = [(cases[k:k + size], args.seed + k, args.noise, args.contact, args.max_area, args.bounce_gate)
+            for k in range(0, len(cases), size)]
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         rows = [row for part in pool.map(_chunk, jobs) for row in part]
@@ -47,12 +61,16 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--contact", default="kelvin-voigt")
+    parser.add_argument("--bounce-gate", action="store_true", help="real-time strategy with the bounce gate")
+    parser.add_argument("--max-area", type=float, default=None, help="largest valve opening A_max [m²]")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     parser.add_argument("--summarise", action="store_true", help="only summarise an existing table (and redraw its figure)")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    table = args.out / f"absorption-{args.contact}.csv"
-    figure = args.out / f"absorption-{args.contact}.png"
+    stem = f"absorption-{args.contact}" + ("-bounce-gate" if args.bounce_gate else "") \
+        + (f"-amax-{args.max_area:g}" if args.max_area is not None else "")
+    table = args.out / f"{stem}.csv"
+    figure = args.out / f"{stem}.png"
     if args.summarise:
         rows, elapsed = read_table(table), math.nan
     else:
@@ -77,14 +95,42 @@ def main() -> None:
         print(f"| {name} | {s[f'{name}: median efficiency']:.3f} | {s[f'{name}: median efficiency_cfc60']:.3f} | "
               f"{s[f'{name}: median peak_force_controlled_N']:.0f} | {s[f'{name}: median stroke_used_m'] * 1e3:.0f} | "
               f"{s[f'{name}: bottomed out']} | {s[f'{name}: rebounded']} |")
-    print(f"| bound η_max | {s['efficiency_max_median']:.3f} | | | | | |\n")
+    print(f"| bound η_max | {s['efficiency_max_median']:.3f} | | | | | |")
+    print(f"| reference: bound program with the first-collision peak | {s['efficiency_first_collision_median']:.3f} "
+          "| | | | | |\n")
     print(f"- realtime (identified) bottoms out where the oracle does not: {s['bottomed_out_identified_not_oracle']} "
           "case(s)")
     print(f"- realtime median η / η_max: {s['realtime: median efficiency'] / s['efficiency_max_median']:.3f}; "
           f"realtime median η / closed median η: {s['realtime: median efficiency'] / s['closed: median efficiency']:.2f}")
     print(f"- peak force after control start, identified vs oracle: median |Δ| {s['peak_vs_oracle_median']:.1%}, "
           f"max {s['peak_vs_oracle_max']:.1%}, within 10 % in {s['peak_vs_oracle_within_10pct']} of {s['cases']} cases")
+    _bounce_summary(rows)
     print(f"\ntable: {table}\nfigure: {figure}")
+
+
+def _bounce_summary(rows) -> None:
+    """Why η stays low: the relative (bounce) energy at the control start and the collision peaks it causes."""
+    def values(strategy, key, divide_by=None):
+        out = []
+        for r in rows:
+            if r["strategy"] != strategy or r[key] is None or (divide_by and not r[divide_by]):
+                continue
+            out.append(r[key] / r[divide_by] if divide_by else r[key])
+        return np.array(out, dtype=float)
+
+    bounce = np.median(values("closed", "bounce_energy_J"))
+    absorbed = np.median(values("realtime", "energy_absorbed_J"))
+    print(f"- median bounce energy at the control start μ·(v1 − v2)²/2: {bounce:.2f} J (energy absorbed after the "
+          f"control start, realtime: {absorbed:.2f} J)")
+    collision = values("realtime", "first_collision_peak_N")
+    print(f"- median first-collision peak after the control start with the valve fully open: "
+          f"{np.median(collision[np.isfinite(collision)]):.0f} N")
+    ratio = values("realtime", "peak_force_controlled_N", "first_collision_peak_N")
+    print(f"- realtime: median peak force after the control start / that first-collision peak: "
+          f"{np.median(ratio[np.isfinite(ratio)]):.2f}")
+    for name in ("closed", "realtime", ORACLE):
+        ratio = values(name, "peak_force_controlled_N", "bound_force_N")
+        print(f"- {name}: median peak force after the control start / bound level F_c: {np.median(ratio):.1f}")
 
 
 if __name__ == "__main__":

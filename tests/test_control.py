@@ -125,10 +125,30 @@ def test_invalid_absorber_and_flow_inputs():
         Absorber(stroke_margin=0.3).usable_stroke(get_rig())
     with pytest.raises(ParameterError, match="rated_force"):
         Absorber(rated_force=0.0)
+    with pytest.raises(ParameterError, match="bounce_gate"):
+        Absorber(bounce_gate=1)
     with pytest.raises(ParameterError, match="area"):
         valve_mass_flow(5e5, 300.0, 1e5, 1.0)
     with pytest.raises(ParameterError, match="pressure_up"):
         valve_mass_flow(-5e5, 300.0, 1e5, 1e-5)
+
+
+def test_bounce_gate_holds_the_valve_closed_while_the_bodies_part():
+    gated = _control(ctl.REALTIME, bounce_gate=True, bounce_threshold=0.05)
+    assert ctl.bounce_gate(gated, 3e-5, 0.2) == 3e-5  # approaching faster than the threshold: the law acts
+    assert ctl.bounce_gate(gated, 3e-5, 0.01) == 0.0
+    assert ctl.bounce_gate(gated, 3e-5, -0.5) == 0.0  # parting: closed
+    assert ctl.bounce_gate(_control(ctl.REALTIME), 3e-5, -0.5) == 3e-5  # gate off: the law's command
+
+
+def test_gated_valve_opens_only_while_the_mass_approaches_the_piston():
+    control = _control(ctl.REALTIME, max_force=2e4, bounce_gate=True)
+    result, hist = loop.simulate_controlled(SCENARIO, get_rig(), control=control, duration=0.06)
+    approach = result.v1 - result.v2
+    commanded = hist["valve_command"] > 0.0
+    assert commanded.any() and (approach < 0.0).any()
+    # the controller reads the same (noise-free) estimates up to the drift of the integrated acceleration
+    assert np.all(approach[commanded] > -0.02)
 
 
 def test_strategy_registry():
@@ -169,14 +189,15 @@ def test_bound_follows_the_closed_curve_then_holds_and_stops_at_the_end_of_the_s
     assert efficiency_bound(closed, 0.035, 0.195).level < bound.level
 
 
-def _constant_deceleration_run(mass=20.0, v0=2.0, decel=15.0, fs=20e3):
+def _constant_deceleration_run(mass=20.0, v0=2.0, decel=15.0, fs=20e3, relative_velocity=0.0):
     t = np.arange(int(0.4 * fs)) / fs
     t_stop = v0 / decel
     v = np.where(t < t_stop, v0 - decel * t, 0.0)
     u = np.where(t < t_stop, v0 * t - 0.5 * decel * t ** 2, v0 ** 2 / (2 * decel))
     force = np.where(t < t_stop, mass * (9.81 + decel), mass * 9.81)
     rig = Rig()
-    return SimpleNamespace(time=t, contact_force=force, u1=u, v1=v, bottom_stop_force=np.zeros_like(t),
+    return SimpleNamespace(time=t, contact_force=force, u1=u, v1=v, v2=v - relative_velocity,
+                           bottom_stop_force=np.zeros_like(t),
                            scenario=Scenario(mass=mass, velocity=v0), rig=rig, extra={}), t_stop
 
 
@@ -189,6 +210,13 @@ def test_metrics_of_a_constant_deceleration_are_ideal():
     assert m.max_deceleration == pytest.approx(15.0, rel=1e-9)
     assert not m.bottomed_out and not m.rebounded
     assert m.energy_absorbed == pytest.approx(0.5 * 20 * 4 + 20 * 9.81 * 4 / 30, rel=1e-6)
+    assert m.bounce_energy == 0.0  # sustained contact: no relative motion
+
+
+def test_bounce_energy_is_the_kinetic_energy_of_the_relative_motion():
+    run, _ = _constant_deceleration_run(relative_velocity=1.5)
+    reduced = 20.0 * run.rig.cylinder.piston_mass / (20.0 + run.rig.cylinder.piston_mass)
+    assert absorption_metrics(run, 0.0).bounce_energy == pytest.approx(0.5 * reduced * 1.5 ** 2, rel=1e-12)
 
 
 def test_closed_capacity_is_the_work_of_the_adiabatic_gas_spring():

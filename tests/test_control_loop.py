@@ -43,6 +43,20 @@ def test_realtime_lowers_the_peak_and_uses_more_stroke_than_the_gas_spring(oracl
     assert 0.0 < oracle_run.bound.efficiency <= 1.0
 
 
+def test_first_collision_reference_explains_the_realtime_efficiency(oracle_run):
+    closed, realtime = oracle_run.metrics["closed"], oracle_run.metrics["realtime"]
+    bound = oracle_run.bound
+    # the piston flies off the mass at the control start: bounce energy ½·μ·w² well above zero
+    assert realtime.bounce_energy == closed.bounce_energy > 1.0
+    # opening fully at the control start lowers the next collision below the gas spring's, but it stays far above
+    # the bound's constant level
+    assert 3.0 * bound.level < bound.first_collision_peak < closed.peak_force_controlled
+    assert bound.efficiency_first_collision < 0.5 * bound.efficiency
+    # the real-time strategy's peak is that first collision, so its efficiency is the reference's (within 10 %)
+    assert realtime.peak_force_controlled == pytest.approx(bound.first_collision_peak, rel=0.1)
+    assert realtime.efficiency == pytest.approx(bound.efficiency_first_collision, rel=0.1)
+
+
 def test_identification_failure_leaves_the_valve_closed(monkeypatch):
     failed = Identified(method="robust", mass=math.nan, velocity=math.nan, available_at=math.inf,
                         error="fewer pulses than needed")

@@ -9,6 +9,13 @@ The curve is the contact force of sustained contact (mass and piston moving toge
 F_closed(s) = M1·(Fp(u2) + F_friction)/(M1 + M2), with the chamber pressures following p·V^γ = const from their
 values at the control start (the closed chambers are adiabatic) and the piston position u2 = s − δ(F) behind the
 mass position s by the static contact compression δ. Stage-A contact pulses are not part of the idealised program.
+
+The bound ignores that at the control start the piston is flying off the mass after a collision: the relative
+motion carries the bounce energy μ·(v1 − v2)²/2 that only the contact dissipates, in collisions whose peaks are
+far above F_c. :func:`first_collision_peak` measures the peak of the next collision when the valve opens fully at
+the control start (the fastest drop of the gas force the valve can make), and
+``EfficiencyBound.efficiency_first_collision`` is the bound program's efficiency with its peak raised to it: a
+supplementary reference, reported next to η_max, not a replacement for it.
 """
 
 from __future__ import annotations
@@ -33,6 +40,8 @@ class EfficiencyBound:
     stroke : Mass travel from the control start to the stop [m].
     energy : Work the contact force must do on the mass after the control start [J].
     over_capacity : True when even the closed valve cannot stop the mass within the usable stroke.
+    first_collision_peak : Peak of the first collision after the control start with the valve fully open from
+        the control start [N] (NaN when not computed).
     """
 
     level: float
@@ -40,6 +49,15 @@ class EfficiencyBound:
     stroke: float
     energy: float
     over_capacity: bool
+    first_collision_peak: float = math.nan
+
+    @property
+    def efficiency_first_collision(self) -> float:
+        """Efficiency of the bound program with its peak raised to ``first_collision_peak`` [-] (NaN if unknown)."""
+        peak = max(self.level, self.first_collision_peak)
+        if not (math.isfinite(peak) and peak > 0.0 and self.stroke > 0.0):
+            return math.nan
+        return float(min(1.0, self.energy / (peak * self.stroke)))
 
 
 def _compression(force: np.ndarray, rig) -> np.ndarray:
@@ -152,3 +170,27 @@ def efficiency_bound(closed_result, control_start: float, usable_stroke: float, 
         mid = 0.5 * (low + high)
         low, high = (low, mid) if _stop(program(mid), s, energy, mass * g) >= 0 else (mid, high)
     return outcome(high, False)
+
+
+#: time after the control start within which :func:`first_collision_peak` looks for the next collision [s]
+COLLISION_WINDOW = 0.1
+
+
+def first_collision_peak(scenario, rig, drive, control_start: float, *, sample_rate: float = 50e3) -> float:
+    """Peak contact force [N] of the first collision after ``control_start`` [s] with valve Z fully open from then
+    on (``drive`` a ValveDrive: its lag applies); the largest force within ``COLLISION_WINDOW`` after the control
+    start if no collision begins within it."""
+    from ..identify.pulses import contact_pulses
+    from . import controller as ctl
+    from .simulate import simulate_controlled
+
+    control = ctl.control_vector(strategy=ctl.CONSTANT, start=control_start, area=rig.valve.max_area,
+                                 mass=scenario.mass, velocity=scenario.velocity, close_on_stop=False)
+    result, _ = simulate_controlled(scenario, rig, control=control, drive=drive,
+                                    duration=control_start + COLLISION_WINDOW, sample_rate=sample_rate)
+    t, force = result.time, result.contact_force
+    after = t >= control_start - 1e-12
+    later = [p for p in contact_pulses(t, force) if p.start > control_start]
+    if later:
+        after &= t <= later[0].end
+    return float(force[after].max()) if np.any(after) else math.nan

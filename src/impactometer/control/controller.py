@@ -18,8 +18,8 @@ CLOSED, CONSTANT, REALTIME = 0, 1, 2
 
 # controller parameter indices
 (STRATEGY, T_START, AREA_CONSTANT, MASS_HAT, VELOCITY_HAT, U_END, TAU_CONTROL, TAU_FILTER, P_CHARGE, T_CHARGE,
- CLOSE_ON_STOP, F_MAX) = range(12)
-N_CONTROL = 12
+ CLOSE_ON_STOP, F_MAX, BOUNCE_GATE, BOUNCE_THRESHOLD) = range(14)
+N_CONTROL = 14
 # drive parameter indices
 TIME_CONSTANT, MAX_RATE, MAX_AREA, ROUTE = range(4)
 N_DRIVE = 4
@@ -117,6 +117,23 @@ def realtime_command(p, ctrl, drive, velocity, displacement, p_lower, p_upper, p
     return min(mdot / unit_flow, drive[MAX_AREA])
 
 
+@njit(cache=True, error_model="numpy")
+def bounce_gate(ctrl, command, relative_velocity):
+    """Valve command [m²] after the optional bounce gate of the real-time strategy.
+
+    The net gas force Fp pushes the piston towards the mass: on the relative coordinate δ = u1 − u2 (the contact
+    compression, or minus the gap) it delivers the power μ·Fp·δ'/M2, with μ = M1·M2/(M1 + M2). While the bodies
+    approach each other (δ' = v1 − v2 > 0: closing the gap or compressing the contact) Fp feeds the relative
+    (bounce) motion; while they part it takes energy out of it. A valve can only lower Fp, so lowering it only
+    while they approach dissipates bounce energy (a one-sided, semi-active damper on δ'). With the gate on
+    (``BOUNCE_GATE``) the force-law command is held back (valve closed) while ``relative_velocity`` =
+    v1 − v2 [m/s] is below ``BOUNCE_THRESHOLD``.
+    """
+    if ctrl[BOUNCE_GATE] != 0.0 and relative_velocity < ctrl[BOUNCE_THRESHOLD]:
+        return 0.0
+    return command
+
+
 def drive_vector(rig, drive) -> np.ndarray:
     """Packed drive parameters of the compiled loop for ``drive`` (a ValveDrive) on ``rig``."""
     from .valve import ROUTES
@@ -132,7 +149,8 @@ def drive_vector(rig, drive) -> np.ndarray:
 def control_vector(*, strategy: int = CLOSED, start: float = math.inf, area: float = 0.0, mass: float = 1.0,
                    velocity: float = 0.0, usable_stroke: float = 0.0, tau_control: float = 2e-3,
                    tau_filter: float = 5e-4, charge_pressure: float = 1e5, charge_temperature: float = 293.15,
-                   close_on_stop: bool = True, max_force: float = math.inf) -> np.ndarray:
+                   close_on_stop: bool = True, max_force: float = math.inf, bounce_gate: bool = False,
+                   bounce_threshold: float = 0.0) -> np.ndarray:
     """Packed controller parameters of the compiled loop (see the module constants)."""
     out = np.empty(N_CONTROL)
     out[STRATEGY] = strategy
@@ -147,4 +165,6 @@ def control_vector(*, strategy: int = CLOSED, start: float = math.inf, area: flo
     out[T_CHARGE] = charge_temperature
     out[CLOSE_ON_STOP] = 1.0 if close_on_stop else 0.0
     out[F_MAX] = max_force
+    out[BOUNCE_GATE] = 1.0 if bounce_gate else 0.0
+    out[BOUNCE_THRESHOLD] = bounce_threshold
     return out

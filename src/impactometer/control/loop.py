@@ -12,6 +12,7 @@ a controlled stroke at 2 % noise, as much as the whole stroke margin.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -23,7 +24,7 @@ from ..identify.pulses import contact_pulses
 from ..rig import Rig, Scenario, get_rig
 from . import controller as ctl
 from . import simulate as loop
-from .bound import EfficiencyBound, efficiency_bound
+from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
 from .metrics import AbsorptionMetrics, absorption_metrics
 from .strategies import ControlContext, get_strategy, strategy_names
 from .valve import Absorber
@@ -105,6 +106,8 @@ class AbsorptionResult:
                 "pressure_gauge_Pa": self.scenario.pressure_gauge, "identification": self.identified.to_dict(),
                 "usable_stroke_m": self.absorber.usable_stroke(self.rig),
                 "efficiency_max": _num(self.bound.efficiency), "bound_force_N": _num(self.bound.level),
+                "first_collision_peak_N": _num(self.bound.first_collision_peak),
+                "efficiency_first_collision": _num(self.bound.efficiency_first_collision),
                 "over_capacity": self.over_capacity, "notes": list(self.notes), "strategies": strategies}
 
     def plot(self, ax=None):
@@ -261,8 +264,11 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                      f"({usable:.3f} m), above the rated {absorber.rated_force:.0f} N: the best achievable outcome "
                      f"is shown")
     start = found.available_at if found.error is None else math.inf
-    bound = efficiency_bound(closed, start, usable) if math.isfinite(start) and start <= closed.time[-1] \
-        else EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
+    if math.isfinite(start) and start <= closed.time[-1]:
+        bound = dataclasses.replace(efficiency_bound(closed, start, usable), first_collision_peak=first_collision_peak(
+            scenario, rig, absorber.drive, start, sample_rate=sample_rate))
+    else:
+        bound = EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
     context = ControlContext(rig=rig, absorber=absorber, mass=found.mass if found.error is None else scenario.mass,
                              velocity=found.velocity if found.error is None else scenario.velocity,
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,

@@ -6,7 +6,10 @@ record has not stopped). Energy absorbed after the control start is the work the
 W = M1·v1(t_c)²/2 + M1·g·(u1(t_stop) − u1(t_c)); the efficiency is η = W / (F_peak · Δu1) with F_peak the peak
 contact force after the control start and Δu1 = u1(t_stop) − u1(t_c) the stroke used meanwhile (η = 1 for a
 perfectly constant force). ``*_cfc60`` values use the contact force filtered with channel class CFC 60 (SAE J211,
-the class for the load on a body), i.e. the load averaged over the contact pulses.
+the class for the load on a body), i.e. the load averaged over the contact pulses. ``bounce_energy`` is the
+kinetic energy of the relative motion of mass and piston at the control start, μ·(v1 − v2)²/2 with
+μ = M1·M2/(M1 + M2): energy the contact (not the gas spring) has to dissipate, in collisions whose peaks are set
+by it, whatever the valve does.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ class AbsorptionMetrics:
     peak_force_controlled_cfc60: float
     max_deceleration: float
     energy_absorbed: float
+    bounce_energy: float
     stroke_controlled: float
     stroke_used: float
     efficiency: float
@@ -50,7 +54,8 @@ class AbsorptionMetrics:
         """JSON-ready mapping with unit-suffixed keys (``peak_force_controlled_N``, ...); NaN -> None."""
         units = {"control_start": "s", "peak_force_stage_a": "N", "peak_force_controlled": "N",
                  "peak_force_controlled_cfc60": "N", "max_deceleration": "m_s2", "energy_absorbed": "J",
-                 "stroke_controlled": "m", "stroke_used": "m", "time_to_stop": "s", "rebound": "m"}
+                 "bounce_energy": "J", "stroke_controlled": "m", "stroke_used": "m", "time_to_stop": "s",
+                 "rebound": "m"}
         out = {}
         for key, value in asdict(self).items():
             if isinstance(value, float) and not math.isfinite(value):
@@ -80,6 +85,8 @@ def absorption_metrics(result, control_start: float) -> AbsorptionMetrics:
     peak_body = float(body[i0:].max())
     stroke = float(result.u1[i_stop] - result.u1[i0])
     work = 0.5 * mass * result.v1[i0] ** 2 - 0.5 * mass * result.v1[i_stop] ** 2 + mass * g * stroke
+    piston = result.rig.cylinder.piston_mass
+    bounce = 0.5 * mass * piston / (mass + piston) * float(result.v1[i0] - result.v2[i0]) ** 2
     rebound = float(result.u1[i_stop] - result.u1[i_stop:].min()) if stopped else math.nan
 
     def efficiency(level: float) -> float:
@@ -88,7 +95,7 @@ def absorption_metrics(result, control_start: float) -> AbsorptionMetrics:
     return AbsorptionMetrics(
         control_start=float(control_start), peak_force_stage_a=float(max(stage_a)) if stage_a else math.nan,
         peak_force_controlled=peak, peak_force_controlled_cfc60=peak_body,
-        max_deceleration=float(force[i0:].max() / mass - g), energy_absorbed=float(work),
+        max_deceleration=float(force[i0:].max() / mass - g), energy_absorbed=float(work), bounce_energy=bounce,
         stroke_controlled=stroke, stroke_used=float(result.u1.max() - result.u1[0]),
         efficiency=efficiency(peak), efficiency_cfc60=efficiency(peak_body),
         bottomed_out=bool(np.any(result.bottom_stop_force > 0.0) or "ended_at_bottom" in result.extra),

@@ -23,8 +23,8 @@ from ..model import dynamics as d
 from ..model.fast import _A, _E
 from ..model.forces import orifice_mass_flow
 from .controller import (AREA_CONSTANT, CLOSE_ON_STOP, CLOSED, CONSTANT, MASS_HAT, MAX_AREA, MAX_RATE, ROUTE,
-                         STRATEGY, T_START, TAU_FILTER, TIME_CONSTANT, VELOCITY_HAT, control_vector, drive_vector,
-                         must_close, realtime_command)
+                         STRATEGY, T_START, TAU_FILTER, TIME_CONSTANT, VELOCITY_HAT, bounce_gate, control_vector,
+                         drive_vector, must_close, realtime_command)
 
 VALVE = d.N_STATE  # index of the valve opening in the controlled state
 N_STATE = d.N_STATE + 1
@@ -172,6 +172,7 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
                     command = ctrl[AREA_CONSTANT]
             else:
                 command = realtime_command(p, ctrl, drive, velocity, u2, pl_f, pu_f, v2, u2, target)
+                command = bounce_gate(ctrl, command, velocity - v2)
         extra[0, j] = y[VALVE]
         extra[1, j] = command
         extra[2, j] = target[0]

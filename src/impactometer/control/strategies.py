@@ -69,12 +69,15 @@ def plan_closed(context: ControlContext) -> np.ndarray:
 def plan_realtime(context: ControlContext) -> np.ndarray:
     """Real-time force control from the control start (see the module notes)."""
     return context.base(ctl.REALTIME, max_force=context.absorber.rated_force * 4.0,
-                        tau_control=REALTIME_TAU_CONTROL, tau_filter=REALTIME_TAU_FILTER)
+                        tau_control=REALTIME_TAU_CONTROL, tau_filter=REALTIME_TAU_FILTER,
+                        bounce_gate=context.absorber.bounce_gate, bounce_threshold=BOUNCE_THRESHOLD)
 
 
 #: time constant of the gas-force loop and of the pressure filters of the real-time controller [s]
 REALTIME_TAU_CONTROL = 2e-3
 REALTIME_TAU_FILTER = 5e-4
+#: relative velocity v1 − v2 [m/s] above which the bounce gate lets the force law open the valve
+BOUNCE_THRESHOLD = 0.0
 #: sample rate of the model runs of the constant-opening optimisation [Hz]
 PLANNING_RATE = 10e3
 

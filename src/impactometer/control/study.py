@@ -52,7 +52,10 @@ def case_rows(case: dict[str, float], rig: Rig, *, noise: float, seed: int, iden
                          "identification": ident["method"], "identified_mass_kg": ident["mass_kg"],
                          "identified_velocity_m_s": ident["velocity_m_s"], "identification_error": ident["error"],
                          "valve_area_m2": None, **metrics, "efficiency_max": summary["efficiency_max"],
-                         "bound_force_N": summary["bound_force_N"], "over_capacity": summary["over_capacity"],
+                         "bound_force_N": summary["bound_force_N"],
+                         "first_collision_peak_N": summary["first_collision_peak_N"],
+                         "efficiency_first_collision": summary["efficiency_first_collision"],
+                         "over_capacity": summary["over_capacity"],
                          "contact_law": rig.contact.law, "noise": noise, "seed": seed})
     return rows
 
@@ -125,8 +128,11 @@ def acceptance_summary(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                   and r[ORACLE]["peak_force_controlled_N"] > 0.0]
     failed = sum(1 for r in by.values() if any(row["identification_error"] for name, row in r.items()
                                                    if name != ORACLE))
+    reference = [r["realtime"]["efficiency_first_collision"] for r in by.values() if "realtime" in r
+                 and _finite(r["realtime"].get("efficiency_first_collision"))]
     out = {"cases": len(by), "identification_failed": failed, "efficiency_max_median": float(np.median(bound))
-           if bound else math.nan, "bottomed_out_identified_not_oracle": len(extra_bottoming),
+           if bound else math.nan,
+           "efficiency_first_collision_median": float(np.median(reference)) if reference else math.nan, "bottomed_out_identified_not_oracle": len(extra_bottoming),
            "peak_vs_oracle_median": float(np.median(np.abs(peak_ratio))) if peak_ratio else math.nan,
            "peak_vs_oracle_max": float(np.max(np.abs(peak_ratio))) if peak_ratio else math.nan,
            "peak_vs_oracle_within_10pct": int(np.sum(np.abs(peak_ratio) <= 0.1)) if peak_ratio else 0}

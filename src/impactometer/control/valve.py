@@ -68,17 +68,23 @@ class Absorber:
     rated_force : Highest contact force the absorber is meant to apply after the control starts [N]; an impact
         whose energy needs more than ``rated_force × usable stroke`` is reported as over capacity.
     drive : The valve actuator.
+    bounce_gate : The real-time strategy lowers the gas force only while the mass and the piston approach each
+        other (``control.controller.bounce_gate``); off by default: on the built-in stand it raises the peak force
+        after the control start (see docs/absorption.md).
     """
 
     stroke_margin: float = 0.01
     rated_force: float = 5e3
     drive: ValveDrive = ValveDrive()
+    bounce_gate: bool = False
 
     def __post_init__(self) -> None:
         _positive("absorber.stroke_margin", self.stroke_margin, allow_zero=True, unit=" [m]")
         _positive("absorber.rated_force", self.rated_force, unit=" [N]")
         if not isinstance(self.drive, ValveDrive):
             raise ParameterError(f"absorber.drive must be a ValveDrive, got {self.drive!r}")
+        if not isinstance(self.bounce_gate, bool):
+            raise ParameterError(f"absorber.bounce_gate must be True or False, got {self.bounce_gate!r}")
 
     def usable_stroke(self, rig: Rig) -> float:
         """Largest displacement of the mass the absorber may use on ``rig`` [m]."""
