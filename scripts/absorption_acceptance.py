@@ -125,6 +125,11 @@ def _bounce_summary(rows) -> None:
     collision = values("realtime", "first_collision_peak_N")
     print(f"- median first-collision peak after the control start with the valve fully open: "
           f"{np.median(collision[np.isfinite(collision)]):.0f} N")
+    for name in ("realtime", ORACLE):
+        ratio = values(name, "efficiency", "efficiency_first_collision")
+        ratio = ratio[np.isfinite(ratio)]
+        print(f"- {name}: η / reference per case: median {np.median(ratio):.3f}, within 5 % in "
+              f"{np.sum(np.abs(ratio - 1.0) <= 0.05)} of {ratio.size} cases, below 0.95 in {np.sum(ratio < 0.95)}")
     ratio = values("realtime", "peak_force_controlled_N", "first_collision_peak_N")
     print(f"- realtime: median peak force after the control start / that first-collision peak: "
           f"{np.median(ratio[np.isfinite(ratio)]):.2f}")

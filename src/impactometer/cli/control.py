@@ -23,6 +23,7 @@ TABLE_ROWS = (
     ("  same, CFC 60 body load [N]", "peak_force_controlled_cfc60_N", lambda v: f"{v:.0f}"),
     ("max deceleration after start [m/s²]", "max_deceleration_m_s2", lambda v: f"{v:.0f}"),
     ("energy absorbed after start [J]", "energy_absorbed_J", lambda v: f"{v:.1f}"),
+    ("bounce energy at start [J]", "bounce_energy_J", lambda v: f"{v:.2f}"),
     ("efficiency η", "efficiency", lambda v: f"{v:.3f}"),
     ("  η with CFC 60 force", "efficiency_cfc60", lambda v: f"{v:.3f}"),
     ("stroke used [mm]", "stroke_used_m", lambda v: f"{v * 1e3:.1f}"),
@@ -50,9 +51,10 @@ def metrics_table(result) -> Table:
             value = values.get(key)
             cells.append("—" if value is None else fmt(value))
         table.add_row(escape(label), *cells)
-    bound = data["efficiency_max"]
-    table.add_row("bound η_max (all strategies)", *(["—" if bound is None else f"{bound:.3f}"]
-                                                     * len(data["strategies"])))
+    for label, key in (("bound η_max (all strategies)", "efficiency_max"),
+                       ("  with the first-collision peak", "efficiency_first_collision")):
+        value = data[key]
+        table.add_row(label, *(["—" if value is None else f"{value:.3f}"] * len(data["strategies"])))
     return table
 
 
