@@ -39,3 +39,23 @@ def test_closed_form_limits():
     hertz = free.with_contact("hunt-crossley")
     expected = 4e8 ** 0.4 * (1.25 * mu * 4.0) ** 0.6
     assert closed_form_peak_force(hertz, 30.0, 2.0, 0.0) == pytest.approx(expected, rel=1e-10)
+
+
+@pytest.mark.parametrize("args, match", [
+    ((0.0, 2.0), "mass must be finite and > 0"),
+    ((30.0, -1.0), "velocity must be finite and >= 0"),
+    ((30.0, float("nan")), "velocity must be finite"),
+    (([1.0, 2.0], [1.0, 2.0, 3.0]), "numbers or arrays of one shape"),
+])
+def test_closed_form_rejects_bad_input(args, match):
+    from impactometer.errors import ParameterError
+
+    with pytest.raises(ParameterError, match=match):
+        closed_form_peak_force(get_rig(), *args)
+
+
+def test_study_run_rejects_other_options():
+    from impactometer.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="options must be StudyOptions"):
+        get_study("peak-force").run({"grid": 2})

@@ -140,6 +140,8 @@ class Study:
     def run(self, options: StudyOptions | None = None) -> list[Row]:
         """Evaluate every case in this process and return the tidy table (no persistence, no progress)."""
         options = StudyOptions() if options is None else options
+        if not isinstance(options, StudyOptions):
+            raise ParameterError(f"options must be StudyOptions, got {options!r}")
         return self.evaluate(indexed_cases(self, options), options)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import ParameterError
 from ..identify.pulses import contact_pulses
 from ..model import simulate_batch
 from ..rig import Rig
@@ -38,8 +39,15 @@ def closed_form_peak_force(rig: Rig, mass, velocity, pressure_gauge=0.0) -> np.n
     (2/5)·k·δ^(5/2) (Hertz spring of Hunt-Crossley). Without preload this is V0·sqrt(k·μ) and
     k^(2/5)·(5/4·μ·V0²)^(3/5).
     """
-    m1, v0, p0 = np.broadcast_arrays(np.asarray(mass, dtype=float), np.asarray(velocity, dtype=float),
-                                     np.asarray(pressure_gauge, dtype=float))
+    try:
+        m1, v0, p0 = np.broadcast_arrays(np.asarray(mass, dtype=float), np.asarray(velocity, dtype=float),
+                                         np.asarray(pressure_gauge, dtype=float))
+    except (TypeError, ValueError):
+        raise ParameterError(f"mass, velocity and pressure_gauge must be numbers or arrays of one shape, got "
+                             f"{mass!r}, {velocity!r}, {pressure_gauge!r}") from None
+    for name, values, low in (("mass", m1, 0.0), ("velocity", v0, None), ("pressure_gauge", p0, None)):
+        if not np.all(np.isfinite(values)) or np.any(values < 0) or (low is not None and np.any(values <= low)):
+            raise ParameterError(f"{name} must be finite and {'> 0' if low is not None else '>= 0'}, got {values!r}")
     m2 = rig.cylinder.piston_mass
     mu = m1 * m2 / (m1 + m2)
     k = rig.contact.stiffness
