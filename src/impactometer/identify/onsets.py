@@ -39,7 +39,7 @@ def _fit_sse(t, f, t0_grid, exponent):
     return ((f[None, :] - amp[:, None] * m) ** 2).sum(1)
 
 
-def onset_index(force: np.ndarray, span: PulseSpan, noise: float) -> tuple[float, float]:
+def onset_index(force: np.ndarray, span: PulseSpan, noise: float, *, earliest: int = 0) -> tuple[float, float]:
     """Sub-sample onset of a pulse and its standard error, both in samples.
 
     Fits the foot of the rising edge (from two samples before the last zero-consistent sample up to
@@ -47,7 +47,8 @@ def onset_index(force: np.ndarray, span: PulseSpan, noise: float) -> tuple[float
     (the signature of viscous contact damping), each zero before t0; the family and t0 with the least squares,
     penalised by 2σ² per extra parameter, win. The onset is the centre of the t0 interval where the squares
     stay within σ² of the minimum and its standard error half that interval's width, at least the
-    resolution of a jump (1/√12 sample).
+    resolution of a jump (1/√12 sample). The search never starts before sample ``earliest`` (the end of the
+    previous pulse).
     """
     f_all = np.asarray(force, dtype=float)
     sigma = max(float(noise), 1e-12)
@@ -59,7 +60,7 @@ def onset_index(force: np.ndarray, span: PulseSpan, noise: float) -> tuple[float
     # samples the edge needs to rise through the detection level: the onset may lie that far before it
     slope = max((f_all[stop - 1] - f_all[span.first]) / max(stop - 1 - span.first, 1), 1e-12)
     rise = int(min(np.ceil(f_all[span.first] / slope), 64))
-    lo = max(min(span.zero, span.first - 2 * rise) - 2, 0)
+    lo = max(min(span.zero, span.first - 2 * rise) - 2, earliest, 0)
     t = np.arange(lo, stop, dtype=float)
     f = f_all[lo:stop]
     families = [(p, 0) for p in FOOT_EXPONENTS] + [(None, 1)]

@@ -174,9 +174,11 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
 
 def segment_onset(seg: Segment, pulse: PulseSpan) -> tuple[float, float]:
     """Sub-sample onset and its standard error [samples] of a pulse of the segment (cached)."""
-    key = (pulse.zero, pulse.first, pulse.peak, seg.noise_force)
+    k = next((i for i, p in enumerate(seg.pulses) if p.first == pulse.first), 0)
+    earliest = seg.pulses[k - 1].end if k > 0 else 0
+    key = (pulse.zero, pulse.first, pulse.peak, earliest, seg.noise_force)
     if key not in seg.onset_cache:
-        seg.onset_cache[key] = onset_index(seg.force, pulse, seg.noise_force)
+        seg.onset_cache[key] = onset_index(seg.force, pulse, seg.noise_force, earliest=earliest)
     return seg.onset_cache[key]
 
 
