@@ -12,13 +12,14 @@ import os
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import ImpactometerError, ParameterError
+from ..errors import ImpactometerError, ParameterError, SimulationError
 from . import store
 from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases
 from .tables import to_csv
@@ -105,7 +106,14 @@ class _Pool:
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for future in done:
-                    yield pending.pop(future), future.result()
+                    index = pending.pop(future)
+                    try:
+                        result = future.result()
+                    except BrokenProcessPool:
+                        raise SimulationError(f"a worker process died while running study {name!r} (out of memory?); "
+                                              "finished chunks are kept: rerun to resume, with fewer --workers "
+                                              "if memory is short") from None
+                    yield index, result
         finally:
             for future in pending:
                 future.cancel()
