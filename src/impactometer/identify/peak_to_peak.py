@@ -18,7 +18,7 @@ from . import trigger
 from .early import solve_early
 from .onsets import onset_index
 from .pulses import PulseSpan, detect_pulses, noise_std
-from .result import VARIANTS, Identification
+from .result import Identification
 from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
 
 GRAVITY = 9.81
@@ -48,7 +48,7 @@ class Segment:
     noise_acceleration: float
     pre_samples: int
     pulses: list[PulseSpan]
-    #: (zero, first, peak, noise) of a pulse -> its onset and standard error [samples], shared by segments cut from
+    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments cut from
     #: the same data with the same start (the early and the final answer, successive streaming estimates)
     onset_cache: dict = field(default_factory=dict, compare=False)
 
@@ -201,8 +201,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
         pulses = [pulses[0], replace(seg.pulses[1], end=seg.force.size)]
     _need_pulses(seg, 2 - (len(pulses) >= 2), "the robust variant")
     onsets, stds = _onsets(seg, pulses)
-    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, onsets[0], gravity)
-    kin.onset_std0 = stds[0]
+    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, onsets[0], gravity, onset_std0=stds[0])
     common = dict(t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
                   variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
                   available_at=seg.time_of(min(pulses[-1].end, seg.force.size - 1)))

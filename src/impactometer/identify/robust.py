@@ -46,9 +46,10 @@ def integrals_at(signal, first, second, dt, index):
 class Kinematics:
     """Double integrals of force and piston acceleration referred to the first contact t00."""
 
-    def __init__(self, force, acceleration, dt, t00_index, gravity):
+    def __init__(self, force, acceleration, dt, t00_index, gravity, *, onset_std0=0.0):
         self.force, self.acceleration, self.dt, self.gravity = force, acceleration, dt, gravity
         self.t00 = float(t00_index)
+        self.onset_std0 = float(onset_std0)  # standard error of t00 [samples]
         self.cf = cumulative_integrals(force, dt)
         self.ca = cumulative_integrals(acceleration, dt)
         self._f0 = integrals_at(force, *self.cf, dt, self.t00)
