@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import ImpactometerError
 from ..recording import Recording
-from .base import Row, StudyOptions, relative_error
+from .base import Row, StudyOptions, case_seed, relative_error
 from .tables import finite_values, group_stats, percent_labels, pick
 
 #: the module the peak-to-peak studies need
@@ -94,10 +94,10 @@ def failures(rows: Sequence[Row], **equal) -> int:
     return sum(1 for r in pick(rows, **equal) if r.get("failure"))
 
 
-def per_method(rows: Sequence[Row], text, **equal) -> str:
-    """``text(method)`` joined over the methods present, e.g. 'paper 3.1 %, robust 0.2 %'."""
+def per_method(rows: Sequence[Row], text) -> str:
+    """``text(method)`` joined over the methods present, e.g. 'paper 3.1 %; robust 0.2 %'."""
     present = [m for m in METHODS if pick(rows, method=m)]
-    return "; ".join(f"{m} {text(m, **equal)}" for m in present)
+    return "; ".join(f"{m} {text(m)}" for m in present)
 
 
 def failure_line(rows: Sequence[Row]) -> Row:
@@ -124,8 +124,6 @@ def evaluate_noisy(study: str, cases: Sequence[Row], options: StudyOptions) -> l
 
     Each case's noise comes from :func:`case_seed` (root seed, study, case index) only.
     """
-    from .base import case_seed
-
     rows = []
     for case, clean in zip(cases, clean_recordings(cases, options)):
         level = options.noise
