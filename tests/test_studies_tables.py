@@ -73,3 +73,27 @@ def test_noise_of_a_case_does_not_depend_on_its_chunk():
         for key in a:
             same = a[key] == b[key] or (isinstance(a[key], float) and math.isnan(a[key]) and math.isnan(b[key]))
             assert same, key
+
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from impactometer.studies.tables import read_csv, to_csv  # noqa: E402
+
+_cells = st.one_of(st.integers(-10**12, 10**12), st.floats(allow_nan=False, allow_infinity=False, width=64),
+                   st.text(alphabet=st.characters(blacklist_categories=("Cs",), blacklist_characters="\r\x00"),
+                           max_size=12).filter(lambda s: not _looks_numeric(s)))
+
+
+def _looks_numeric(text):
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.fixed_dictionaries({name: _cells for name in ("a", "b", "c,d", 'e"f')}), min_size=1, max_size=5))
+def test_csv_round_trip_is_exact(rows):
+    assert read_csv(to_csv(rows)) == rows
