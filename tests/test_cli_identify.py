@@ -54,3 +54,16 @@ def test_errors_exit_2(rec_file, tmp_path, capsys):
             main(argv)
         assert exc.value.code == 2
     assert "--map" in capsys.readouterr().out
+
+
+def test_identify_with_a_response_map(rec_file, tmp_path, capsys):
+    """``--method response-map`` hands the recording to the response-map identification."""
+    from impactometer.identify.response_map_build import build_map_simulated
+    from impactometer.identify.response_map_store import save_map
+
+    path = save_map(build_map_simulated(None, 1.5e5, masses=np.linspace(10, 50, 6),
+                                        velocities=np.linspace(1, 3, 6)), tmp_path / "map.h5")
+    main(["identify", str(rec_file), "--method", "response-map", "--map", str(path), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert data["method"] == "response-map"
+    assert data["velocity_m_s"] == pytest.approx(1.8, rel=0.02) and data["mass_kg"] == pytest.approx(25, rel=0.1)
