@@ -7,10 +7,11 @@ acceptance figures as a Markdown table.
 
     python scripts/absorption_acceptance.py --out absorption-acceptance [--grid 5] [--noise 0.02] [--workers 2]
                                             [--contact kelvin-voigt|hunt-crossley] [--bounce-gate]
-                                            [--max-area 5e-5]
+                                            [--max-area 5e-5] [--route upper|atmosphere]
 
 ``--bounce-gate`` runs the real-time strategy with the bounce gate (``Absorber(bounce_gate=True)``), ``--max-area``
-replaces the valve's largest opening A_max [m²] (a what-if for a larger valve); both change the output file names.
+replaces the valve's largest opening A_max [m²] (a what-if for a larger valve), ``--route atmosphere`` vents the lower
+chamber instead of discharging it into the upper one; each changes the output file names.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from impactometer.control import Absorber
+from impactometer.control import Absorber, ValveDrive
 from impactometer.control.plots import plot_distributions
 from impactometer.control.study import ORACLE, absorption_table, acceptance_summary, grid_cases, read_table
 from impactometer.rig import get_rig
@@ -36,16 +37,16 @@ def _rig(contact: str, max_area: float | None):
 
 
 def _chunk(args):
-    cases, seed, noise, contact, max_area, gate = args
+    cases, seed, noise, contact, max_area, gate, route = args
     return absorption_table(cases, _rig(contact, max_area), noise=noise, seed=seed,
-                            absorber=Absorber(bounce_gate=gate))
+                            absorber=Absorber(bounce_gate=gate, drive=ValveDrive(route=route)))
 
 
 def _run(args):
     cases = grid_cases(args.grid)
     # case i gets seed + i whatever the chunking: absorption_table adds the index within the chunk
     size = math.ceil(len(cases) / (4 * args.workers))
-    jobs = [(cases[k:k + size], args.seed + k, args.noise, args.contact, args.max_area, args.bounce_gate)
+    jobs = [(cases[k:k + size], args.seed + k, args.noise, args.contact, args.max_area, args.bounce_gate, args.route)
             for k in range(0, len(cases), size)]
     start = time.perf_counter()
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
@@ -63,12 +64,14 @@ def main() -> None:
     parser.add_argument("--contact", default="kelvin-voigt")
     parser.add_argument("--bounce-gate", action="store_true", help="real-time strategy with the bounce gate")
     parser.add_argument("--max-area", type=float, default=None, help="largest valve opening A_max [m²]")
+    parser.add_argument("--route", default="upper", help="where the valve discharges: upper or atmosphere")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
     parser.add_argument("--summarise", action="store_true", help="only summarise an existing table (and redraw its figure)")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     stem = f"absorption-{args.contact}" + ("-bounce-gate" if args.bounce_gate else "") \
-        + (f"-amax-{args.max_area:g}" if args.max_area is not None else "")
+        + (f"-amax-{args.max_area:g}" if args.max_area is not None else "") \
+        + ("" if args.route == "upper" else f"-{args.route}")
     table = args.out / f"{stem}.csv"
     figure = args.out / f"{stem}.png"
     if args.summarise:
