@@ -79,3 +79,13 @@ def test_random_signals_and_chunks(seed, chunks):
         for est in ident.push(f, rng.normal(0.0, 3.0, size)):
             assert np.isfinite(est.mass) and est.mass > 0 and np.isfinite(est.velocity)
     ident.finish()
+
+
+def test_streaming_equals_batch_paper_and_contact_phase():
+    f, a = impact(40.0, 2.5, seed=4)
+    for options in ({"variant": "paper"}, {"contact_phase": True}):
+        batch = identify_arrays(f, a, FS, -0.04, **options)
+        ident = StreamingIdentifier(FS, start_time=-0.04, **options)
+        for k in range(0, f.size, 64):
+            ident.push(f[k:k + 64], a[k:k + 64])
+        assert ident.finish() == batch
