@@ -135,3 +135,19 @@ def test_sensor_recording_with_five_percent_noise(contact, seed):
     assert abs(res.mass - 30.0) < 3 * res.mass_std and abs(res.mass / 30.0 - 1) < 0.05
     assert abs(res.velocity - 2.0) < 3 * res.velocity_std and abs(res.velocity / 2.0 - 1) < 0.02
     assert res.early is not None and res.early.available_at - res.t11 <= 3e-3
+
+
+@pytest.mark.parametrize("contact", ["kv", "hunt"])
+def test_quantised_peaks_are_not_clipping_but_a_low_range_is(contact):
+    """12-bit ADC: flat quantised peaks pass and the answer stays within 0.5 %; a range below the peak force is
+    refused as saturated."""
+    from impactometer.sensors import record
+
+    kwargs = dict(duration=0.1, pre_trigger=0.05, adc_bits=12, seed=3)
+    rig = get_rig(None, contact=contact)
+    scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3)
+    res = identify(record(scenario, rig, **kwargs))
+    assert abs(res.mass / 30.0 - 1) < 5e-3 and abs(res.velocity / 2.0 - 1) < 2e-3
+    clipped = record(scenario, rig, adc_range={"contact_force": (-1000.0, 5000.0)}, **kwargs)
+    with pytest.raises(IdentificationError, match="saturated"):
+        identify(clipped)

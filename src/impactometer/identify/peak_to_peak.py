@@ -97,6 +97,19 @@ def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.nd
     return events[:n]
 
 
+def quantum(x: np.ndarray) -> float:
+    """Step of a quantised channel (the smallest difference between its distinct values, when they all lie on
+    a grid of that step), or 0 for continuous values."""
+    values = np.unique(x)
+    if values.size < 3:
+        return 0.0
+    step = float(np.min(np.diff(values)))
+    if step <= 0 or not np.allclose(np.round((values - values[0]) / step) * step, values - values[0],
+                                    rtol=0, atol=1e-3 * step):
+        return 0.0
+    return step
+
+
 def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
             pre: int, *, cache: dict | None = None) -> Segment:
     """Offsets and noise from the first ``pre`` samples (less the guard), then the pulses of the impact."""
@@ -107,9 +120,9 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     else:
         n_pre, f0, a0 = 0, 0.0, 0.0
         sf, sa = noise_std(force), noise_std(acceleration)
-    # resolution floor: exact (simulated) data still carry rounding and interpolation errors
-    sf = max(sf, 1e-6 * float(np.max(np.abs(force))))
-    sa = max(sa, 1e-6 * float(np.max(np.abs(acceleration))))
+    # resolution floor: quantisation noise (step/√12), and rounding of exact (simulated) data
+    sf = max(sf, quantum(force) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(force))))
+    sa = max(sa, quantum(acceleration) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(acceleration))))
     f = force - f0
     a = acceleration - a0
     pulses = detect_pulses(f, sf, start=max(n_pre, 0))  # nothing before the pre-trigger statistics' end
@@ -117,12 +130,31 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
 
 
 def check_clipping(seg: Segment) -> None:
-    """IdentificationError when the force channel is saturated (a flat top at its maximum)."""
-    fmax = float(np.max(seg.force))
-    at_max = np.flatnonzero(seg.force >= fmax - 1e-12 * abs(fmax))
-    if at_max.size >= 3 and np.any(np.diff(at_max) == 1):
-        raise IdentificationError(f"contact_force is saturated: {at_max.size} samples sit at its maximum "
-                                  f"{fmax:.6g} N from t = {seg.time_of(at_max[0]):.6g} s; the force channel was "
+    """IdentificationError when the force channel is saturated.
+
+    A quantised peak may sit a few samples at one level: about 2·√(2(q + 2σ)/|F''|) samples for a quantum q, noise
+    σ and the curvature F'' ≈ Fmax·(π/T)² of a pulse of T samples. A flat top twice that long, or the maximum
+    reached in two different pulses to the last digit, is a clipped channel.
+    """
+    f = seg.force
+    fmax = float(np.max(f))
+    at_max = np.flatnonzero(f >= fmax - 1e-12 * abs(fmax))
+    k = int(at_max[0])
+    run = int(np.argmax(np.diff(np.r_[at_max, -2]) != 1)) + 1
+    pulse = next((p for p in seg.pulses if p.first <= k and (not p.complete or k < p.end)), None)
+    rails = sum(any(p.first <= i and (not p.complete or i < p.end) for i in at_max) for p in seg.pulses)
+    if pulse is None or fmax <= 0:
+        return
+    length = (f.size if not pulse.complete else pulse.end) - pulse.zero
+    curvature = fmax * (np.pi / max(length, 1)) ** 2
+    near = f[max(k - 2 * run - 8, 0):k + 3 * run + 8]
+    steps = np.diff(np.unique(near))
+    quantum = float(steps.min()) if steps.size else 0.0
+    expected = 2.0 * np.sqrt(2.0 * (quantum + 2.0 * seg.noise_force) / curvature)
+    if rails >= 2 or run >= max(3.0, 2.0 * expected):
+        raise IdentificationError(f"contact_force is saturated: {run} samples sit at its maximum {fmax:.6g} N from "
+                                  f"t = {seg.time_of(k):.6g} s (a peak of that curvature stays about "
+                                  f"{expected:.1f} samples within the resolution); the force channel was "
                                   "clipped, its range must be raised")
 
 
