@@ -72,7 +72,8 @@ DETECT_SIGMAS = 5.0
 RELEASE_SIGMAS = 2.0
 #: a pulse ends only after this many consecutive samples below the release level
 HOLD = 3
-#: resolution floor relative to the largest force when the record is free of noise [-]
+#: the levels never use a σ below this fraction of the largest force [-]: below it the shape of an edge is
+#: anti-alias ringing (about ±5 % of a force jump) and rounding rather than contact
 FLOOR_FRACTION = 5e-3
 
 
@@ -95,7 +96,7 @@ class PulseSpan:
 
     ``zero`` is the last sample before the pulse consistent with zero force, ``first`` the first sample above
     the detection level, ``peak`` the maximum and ``end`` the first sample after the peak back below the release
-    level (the array length when the pulse is still running at the end of the data).
+    level (-1 when the pulse is still running at the end of the data).
     """
 
     zero: int
