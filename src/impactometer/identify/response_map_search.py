@@ -18,10 +18,11 @@ from numba import njit
 from .response_map_build import ResponseMap, spline_basis
 
 #: nodes per axis the fast surfaces are fitted on (every k-th node of larger maps)
-FAST_NODES = 257
+FAST_NODES = 65
 #: nodes per axis of the coarse lookup that starts the fast search
 COARSE = 16
-#: Gauss-Newton starts at most (best coarse nodes; a further one only while its lookup cost is within 10× the best fit)
+#: Gauss-Newton starts at most (best coarse nodes; a further one unless the fit is exact or 1000× better than its
+#: lookup cost)
 STARTS = 3
 #: how far outside the map the fast search may look [fraction of each axis range]
 EXTENSION = 0.25
@@ -204,8 +205,8 @@ def fast_search(herm, xm, xv, coarse, cm, cv, pressures, p, y, extension):
                     xv[-1] + extension * sv])
     best_m, best_v, best = 0.0, 0.0, np.inf
     for s in range(min(STARTS, order.size)):
-        if s > 0 and start_cost[s] > 10.0 * best:
-            break  # the first start reached a fit far better than this node promises: no other basin competes
+        if s > 0 and (best < 1e-20 or start_cost[s] > 1e3 * best):
+            break  # an exact fit, or one far better than this node promises: no other basin competes
         a = order[s] // n2
         b = order[s] % n2
         m, v, cost = _gauss_newton(herm, xm, xv, k0, w, count, y, cm[a], cv[b], box)
