@@ -226,7 +226,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     With only two separated pulses the contact phase gives the answer (:mod:`early`). With ``contact_phase`` the
     onset answer is combined with the contact-phase fit of the first two pulses (best linear unbiased, with the
     shared acceleration noise): on the built-in stand at 5 % noise this lowers the velocity error by a third
-    and leaves the mass error as it is, at the price of depending on the contact-law family.
+    and leaves the mass error about as it is, at the price of depending on the contact-law family.
     """
     pulses = [p for p in seg.pulses if p.complete]
     if len(pulses) < 2 and early_ready(seg):  # the second pulse is past its peak: enough for the contact phase
