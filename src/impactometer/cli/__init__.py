@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import sys
 
-import click
-
 from ..errors import ImpactometerError
 from . import control, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
 from .app import app, console
@@ -13,18 +11,31 @@ from .app import app, console
 __all__ = ["app", "main"]
 
 
+def _fail(message: str, code: int) -> None:
+    console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    sys.exit(code)
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Entry point of the ``impactometer`` console script."""
+    """Entry point of the ``impactometer`` console script.
+
+    Errors of impactometer and usage errors of the command line print one line and exit with status 2.
+    """
     try:
-        app(args=argv, standalone_mode=False)
+        result = app(args=argv, standalone_mode=False)
     except ImpactometerError as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False, soft_wrap=True)
-        sys.exit(2)
-    except click.exceptions.Abort:
-        console.print("aborted")
-        sys.exit(130)
-    except click.exceptions.ClickException as exc:
-        console.print(f"[bold red]error:[/] {exc.format_message()}", highlight=False, soft_wrap=True)
-        sys.exit(exc.exit_code)
-    except click.exceptions.Exit as exc:
-        sys.exit(exc.exit_code)
+        _fail(str(exc), 2)
+    except KeyboardInterrupt:
+        _fail("interrupted", 130)
+    except Exception as exc:
+        # click's exceptions (typer may bundle its own copy of click, so match by interface, not by class)
+        name = type(exc).__name__
+        if hasattr(exc, "format_message"):
+            _fail(exc.format_message(), getattr(exc, "exit_code", 2) or 2)
+        if name == "Abort":
+            _fail("aborted", 130)
+        if name == "Exit":
+            sys.exit(getattr(exc, "exit_code", 0))
+        raise
+    if isinstance(result, int) and result:
+        sys.exit(result)
