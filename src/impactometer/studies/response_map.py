@@ -17,7 +17,7 @@ from .tables import pick
 REQUIRES = ("impactometer.identify.response_map_study",)
 MAP_SIZE = "map-size"
 WINDOW = "window"
-MAP_DEFAULTS = {"sizes": [10, 25, 50, 100, 250, 500, 1000, 3000], "grid125_sizes": [10, 50],
+MAP_DEFAULTS = {"sizes": [10, 25, 50, 100, 250, 500, 1000, 2000, 2500, 3000], "grid125_sizes": [10, 50],
                 "features": ["peaks", "max-impulse"], "searches": ["brute", "fast"], "n_random": 10}
 WINDOW_DEFAULTS = {"windows": [round(0.002 * k, 3) for k in range(1, 16)], "sizes": [50], "searches": ["brute", "fast"],
                    "n_random": 10}
