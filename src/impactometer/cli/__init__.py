@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from ..errors import ImpactometerError
-from . import control, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
+from . import control, demo, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
 from .app import app, console
 
 __all__ = ["app", "main"]

@@ -99,30 +99,3 @@ def simulate(
     if plot is not None:
         result.plot(pulses=pulses).savefig(plot, dpi=120)
         console.print(f"figure written to {plot}")
-
-
-@app.command()
-def demo(
-    out: Annotated[Path, typer.Option("--out", help="PNG figure of the demo impact.")] = Path("impactometer-demo.png"),
-    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing figure.")] = False,
-) -> None:
-    """Simulate the built-in impact (30 kg from 0.2 m at 200 kPa), print its headline numbers, draw it."""
-    stand = get_rig()
-    scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3, gravity=stand.gravity)
-    if out.exists() and not force:
-        out = _free_name(out)
-    output_path(out, True)
-    result = run_simulation(scenario, stand, duration=0.1, sample_rate=50e3)
-    table, pulses = summary_table(result, "impactometer demo: 30 kg from 0.2 m onto the drop stand at 200 kPa")
-    console.print(table)
-    result.plot(pulses=pulses).savefig(out, dpi=120)
-    console.print(f"figure written to {out}")
-
-
-def _free_name(path: Path) -> Path:
-    """``path`` with the first free ``-N`` suffix, so an existing file is never overwritten."""
-    for i in range(1, 10_000):
-        candidate = path.with_name(f"{path.stem}-{i}{path.suffix}")
-        if not candidate.exists():
-            return candidate
-    return path

@@ -1,0 +1,97 @@
+"""``impactometer demo``: the whole chain on the built-in impact -- simulate, sense, identify, absorb."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.table import Table
+
+from ..errors import IdentificationError
+from ..model import simulate as run_simulation
+from ..rig import Scenario, get_rig
+from .app import app, console, output_path
+from .simulate import summary_table
+
+NOISE = 0.02  # sensor noise of the demo, fraction of each channel's RMS
+SAMPLE_RATE = 50e3  # [Hz]
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option("--out", help="PNG figure of the impact; the absorber figure goes to "
+                                                    "OUT-absorb.png.")] = Path("impactometer-demo.png"),
+    absorb: Annotated[bool, typer.Option("--absorb/--no-absorb", help="Also run the closed loop identify → "
+                                                                      "control (about 10 s).")] = True,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite existing figures.")] = False,
+) -> None:
+    """Built-in impact (30 kg from 0.2 m onto the stand at 200 kPa): simulate, identify, absorb, draw."""
+    stand = get_rig()
+    scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3, gravity=stand.gravity)
+    absorb_out = out.with_name(f"{out.stem}-absorb{out.suffix}")
+    if not force:
+        out, absorb_out = _free_name(out), _free_name(absorb_out)
+    output_path(out, True)
+
+    result = run_simulation(scenario, stand, duration=0.1, sample_rate=SAMPLE_RATE)
+    table, pulses = summary_table(result, "1. simulation: 30 kg from 0.2 m onto the drop stand at 200 kPa")
+    console.print(table)
+    result.plot(pulses=pulses).savefig(out, dpi=120)
+    console.print(f"figure written to {out}\n")
+
+    console.print(identification_table(scenario, stand))
+    if absorb:
+        from ..control.loop import absorb as run_absorb
+        from .control import metrics_table
+
+        with console.status("closed loop: identify, then control valve Z with each strategy ..."):
+            absorbed = run_absorb(scenario, stand, strategy="all", noise=NOISE, seed=0)
+        console.print(metrics_table(absorbed))
+        absorbed.plot().savefig(absorb_out, dpi=120)
+        console.print(f"figure written to {absorb_out}")
+
+
+def identification_table(scenario: Scenario, stand) -> Table:
+    """Peak-to-peak identification of ``scenario`` from simulated sensors with noise, next to the truth."""
+    from ..identify.peak_to_peak import identify
+    from ..sensors import record
+
+    recording = record(scenario, stand, sample_rate=SAMPLE_RATE, duration=0.1, noise=NOISE, seed=0,
+                       pre_trigger=0.02)
+    table = Table(title=f"2. identification from force + acceleration at {SAMPLE_RATE / 1e3:g} kHz, "
+                        f"{NOISE:.0%} noise (truth: M1 = {scenario.mass:g} kg, V0 = {scenario.velocity:.4f} m/s)")
+    for column in ("method", "M1 [kg]", "error", "V0 [m/s]", "error", "energy [J]", "ready at [ms]"):
+        table.add_column(column, justify="left" if column == "method" else "right")
+    answers = []
+    for variant in ("paper", "robust"):
+        try:
+            found = identify(recording, variant=variant)
+        except IdentificationError as exc:
+            table.add_row(variant, f"failed: {exc}", "", "", "", "", "")
+            continue
+        if variant == "robust" and found.early is not None:
+            answers.append(("robust, early", found.early))
+        answers.append((variant if variant == "paper" else "robust, final", found))
+    for label, found in answers:
+        table.add_row(label, _with_std(found.mass, found.mass_std, 2),
+                      f"{(found.mass / scenario.mass - 1):+.2%}", _with_std(found.velocity, found.velocity_std, 4),
+                      f"{(found.velocity / scenario.velocity - 1):+.2%}", f"{0.5 * found.mass * found.velocity**2:.1f}",
+                      f"{found.available_at * 1e3:.2f}")
+    return table
+
+
+def _with_std(value: float, std: float, digits: int) -> str:
+    return f"{value:.{digits}f}" if not math.isfinite(std) else f"{value:.{digits}f} ± {std:.{digits}f}"
+
+
+def _free_name(path: Path) -> Path:
+    """``path`` or, if it exists, the first free ``-N`` variant: an existing file is never overwritten."""
+    if not path.exists():
+        return path
+    for i in range(1, 10_000):
+        candidate = path.with_name(f"{path.stem}-{i}{path.suffix}")
+        if not candidate.exists():
+            return candidate
+    return path
