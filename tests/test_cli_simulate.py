@@ -86,9 +86,21 @@ def test_bad_input_exits_2_with_one_line(args, message, capsys):
     assert message in text
 
 
-def test_demo_writes_its_figure(tmp_path, capsys):
+def test_demo_runs_the_whole_chain(tmp_path, capsys):
     fig = tmp_path / "x.png"
     status, text = run(["demo", "--out", str(fig)], capsys)
     assert status == 0
     assert fig.read_bytes()[:4] == b"\x89PNG"
+    assert (tmp_path / "x-absorb.png").read_bytes()[:4] == b"\x89PNG"
     assert "contact pulses" in text and "peak contact force" in text
+    assert "robust, final" in text and "paper" in text  # identification of the built-in impact
+    assert "realtime" in text and "bottomed out" in text  # the closed loop
+
+
+def test_demo_never_overwrites_a_figure(tmp_path, capsys):
+    fig = tmp_path / "x.png"
+    fig.write_bytes(b"keep")
+    status, _ = run(["demo", "--out", str(fig), "--no-absorb"], capsys)
+    assert status == 0
+    assert fig.read_bytes() == b"keep"
+    assert (tmp_path / "x-1.png").read_bytes()[:4] == b"\x89PNG"

@@ -63,7 +63,7 @@ def identification_table(scenario: Scenario, stand) -> Table:
     table = Table(title=f"2. identification from force + acceleration at {SAMPLE_RATE / 1e3:g} kHz, "
                         f"{NOISE:.0%} noise (truth: M1 = {scenario.mass:g} kg, V0 = {scenario.velocity:.4f} m/s)")
     for column in ("method", "M1 [kg]", "error", "V0 [m/s]", "error", "energy [J]", "ready at [ms]"):
-        table.add_column(column, justify="left" if column == "method" else "right")
+        table.add_column(column, justify="left" if column == "method" else "right", no_wrap=column == "method")
     answers = []
     for variant in ("paper", "robust"):
         try:
