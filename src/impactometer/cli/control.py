@@ -11,9 +11,8 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import ParameterError
-from ..rig import get_rig
 from .app import app, console, output_path, quantity
-from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, RigOpt, VelocityOpt, scenario_from_options
+from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, RigOpt, VelocityOpt, stand_and_scenario
 
 #: rows of the metrics table: (label, key of AbsorptionMetrics.to_dict(), format)
 TABLE_ROWS = (
@@ -79,10 +78,8 @@ def absorb(
     from ..control.loop import absorb as run_absorb
     from ..control.strategies import strategy_names
 
-    stand = get_rig(rig, contact=contact)
-    if height is None and velocity is None:
-        height = "0.3m"
-    scenario = scenario_from_options(mass, height, velocity, pressure, stand)
+    stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
+                                         default_height="0.3m")
     names = strategy_names(strategy)
     output_path(plot, force, field="--plot")
     if response_map is not None and identify != "response-map":

@@ -11,10 +11,9 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import ParameterError
-from ..rig import get_rig
 from .app import app, console, output_path, quantity
 from .simulate import (ContactOpt, DurationOpt, HeightOpt, MassOpt, PressureOpt, RateOpt, RigOpt, VelocityOpt,
-                       scenario_from_options)
+                       stand_and_scenario)
 
 ForceChannelOpt = Annotated[Optional[str], typer.Option("--force-channel", help="Name of the contact force "
                                                                                  "channel.")]
@@ -65,10 +64,8 @@ def record(
 
     format_of(out)
     output_path(out, force)
-    stand = get_rig(rig, contact=contact)
-    if height is None and velocity is None:
-        height = "0.2m"
-    scenario = scenario_from_options(mass, height, velocity, pressure, stand)
+    stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
+                                         default_height="0.2m")
     level = _fraction(noise, "--noise")
     levels = {"contact_force": _fraction(force_noise, "--force-noise"),
               "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise")}

@@ -11,7 +11,8 @@ from rich.table import Table
 from ..identify.pulses import contact_pulses, stage_b_start
 from ..model import simulate as run_simulation
 from ..model.io import save_simulation
-from ..rig import Scenario, get_rig
+from ..errors import ParameterError
+from ..rig import Rig, Scenario, get_rig
 from .app import app, console, output_path, quantity
 
 MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30kg).")]
@@ -24,22 +25,22 @@ DurationOpt = Annotated[str, typer.Option("--duration", help="Simulated time aft
 RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the histories.")]
 
 
-def scenario_from_options(mass: str, height: str | None, velocity: str | None, pressure: str, rig) -> Scenario:
-    """Scenario from CLI strings: exactly one of height and velocity."""
+def stand_and_scenario(mass: str, height: str | None, velocity: str | None, pressure: str, *, rig: str | None,
+                       contact: str | None, default_height: str = "0.2m") -> tuple[Rig, Scenario]:
+    """The stand and the scenario of a command's options (neither height nor velocity: ``default_height``)."""
+    stand = get_rig(rig, contact=contact)
     m = quantity(mass, "mass", "--mass")
     p0 = quantity(pressure, "pressure", "--pressure")
-    if (height is None) == (velocity is None):
-        from ..errors import ParameterError
-
-        raise ParameterError("give exactly one of --height and --velocity, got "
-                             f"{'both' if height is not None else 'neither'}")
+    if height is not None and velocity is not None:
+        raise ParameterError(f"give exactly one of --height and --velocity (neither: a drop from {default_height}), "
+                             "got both")
     if velocity is not None:
         scenario = Scenario(mass=m, velocity=quantity(velocity, "velocity", "--velocity"), pressure_gauge=p0)
     else:
-        scenario = Scenario.from_height(mass=m, height=quantity(height, "length", "--height"), pressure_gauge=p0,
-                                        gravity=rig.gravity)
-    scenario.check_against(rig)
-    return scenario
+        scenario = Scenario.from_height(mass=m, height=quantity(height or default_height, "length", "--height"),
+                                        pressure_gauge=p0, gravity=stand.gravity)
+    scenario.check_against(stand)
+    return stand, scenario
 
 
 def summary_table(result, title: str) -> Table:
@@ -82,10 +83,7 @@ def simulate(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing output files.")] = False,
 ) -> None:
     """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""
-    stand = get_rig(rig, contact=contact)
-    if height is None and velocity is None:
-        height = "0.2m"
-    scenario = scenario_from_options(mass, height, velocity, pressure, stand)
+    stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)
     output_path(out, force)
     output_path(plot, force, field="--plot")
     result = run_simulation(scenario, stand, duration=quantity(duration, "time", "--duration"),
