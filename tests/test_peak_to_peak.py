@@ -151,3 +151,14 @@ def test_quantised_peaks_are_not_clipping_but_a_low_range_is(contact):
     clipped = record(scenario, rig, adc_range={"contact_force": (-1000.0, 5000.0)}, **kwargs)
     with pytest.raises(IdentificationError, match="saturated"):
         identify(clipped)
+
+
+def test_quantum_finds_adc_steps_and_ignores_continuous_data():
+    from impactometer.identify.peak_to_peak import quantum
+
+    rng = np.random.default_rng(0)
+    step = 0.125
+    assert quantum(np.round(rng.normal(0, 10, 500) / step) * step) == pytest.approx(step)
+    assert quantum(rng.normal(0, 10, 500)) == 0.0
+    # exact zeros next to a denormal-size value: no overflow warning, continuous
+    assert quantum(np.array([0.0, 5e-324, 1.0, 2.5, 7.0])) == 0.0

@@ -104,7 +104,7 @@ def quantum(x: np.ndarray) -> float:
     if values.size < 3:
         return 0.0
     step = float(np.min(np.diff(values)))
-    if step <= 0 or not np.allclose(np.round((values - values[0]) / step) * step, values - values[0],
+    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(np.round((values - values[0]) / step) * step, values - values[0],
                                     rtol=0, atol=1e-3 * step):
         return 0.0
     return step
