@@ -203,3 +203,20 @@ def test_equilibrium_start(stand, pressure, on_stop):
         assert r.pneumatic_force[0] == pytest.approx(weight, rel=1e-9)
     assert r.v2[0] == 0.0
     assert abs(r.a2[0]) < 1e-6  # [m/s²], against g = 9.81
+
+
+def test_friction_is_the_smoothed_coulomb_law():
+    """F·tanh(v/v_s) (evaluated through exp for 0.5 <= |x| < 20) within 4 ulp of the library tanh, odd, and
+    exactly ±F from |v/v_s| = 20 on; seeded random velocities over ±0.5 m/s plus the branch edges."""
+    from impactometer.model.forces import friction_force
+
+    rng = np.random.default_rng(11)
+    scale = 0.01
+    x = np.concatenate([rng.uniform(-50.0, 50.0, 20_000), [0.0, 0.5, -0.5, 0.4999999, 19.999999, 20.0, -20.0]])
+    for xi in x:
+        got = friction_force(xi * scale, 30.0, scale)
+        want = 30.0 * math.tanh(xi * scale / scale)
+        assert abs(got - want) <= 4 * np.spacing(abs(want)) + 1e-300, (xi, got, want)
+        assert friction_force(-xi * scale, 30.0, scale) == -got
+        if abs(xi) >= 20.0:
+            assert got == math.copysign(30.0, xi)

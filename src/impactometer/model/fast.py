@@ -42,6 +42,8 @@ _P = np.array([
 
 SAFETY, MIN_FACTOR, MAX_FACTOR = 0.9, 0.2, 10.0
 ERROR_EXPONENT = -1.0 / 5.0  # -1 / (error estimator order + 1)
+SMALL_ERROR = 5.9e-6  # error norms below this give a step factor > MAX_FACTOR (exactly: below 5.9049e-6)
+N = d.N_STATE  # loops over a compile-time state size
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -84,7 +86,7 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
     Returns a status code (0 = success) and the number of accepted steps. ``max_step`` [s] bounds the step size,
     ``max_steps`` the number of accepted steps.
     """
-    n = y0.size
+    n = N  # compile-time size: the loops are unrolled
     k1, k2, k3, k4, k5, k6, k7 = (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
                                   np.empty(n), np.empty(n))
     y = y0.copy()
@@ -96,6 +98,16 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
     for j in range(channel_index.size):
         if channel_index[j] >= d.N_STATE:
             full = True
+    # only the states the requested channels depend on are interpolated (all of u1..pU for a force/acceleration)
+    need = np.empty(N, dtype=np.int64)
+    m = 0
+    for i in range(N):
+        used = full and i <= d.P_UPPER
+        for j in range(channel_index.size):
+            used |= channel_index[j] == i
+        if used:
+            need[m] = i
+            m += 1
     valve = p[d.VALVE_AREA]
     t = 0.0
     t_end = t_out[-1]
@@ -154,7 +166,9 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
                 squares += e * e
             error_norm = math.sqrt(squares / n)
             if error_norm < 1.0:
-                factor = MAX_FACTOR if error_norm == 0.0 else min(MAX_FACTOR, SAFETY * error_norm**ERROR_EXPONENT)
+                # a small error norm gives MAX_FACTOR without the (costly) power
+                factor = (MAX_FACTOR if error_norm < SMALL_ERROR
+                          else min(MAX_FACTOR, SAFETY * error_norm**ERROR_EXPONENT))
                 if rejected:
                     factor = min(1.0, factor)
                 h_abs *= factor
@@ -168,7 +182,8 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
             rejected = True
         # samples inside (t, t_new]: continuous extension y(t + θh) = y + h·θ·(Q0 + θ·(Q1 + θ·(Q2 + θ·Q3)))
         if i_out < t_out.size and t_out[i_out] <= t_new:
-            for i in range(n):
+            for j in range(m):
+                i = need[j]
                 q1[i] = (_P[0, 1] * k1[i] + _P[2, 1] * k3[i] + _P[3, 1] * k4[i] + _P[4, 1] * k5[i]
                          + _P[5, 1] * k6[i] + _P[6, 1] * k7[i])
                 q2[i] = (_P[0, 2] * k1[i] + _P[2, 2] * k3[i] + _P[3, 2] * k4[i] + _P[4, 2] * k5[i]
@@ -177,7 +192,8 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
                          + _P[5, 3] * k6[i] + _P[6, 3] * k7[i])
         while i_out < t_out.size and t_out[i_out] <= t_new:
             theta = (t_out[i_out] - t) / h
-            for i in range(n):
+            for j in range(m):
+                i = need[j]
                 ys[i] = y[i] + h * theta * (k1[i] + theta * (q1[i] + theta * (q2[i] + theta * q3[i])))
             if full:  # written out here: a call per sample costs as much as the channels themselves
                 d.channels(ys, p, row)
