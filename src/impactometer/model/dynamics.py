@@ -39,25 +39,44 @@ def volumes(u2, p):
     return lower, upper
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def force_parameters(p):
+    """The parameters :func:`forces_of` depends on, as a tuple (read once, then passed by value)."""
+    return (int(p[LAW]), p[CONTACT_K], p[CONTACT_C], p[AREA], p[ROD_AREA], p[ATMOSPHERE], p[FRICTION],
+            p[FRICTION_SCALE], p[STOP_K], p[STOP_C], p[STROKE])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def forces_of(u1, v1, u2, v2, p_lower, p_upper, q):
+    """Contact, pneumatic, friction, top-stop and bottom-stop forces [N] (signs as in :mod:`.forces`) of the
+    displacements [m], velocities [m/s] and chamber pressures [Pa]; ``q`` from :func:`force_parameters`."""
+    law, k, c, area, rod_area, atmosphere, friction, friction_scale, stop_k, stop_c, stroke = q
+    fc = contact_force(u1 - u2, v1 - v2, law, k, c)
+    fp = pneumatic_force(p_lower, p_upper, area, rod_area, atmosphere)
+    ff = friction_force(v2, friction, friction_scale)
+    f_top = stop_force(-u2, -v2, stop_k, stop_c)
+    f_bottom = stop_force(u2 - stroke, v2, stop_k, stop_c)
+    return fc, fp, ff, f_top, f_bottom
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def derived_value(index, gravity, mass, piston_mass, fc, fp, ff, f_top, f_bottom):
+    """Value of the channel ``CHANNELS[index]`` (index >= N_STATE) given the forces of :func:`forces_of`."""
+    if index == N_STATE:  # a1
+        return gravity - fc / mass
+    if index == N_STATE + 1:  # a2
+        return gravity + (fc - fp - ff + f_top - f_bottom) / piston_mass
+    return (fc, fp, ff, f_top, f_bottom)[index - N_STATE - 2]
+
+
 @njit(cache=True, error_model="numpy")
 def channels(y, p, out):
     """Fill ``out`` (length N_CHANNEL) with the state and the forces and accelerations it implies."""
     for i in range(N_STATE):
         out[i] = y[i]
-    delta = y[U1] - y[U2]
-    delta_rate = y[V1] - y[V2]
-    fc = contact_force(delta, delta_rate, int(p[LAW]), p[CONTACT_K], p[CONTACT_C])
-    fp = pneumatic_force(y[P_LOWER], y[P_UPPER], p[AREA], p[ROD_AREA], p[ATMOSPHERE])
-    ff = friction_force(y[V2], p[FRICTION], p[FRICTION_SCALE])
-    f_top = stop_force(-y[U2], -y[V2], p[STOP_K], p[STOP_C])
-    f_bottom = stop_force(y[U2] - p[STROKE], y[V2], p[STOP_K], p[STOP_C])
-    out[9] = p[GRAVITY] - fc / p[MASS]
-    out[10] = p[GRAVITY] + (fc - fp - ff + f_top - f_bottom) / p[PISTON_MASS]
-    out[11] = fc
-    out[12] = fp
-    out[13] = ff
-    out[14] = f_top
-    out[15] = f_bottom
+    fc, fp, ff, f_top, f_bottom = forces_of(y[U1], y[V1], y[U2], y[V2], y[P_LOWER], y[P_UPPER], force_parameters(p))
+    for i in range(N_STATE, N_CHANNEL):
+        out[i] = derived_value(i, p[GRAVITY], p[MASS], p[PISTON_MASS], fc, fp, ff, f_top, f_bottom)
 
 
 @njit(cache=True, error_model="numpy")
@@ -68,13 +87,9 @@ def rhs(y, p, valve_area, dy):
     delta = y[U1] - u2
     delta_rate = y[V1] - v2
     law = int(p[LAW])
-    fc = contact_force(delta, delta_rate, law, p[CONTACT_K], p[CONTACT_C])
-    fp = pneumatic_force(y[P_LOWER], y[P_UPPER], p[AREA], p[ROD_AREA], p[ATMOSPHERE])
-    ff = friction_force(v2, p[FRICTION], p[FRICTION_SCALE])
+    fc, fp, ff, f_top, f_bottom = forces_of(y[U1], y[V1], u2, v2, y[P_LOWER], y[P_UPPER], force_parameters(p))
     top_pen = -u2
     bottom_pen = u2 - p[STROKE]
-    f_top = stop_force(top_pen, -v2, p[STOP_K], p[STOP_C])
-    f_bottom = stop_force(bottom_pen, v2, p[STOP_K], p[STOP_C])
     dy[U1] = y[V1]
     dy[V1] = p[GRAVITY] - fc / p[MASS]
     dy[U2] = v2

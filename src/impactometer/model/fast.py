@@ -109,6 +109,9 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
             need[m] = i
             m += 1
     valve = p[d.VALVE_AREA]
+    force_parameters = d.force_parameters(p)
+    gravity, mass, piston_mass = p[d.GRAVITY], p[d.MASS], p[d.PISTON_MASS]
+    fc = fp = ff = f_top = f_bottom = 0.0
     t = 0.0
     t_end = t_out[-1]
     i_out = 0
@@ -195,13 +198,13 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
             for j in range(m):
                 i = need[j]
                 ys[i] = y[i] + h * theta * (k1[i] + theta * (q1[i] + theta * (q2[i] + theta * q3[i])))
-            if full:  # written out here: a call per sample costs as much as the channels themselves
-                d.channels(ys, p, row)
-                for j in range(channel_index.size):
-                    out[j, i_out] = row[channel_index[j]]
-            else:
-                for j in range(channel_index.size):
-                    out[j, i_out] = ys[channel_index[j]]
+            if full:  # scalars and a tuple only: a call, or an array handed on, costs as much as the forces
+                fc, fp, ff, f_top, f_bottom = d.forces_of(ys[d.U1], ys[d.V1], ys[d.U2], ys[d.V2], ys[d.P_LOWER],
+                                                          ys[d.P_UPPER], force_parameters)
+            for j in range(channel_index.size):
+                c = channel_index[j]
+                out[j, i_out] = ys[c] if c < N else d.derived_value(c, gravity, mass, piston_mass, fc, fp, ff,
+                                                                    f_top, f_bottom)
             i_out += 1
         t = t_new
         for i in range(n):
