@@ -104,3 +104,9 @@ def test_demo_never_overwrites_a_figure(tmp_path, capsys):
     assert status == 0
     assert fig.read_bytes() == b"keep"
     assert (tmp_path / "x-1.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_error_line_keeps_bracketed_units(capsys):
+    status, text = run(["simulate", "--mass", "0kg"], capsys)
+    assert status == 2
+    assert "mass must be > 0 [kg], got 0.0" in text

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import sys
 
+from rich.markup import escape
+
 from ..errors import ImpactometerError
 from . import control, demo, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
 from .app import app, console
@@ -12,7 +14,7 @@ __all__ = ["app", "main"]
 
 
 def _fail(message: str, code: int) -> None:
-    console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
     sys.exit(code)
 
 

@@ -80,7 +80,7 @@ def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms
     rec = load(file, force_channel, acceleration_channel, group, cfc)
     if method == "response-map":
         if map_path is None:
-            raise ParameterError("--method response-map needs --map FILE (a response map built with build-map)")
+            raise ParameterError("--method response-map needs --map FILE (a response map built with impactometer map build)")
         from ..identify.response_map import identify_recording
 
         result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation)
