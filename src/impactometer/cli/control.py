@@ -93,7 +93,7 @@ def absorb(
     else:
         console.print(metrics_table(result))
         for note in result.notes:
-            console.print(f"[yellow]note:[/yellow] {note}")
+            console.print(f"[yellow]note:[/yellow] {escape(note)}")
     if plot is not None:
         result.plot().savefig(plot, dpi=120)
         if not as_json:
