@@ -26,6 +26,7 @@ def _check(name: str, value: Any, *, low: float | None = None, high: float | Non
     """Raise ParameterError unless ``value`` is a finite real within the bounds."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         raise ParameterError(f"{name} must be a finite number{unit}, got {value!r}")
+    value = float(value)  # numpy scalars print as plain numbers below
     if low is not None and (value <= low if low_open else value < low):
         raise ParameterError(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {value!r}")
     if high is not None and value > high:

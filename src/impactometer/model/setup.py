@@ -75,7 +75,7 @@ def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise ParameterError(f"{name}[{i}] must be a finite number {'>=' if zero_ok else '>'} 0 [{unit}], "
-                                 f"got {values[i]!r}")
+                                 f"got {float(values[i])!r}")
     placeholder = rigmod.Scenario(mass=1.0, velocity=1.0, pressure_gauge=0.0)
     rows = np.repeat(pack(rig, placeholder)[None, :], flat[0].size, axis=0)
     if overrides:  # one validated stand per distinct combination of override values
