@@ -38,8 +38,3 @@ class ResponseMapError(ImpactometerError, ValueError):
 class ControlError(ImpactometerError, RuntimeError):
     """An absorption strategy could not be computed or applied."""
 
-
-def require(condition: bool, message: str, error: type[ImpactometerError] = ParameterError) -> None:
-    """Raise ``error(message)`` unless ``condition`` holds."""
-    if not condition:
-        raise error(message)

@@ -37,7 +37,7 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     idx = np.concatenate([np.arange(p.first, p.end, dtype=float) for p in pulses])
     tau, f, jf, i_f, _, va, da = kin.at(idx)
     g = kin.gravity
-    t1, _, jf1, if1, _, va1, da1 = kin.at(np.array([onset1]))
+    t1, _, _, if1, _, _, da1 = kin.at(np.array([onset1]))
     sigma_f = max(noise_force, 1e-9 * float(np.max(f)))
     fpeak = float(np.max(f))
 

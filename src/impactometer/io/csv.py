@@ -22,7 +22,6 @@ from ..recording import Recording
 from .channels import RawData, metadata_from_json, plain
 
 SEPARATORS = (";", "\t", ",")
-RESERVED_SIDECAR_KEYS = ("sample_rate", "start_time")
 
 
 def sidecar_path(path: Path) -> Path:

@@ -8,7 +8,6 @@ dp/dt = γ·(R·T_in·ṁ_in − R·T·ṁ_out − p·V')/V, which reduces to dp
 
 from __future__ import annotations
 
-import numpy as np
 from numba import njit
 
 from .forces import (contact_energy, contact_force, contact_spring_force, friction_force, orifice_mass_flow,
@@ -150,7 +149,3 @@ def stored_energy(y, p):
         elastic += 0.5 * p[STOP_K] * bottom_pen**2
     return kinetic, potential, gas, elastic
 
-
-def empty_state() -> np.ndarray:
-    """A zero state vector."""
-    return np.zeros(N_STATE)
