@@ -43,7 +43,7 @@ def stand_and_scenario(mass: str, height: str | None, velocity: str | None, pres
     return stand, scenario
 
 
-def summary_table(result, title: str) -> Table:
+def summary_table(result, title: str) -> tuple[Table, list]:
     """Rich table of the headline numbers of a simulation."""
     pulses = contact_pulses(result.time, result.contact_force)
     b = stage_b_start(pulses)
