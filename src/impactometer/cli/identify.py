@@ -10,30 +10,14 @@ from typing import Annotated, Optional
 import typer
 from rich.table import Table
 
-from ..errors import ParameterError
+from ..errors import IdentificationError, ParameterError
 from .app import app, console, output_path
+from .reading import ReaderOptions, reader_options
 
 METHODS = ("peak-to-peak", "response-map")
-ForceOpt = Annotated[Optional[str], typer.Option("--force-channel", help="Name of the contact force channel.")]
-AccOpt = Annotated[Optional[str], typer.Option("--acceleration-channel", help="Name of the piston acceleration "
-                                                                             "channel.")]
-GroupOpt = Annotated[Optional[str], typer.Option("--group", help="HDF5/TDMS group holding the channels.")]
-CfcOpt = Annotated[Optional[int], typer.Option("--cfc", help="Apply a CFC filter (60, 180, 600, 1000) first.")]
 VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
 ContactOpt = Annotated[bool, typer.Option("--contact-phase", help="robust: add the contact-phase fit of the first "
                                                                    "two pulses to the final answer.")]
-
-
-def load(path: Path, force_channel, acceleration_channel, group, cfc):
-    """Read the file with the reader's channel options, optionally CFC-filtered."""
-    from ..io import read_recording
-
-    rec = read_recording(path, force_channel=force_channel, acceleration_channel=acceleration_channel, group=group)
-    if cfc is not None:
-        from ..filters import filter_recording
-
-        rec = filter_recording(rec, cfc)
-    return rec
 
 
 def _row(table: Table, label: str, value: float | None, std: float | None, unit: str, fmt: str) -> None:
@@ -61,6 +45,7 @@ def _table(result: dict, title: str) -> Table:
 
 
 @app.command()
+@reader_options
 def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms, mat).")],
              method: Annotated[str, typer.Option("--method", help="peak-to-peak or response-map.")] = "peak-to-peak",
              variant: VariantOpt = "robust",
@@ -71,13 +56,12 @@ def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Optional[Path], typer.Option("--plot", help="Save a figure of the instants used.")] = None,
              force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
-             force_channel: ForceOpt = None, acceleration_channel: AccOpt = None, group: GroupOpt = None,
-             cfc: CfcOpt = None) -> None:
+             reader: ReaderOptions = ReaderOptions()) -> None:
     """Identify the impacting mass and velocity of the first impact in FILE."""
     if method not in METHODS:
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
     output_path(plot, force, field="--plot")
-    rec = load(file, force_channel, acceleration_channel, group, cfc)
+    rec = reader.read(file)
     if method == "response-map":
         if map_path is None:
             raise ParameterError("--method response-map needs --map FILE (a response map built with impactometer map build)")
@@ -102,20 +86,20 @@ def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms
 
 
 @app.command()
+@reader_options
 def stream(file: Annotated[Path, typer.Argument(help="Recording to replay.")],
            variant: VariantOpt = "robust",
            contact_phase: ContactOpt = False,
            chunk: Annotated[int, typer.Option("--chunk", help="Samples per push.")] = 64,
            realtime: Annotated[bool, typer.Option("--realtime", help="Replay at the file's sample rate.")] = False,
            as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate.")] = False,
-           force_channel: ForceOpt = None, acceleration_channel: AccOpt = None, group: GroupOpt = None,
-           cfc: CfcOpt = None) -> None:
+           reader: ReaderOptions = ReaderOptions()) -> None:
     """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
     from ..identify.streaming import StreamingIdentifier
 
     if chunk < 1:
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
-    rec = load(file, force_channel, acceleration_channel, group, cfc)
+    rec = reader.read(file)
     f, a = rec.contact_force, rec.piston_acceleration
     ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
                                 contact_phase=contact_phase)
@@ -127,10 +111,14 @@ def stream(file: Annotated[Path, typer.Argument(help="Recording to replay.")],
                 clock.sleep(lag)
         for est in ident.push(f[k:k + chunk], a[k:k + chunk]):
             _print_estimate(est, as_json)
-    before = len(ident.completed)
-    ident.finish()
-    if len(ident.completed) == before and not ident.estimates:
-        console.print("no estimate: the stream holds no impact with enough contact pulses")
+    shown = len(ident.estimates)
+    final = ident.finish()
+    for est in ident.estimates[shown:]:  # the answer the end of the input completes
+        _print_estimate(est, as_json)
+    if final is None:
+        raise IdentificationError("no estimate: the stream holds no impact with enough contact pulses")
+    if not as_json:
+        console.print(_table(final.to_dict(), f"{file.name}: final answer of the stream ({variant})"))
 
 
 def _print_estimate(est, as_json: bool) -> None:

@@ -12,15 +12,9 @@ from rich.table import Table
 
 from ..errors import ParameterError
 from .app import app, console, output_path, quantity
+from .reading import ReaderOptions, reader_options
 from .simulate import (ContactOpt, DurationOpt, HeightOpt, MassOpt, PressureOpt, RateOpt, RigOpt, VelocityOpt,
                        stand_and_scenario)
-
-ForceChannelOpt = Annotated[Optional[str], typer.Option("--force-channel", help="Name of the contact force "
-                                                                                 "channel.")]
-AccChannelOpt = Annotated[Optional[str], typer.Option("--acceleration-channel", help="Name of the piston "
-                                                                                      "acceleration channel.")]
-GroupOpt = Annotated[Optional[str], typer.Option("--group", help="HDF5/TDMS group holding the channels.")]
-
 
 def _fraction(text: str | None, field: str) -> float | None:
     value = quantity(text, "fraction", field)
@@ -107,37 +101,20 @@ def _inspection_tables(rec, result) -> list[Table]:
 
 
 @app.command()
+@reader_options
 def inspect(
     file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms, mat).")],
-    force_channel: ForceChannelOpt = None,
-    acceleration_channel: AccChannelOpt = None,
-    group: GroupOpt = None,
-    flip_force: Annotated[bool, typer.Option("--flip-force", help="Change the sign of the force.")] = False,
-    flip_acceleration: Annotated[bool, typer.Option("--flip-acceleration", help="Change the sign of the "
-                                                                                "acceleration.")] = False,
-    acceleration_includes_gravity: Annotated[bool, typer.Option("--acceleration-includes-gravity",
-                                                                help="Add g back (sensor reads a − g).")] = False,
-    sample_rate: Annotated[Optional[str], typer.Option("--sample-rate", help="For files without a time base.")]
-    = None,
-    cfc: Annotated[Optional[int], typer.Option("--cfc", help="CFC filter class first (60, 180, 600, 1000).")]
-    = None,
     plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG of force and acceleration, pulses marked.")]
     = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
+    reader: ReaderOptions = ReaderOptions(),
 ) -> None:
     """Print what FILE holds: duration, rate, channels and units, peak force, contact pulses, stage B, noise."""
-    from ..filters import filter_recording
-    from ..io import read_recording
     from ..recording import inspect_recording
 
     output_path(plot, force, field="--plot")
-    rec = read_recording(file, force_channel=force_channel, acceleration_channel=acceleration_channel, group=group,
-                         flip_force=flip_force, flip_acceleration=flip_acceleration,
-                         acceleration_includes_gravity=acceleration_includes_gravity,
-                         sample_rate=quantity(sample_rate, "frequency", "--sample-rate"))
-    if cfc is not None:
-        rec = filter_recording(rec, cfc)
+    rec = reader.read(file)
     result = inspect_recording(rec)
     if as_json:
         console.print_json(json.dumps(result.to_dict()))

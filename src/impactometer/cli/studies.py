@@ -7,7 +7,6 @@ import time
 from pathlib import Path
 from typing import Annotated, Optional
 
-import click
 import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
     TimeRemainingColumn
@@ -122,7 +121,7 @@ def study(
                                progress=progress)
         except KeyboardInterrupt:
             console.print(f"interrupted: the finished chunks are kept in {out}; rerun the same command to resume")
-            raise click.exceptions.Abort() from None
+            raise typer.Abort() from None
     table = Table(title=f"studies in {out} ({time.perf_counter() - start:.1f} s)")
     for column in ("study", "cases", "reused chunks", "wall [s]", "compute [s]", "table"):
         table.add_column(column)

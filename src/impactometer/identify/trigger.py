@@ -4,6 +4,12 @@ One pass over the samples keeps a running (exponentially weighted) baseline and 
 when the force leaves the noise, reports the end of each contact pulse and closes the impact after a quiet spell
 or a maximum duration, then re-arms. Because it works sample by sample with all its state in two small arrays,
 its events do not depend on how the samples are chunked.
+
+A record may start at first contact (no quiet history before the impact: a simulation, a DAQ without
+pre-trigger). The warm-up then holds the rise of the first pulse, which a baseline would learn as noise; so at
+the end of the warm-up the spread of the samples is compared with the white noise seen in their second
+differences, and a warm-up that rose far above its first sample fires the trigger at sample 0 with a zero
+baseline (nothing before the record to learn an offset from).
 """
 
 from __future__ import annotations
@@ -24,15 +30,44 @@ TRIGGER_SIGMAS = 8.0
 #: pulse detection and release levels in the kernel [running standard deviations]
 PULSE_SIGMAS, RELEASE_SIGMAS = 5.0, 2.0
 
-# float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline, maximum of the pulse
-_MEAN, _VAR, _SIGMA, _BASE, _PMAX = range(5)
+# float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline, maximum of the pulse; while
+# learning: first sample, the two previous samples, sum of squared second differences, largest sample
+_MEAN, _VAR, _SIGMA, _BASE, _PMAX, _FIRST, _PREV1, _PREV2, _D2SUM, _WMAX = range(10)
 # int state: mode, samples seen, index of trigger, samples since trigger, quiet run, inside a pulse, past peak
 _MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE, _PAST = range(7)
 
 
 def new_state() -> tuple[np.ndarray, np.ndarray]:
     """Fresh (float, int) state arrays of the trigger."""
-    return np.zeros(5), np.zeros(7, dtype=np.int64)
+    return np.zeros(10), np.zeros(7, dtype=np.int64)
+
+
+@njit(cache=True)
+def _starts_in_contact(x, index, fstate, floor):
+    """Learn the warm-up sample ``x``; at its last sample, whether the record started at first contact.
+
+    True when the warm-up rose more than ``TRIGGER_SIGMAS`` white-noise standard deviations (from the second
+    differences, which a smooth pulse hardly has) above its first sample and its spread is as large.
+    """
+    if index == 0:
+        fstate[_FIRST] = x
+        fstate[_WMAX] = x
+        fstate[_D2SUM] = 0.0
+    else:
+        if index >= 2:
+            d2 = x - 2.0 * fstate[_PREV1] + fstate[_PREV2]
+            fstate[_D2SUM] += d2 * d2
+        if x > fstate[_WMAX]:
+            fstate[_WMAX] = x
+    fstate[_PREV2] = fstate[_PREV1]
+    fstate[_PREV1] = x
+    if index != WARM_SAMPLES - 1:
+        return False
+    noise = np.sqrt(fstate[_D2SUM] / (6.0 * (index - 1)))
+    level = TRIGGER_SIGMAS * noise
+    if level < floor:
+        level = floor
+    return fstate[_WMAX] - fstate[_FIRST] > level and np.sqrt(fstate[_VAR]) > level
 
 
 @njit(cache=True)
@@ -76,6 +111,20 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
                     rate = alpha
                 fstate[_MEAN] += rate * d
                 fstate[_VAR] = (1.0 - rate) * (fstate[_VAR] + rate * d * d)
+                if index < WARM_SAMPLES and _starts_in_contact(x, index, fstate, floor):
+                    istate[_MODE] = ACTIVE
+                    istate[_TRIG] = 0
+                    istate[_SINCE] = index
+                    noise = np.sqrt(fstate[_D2SUM] / (6.0 * (index - 1)))
+                    fstate[_SIGMA] = noise if noise * PULSE_SIGMAS > floor else floor / PULSE_SIGMAS
+                    fstate[_BASE] = 0.0
+                    fstate[_PMAX] = fstate[_WMAX]
+                    istate[_PAST] = 0
+                    istate[_INSIDE] = 1 if x > RELEASE_SIGMAS * fstate[_SIGMA] else 0
+                    istate[_QUIET] = 1 - istate[_INSIDE]
+                    events[n_events, 0] = EVENT_TRIGGER
+                    events[n_events, 1] = 0
+                    n_events += 1
             continue
         istate[_SINCE] += 1
         y = x - fstate[_BASE]

@@ -1,0 +1,72 @@
+"""The reader options every command that reads a lab file shares (``inspect``, ``identify``, ``stream``).
+
+One set, declared once: :func:`reader_options` adds them to a command's signature and hands the command a
+:class:`ReaderOptions` that reads the file.
+"""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Annotated, Optional, get_type_hints
+
+import typer
+
+from .app import quantity
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReaderOptions:
+    """How to read a recording: channel names, group, sign flips, gravity, time base, CFC filter."""
+
+    force_channel: Annotated[Optional[str], typer.Option(
+        "--force-channel", help="Name of the contact force channel (default: found by name).")] = None
+    acceleration_channel: Annotated[Optional[str], typer.Option(
+        "--acceleration-channel", help="Name of the piston acceleration channel (default: found by name).")] = None
+    group: Annotated[Optional[str], typer.Option(
+        "--group", help="HDF5/TDMS group holding the channels.")] = None
+    flip_force: Annotated[bool, typer.Option(
+        "--flip-force", help="Change the sign of the force (a load cell mounted the other way).")] = False
+    flip_acceleration: Annotated[bool, typer.Option(
+        "--flip-acceleration", help="Change the sign of the acceleration (an accelerometer pointing up).")] = False
+    acceleration_includes_gravity: Annotated[bool, typer.Option(
+        "--acceleration-includes-gravity", help="The accelerometer reads a − g: add g back.")] = False
+    sample_rate: Annotated[Optional[str], typer.Option(
+        "--sample-rate", help="Sample rate of a file without a time base (e.g. 50kHz).")] = None
+    cfc: Annotated[Optional[int], typer.Option(
+        "--cfc", help="Apply a CFC filter class first (60, 180, 600, 1000).")] = None
+
+    def read(self, path: Path):
+        """The :class:`~impactometer.recording.Recording` in ``path``, read and filtered as the options say."""
+        from ..io import read_recording
+
+        rec = read_recording(path, force_channel=self.force_channel, acceleration_channel=self.acceleration_channel,
+                             group=self.group, flip_force=self.flip_force, flip_acceleration=self.flip_acceleration,
+                             acceleration_includes_gravity=self.acceleration_includes_gravity,
+                             sample_rate=quantity(self.sample_rate, "frequency", "--sample-rate"))
+        if self.cfc is not None:
+            from ..filters import filter_recording
+
+            rec = filter_recording(rec, self.cfc)
+        return rec
+
+
+def reader_options(command):
+    """Decorator: append the :class:`ReaderOptions` options to a typer command that takes ``reader``."""
+    signature = inspect.signature(command, eval_str=True)
+    own = [p for p in signature.parameters.values() if p.name != "reader"]
+    hints = get_type_hints(ReaderOptions, include_extras=True)
+    added = [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default, annotation=hints[f.name])
+             for f in fields(ReaderOptions)]
+    names = [f.name for f in fields(ReaderOptions)]
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        reader = ReaderOptions(**{name: kwargs.pop(name) for name in names if name in kwargs})
+        return command(*args, reader=reader, **kwargs)
+
+    wrapper.__signature__ = signature.replace(parameters=own + added)
+    wrapper.__annotations__ = {p.name: p.annotation for p in own + added}
+    return wrapper
