@@ -87,23 +87,26 @@ def test_bad_input_exits_2_with_one_line(args, message, capsys):
 
 
 def test_demo_runs_the_whole_chain(tmp_path, capsys):
-    fig = tmp_path / "x.png"
-    status, text = run(["demo", "--out", str(fig)], capsys)
+    out = tmp_path / "demo"
+    status, text = run(["demo", "--out", str(out)], capsys)
     assert status == 0
-    assert fig.read_bytes()[:4] == b"\x89PNG"
-    assert (tmp_path / "x-absorb.png").read_bytes()[:4] == b"\x89PNG"
+    assert (out / "impact.png").read_bytes()[:4] == b"\x89PNG"
+    assert (out / "absorb.png").read_bytes()[:4] == b"\x89PNG"
     assert "contact pulses" in text and "peak contact force" in text
     assert "robust, final" in text and "paper" in text  # identification of the built-in impact
     assert "realtime" in text and "bottomed out" in text  # the closed loop
 
 
-def test_demo_never_overwrites_a_figure(tmp_path, capsys):
-    fig = tmp_path / "x.png"
-    fig.write_bytes(b"keep")
-    status, _ = run(["demo", "--out", str(fig), "--no-absorb"], capsys)
-    assert status == 0
-    assert fig.read_bytes() == b"keep"
-    assert (tmp_path / "x-1.png").read_bytes()[:4] == b"\x89PNG"
+def test_demo_replaces_its_folder_only_with_force(tmp_path, capsys):
+    out = tmp_path / "demo"
+    out.mkdir()
+    (out / "impact.png").write_bytes(b"keep")
+    status, text = run(["demo", "--out", str(out), "--no-absorb"], capsys)
+    assert status == 2 and "--force" in text
+    assert (out / "impact.png").read_bytes() == b"keep"
+    status, _ = run(["demo", "--out", str(out), "--no-absorb", "--force"], capsys)
+    assert status == 0 and (out / "impact.png").read_bytes()[:4] == b"\x89PNG"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["demo"]  # nothing piles up beside it
 
 
 def test_error_line_keeps_bracketed_units(capsys):

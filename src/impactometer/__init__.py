@@ -5,7 +5,6 @@ SI units everywhere (kg, m, s, N, Pa absolute unless named ``gauge``); the axis 
 
 from .errors import (ControlError, IdentificationError, ImpactometerError, ParameterError, RecordingError,
                      ResponseMapError, SimulationError, UnitError)
-from .model import BatchResult, SimulationResult, simulate, simulate_batch
 from .rig import PRESETS, Contact, Cylinder, Friction, Gas, Rig, Scenario, Stops, Valve, get_rig, load_toml
 
 __version__ = "0.1.0"
@@ -14,3 +13,15 @@ __all__ = ["ControlError", "IdentificationError", "ImpactometerError", "Paramete
            "ResponseMapError", "SimulationError", "UnitError", "BatchResult", "SimulationResult", "simulate",
            "simulate_batch", "PRESETS", "Contact", "Cylinder", "Friction", "Gas", "Rig", "Scenario", "Stops",
            "Valve", "get_rig", "load_toml", "__version__"]
+
+_MODEL = ("BatchResult", "SimulationResult", "simulate", "simulate_batch")
+
+
+def __getattr__(name: str):
+    # the model imports numba and scipy (about a second): only when asked for, so that the command line starts fast
+    if name in _MODEL:
+        from . import model
+
+        return getattr(model, name)
+    raise AttributeError(f"module 'impactometer' has no attribute {name!r}")
+

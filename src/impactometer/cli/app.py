@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -10,9 +11,23 @@ from rich.console import Console
 from ..errors import ParameterError
 from ..units import parse_quantity
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, rich_markup_mode=None,
                   help="On-line impact load identification and adaptive impact absorption.")
 console = Console()
+
+
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"impactometer {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                                   help="Print the version and exit.")] = False) -> None:
+    """On-line impact load identification and adaptive impact absorption."""
 
 
 def quantity(text: str | None, dimension: str, field: str) -> float | None:
@@ -27,3 +42,12 @@ def output_path(path: Path | None, force: bool, *, field: str = "--out") -> Path
     if path is not None and not path.parent.exists():
         raise ParameterError(f"{field}: folder {str(path.parent)!r} does not exist")
     return path
+
+
+def announce_compilation() -> None:
+    """Say so on stderr before the compiled kernels are built for the first time (no cache beside the model)."""
+    import sys
+
+    cache = Path(__file__).resolve().parents[1] / "model" / "__pycache__"
+    if not any(cache.glob("*.nbi")):
+        print("compiling kernels, once, about 15 s ...", file=sys.stderr, flush=True)

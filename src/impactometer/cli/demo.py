@@ -9,10 +9,8 @@ from typing import Annotated
 import typer
 from rich.table import Table
 
-from ..errors import IdentificationError
-from ..model import simulate as run_simulation
-from ..rig import Scenario, get_rig
-from .app import app, console, output_path
+from ..errors import ParameterError
+from .app import announce_compilation, app, console
 from .simulate import summary_table
 
 NOISE = 0.02  # sensor noise of the demo, fraction of each channel's RMS
@@ -21,25 +19,33 @@ SAMPLE_RATE = 50e3  # [Hz]
 
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option("--out", help="PNG figure of the impact; the absorber figure goes to "
-                                                    "OUT-absorb.png.")] = Path("impactometer-demo.png"),
+    out: Annotated[Path, typer.Option("--out", help="Output folder of the figures (impact.png, absorb.png); "
+                                                    "created, replaced only with --force.")]
+    = Path("impactometer-demo"),
     absorb: Annotated[bool, typer.Option("--absorb/--no-absorb", help="Also run the closed loop identify → "
                                                                       "control (about 10 s).")] = True,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite existing figures.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace the figures of an existing output folder.")]
+    = False,
 ) -> None:
     """Built-in impact (30 kg from 0.2 m onto the stand at 200 kPa): simulate, identify, absorb, draw."""
+    from ..model import simulate as run_simulation
+    from ..rig import Scenario, get_rig
+
+    if out.exists() and not (force and out.is_dir()):
+        raise ParameterError(f"--out: {str(out)!r} exists; pass --force to replace the demo's figures in it, or "
+                             "choose another folder with --out DIR" if out.is_dir() else
+                             f"--out: {str(out)!r} is a file; expected a folder for the demo's figures")
+    out.mkdir(parents=True, exist_ok=True)
     stand = get_rig()
     scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3, gravity=stand.gravity)
-    absorb_out = out.with_name(f"{out.stem}-absorb{out.suffix}")
-    if not force:
-        out, absorb_out = _free_name(out), _free_name(absorb_out)
-    output_path(out, True)
+    impact_png, absorb_png = out / "impact.png", out / "absorb.png"
+    announce_compilation()
 
     result = run_simulation(scenario, stand, duration=0.1, sample_rate=SAMPLE_RATE)
     table, pulses = summary_table(result, "1. simulation: 30 kg from 0.2 m onto the drop stand at 200 kPa")
     console.print(table)
-    result.plot(pulses=pulses).savefig(out, dpi=120)
-    console.print(f"figure written to {out}\n")
+    result.plot(pulses=pulses).savefig(impact_png, dpi=120)
+    console.print(f"figure written to {impact_png}\n")
 
     console.print(identification_table(scenario, stand))
     if absorb:
@@ -49,12 +55,13 @@ def demo(
         with console.status("closed loop: identify, then control valve Z with each strategy ..."):
             absorbed = run_absorb(scenario, stand, strategy="all", noise=NOISE, seed=0)
         console.print(metrics_table(absorbed))
-        absorbed.plot().savefig(absorb_out, dpi=120)
-        console.print(f"figure written to {absorb_out}")
+        absorbed.plot().savefig(absorb_png, dpi=120)
+        console.print(f"figure written to {absorb_png}")
 
 
-def identification_table(scenario: Scenario, stand) -> Table:
+def identification_table(scenario, stand) -> Table:
     """Peak-to-peak identification of ``scenario`` from simulated sensors with noise, next to the truth."""
+    from ..errors import IdentificationError
     from ..identify.peak_to_peak import identify
     from ..sensors import record
 
@@ -84,14 +91,3 @@ def identification_table(scenario: Scenario, stand) -> Table:
 
 def _with_std(value: float, std: float, digits: int) -> str:
     return f"{value:.{digits}f}" if not math.isfinite(std) else f"{value:.{digits}f} ± {std:.{digits}f}"
-
-
-def _free_name(path: Path) -> Path:
-    """``path`` or, if it exists, the first free ``-N`` variant: an existing file is never overwritten."""
-    if not path.exists():
-        return path
-    for i in range(1, 10_000):
-        candidate = path.with_name(f"{path.stem}-{i}{path.suffix}")
-        if not candidate.exists():
-            return candidate
-    return path

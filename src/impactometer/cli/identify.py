@@ -46,13 +46,13 @@ def _table(result: dict, title: str) -> Table:
 
 @app.command()
 @reader_options
-def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms, mat).")],
+def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording (csv, h5, tdms, mat).")],
              method: Annotated[str, typer.Option("--method", help="peak-to-peak or response-map.")] = "peak-to-peak",
              variant: VariantOpt = "robust",
              contact_phase: ContactOpt = False,
              map_path: Annotated[Optional[Path], typer.Option("--map", help="Response map (.h5).")] = None,
              search: Annotated[str, typer.Option("--search", help="Map search: fast or brute.")] = "fast",
-             allow_extrapolation: Annotated[bool, typer.Option("--allow-extrapolation")] = False,
+             allow_extrapolation: Annotated[bool, typer.Option("--allow-extrapolation", help="response-map: answer outside the map's grid (else an error).")] = False,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Optional[Path], typer.Option("--plot", help="Save a figure of the instants used.")] = None,
              force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
@@ -87,7 +87,7 @@ def identify(file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms
 
 @app.command()
 @reader_options
-def stream(file: Annotated[Path, typer.Argument(help="Recording to replay.")],
+def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording to replay.")],
            variant: VariantOpt = "robust",
            contact_phase: ContactOpt = False,
            chunk: Annotated[int, typer.Option("--chunk", help="Samples per push.")] = 64,

@@ -103,7 +103,7 @@ def _inspection_tables(rec, result) -> list[Table]:
 @app.command()
 @reader_options
 def inspect(
-    file: Annotated[Path, typer.Argument(help="Recording (csv, h5, tdms, mat).")],
+    file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording (csv, h5, tdms, mat).")],
     plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG of force and acceleration, pulses marked.")]
     = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,

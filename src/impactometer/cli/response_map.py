@@ -7,7 +7,6 @@ import math
 from pathlib import Path
 from typing import Annotated, Optional
 
-import numpy as np
 import typer
 from rich.table import Table
 
@@ -79,6 +78,8 @@ def build(
 ) -> None:
     """Build a response map by simulation (or from calibration recordings) and save it (HDF5)."""
     from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
+    import numpy as np
+
     from ..rig import get_rig
 
     output_path(out, force)
@@ -146,7 +147,7 @@ def info_table(summary: dict, title: str) -> Table:
 
 @map_app.command("info")
 def info(
-    path: Annotated[Path, typer.Argument(help="Map file (HDF5).")],
+    path: Annotated[Path, typer.Argument(metavar="FILE", help="Map file (HDF5).")],
     as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
 ) -> None:
     """Describe a response map: features, axes, pressure(s), stand and provenance (the file is validated)."""

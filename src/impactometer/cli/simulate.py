@@ -8,12 +8,8 @@ from typing import Annotated, Optional
 import typer
 from rich.table import Table
 
-from ..identify.pulses import contact_pulses, stage_b_start
-from ..model import simulate as run_simulation
-from ..model.io import save_simulation
 from ..errors import ParameterError
-from ..rig import Rig, Scenario, get_rig
-from .app import app, console, output_path, quantity
+from .app import announce_compilation, app, console, output_path, quantity
 
 MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30kg).")]
 HeightOpt = Annotated[Optional[str], typer.Option("--height", help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
@@ -26,8 +22,10 @@ RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the 
 
 
 def stand_and_scenario(mass: str, height: str | None, velocity: str | None, pressure: str, *, rig: str | None,
-                       contact: str | None, default_height: str = "0.2m") -> tuple[Rig, Scenario]:
-    """The stand and the scenario of a command's options (neither height nor velocity: ``default_height``)."""
+                       contact: str | None, default_height: str = "0.2m"):
+    """The (stand, scenario) of a command's options (neither height nor velocity: ``default_height``)."""
+    from ..rig import Scenario, get_rig
+
     stand = get_rig(rig, contact=contact)
     m = quantity(mass, "mass", "--mass")
     p0 = quantity(pressure, "pressure", "--pressure")
@@ -45,6 +43,8 @@ def stand_and_scenario(mass: str, height: str | None, velocity: str | None, pres
 
 def summary_table(result, title: str) -> tuple[Table, list]:
     """Rich table of the headline numbers of a simulation."""
+    from ..identify.pulses import contact_pulses, stage_b_start
+
     pulses = contact_pulses(result.time, result.contact_force)
     b = stage_b_start(pulses)
     table = Table(title=title)
@@ -83,6 +83,10 @@ def simulate(
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing output files.")] = False,
 ) -> None:
     """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""
+    from ..model import simulate as run_simulation
+    from ..model.io import save_simulation
+
+    announce_compilation()
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)
     output_path(out, force)
     output_path(plot, force, field="--plot")

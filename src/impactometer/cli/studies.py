@@ -13,7 +13,6 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from ..errors import ParameterError
-from ..rig import get_rig
 from .app import app, console, quantity
 
 
@@ -101,6 +100,8 @@ def study(
     else:
         get_study(name)
         names = [name]
+    from ..rig import get_rig
+
     options = StudyOptions(rig=get_rig(rig, contact=contact), seed=seed, seeds=seeds, grid=grid,
                            noise=_fraction(noise, "--noise"),
                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),

@@ -1,0 +1,5 @@
+"""``python -m impactometer``: the command line."""
+
+from impactometer.cli import main
+
+main()

@@ -1,0 +1,50 @@
+"""The README's tour runs verbatim, in order, in an empty folder, and each command gives a sensible result."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import impactometer
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def tour_commands() -> list[str]:
+    """The lines of the ```bash block under '## A tour', comments removed."""
+    text = README.read_text(encoding="utf-8")
+    block = re.search(r"^## A tour\s*```bash\n(.*?)^```", text, flags=re.S | re.M)
+    assert block, "README.md has no ```bash block under '## A tour'"
+    return [shlex.split(line, comments=True) for line in block.group(1).splitlines() if line.strip()]
+
+
+def test_tour_block_is_found():
+    commands = tour_commands()
+    assert len(commands) >= 8 and all(c[0] == "impactometer" for c in commands)
+
+
+@pytest.mark.slow
+def test_readme_tour_runs_verbatim(tmp_path):
+    env = dict(os.environ, MPLBACKEND="Agg",
+               PYTHONPATH=os.pathsep.join([str(Path(impactometer.__file__).parents[1]), os.environ.get("PYTHONPATH", "")]))
+    outputs = {}
+    for argv in tour_commands():
+        done = subprocess.run([sys.executable, "-m", "impactometer", *argv[1:]], cwd=tmp_path, env=env,
+                              capture_output=True, text=True, stdin=subprocess.DEVNULL, timeout=600)
+        assert done.returncode == 0, f"{shlex.join(argv)} failed:\n{done.stdout}\n{done.stderr}"
+        outputs[shlex.join(argv[:3])] = done.stdout
+    # the file the tour records starts at first contact and is identified: 30 kg at 1.98 m/s, 2 % noise
+    robust = json.loads(outputs["impactometer identify drop.tdms"])
+    assert abs(robust["mass_kg"] / 30.0 - 1) < 0.05 and abs(robust["velocity_m_s"] / 1.981 - 1) < 0.02
+    stream_final = [line for line in outputs["impactometer stream drop.tdms"].splitlines() if "estimate" in line][-1]
+    assert f"{robust['mass_kg']:8.3f}" in stream_final  # the stream's last estimate is the batch's final answer
+    for name in ("impactometer-demo", "run.h5", "run.png", "drop.tdms", "drop.png", "map.h5", "fig10.png",
+                 "studies/index.html"):
+        assert (tmp_path / name).exists(), name
