@@ -67,3 +67,49 @@ def test_identify_with_a_response_map(rec_file, tmp_path, capsys):
     data = json.loads(capsys.readouterr().out)
     assert data["method"] == "response-map"
     assert data["velocity_m_s"] == pytest.approx(1.8, rel=0.02) and data["mass_kg"] == pytest.approx(25, rel=0.1)
+
+
+def test_lab_csv_without_time_and_a_flipped_load_cell(tmp_path, capsys):
+    """A CSV with no time column and a load cell mounted the other way, identified from the command line."""
+    r = simulate(Scenario(mass=25, velocity=1.8, pressure_gauge=1.5e5), duration=0.08)
+    path = tmp_path / "export.csv"
+    rows = np.column_stack([np.r_[np.zeros(1000), -r.contact_force] / 1e3, np.r_[np.zeros(1000), r.a2]])
+    np.savetxt(path, rows, delimiter=",", header="Force [kN],Acceleration [m/s^2]", comments="")
+    status = _exit(["identify", str(path), "--json"])
+    assert status == 2 and "error" in capsys.readouterr().out  # no time base: says so
+    main(["identify", str(path), "--json", "--sample-rate", "50kHz", "--flip-force"])
+    data = json.loads(capsys.readouterr().out)
+    assert data["mass_kg"] == pytest.approx(25.0, rel=5e-3)
+    main(["stream", str(path), "--sample-rate", "50kHz", "--flip-force"])
+    text = capsys.readouterr().out
+    last = [line for line in text.splitlines() if "estimate" in line][-1]
+    assert f"{data['mass_kg']:8.3f}" in last and "final answer" in text
+
+
+def test_record_that_starts_at_first_contact(tmp_path, capsys):
+    """No pre-trigger: contact from the first sample, as simulate writes; batch and stream agree on the end."""
+    path = tmp_path / "drop.tdms"
+    main(["record", "--out", str(path), "--pre-trigger", "0", "--noise", "2%", "--seed", "1"])
+    capsys.readouterr()
+    main(["identify", str(path), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert data["mass_kg"] == pytest.approx(30.0, rel=0.05)
+    assert data["velocity_m_s"] == pytest.approx(1.981, rel=0.02)
+    main(["stream", str(path), "--json"])
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert lines[-1]["mass_kg"] == pytest.approx(data["mass_kg"], rel=1e-9)
+    assert lines[-1]["available_at_s"] == pytest.approx(data["available_at_s"])
+
+
+def test_bare_noise_is_a_fraction(tmp_path, capsys):
+    status = _exit(["record", "--out", str(tmp_path / "a.tdms"), "--noise", "2"])
+    assert status == 2 and "2%" in capsys.readouterr().out
+    assert not (tmp_path / "a.tdms").exists()
+
+
+def _exit(argv) -> int:
+    try:
+        main(argv)
+    except SystemExit as exc:
+        return exc.code
+    return 0

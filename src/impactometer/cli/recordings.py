@@ -16,10 +16,14 @@ from .reading import ReaderOptions, reader_options
 from .simulate import (ContactOpt, DurationOpt, HeightOpt, MassOpt, PressureOpt, RateOpt, RigOpt, VelocityOpt,
                        stand_and_scenario)
 
-def _fraction(text: str | None, field: str) -> float | None:
+def _fraction(text: str | None, field: str, force: bool = False) -> float | None:
+    """A noise level: ``2%`` or a bare fraction (0.02); a bare number above 0.5 is refused without ``--force``."""
     value = quantity(text, "fraction", field)
     if value is not None and not 0 <= value <= 10:
         raise ParameterError(f"{field} must be within [0, 1000%], got {text!r}")
+    if value is not None and value > 0.5 and "%" not in text and not force:
+        raise ParameterError(f"{field} {text!r} is a fraction of the channel's RMS, that is {value:.0%}; write "
+                             f"{text}% for {text} percent, or pass --force to record {value:.0%} noise")
     return value
 
 
@@ -35,14 +39,16 @@ def record(
     rig: RigOpt = None,
     duration: DurationOpt = "50ms",
     sample_rate: RateOpt = "50kHz",
-    noise: Annotated[str, typer.Option("--noise", help="Noise std as a fraction of each channel's RMS (e.g. 2%).")]
+    noise: Annotated[str, typer.Option("--noise", help="Noise std per channel: a percent of its RMS (2%) or a "
+                                                       "fraction (0.02); a fraction above 0.5 needs --force.")]
     = "0",
     force_noise: Annotated[Optional[str], typer.Option("--force-noise", help="Noise of the force channel "
                                                                              "(overrides --noise).")] = None,
     acceleration_noise: Annotated[Optional[str], typer.Option("--acceleration-noise", help="Noise of the "
                                                               "acceleration channel (overrides --noise).")] = None,
     seed: Annotated[Optional[int], typer.Option("--seed", help="Seed of the noise.")] = None,
-    pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Time recorded before first contact.")] = "0",
+    pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Time recorded before first contact "
+                                                                   "(0: the record starts at contact).")] = "20ms",
     anti_alias: Annotated[str, typer.Option("--anti-alias", help="causal (default), zero-phase or none.")]
     = "causal",
     adc_bits: Annotated[Optional[int], typer.Option("--adc-bits", help="ADC resolution; auto range ±1.25·peak.")]
@@ -50,7 +56,8 @@ def record(
     include_gravity: Annotated[bool, typer.Option("--include-gravity", help="Accelerometer reads a − g.")] = False,
     extra: Annotated[Optional[list[str]], typer.Option("--extra", help="Extra channel (piston_displacement, "
                                                                        "pressure_lower, ...); repeatable.")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file; allow a noise fraction above "
+                                                        "0.5.")] = False,
 ) -> None:
     """Simulate one drop test and write what the stand's sensors and DAQ would record."""
     from ..io import format_of, write_recording
@@ -60,9 +67,9 @@ def record(
     output_path(out, force)
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
                                          default_height="0.2m")
-    level = _fraction(noise, "--noise")
-    levels = {"contact_force": _fraction(force_noise, "--force-noise"),
-              "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise")}
+    level = _fraction(noise, "--noise", force)
+    levels = {"contact_force": _fraction(force_noise, "--force-noise", force),
+              "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise", force)}
     levels = {name: level if value is None else value for name, value in levels.items()}
     rec = make_recording(scenario, stand, sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
                          duration=quantity(duration, "time", "--duration"), noise=levels, seed=seed,
