@@ -220,3 +220,12 @@ def test_friction_is_the_smoothed_coulomb_law():
         assert friction_force(-xi * scale, 30.0, scale) == -got
         if abs(xi) >= 20.0:
             assert got == math.copysign(30.0, xi)
+
+
+def test_kinetic_energy_is_absolute(stand):
+    """The kinetic energy of the result is ½M1v1² + ½m2v2², never a change from t = 0."""
+    from impactometer import Scenario, simulate
+
+    result = simulate(Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3), stand, duration=0.05)
+    assert result.kinetic_energy[0] == pytest.approx(0.5 * 30.0 * 2.0**2, rel=1e-6)
+    assert result.kinetic_energy.min() >= 0.0

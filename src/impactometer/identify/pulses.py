@@ -25,8 +25,8 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
                    sustained_factor: float = 4.0) -> list[Pulse]:
     """Contact pulses of ``force`` [N] sampled at ``time`` [s]: runs where the force exceeds ``threshold`` [N].
 
-    A pulse is marked ``sustained`` (stage B) when it lasts to the end of the record or lasts longer than
-    ``sustained_factor`` times the first pulse; pulses after the first sustained one are not reported.
+    A pulse is marked ``sustained`` (stage B) when it lasts longer than ``sustained_factor`` times the first pulse
+    (the first pulse itself never is); pulses after the first sustained one are not reported.
     """
     time = np.asarray(time, dtype=float)
     force = np.asarray(force, dtype=float)
@@ -48,7 +48,9 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
         t_start = time[max(i0 - 1, 0)]
         t_end = time[min(i1, force.size - 1)]
         first = pulses[0].end - pulses[0].start if pulses else None
-        sustained = i1 == force.size or (first is not None and t_end - t_start > sustained_factor * first)
+        # a pulse cut by the end of the record is stage B only once it has lasted that long: a short one is
+        # simply the next bounce, cut
+        sustained = first is not None and t_end - t_start > sustained_factor * first
         pulses.append(Pulse(start=float(t_start), peak_time=float(time[ipk]), end=float(t_end),
                             peak_force=float(force[ipk]),
                             impulse=float(np.trapezoid(np.clip(force[segment], 0.0, None), time[segment])),

@@ -52,7 +52,8 @@ class SimulationResult:
 
     @property
     def total_energy(self) -> np.ndarray:
-        """Stored + dissipated energy relative to t = 0 [J]; constant up to integration error."""
+        """Kinetic + elastic energy, changes of potential and gas energy from t = 0, and dissipated energy [J];
+        constant up to integration error."""
         return (self.kinetic_energy + self.potential_energy + self.gas_energy + self.elastic_energy
                 + self.dissipated_energy)
 

@@ -136,8 +136,8 @@ def _energies(chans, p):
 
 def _result(t, chans, p, y0, rig, scenario, integrator) -> SimulationResult:
     energies = _energies(chans, p)
-    energies -= energies[:, :1]
-    energies[3] += _energies(y0.reshape(-1, 1), p)[3, 0]  # elastic energy is absolute (zero unless on a stop)
+    # kinetic and elastic energies are absolute (never negative); potential and gas energies are changes from t = 0
+    energies[1:3] -= energies[1:3, :1].copy()
     named = dict(zip(d.CHANNELS, chans))
     return SimulationResult(
         time=t, u1=named["u1"], v1=named["v1"], u2=named["u2"], v2=named["v2"], a1=named["a1"], a2=named["a2"],
