@@ -17,7 +17,8 @@ def test_record_writes_the_format_of_the_extension(tmp_path, ext, capsys):
           "--noise", "2%", "--seed", "4", "--duration", "20ms", "--out", str(out)])
     assert "written to" in capsys.readouterr().out
     rec = read_recording(out)
-    assert rec.sample_rate == 50e3 and len(rec) == 1001
+    assert rec.sample_rate == 50e3 and len(rec) == 2001  # 20 ms default pre-trigger + 20 ms after contact
+    assert rec.start_time == pytest.approx(-0.02)
     assert rec.truth("mass_kg") == 30.0
     assert rec.truth("velocity_m_s") == pytest.approx(np.sqrt(2 * 9.81 * 0.2), rel=1e-12)
     assert rec.metadata["noise"] == {"contact_force": 0.02, "piston_acceleration": 0.02}
