@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from impactometer.cli import main
+from impactometer.cli.app import with_uncertainty
 from impactometer.io import write_recording
 from impactometer.model import simulate
 from impactometer.recording import Recording
@@ -83,7 +84,7 @@ def test_lab_csv_without_time_and_a_flipped_load_cell(tmp_path, capsys):
     main(["stream", str(path), "--sample-rate", "50kHz", "--flip-force"])
     text = capsys.readouterr().out
     last = [line for line in text.splitlines() if "estimate" in line][-1]
-    assert f"{data['mass_kg']:8.3f}" in last and "final answer" in text
+    assert with_uncertainty(data["mass_kg"], data["mass_std_kg"], "kg") in last and "final answer" in text
 
 
 def test_record_that_starts_at_first_contact(tmp_path, capsys):
@@ -113,3 +114,20 @@ def _exit(argv) -> int:
     except SystemExit as exc:
         return exc.code
     return 0
+
+
+def test_paper_variant_cautions_on_noise(tmp_path, capsys):
+    path = tmp_path / "noisy.tdms"
+    main(["record", "--out", str(path), "--noise", "2%", "--seed", "2"])
+    main(["record", "--out", str(tmp_path / "clean.tdms")])
+    capsys.readouterr()
+    main(["identify", str(path), "--json", "--variant", "paper"])
+    assert "noise-free" in json.loads(capsys.readouterr().out)["caution"]
+    main(["identify", str(tmp_path / "clean.tdms"), "--json", "--variant", "paper"])
+    assert "caution" not in json.loads(capsys.readouterr().out)
+
+
+def test_uncertainty_is_rounded_at_the_first_digit_of_its_error():
+    assert with_uncertainty(1.97013, 0.00396, "m/s") == "1.970 ± 0.004 m/s"
+    assert with_uncertainty(30.1, 0.2003, "kg") == "30.1 ± 0.2 kg"
+    assert with_uncertainty(34.5123, float("nan"), "kg") == "34.51 kg"

@@ -31,8 +31,8 @@ def _rendered_status(page: Path, profile: Path) -> str:
     """The page's own figure check (body[data-figures]) after Chromium loaded it and ran its script."""
     browser = _chromium()
     if browser is None:
-        pytest.skip("Chromium is not installed here and could not be installed (apt-get install chromium); "
-                    "the report rendering check needs a headless browser")
+        pytest.skip("no Chromium on PATH (chromium, chromium-browser, google-chrome); the report rendering check "
+                    "needs a headless browser (.ci/run installs Debian's chromium where apt-get can)")
     dom = subprocess.run([browser, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", "--virtual-time-budget=10000",
                           "--dump-dom", page.as_uri()], capture_output=True, text=True, timeout=120).stdout
     match = re.search(r'<body[^>]*data-figures="([^"]*)"', dom)

@@ -15,6 +15,11 @@ def _pyplot():
     return plt
 
 
+def legend_outside(ax, **options) -> None:
+    """Legend to the right of ``ax``, off the data."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, **options)
+
+
 def shade_pulses(ax, pulses, *, scale: float = 1e3) -> None:
     """Shade contact pulses (stage A, blue) and sustained contact (stage B, orange) on ``ax`` (time in ms)."""
     first_a = first_b = True
@@ -46,21 +51,37 @@ def plot_simulation(result, axes=None, *, pulses=None):
     axes[0].set_ylabel("contact force [kN]")
     axes[0].set_title(f"M1 = {s.mass:g} kg, V0 = {s.velocity:.3f} m/s, p0 = {s.pressure_gauge / 1e3:g} kPa "
                       f"({result.rig.contact.law})")
-    axes[1].plot(t, result.a2 / 1e3, color="tab:red", lw=1)
+    acceleration = result.a2 / 1e3
+    axes[1].plot(t, acceleration, color="tab:red", lw=1)
     axes[1].set_ylabel("piston acceleration [km/s²]")
+    _scale_without_stops(axes[1], t, acceleration, (result.top_stop_force > 0) | (result.bottom_stop_force > 0))
     axes[2].plot(t, result.u1 * 1e3, label="mass u1")
     axes[2].plot(t, result.u2 * 1e3, label="piston u2", ls="--")
     axes[2].set_ylabel("displacement [mm]")
-    axes[2].legend(loc="upper left")
+    legend_outside(axes[2])
     axes[3].plot(t, result.pressure_lower / 1e3, label="lower chamber")
     axes[3].plot(t, result.pressure_upper / 1e3, label="upper chamber")
     axes[3].set_ylabel("pressure [kPa abs]")
     axes[3].set_xlabel("time after first contact [ms]")
-    axes[3].legend(loc="upper left")
+    legend_outside(axes[3])
     for ax in axes:
         ax.set_xlim(t[0], t[-1])
         ax.grid(alpha=0.3)
         shade_pulses(ax, pulses)
     if pulses:
-        axes[0].legend(loc="upper right")
+        legend_outside(axes[0])
     return fig
+
+
+def _scale_without_stops(ax, t, values, on_stop) -> None:
+    """Y limits of ``values`` off the stops: a stop's spike is marked, not allowed to flatten the rest."""
+    free = ~np.asarray(on_stop)
+    if free.all() or not free.any():
+        return
+    low, high = float(values[free].min()), float(values[free].max())
+    pad = 0.1 * (high - low or 1.0)
+    ax.set_ylim(low - pad, high + pad)
+    k = int(np.argmax(np.abs(values)))
+    if not low - pad <= values[k] <= high + pad:
+        ax.annotate(f"stop: {values[k]:.1f} (off scale)", xy=(t[k], high + pad if values[k] > 0 else low - pad),
+                    xytext=(-4, -12 if values[k] > 0 else 4), textcoords="offset points", ha="right", fontsize=8)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .plotting import _pyplot, shade_pulses
+from .plotting import _pyplot, legend_outside, shade_pulses
 from .recording import ACCELERATION, FORCE
 
 
@@ -37,18 +37,22 @@ def plot_recording(recording, axes=None, *, inspection=None):
         inspection = inspect_recording(recording)
     t = recording.time * 1e3
     colors = {FORCE: "k", ACCELERATION: "tab:red"}
+    # the two sensor channels are SI inside; drawn as every figure draws them
+    labels = {FORCE: ("contact force [kN]", 1e-3), ACCELERATION: ("piston acceleration [km/s²]", 1e-3)}
     for ax, name in zip(axes, names):
-        ax.plot(t, recording.channel(name), color=colors.get(name, "tab:blue"), lw=0.8)
-        ax.set_ylabel(f"{name} [{recording.unit(name)}]" if recording.unit(name) else name)
+        unit = recording.unit(name)
+        label, scale = labels.get(name, (f"{name.replace('_', ' ')} [{unit}]" if unit else name, 1.0))
+        ax.plot(t, recording.channel(name) * scale, color=colors.get(name, "tab:blue"), lw=0.8)
+        ax.set_ylabel(label)
         ax.set_xlim(t[0], t[-1])
         ax.grid(alpha=0.3)
         shade_pulses(ax, inspection.pulses)
     if FORCE in names and inspection.pulses:
         ax = axes[names.index(FORCE)]
         ax.plot([p.peak_time * 1e3 for p in inspection.pulses],
-                [p.peak_force + inspection.force_offset for p in inspection.pulses], "v", color="tab:blue",
+                [(p.peak_force + inspection.force_offset) * 1e-3 for p in inspection.pulses], "v", color="tab:blue",
                 label="pulse peaks")
-        ax.legend(loc="upper right")
+        legend_outside(ax)
     axes[-1].set_xlabel("time [ms]")
     axes[0].set_title(f"{recording.source}: {inspection.samples} samples at {recording.sample_rate:g} Hz")
     return fig

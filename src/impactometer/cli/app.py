@@ -6,13 +6,32 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+import typer.core
 from rich.console import Console
 
 from ..errors import ParameterError
 from ..units import parse_quantity
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False, rich_markup_mode=None,
-                  help="On-line impact load identification and adaptive impact absorption.")
+class Command(typer.core.TyperCommand):
+    """A command whose usage line names its arguments as click does (``FILE``, not ``{FILE}``)."""
+
+    def collect_usage_pieces(self, ctx):
+        return [piece[1:-1] if piece.startswith("{") and piece.endswith("}") else piece
+                for piece in super().collect_usage_pieces(ctx)]
+
+
+class App(typer.Typer):
+    """The typer application of impactometer: plain help text (no type placeholders), :class:`Command` commands."""
+
+    def __init__(self, **options):
+        super().__init__(**{"no_args_is_help": True, "rich_markup_mode": None, **options})
+
+    def command(self, *args, **options):
+        return super().command(*args, **{"cls": Command, **options})
+
+
+app = App(add_completion=False, pretty_exceptions_enable=False,
+          help="On-line impact load identification and adaptive impact absorption.")
 console = Console()
 
 
@@ -51,3 +70,15 @@ def announce_compilation() -> None:
     cache = Path(__file__).resolve().parents[1] / "model" / "__pycache__"
     if not any(cache.glob("*.nbi")):
         print("compiling kernels, once, about 15 s ...", file=sys.stderr, flush=True)
+
+
+def with_uncertainty(value: float, std: float | None, unit: str = "", *, digits: int = 4) -> str:
+    """``value ± std unit`` with the value rounded where the standard error's first digit sits (1.970 ± 0.004 m/s);
+    without a finite, positive ``std``, ``digits`` significant digits."""
+    import math
+
+    suffix = f" {unit}" if unit else ""
+    if std is None or not math.isfinite(std) or std <= 0:
+        return f"{value:.{digits}g}{suffix}"
+    decimals = max(0, -math.floor(math.log10(std)))
+    return f"{value:.{decimals}f} ± {std:.{decimals}f}{suffix}"

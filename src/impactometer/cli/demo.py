@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import ParameterError
-from .app import announce_compilation, app, console
+from .app import announce_compilation, app, console, with_uncertainty
 from .simulate import summary_table
 
 NOISE = 0.02  # sensor noise of the demo, fraction of each channel's RMS
@@ -68,9 +68,10 @@ def identification_table(scenario, stand) -> Table:
     recording = record(scenario, stand, sample_rate=SAMPLE_RATE, duration=0.1, noise=NOISE, seed=0,
                        pre_trigger=0.02)
     table = Table(title=f"2. identification from force + acceleration at {SAMPLE_RATE / 1e3:g} kHz, "
-                        f"{NOISE:.0%} noise (truth: M1 = {scenario.mass:g} kg, V0 = {scenario.velocity:.4f} m/s)")
-    for column in ("method", "M1 [kg]", "error", "V0 [m/s]", "error", "energy [J]", "ready at [ms]"):
-        table.add_column(column, justify="left" if column == "method" else "right", no_wrap=column == "method")
+                        f"{NOISE:.0%} noise (truth: M1 = {scenario.mass:g} kg, V0 = {scenario.velocity:.3f} m/s)")
+    for column in ("method", "M1 [kg]", "error [%]", "V0 [m/s]", "error [%]", "energy [J]", "ready [ms]"):
+        table.add_column(escape(column), justify="left" if column == "method" else "right",
+                         no_wrap=column in ("method", "M1 [kg]", "V0 [m/s]"))
     answers = []
     for variant in ("paper", "robust"):
         try:
@@ -82,12 +83,11 @@ def identification_table(scenario, stand) -> Table:
             answers.append(("robust, early", found.early))
         answers.append((variant if variant == "paper" else "robust, final", found))
     for label, found in answers:
-        table.add_row(label, _with_std(found.mass, found.mass_std, 2),
-                      f"{(found.mass / scenario.mass - 1):+.2%}", _with_std(found.velocity, found.velocity_std, 4),
-                      f"{(found.velocity / scenario.velocity - 1):+.2%}", f"{0.5 * found.mass * found.velocity**2:.1f}",
+        table.add_row(label, with_uncertainty(found.mass, found.mass_std), f"{100 * (found.mass / scenario.mass - 1):+.2f}",
+                      with_uncertainty(found.velocity, found.velocity_std),
+                      f"{100 * (found.velocity / scenario.velocity - 1):+.2f}", f"{found.energy:.1f}",
                       f"{found.available_at * 1e3:.2f}")
+    cautions = [found.details["caution"] for _, found in answers if found.details.get("caution")]
+    if cautions:
+        table.caption = f"paper: caution: {cautions[0]}"
     return table
-
-
-def _with_std(value: float, std: float, digits: int) -> str:
-    return f"{value:.{digits}f}" if not math.isfinite(std) else f"{value:.{digits}f} ± {std:.{digits}f}"

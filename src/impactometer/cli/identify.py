@@ -11,7 +11,7 @@ import typer
 from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
-from .app import app, console, output_path
+from .app import app, console, output_path, with_uncertainty
 from .reading import ReaderOptions, reader_options
 
 METHODS = ("peak-to-peak", "response-map")
@@ -20,27 +20,29 @@ ContactOpt = Annotated[bool, typer.Option("--contact-phase", help="robust: add t
                                                                    "two pulses to the final answer.")]
 
 
-def _row(table: Table, label: str, value: float | None, std: float | None, unit: str, fmt: str) -> None:
-    if value is None:
-        return
-    text = format(value, fmt) + (f" ± {format(std, fmt)}" if std is not None else "")
-    table.add_row(label, f"{text} {unit}")
+def _row(table: Table, label: str, value: float | None, std: float | None, unit: str) -> None:
+    if value is not None:
+        table.add_row(label, with_uncertainty(value, std, unit))
 
 
 def _table(result: dict, title: str) -> Table:
     table = Table(title=title, show_header=False)
+    table.add_column("quantity", no_wrap=True)
+    table.add_column("value")
     for key, sub in (("final", result), ("early", result.get("early"))):
         if not sub:
             continue
         prefix = "" if key == "final" else "early: "
-        _row(table, prefix + "mass M1", sub["mass_kg"], sub.get("mass_std_kg"), "kg", ".4g")
-        _row(table, prefix + "velocity V0", sub["velocity_m_s"], sub.get("velocity_std_m_s"), "m/s", ".4g")
-        _row(table, prefix + "energy", sub["energy_J"], sub.get("energy_std_J"), "J", ".4g")
+        _row(table, prefix + "mass M1", sub["mass_kg"], sub.get("mass_std_kg"), "kg")
+        _row(table, prefix + "velocity V0", sub["velocity_m_s"], sub.get("velocity_std_m_s"), "m/s")
+        _row(table, prefix + "energy", sub["energy_J"], sub.get("energy_std_J"), "J")
         if sub.get("available_at_s") is not None:
             table.add_row(prefix + "available at", f"{sub['available_at_s'] * 1e3:.3f} ms")
     for key in ("t00_s", "t01_s", "t11_s"):
         if result.get(key) is not None:
             table.add_row(key[:-2], f"{result[key] * 1e3:.3f} ms")
+    if result.get("caution"):
+        table.add_row("caution", result["caution"])
     return table
 
 
@@ -76,7 +78,8 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     if as_json:
         typer.echo(json.dumps(data))
     else:
-        console.print(_table(data, f"{file.name}: {method} ({data.get('variant', '')})"))
+        detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
+        console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
         if method != "peak-to-peak":
             raise ParameterError("--plot is available for --method peak-to-peak")
@@ -130,6 +133,6 @@ def _print_estimate(est, as_json: bool) -> None:
         d["kind"] = kind
         typer.echo(json.dumps(d))
         return
-    console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {est.mass:8.3f} ± {est.mass_std:.3f} kg  "
-                  f"V0 = {est.velocity:6.4f} ± {est.velocity_std:.4f} m/s  E = {est.energy:8.2f} J", highlight=False,
-                  soft_wrap=True)
+    console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {with_uncertainty(est.mass, est.mass_std, 'kg')}  "
+                  f"V0 = {with_uncertainty(est.velocity, est.velocity_std, 'm/s')}  E = {est.energy:.1f} J",
+                  highlight=False, soft_wrap=True)

@@ -11,9 +11,9 @@ import typer
 from rich.table import Table
 
 from ..errors import ParameterError
-from .app import app, console, output_path, quantity
+from .app import App, app, console, output_path, quantity
 
-map_app = typer.Typer(no_args_is_help=True, help="Response maps: build a database of features, inspect it.")
+map_app = App(help="Response maps: build a database of features, inspect it.")
 app.add_typer(map_app, name="map")
 
 

@@ -13,6 +13,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from ..errors import ParameterError
+from ..units import parse_quantity
 from .app import app, console, quantity
 
 
@@ -30,10 +31,34 @@ def _print_list() -> None:
     for name, study in STUDIES.items():
         missing = study.missing()
         defaults = {**study.defaults, "chunk_size": study.chunk_size}
-        settings = ", ".join(f"{k}={json.dumps(v)}" for k, v in defaults.items())
+        settings = ", ".join(f"{k}={json.dumps(_with_units(k, v))}" for k, v in defaults.items())
         table.add_row(name, study.figure or "–", study.title, settings,
                       "ready" if not missing else f"needs {', '.join(missing)}")
     console.print(table)
+
+
+#: settings that carry a unit: shown with it (kPa, kHz, ms), and given with or without it (bare: SI)
+SETTING_UNITS = {"pressures": ("pressure", "kPa", 1e3), "velocities": ("velocity", "m/s", 1.0),
+                 "rates": ("frequency", "kHz", 1e3), "windows": ("time", "ms", 1e-3)}
+
+
+def _with_units(key: str, value):
+    """A setting as the list shows it: quantities as strings with a unit (``"20kPa"``)."""
+    if key not in SETTING_UNITS or not isinstance(value, list):
+        return value
+    _, unit, scale = SETTING_UNITS[key]
+    return [f"{v / scale:g}{unit}" for v in value]
+
+
+def _in_si(key: str, value):
+    """A ``--set`` value with unit strings (``["20kPa", "100kPa"]``) in SI; other values as given."""
+    name = key.rpartition(".")[2]
+    if name not in SETTING_UNITS:
+        return value
+    dimension = SETTING_UNITS[name][0]
+    if isinstance(value, list):
+        return [parse_quantity(v, dimension, field=f"--set {key}") if isinstance(v, str) else v for v in value]
+    return parse_quantity(value, dimension, field=f"--set {key}") if isinstance(value, str) else value
 
 
 def _parse_params(items: list[str] | None) -> dict:
@@ -43,9 +68,9 @@ def _parse_params(items: list[str] | None) -> dict:
         if not sep or "." not in key:
             raise ParameterError(f"--set must look like STUDY.SETTING=VALUE (value in JSON), got {item!r}")
         try:
-            params[key] = json.loads(value)
+            params[key] = _in_si(key, json.loads(value))
         except ValueError:
-            params[key] = value
+            params[key] = _in_si(key, value)
     return params
 
 

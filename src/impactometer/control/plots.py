@@ -13,6 +13,12 @@ import numpy as np
 COLOURS = {"closed": "tab:gray", "constant": "tab:blue", "realtime": "tab:red", "realtime (oracle)": "tab:orange"}
 
 
+def legend_outside(ax) -> None:
+    from ..plotting import legend_outside as outside
+
+    outside(ax)
+
+
 def _pyplot():
     from ..plotting import _pyplot as pyplot
 
@@ -51,12 +57,12 @@ def plot_absorption(result, ax=None):
     how = "oracle" if ident.method == "oracle" else f"identified ({ident.method}): M1 = {ident.mass:.1f} kg, " \
                                                       f"V0 = {ident.velocity:.2f} m/s"
     axes[0].set_title(f"M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, p0 = {s.pressure_gauge / 1e3:g} kPa — {how}")
-    axes[0].legend(loc="upper right", fontsize=8)
+    legend_outside(axes[0])
     if len(axes) > 1:
         usable = result.absorber.usable_stroke(result.rig)
         axes[1].axhline(usable * 1e3, color="k", ls="--", lw=1, label="usable stroke")
         axes[1].set_ylabel("mass displacement [mm]")
-        axes[1].legend(loc="lower right", fontsize=8)
+        legend_outside(axes[1])
     axes[-1].set_xlabel("time after first contact [ms]")
     return fig
 

@@ -198,10 +198,28 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
                                   f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
+    details = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
+    caution = paper_caution(seg)
+    if caution:
+        details["caution"] = caution
     return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(p2.peak),
                           t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(p2.peak),
-                          variant="paper", details={"noise_force_N": seg.noise_force,
-                                                    "noise_acceleration_m_s2": seg.noise_acceleration})
+                          variant="paper", details=details)
+
+
+#: noise, as a fraction of a channel's peak, above which the paper variant's answer carries a caution [-]
+PAPER_NOISE_LIMIT = 0.005
+
+
+def paper_caution(seg: Segment) -> str | None:
+    """A caution when the paper's assumption of noise-free channels is visibly violated, else None."""
+    force = seg.noise_force / max(float(np.max(np.abs(seg.force))), 1e-300)
+    acceleration = seg.noise_acceleration / max(float(np.max(np.abs(seg.acceleration))), 1e-300)
+    if max(force, acceleration) <= PAPER_NOISE_LIMIT:
+        return None
+    return (f"eqs. (3)-(5) read single samples at the force peaks and assume noise-free channels; here the noise "
+            f"is {force:.1%} of the peak force and {acceleration:.1%} of the peak acceleration, so this answer "
+            "may be far off (the robust variant accounts for the noise)")
 
 
 def segment_onset(seg: Segment, pulse: PulseSpan) -> tuple[float, float]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 def plot_identification(recording, result, ax=None):
     """Force and piston acceleration vs time with t00, t01, t11 and the onsets used marked; returns the figure."""
-    from ..plotting import _pyplot
+    from ..plotting import _pyplot, legend_outside
 
     plt = _pyplot()
     if ax is None:
@@ -25,7 +25,7 @@ def plot_identification(recording, result, ax=None):
             a.axvline(when * 1e3, color=color, ls="--", lw=1, label=name if a is axes[0] else None)
     for k, onset in enumerate(result.onsets):
         axes[0].axvline(onset * 1e3, color="tab:orange", lw=0.6, alpha=0.7, label="onsets" if k == 0 else None)
-    axes[0].legend(loc="upper right")
+    legend_outside(axes[0])
     axes[0].set_title(f"{result.variant}: M1 = {result.mass:.3g} kg, V0 = {result.velocity:.4g} m/s "
                       f"(available at {result.available_at * 1e3:.2f} ms)")
     return fig

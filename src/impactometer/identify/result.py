@@ -63,7 +63,8 @@ class Identification:
                 "t00_s": num(self.t00), "t01_s": num(self.t01), "t11_s": num(self.t11),
                 "method": self.method, "variant": self.variant,
                 "early": None if self.early is None else self.early.to_dict(),
-                "onsets_s": [float(t) for t in self.onsets]}
+                "onsets_s": [float(t) for t in self.onsets],
+                **({"caution": self.details["caution"]} if self.details.get("caution") else {})}
 
     def plot(self, recording, ax=None):
         """Force and acceleration with the instants used marked (matplotlib imported lazily)."""
