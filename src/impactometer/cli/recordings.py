@@ -94,13 +94,13 @@ def _inspection_tables(rec, result) -> list[Table]:
     for key, value in result.truth.items():
         head.add_row(f"truth {key}", f"{value:g}")
     channels = Table(title="channels")
-    for column in ("name", "unit", "min", "max", "noise std"):
+    for column in ("name", "unit", "min", "max", "noise std (same unit)"):
         channels.add_column(column, justify="left" if column in ("name", "unit") else "right")
     for name, c in result.channels.items():
         channels.add_row(escape(name), escape(c.unit), f"{c.minimum:.4g}", f"{c.maximum:.4g}", f"{c.noise:.3g}")
     pulses = Table(title="contact pulses")
-    for column in ("#", "start (ms)", "peak (ms)", "end (ms)", "peak force (N)", "impulse (N·s)", "stage"):
-        pulses.add_column(column, justify="right")
+    for column in ("#", "start [ms]", "peak [ms]", "end [ms]", "peak force [N]", "impulse [N·s]", "stage"):
+        pulses.add_column(escape(column), justify="right")
     for i, p in enumerate(result.pulses, start=1):
         pulses.add_row(str(i), f"{p.start * 1e3:.3f}", f"{p.peak_time * 1e3:.3f}", f"{p.end * 1e3:.3f}",
                        f"{p.peak_force:.1f}", f"{p.impulse:.4g}", "B" if p.sustained else "A")

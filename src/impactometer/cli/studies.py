@@ -10,6 +10,7 @@ from typing import Annotated, Optional
 import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
     TimeRemainingColumn
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import ParameterError
@@ -27,7 +28,7 @@ def _print_list() -> None:
     load_studies()
     table = Table(title="studies")
     for column in ("name", "paper", "title", "settings (--set NAME.SETTING=JSON)", "status"):
-        table.add_column(column)
+        table.add_column(escape(column), overflow="fold")
     for name, study in STUDIES.items():
         missing = study.missing()
         defaults = {**study.defaults, "chunk_size": study.chunk_size}
@@ -150,7 +151,7 @@ def study(
             raise typer.Abort() from None
     table = Table(title=f"studies in {out} ({time.perf_counter() - start:.1f} s)")
     for column in ("study", "cases", "reused chunks", "wall [s]", "compute [s]", "table"):
-        table.add_column(column)
+        table.add_column(escape(column), overflow="fold", justify="left" if column in ("study", "table") else "right")
     for run in runs:
         table.add_row(run.name, str(run.cases), f"{run.reused_chunks}/{run.chunks}", f"{run.wall_time:.1f}",
                       f"{run.compute_time:.1f}", str(run.table))

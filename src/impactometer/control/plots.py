@@ -56,7 +56,8 @@ def plot_absorption(result, ax=None):
     ident = result.identified
     how = "oracle" if ident.method == "oracle" else f"identified ({ident.method}): M1 = {ident.mass:.1f} kg, " \
                                                       f"V0 = {ident.velocity:.2f} m/s"
-    axes[0].set_title(f"M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, p0 = {s.pressure_gauge / 1e3:g} kPa — {how}")
+    axes[0].set_title(f"M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, p0 = {s.pressure_gauge / 1e3:g} kPa\n{how}",
+                      fontsize=10)
     legend_outside(axes[0])
     if len(axes) > 1:
         usable = result.absorber.usable_stroke(result.rig)
