@@ -117,4 +117,5 @@ def test_plot_marks_the_pulses(noisy):
     fig = noisy.plot()
     force_axis = fig.axes[0]
     assert len(force_axis.patches) == len(inspect_recording(noisy).pulses)
-    assert force_axis.get_ylabel() == "contact_force [N]"
+    assert force_axis.get_ylabel() == "contact force [kN]"  # as every figure of the package labels it
+    assert fig.axes[1].get_ylabel() == "piston acceleration [km/s²]"
