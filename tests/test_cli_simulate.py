@@ -95,6 +95,7 @@ def test_demo_runs_the_whole_chain(tmp_path, capsys):
     assert "contact pulses" in text and "peak contact force" in text
     assert "robust, final" in text and "paper" in text  # identification of the built-in impact
     assert "realtime" in text and "bottomed out" in text  # the closed loop
+    assert "…" not in text and "M1 [kg]" in text  # nothing cut at 80 columns, units kept in the headers
 
 
 def test_demo_replaces_its_folder_only_with_force(tmp_path, capsys):

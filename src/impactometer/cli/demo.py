@@ -69,7 +69,7 @@ def identification_table(scenario, stand) -> Table:
                        pre_trigger=0.02)
     table = Table(title=f"2. identification from force + acceleration at {SAMPLE_RATE / 1e3:g} kHz, "
                         f"{NOISE:.0%} noise (truth: M1 = {scenario.mass:g} kg, V0 = {scenario.velocity:.3f} m/s)")
-    for column in ("method", "M1 [kg]", "error [%]", "V0 [m/s]", "error [%]", "energy [J]", "ready [ms]"):
+    for column in ("method", "M1 [kg]", "error [%]", "V0 [m/s]", "error [%]", "E [J]", "ready [ms]"):
         table.add_column(escape(column), justify="left" if column == "method" else "right",
                          no_wrap=column in ("method", "M1 [kg]", "V0 [m/s]"))
     answers = []
