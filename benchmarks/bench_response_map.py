@@ -57,8 +57,8 @@ def main() -> None:
                 repeats = 200 if search == "fast" else (3 if size >= 1000 else 20)
                 wall, cpu = per_call(lambda y: identify_features(y, rmap, search=search), ys, repeats)
                 results = [identify_features(y, rmap, search=search) for y in ys]
-                em = np.mean([abs(r.mass / m - 1) for r, m in zip(results, m_true)])
-                ev = np.mean([abs(r.velocity / v - 1) for r, v in zip(results, v_true)])
+                em = np.mean([abs(r.mass / m - 1) for r, m in zip(results, m_true, strict=False)])
+                ev = np.mean([abs(r.velocity / v - 1) for r, v in zip(results, v_true, strict=False)])
                 walls[search] = wall
                 ratio = f"{walls['brute'] / walls['fast']:11.0f}" if search == "brute" else ""
                 print(f"{features:16s} {size:5d} {search:6s} {wall * 1e6:9.1f}µs {cpu * 1e6:9.1f}µs "

@@ -73,7 +73,7 @@ def time_solve_ivp(params, rhs, rtol, t_eval, method="RK45"):
     atol = absolute_tolerance(rtol)
     solutions = []
     start, start_cpu = time.perf_counter(), time.process_time()
-    for p, y0 in zip(params, initial_states(params)):
+    for p, y0 in zip(params, initial_states(params), strict=False):
         valve = float(p[d.VALVE_AREA])
 
         def fun(_t, y, p=p, valve=valve):
@@ -86,7 +86,7 @@ def time_solve_ivp(params, rhs, rtol, t_eval, method="RK45"):
     elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
     force = d.CHANNELS.index("contact_force")
     forces = np.array([reference.channels_of(sol.y, p)[force] if sol.status == 0 else np.full(t_eval.size, np.nan)
-                       for sol, p in zip(solutions, params)])
+                       for sol, p in zip(solutions, params, strict=False)])
     return elapsed, cpu, forces
 
 

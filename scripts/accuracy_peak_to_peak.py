@@ -23,7 +23,6 @@ from impactometer.identify.peak_to_peak import identify
 from impactometer.rig import get_rig
 from impactometer.sensors import record_batch
 
-
 #: rows of the table -> options of identify()
 VARIANTS = {"paper": {"variant": "paper"}, "robust": {"variant": "robust"},
             "robust + contact phase": {"variant": "robust", "contact_phase": True}}

@@ -14,7 +14,6 @@ import argparse
 import numpy as np
 
 from impactometer.identify.response_map_study import window_table
-
 from map_size_study import ERRORS, markdown
 
 

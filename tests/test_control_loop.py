@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+
 from impactometer.cli import main
 from impactometer.control import loop as control_loop
 from impactometer.control.loop import Identified, absorb

@@ -6,8 +6,15 @@ import numpy as np
 import pytest
 
 from impactometer.errors import ParameterError, RecordingError
-from impactometer.filters import (CFC_CLASSES, DESIGN_FACTORS, cfc_coefficients, cfc_corridor, cfc_filter,
-                                  cfc_response, filter_recording)
+from impactometer.filters import (
+    CFC_CLASSES,
+    DESIGN_FACTORS,
+    cfc_coefficients,
+    cfc_corridor,
+    cfc_filter,
+    cfc_response,
+    filter_recording,
+)
 from impactometer.recording import Recording
 
 

@@ -25,7 +25,7 @@ def test_onsets_match_zero_compression(contact):
     truth = crossings + (-d[crossings]) / (d[crossings + 1] - d[crossings])
     spans = detect_pulses(r.contact_force, 0.0)
     assert len(spans) == truth.size  # one zero crossing per pulse (the first at t = 0)
-    for span, true in zip(spans[1:], truth[1:]):
+    for span, true in zip(spans[1:], truth[1:], strict=False):
         onset, std = onset_index(r.contact_force, span, 0.0)
         assert abs(onset - true) <= 2 * std + 0.5
 
@@ -40,7 +40,7 @@ def test_noise_gaps_do_not_split_pulses():
     assert len(found) == len(clean)
     # detection at 5σ: found after the clean onset, and before the clean force has risen through 8σ
     f = r.contact_force
-    for a, b in zip(found, clean):
+    for a, b in zip(found, clean, strict=False):
         assert b.first - 1 <= a.first <= b.first + int(np.argmax(f[b.first:] > 8 * sigma))
 
 

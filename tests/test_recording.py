@@ -75,7 +75,7 @@ def test_inspection_finds_the_separated_pulses_of_the_simulation(noisy):
     # the built-in stand gives about 9 separated pulses in 100 ms; noise must not split or merge any
     assert len(reference.pulses) >= 8 and len(result.pulses) == len(reference.pulses)
     period = 1 / noisy.sample_rate
-    for p, q in zip(result.pulses, reference.pulses):
+    for p, q in zip(result.pulses, reference.pulses, strict=False):
         assert abs(p.peak_time - q.peak_time) < 0.5e-3              # noisy peaks sit on a flat top
         assert abs(p.start - q.start) <= 0.3e-3 + period             # 5 σ detection starts a little later
         assert p.impulse == pytest.approx(q.impulse, rel=0.03)

@@ -12,8 +12,13 @@ from hypothesis import strategies as st
 from impactometer import simulate_batch
 from impactometer.errors import ParameterError, ResponseMapError
 from impactometer.identify.features import extract_batch
-from impactometer.identify.response_map import (MapIdentification, ResponseMap, build_map_simulated,
-                                                identify_features, refine)
+from impactometer.identify.response_map import (
+    MapIdentification,
+    ResponseMap,
+    build_map_simulated,
+    identify_features,
+    refine,
+)
 from impactometer.rig import get_rig, to_dict
 
 RIG = get_rig()
@@ -45,7 +50,7 @@ def test_refine_reproduces_cubic_features_exactly():
 def test_fast_search_inverts_a_smooth_map_exactly():
     rmap = polynomial_map()
     rng = np.random.default_rng(0)
-    for m, v in zip(rng.uniform(11, 49, 20), rng.uniform(1.1, 3.0, 20)):
+    for m, v in zip(rng.uniform(11, 49, 20), rng.uniform(1.1, 3.0, 20), strict=False):
         result = identify_features(polynomial_features(m, v), rmap)
         assert result.mass == pytest.approx(m, rel=1e-8)
         assert result.velocity == pytest.approx(v, rel=1e-8)
@@ -157,9 +162,9 @@ def test_round_trip_identification_of_simulated_impacts(features):
     masses, velocities = _test_impacts(12, seed=5)
     batch = simulate_batch(masses, velocities, 200e3, RIG, duration=0.06, channels=("contact_force",))
     ys, available = extract_batch(batch.time, batch.data["contact_force"], features, rmap.feature_params)
-    results = [identify_features(y, rmap, available_at=a) for y, a in zip(ys, available)]
-    mass_error = np.mean([abs(r.mass / m - 1) for r, m in zip(results, masses)])
-    velocity_error = np.mean([abs(r.velocity / v - 1) for r, v in zip(results, velocities)])
+    results = [identify_features(y, rmap, available_at=a) for y, a in zip(ys, available, strict=False)]
+    mass_error = np.mean([abs(r.mass / m - 1) for r, m in zip(results, masses, strict=False)])
+    velocity_error = np.mean([abs(r.velocity / v - 1) for r, v in zip(results, velocities, strict=False)])
     assert mass_error < ROUND_TRIP_TOLERANCE[features][0]
     assert velocity_error < ROUND_TRIP_TOLERANCE[features][1]
     assert all(0 < r.available_at < 0.06 for r in results)

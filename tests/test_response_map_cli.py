@@ -12,7 +12,6 @@ from impactometer.identify.response_map import identify_recording, load_map
 from impactometer.io import write_recording
 from impactometer.rig import get_rig
 from impactometer.sensors import record_batch
-
 from test_cli_simulate import run
 
 

@@ -8,8 +8,12 @@ import numpy as np
 import pytest
 
 from impactometer.errors import ResponseMapError
-from impactometer.identify.response_map import (build_map_from_recordings, build_map_simulated, identify_recording,
-                                                save_map)
+from impactometer.identify.response_map import (
+    build_map_from_recordings,
+    build_map_simulated,
+    identify_recording,
+    save_map,
+)
 from impactometer.rig import get_rig
 from impactometer.sensors import record_batch
 
@@ -31,8 +35,8 @@ def held_back(n, noise, seed=1, pressure=200e3):
 
 
 def mean_errors(results, masses, velocities):
-    return (np.mean([abs(r.mass / m - 1) for r, m in zip(results, masses)]),
-            np.mean([abs(r.velocity / v - 1) for r, v in zip(results, velocities)]))
+    return (np.mean([abs(r.mass / m - 1) for r, m in zip(results, masses, strict=False)]),
+            np.mean([abs(r.velocity / v - 1) for r, v in zip(results, velocities, strict=False)]))
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +56,7 @@ def test_noisy_calibration_identifies_noisy_held_back_recordings(noisy_map):
     assert noisy_map.provenance["interpolation"] == ["tensor-product cubic spline"]
     # complete T = 20 ms after first contact, which the anti-alias filter shows late by its delay
     assert all(r.available_at == pytest.approx(0.02 + rec.metadata["anti_alias_delay_s"])
-               for r, rec in zip(results, recordings))
+               for r, rec in zip(results, recordings, strict=False))
 
 
 def test_scattered_calibration_uses_the_rbf_and_identifies():
@@ -64,7 +68,7 @@ def test_scattered_calibration_uses_the_rbf_and_identifies():
                                      mass_range=(12.0, 48.0), velocity_range=(1.2, 3.05))
     assert rmap.provenance["interpolation"] == ["thin-plate RBF (log features)"]
     masses, velocities, held = held_back(10, 0.0)
-    inside = [(mm, vv, r) for mm, vv, r in zip(masses, velocities, held) if 1.25 < vv < 3.0]
+    inside = [(mm, vv, r) for mm, vv, r in zip(masses, velocities, held, strict=False) if 1.25 < vv < 3.0]
     results = [identify_recording(r, rmap) for _, _, r in inside]
     mass_error, velocity_error = mean_errors(results, [x[0] for x in inside], [x[1] for x in inside])
     # 60 scattered noise-free points: the thin-plate surface is smooth but not exact between points

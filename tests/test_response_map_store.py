@@ -10,7 +10,6 @@ import pytest
 
 from impactometer.errors import ParameterError, ResponseMapError
 from impactometer.identify.response_map import identify_features, load_map, save_map
-
 from test_response_map import polynomial_features, polynomial_map
 
 

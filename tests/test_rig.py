@@ -8,8 +8,19 @@ import numpy as np
 import pytest
 
 from impactometer.errors import ImpactometerError, ParameterError
-from impactometer.rig import (PRESETS, Contact, Cylinder, Rig, Scenario, from_dict, get_rig, load_toml,
-                              parameter_names, save_toml, to_dict)
+from impactometer.rig import (
+    PRESETS,
+    Contact,
+    Cylinder,
+    Rig,
+    Scenario,
+    from_dict,
+    get_rig,
+    load_toml,
+    parameter_names,
+    save_toml,
+    to_dict,
+)
 
 
 def test_default_stand_is_the_issue_stand():

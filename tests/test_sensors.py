@@ -7,8 +7,7 @@ from impactometer.errors import ParameterError
 from impactometer.model import simulate
 from impactometer.recording import Recording
 from impactometer.rig import Scenario, get_rig
-from impactometer.sensors import (CAUSAL_PERIODS, anti_alias_delay, apply_sensors, quantise, record,
-                                  record_batch)
+from impactometer.sensors import CAUSAL_PERIODS, anti_alias_delay, apply_sensors, quantise, record, record_batch
 
 SCENARIO = Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3)
 FS = 50e3
@@ -133,7 +132,7 @@ def test_accelerometer_with_gravity_reads_specific_force():
 def test_batch_equals_single_records_with_the_same_seeds():
     masses = np.array([20.0, 35.0])
     batch = record_batch(masses, 2.0, 200e3, duration=0.01, noise=0.02, seeds=[3, 4], pre_trigger=0.001)
-    for m, seed, rec in zip(masses, [3, 4], batch):
+    for m, seed, rec in zip(masses, [3, 4], batch, strict=False):
         single = record(Scenario(mass=m, velocity=2.0, pressure_gauge=200e3), duration=0.01, noise=0.02,
                         seed=seed, pre_trigger=0.001)
         np.testing.assert_allclose(rec.contact_force, single.contact_force, rtol=1e-9, atol=1e-9)

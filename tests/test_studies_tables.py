@@ -68,7 +68,7 @@ def test_noise_of_a_case_does_not_depend_on_its_chunk():
     alone = study.evaluate(cases[1:2], options)
     second = [r for r in together if r["case"] == 1]
     assert len(second) == len(alone) == 9  # force, acceleration, both × paper, robust-early, robust
-    for a, b in zip(second, alone):
+    for a, b in zip(second, alone, strict=False):
         assert a.keys() == b.keys()
         for key in a:
             same = a[key] == b[key] or (isinstance(a[key], float) and math.isnan(a[key]) and math.isnan(b[key]))

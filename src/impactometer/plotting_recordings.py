@@ -39,7 +39,7 @@ def plot_recording(recording, axes=None, *, inspection=None):
     colors = {FORCE: "k", ACCELERATION: "tab:red"}
     # the two sensor channels are SI inside; drawn as every figure draws them
     labels = {FORCE: ("contact force [kN]", 1e-3), ACCELERATION: ("piston acceleration [km/s²]", 1e-3)}
-    for ax, name in zip(axes, names):
+    for ax, name in zip(axes, names, strict=False):
         unit = recording.unit(name)
         label, scale = labels.get(name, (f"{name.replace('_', ' ')} [{unit}]" if unit else name, 1.0))
         ax.plot(t, recording.channel(name) * scale, color=colors.get(name, "tab:blue"), lw=0.8)

@@ -127,13 +127,13 @@ class Recording:
             return CHANNEL_UNITS[name]
         return str(noted.get(name, "")) if isinstance(noted, dict) else ""
 
-    def with_metadata(self, **changes: Any) -> "Recording":
+    def with_metadata(self, **changes: Any) -> Recording:
         """A copy with metadata keys added or replaced."""
         return replace(self, metadata={**self.metadata, **changes})
 
     @classmethod
     def from_time(cls, time, channels: dict[str, Any], *, metadata: dict[str, Any] | None = None,
-                  source: str = "memory") -> "Recording":
+                  source: str = "memory") -> Recording:
         """A recording from a regular time vector [s] instead of a sample rate.
 
         The time must increase strictly and stay within 5 % of a period of a regular grid.
@@ -148,7 +148,7 @@ class Recording:
                    source=source)
 
     @classmethod
-    def read(cls, path, **options: Any) -> "Recording":
+    def read(cls, path, **options: Any) -> Recording:
         """Read a lab file; see :func:`impactometer.io.read_recording` for the options."""
         from .io import read_recording
 
@@ -160,7 +160,7 @@ class Recording:
 
         return write_recording(self, path, overwrite=overwrite)
 
-    def plot(self, axes=None, *, inspection: "Inspection | None" = None):
+    def plot(self, axes=None, *, inspection: Inspection | None = None):
         """Force and acceleration vs time with the contact pulses marked; returns the figure."""
         from .plotting_recordings import plot_recording
 

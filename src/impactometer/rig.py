@@ -170,7 +170,7 @@ class Contact:
         _check("contact.damping", self.damping, low=0.0, low_open=False)
 
     @classmethod
-    def preset(cls, law: str) -> "Contact":
+    def preset(cls, law: str) -> Contact:
         """The default contact of the built-in stand for ``law``."""
         name = contact_law_name(law)
         return cls(law=name, **CONTACT_LAWS[name])
@@ -235,11 +235,11 @@ class Rig:
         if not isinstance(self.name, str):
             raise ParameterError(f"rig.name must be a string, got {self.name!r}")
 
-    def with_contact(self, law: str) -> "Rig":
+    def with_contact(self, law: str) -> Rig:
         """This stand with the default contact of ``law``."""
         return dataclasses.replace(self, contact=Contact.preset(law))
 
-    def replace(self, **changes: Any) -> "Rig":
+    def replace(self, **changes: Any) -> Rig:
         """A copy with dotted-name changes, e.g. ``rig.replace(**{"contact.stiffness": 3e6})``.
 
         Changing ``contact.law`` without giving ``contact.stiffness``/``contact.damping`` takes the new law's
@@ -367,7 +367,7 @@ class Scenario:
 
     @classmethod
     def from_height(cls, *, mass: float, height: float, pressure_gauge: float = 200e3,
-                    gravity: float = STANDARD_GRAVITY) -> "Scenario":
+                    gravity: float = STANDARD_GRAVITY) -> Scenario:
         """Scenario of a free drop from ``height`` [m]: V0 = sqrt(2·g·h)."""
         _check("height", height, low=0.0, unit=" [m]")
         return cls(mass=mass, velocity=math.sqrt(2.0 * gravity * height), pressure_gauge=pressure_gauge)

@@ -266,7 +266,7 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
     n = batch.mass.size
     lead = n_pre * factor + pad
     internal = {}
-    for model, name in zip(model_channels, names):
+    for model, name in zip(model_channels, names, strict=False):
         data = batch.data[model]
         before = np.zeros((n, lead)) if model in _ZERO_BEFORE_CONTACT else np.repeat(data[:, :1], lead, axis=1)
         internal[name] = np.concatenate([before, data], axis=1)

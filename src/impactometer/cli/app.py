@@ -12,6 +12,7 @@ from rich.console import Console
 from ..errors import ParameterError
 from ..units import parse_quantity
 
+
 class Command(typer.core.TyperCommand):
     """A command whose usage line names its arguments as click does (``FILE``, not ``{FILE}``)."""
 

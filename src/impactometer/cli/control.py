@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.markup import escape
@@ -65,13 +65,13 @@ def absorb(
     pressure: PressureOpt = "200kPa",
     strategy: Annotated[str, typer.Option("--strategy", help="all, closed, constant or realtime.")] = "all",
     identify: Annotated[str, typer.Option("--identify", help="robust, paper, oracle or response-map.")] = "robust",
-    response_map: Annotated[Optional[Path], typer.Option("--response-map", help="Map file for --identify response-map.")] = None,
+    response_map: Annotated[Path | None, typer.Option("--response-map", help="Map file for --identify response-map.")] = None,
     noise: Annotated[str, typer.Option("--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the sensor noise.")] = 0,
     contact: ContactOpt = None,
     rig: RigOpt = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as one JSON object.")] = False,
-    plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG figure of the force histories (Fig. 10b).")] = None,
+    plot: Annotated[Path | None, typer.Option("--plot", help="PNG figure of the force histories (Fig. 10b).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing figure.")] = False,
 ) -> None:
     """Absorb one impact: identify M1 and V0 from noisy sensors, then control valve Z with each strategy."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import time as clock
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.table import Table
@@ -52,11 +52,11 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
              method: Annotated[str, typer.Option("--method", help="peak-to-peak or response-map.")] = "peak-to-peak",
              variant: VariantOpt = "robust",
              contact_phase: ContactOpt = False,
-             map_path: Annotated[Optional[Path], typer.Option("--map", help="Response map (.h5).")] = None,
+             map_path: Annotated[Path | None, typer.Option("--map", help="Response map (.h5).")] = None,
              search: Annotated[str, typer.Option("--search", help="Map search: fast or brute.")] = "fast",
              allow_extrapolation: Annotated[bool, typer.Option("--allow-extrapolation", help="response-map: answer outside the map's grid (else an error).")] = False,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-             plot: Annotated[Optional[Path], typer.Option("--plot", help="Save a figure of the instants used.")] = None,
+             plot: Annotated[Path | None, typer.Option("--plot", help="Save a figure of the instants used.")] = None,
              force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
              reader: ReaderOptions = ReaderOptions()) -> None:
     """Identify the impacting mass and velocity of the first impact in FILE."""

@@ -10,7 +10,7 @@ import functools
 import inspect
 from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Annotated, Optional, get_type_hints
+from typing import Annotated, get_type_hints
 
 import typer
 
@@ -21,11 +21,11 @@ from .app import quantity
 class ReaderOptions:
     """How to read a recording: channel names, group, sign flips, gravity, time base, CFC filter."""
 
-    force_channel: Annotated[Optional[str], typer.Option(
+    force_channel: Annotated[str | None, typer.Option(
         "--force-channel", help="Name of the contact force channel (default: found by name).")] = None
-    acceleration_channel: Annotated[Optional[str], typer.Option(
+    acceleration_channel: Annotated[str | None, typer.Option(
         "--acceleration-channel", help="Name of the piston acceleration channel (default: found by name).")] = None
-    group: Annotated[Optional[str], typer.Option(
+    group: Annotated[str | None, typer.Option(
         "--group", help="HDF5/TDMS group holding the channels.")] = None
     flip_force: Annotated[bool, typer.Option(
         "--flip-force", help="Change the sign of the force (a load cell mounted the other way).")] = False
@@ -33,9 +33,9 @@ class ReaderOptions:
         "--flip-acceleration", help="Change the sign of the acceleration (an accelerometer pointing up).")] = False
     acceleration_includes_gravity: Annotated[bool, typer.Option(
         "--acceleration-includes-gravity", help="The accelerometer reads a − g: add g back.")] = False
-    sample_rate: Annotated[Optional[str], typer.Option(
+    sample_rate: Annotated[str | None, typer.Option(
         "--sample-rate", help="Sample rate of a file without a time base (e.g. 50kHz).")] = None
-    cfc: Annotated[Optional[int], typer.Option(
+    cfc: Annotated[int | None, typer.Option(
         "--cfc", help="Apply a CFC filter class first (60, 180, 600, 1000).")] = None
 
     def read(self, path: Path):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.markup import escape
@@ -13,8 +13,18 @@ from rich.table import Table
 from ..errors import ParameterError
 from .app import app, console, output_path, quantity
 from .reading import ReaderOptions, reader_options
-from .simulate import (ContactOpt, DurationOpt, HeightOpt, MassOpt, PressureOpt, RateOpt, RigOpt, VelocityOpt,
-                       stand_and_scenario)
+from .simulate import (
+    ContactOpt,
+    DurationOpt,
+    HeightOpt,
+    MassOpt,
+    PressureOpt,
+    RateOpt,
+    RigOpt,
+    VelocityOpt,
+    stand_and_scenario,
+)
+
 
 def _fraction(text: str | None, field: str, force: bool = False) -> float | None:
     """A noise level: ``2%`` or a bare fraction (0.02); a bare number above 0.5 is refused without ``--force``."""
@@ -42,19 +52,19 @@ def record(
     noise: Annotated[str, typer.Option("--noise", help="Noise std per channel: a percent of its RMS (2%) or a "
                                                        "fraction (0.02); a fraction above 0.5 needs --force.")]
     = "0",
-    force_noise: Annotated[Optional[str], typer.Option("--force-noise", help="Noise of the force channel "
+    force_noise: Annotated[str | None, typer.Option("--force-noise", help="Noise of the force channel "
                                                                              "(overrides --noise).")] = None,
-    acceleration_noise: Annotated[Optional[str], typer.Option("--acceleration-noise", help="Noise of the "
+    acceleration_noise: Annotated[str | None, typer.Option("--acceleration-noise", help="Noise of the "
                                                               "acceleration channel (overrides --noise).")] = None,
-    seed: Annotated[Optional[int], typer.Option("--seed", help="Seed of the noise.")] = None,
+    seed: Annotated[int | None, typer.Option("--seed", help="Seed of the noise.")] = None,
     pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Time recorded before first contact "
                                                                    "(0: the record starts at contact).")] = "20ms",
     anti_alias: Annotated[str, typer.Option("--anti-alias", help="causal (default), zero-phase or none.")]
     = "causal",
-    adc_bits: Annotated[Optional[int], typer.Option("--adc-bits", help="ADC resolution; auto range ±1.25·peak.")]
+    adc_bits: Annotated[int | None, typer.Option("--adc-bits", help="ADC resolution; auto range ±1.25·peak.")]
     = None,
     include_gravity: Annotated[bool, typer.Option("--include-gravity", help="Accelerometer reads a − g.")] = False,
-    extra: Annotated[Optional[list[str]], typer.Option("--extra", help="Extra channel (piston_displacement, "
+    extra: Annotated[list[str] | None, typer.Option("--extra", help="Extra channel (piston_displacement, "
                                                                        "pressure_lower, ...); repeatable.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file; allow a noise fraction above "
                                                         "0.5.")] = False,
@@ -111,7 +121,7 @@ def _inspection_tables(rec, result) -> list[Table]:
 @reader_options
 def inspect(
     file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording (csv, h5, tdms, mat).")],
-    plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG of force and acceleration, pulses marked.")]
+    plot: Annotated[Path | None, typer.Option("--plot", help="PNG of force and acceleration, pulses marked.")]
     = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,

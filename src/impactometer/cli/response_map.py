@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.table import Table
@@ -45,7 +45,7 @@ def parse_range(text: str, dimension: str, field: str) -> tuple[float, float]:
 def parse_pressures(text: str) -> list[float]:
     """``"200kPa"`` or ``"20kPa,100kPa,400kPa"`` -> increasing list [Pa gauge]."""
     values = [quantity(p.strip(), "pressure", "--pressure") for p in text.split(",") if p.strip()]
-    if not values or any(b <= a for a, b in zip(values, values[1:])):
+    if not values or any(b <= a for a, b in zip(values, values[1:], strict=False)):
         raise ParameterError(f"--pressure: expected one pressure or an increasing comma list (e.g. "
                              f"20kPa,200kPa,400kPa), got {text!r}")
     return values
@@ -58,28 +58,28 @@ def build(
                                                              "pressure axis (e.g. 20kPa,200kPa,400kPa).")] = "200kPa",
     grid: Annotated[str, typer.Option("--grid", help="Masses x velocities simulated (or interpolated).")] = "10x10",
     mass: Annotated[str, typer.Option("--mass", help="Mass range LOW:HIGH.")] = "10kg:50kg",
-    height: Annotated[Optional[str], typer.Option("--height", help="Drop-height range LOW:HIGH (default "
+    height: Annotated[str | None, typer.Option("--height", help="Drop-height range LOW:HIGH (default "
                                                                    "5cm:50cm).")] = None,
-    velocity: Annotated[Optional[str], typer.Option("--velocity", help="Velocity range LOW:HIGH instead of "
+    velocity: Annotated[str | None, typer.Option("--velocity", help="Velocity range LOW:HIGH instead of "
                                                                        "--height.")] = None,
     features: Annotated[str, typer.Option("--features", help="Feature set: max-impulse, peaks or "
                                                                    "impulse-profile.")] = "max-impulse",
-    window: Annotated[Optional[str], typer.Option("--window", help="Window T of max-impulse and impulse-profile "
+    window: Annotated[str | None, typer.Option("--window", help="Window T of max-impulse and impulse-profile "
                                                                    "(default 20ms).")] = None,
-    refine_to: Annotated[Optional[str], typer.Option("--refine", help="Interpolate to N (NxN) or NxM.")] = None,
+    refine_to: Annotated[str | None, typer.Option("--refine", help="Interpolate to N (NxN) or NxM.")] = None,
     sample_rate: Annotated[str, typer.Option("--sample-rate", help="Sample rate of the signals.")] = "50kHz",
-    rig: Annotated[Optional[str], typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
-    contact: Annotated[Optional[str], typer.Option("--contact", help="Contact law: kv or hunt.")] = None,
-    from_recordings: Annotated[Optional[Path], typer.Option("--from-recordings", help="Folder of calibration "
+    rig: Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
+    contact: Annotated[str | None, typer.Option("--contact", help="Contact law: kv or hunt.")] = None,
+    from_recordings: Annotated[Path | None, typer.Option("--from-recordings", help="Folder of calibration "
                                                                                       "recordings.")] = None,
-    manifest: Annotated[Optional[Path], typer.Option("--manifest", help="Manifest CSV of the calibration "
+    manifest: Annotated[Path | None, typer.Option("--manifest", help="Manifest CSV of the calibration "
                                                                         "set.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing map file.")] = False,
 ) -> None:
     """Build a response map by simulation (or from calibration recordings) and save it (HDF5)."""
-    from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
     import numpy as np
 
+    from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
     from ..rig import get_rig
 
     output_path(out, force)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 from rich.table import Table
@@ -12,11 +12,11 @@ from ..errors import ParameterError
 from .app import announce_compilation, app, console, output_path, quantity
 
 MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30kg).")]
-HeightOpt = Annotated[Optional[str], typer.Option("--height", help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
-VelocityOpt = Annotated[Optional[str], typer.Option("--velocity", help="Impact velocity V0 (e.g. 2m/s).")]
+HeightOpt = Annotated[str | None, typer.Option("--height", help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
+VelocityOpt = Annotated[str | None, typer.Option("--velocity", help="Impact velocity V0 (e.g. 2m/s).")]
 PressureOpt = Annotated[str, typer.Option("--pressure", help="Charge pressure p0, gauge (e.g. 200kPa).")]
-ContactOpt = Annotated[Optional[str], typer.Option("--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
-RigOpt = Annotated[Optional[str], typer.Option("--rig", help="Stand: a preset name or a TOML file.")]
+ContactOpt = Annotated[str | None, typer.Option("--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
+RigOpt = Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")]
 DurationOpt = Annotated[str, typer.Option("--duration", help="Simulated time after first contact.")]
 RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the histories.")]
 
@@ -78,8 +78,8 @@ def simulate(
     duration: DurationOpt = "50ms",
     sample_rate: RateOpt = "50kHz",
     integrator: Annotated[str, typer.Option(help="fast (compiled) or reference (solve_ivp).")] = "fast",
-    out: Annotated[Optional[Path], typer.Option("--out", help="HDF5 file of the histories.")] = None,
-    plot: Annotated[Optional[Path], typer.Option("--plot", help="PNG figure of the histories.")] = None,
+    out: Annotated[Path | None, typer.Option("--out", help="HDF5 file of the histories.")] = None,
+    plot: Annotated[Path | None, typer.Option("--plot", help="PNG figure of the histories.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite existing output files.")] = False,
 ) -> None:
     """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""

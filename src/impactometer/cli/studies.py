@@ -5,12 +5,11 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
-    TimeRemainingColumn
 from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 from rich.table import Table
 
 from ..errors import ParameterError
@@ -79,13 +78,13 @@ def _parse_params(items: list[str] | None) -> dict:
 def study(
     name: Annotated[str, typer.Argument(
         help="A study name, 'all', 'list' (show the studies) or 'report' (rebuild DIR/index.html, print Markdown).")],
-    out: Annotated[Optional[Path], typer.Option("--out", help="Output folder (tables, figures, index.html).")] = None,
-    workers: Annotated[Optional[int], typer.Option("--workers", help="Local processes (default: all cores).")] = None,
-    scheduler: Annotated[Optional[str], typer.Option(
+    out: Annotated[Path | None, typer.Option("--out", help="Output folder (tables, figures, index.html).")] = None,
+    workers: Annotated[int | None, typer.Option("--workers", help="Local processes (default: all cores).")] = None,
+    scheduler: Annotated[str | None, typer.Option(
         "--scheduler", help="Run on a Dask cluster: scheduler address tcp://HOST:PORT.")] = None,
     seed: Annotated[int, typer.Option("--seed", help="Root seed of every noise realisation.")] = 0,
     seeds: Annotated[int, typer.Option("--seeds", help="Noise realisations per case.")] = 1,
-    grid: Annotated[Optional[int], typer.Option(
+    grid: Annotated[int | None, typer.Option(
         "--grid", help="Values per axis of the M1×V0×p0 grid (5: the paper's 125 cases; default: per study).")]
     = None,
     noise: Annotated[str, typer.Option("--noise", help="Sensor noise of the non-noise studies (% of RMS).")] = "1%",
@@ -94,10 +93,10 @@ def study(
     duration: Annotated[str, typer.Option("--duration", help="Record length after first contact.")] = "100ms",
     pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Record length before first contact.")]
     = "50ms",
-    contact: Annotated[Optional[str], typer.Option(
+    contact: Annotated[str | None, typer.Option(
         "--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")] = None,
-    rig: Annotated[Optional[str], typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
-    setting: Annotated[Optional[list[str]], typer.Option(
+    rig: Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
+    setting: Annotated[list[str] | None, typer.Option(
         "--set", help="Study setting STUDY.SETTING=JSON, e.g. noise.levels=[0,0.05] (repeatable).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Discard runs with other options; overwrite files.")]
     = False,

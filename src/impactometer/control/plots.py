@@ -40,7 +40,7 @@ def plot_absorption(result, ax=None):
     s = result.scenario
     for name, run in result.runs.items():
         r = run.result
-        colour = COLOURS.get(name, None)
+        colour = COLOURS.get(name)
         axes[0].plot(r.time * 1e3, r.contact_force / 1e3, lw=0.9, color=colour, label=name)
         if len(axes) > 1:
             axes[1].plot(r.time * 1e3, r.u1 * 1e3, lw=0.9, color=colour, label=name)
@@ -81,7 +81,7 @@ def plot_distributions(rows, *, quantities=("efficiency", "peak_force_controlled
         fig = np.atleast_1d(axes)[0].figure
     axes = np.atleast_1d(axes)
     labels = list(dict.fromkeys(row["strategy"] for row in rows))
-    for a, quantity in zip(axes, quantities):
+    for a, quantity in zip(axes, quantities, strict=False):
         data = [[row[quantity] for row in rows if row["strategy"] == name and _finite(row.get(quantity))]
                 for name in labels]
         names = list(labels)

@@ -22,9 +22,26 @@ from numba import njit
 from ..model import dynamics as d
 from ..model.fast import _A, _E
 from ..model.forces import orifice_mass_flow
-from .controller import (AREA_CONSTANT, CLOSE_ON_STOP, CLOSED, CONSTANT, MASS_HAT, MAX_AREA, MAX_RATE, ROUTE,
-                         STRATEGY, T_START, TAU_FILTER, TIME_CONSTANT, VELOCITY_HAT, bounce_gate, control_vector,
-                         drive_vector, must_close, realtime_command)
+from .controller import (
+    AREA_CONSTANT,
+    CLOSE_ON_STOP,
+    CLOSED,
+    CONSTANT,
+    MASS_HAT,
+    MAX_AREA,
+    MAX_RATE,
+    ROUTE,
+    STRATEGY,
+    T_START,
+    TAU_FILTER,
+    TIME_CONSTANT,
+    VELOCITY_HAT,
+    bounce_gate,
+    control_vector,
+    drive_vector,
+    must_close,
+    realtime_command,
+)
 
 VALVE = d.N_STATE  # index of the valve opening in the controlled state
 N_STATE = d.N_STATE + 1
@@ -244,7 +261,7 @@ def simulate_controlled(scenario, rig=None, *, control: np.ndarray | None = None
         note = {"ended_at_bottom": float(t[last])}
         t, chans, extra = t[:last + 1], chans[:, :last + 1], extra[:, :last + 1]
     result = _result(t, chans, p, y0, rig, scenario, "controlled")
-    return dataclasses.replace(result, extra=note), dict(zip(EXTRA, extra))
+    return dataclasses.replace(result, extra=note), dict(zip(EXTRA, extra, strict=False))
 
 
 #: a failed run whose piston is beyond this fraction of the stroke ended at the bottom stop

@@ -117,7 +117,7 @@ def valve_mass_flow(pressure_up, temperature_up, pressure_down, area, *, rig: Ri
 
     rig = get_rig(rig)
     arrays = [np.asarray(a, dtype=float) for a in (pressure_up, temperature_up, pressure_down, area)]
-    for name, arr in zip(("pressure_up", "temperature_up", "pressure_down"), arrays):
+    for name, arr in zip(("pressure_up", "temperature_up", "pressure_down"), arrays, strict=False):
         if not np.all(np.isfinite(arr)) or np.any(arr <= 0):
             raise ParameterError(f"{name} must be finite and > 0, got {arr!r}")
     if not np.all(np.isfinite(arrays[3])) or np.any(arrays[3] < 0) or np.any(arrays[3] > rig.valve.max_area):
@@ -125,5 +125,5 @@ def valve_mass_flow(pressure_up, temperature_up, pressure_down, area, *, rig: Ri
     shape = np.broadcast_shapes(*(a.shape for a in arrays))
     flat = [np.broadcast_to(a, shape).ravel() for a in arrays]
     out = np.array([orifice_mass_flow(pu, tu, pd, ar, rig.valve.discharge_coefficient, rig.gas.gamma,
-                                      rig.gas.gas_constant) for pu, tu, pd, ar in zip(*flat)])
+                                      rig.gas.gas_constant) for pu, tu, pd, ar in zip(*flat, strict=False)])
     return out.reshape(shape) if shape else float(out[0])

@@ -26,7 +26,6 @@ from numba import njit
 
 from ..errors import ParameterError, ResponseMapError
 
-
 #: every extractor takes ``time`` ((samples,) array: sample instants [s], t = 0 at first contact) and ``forces``
 #: ((n, samples) or (samples,) array: contact force [N])
 SIGNALS = "time [s] (t = 0 at first contact), forces [N] of shape (n, samples) or (samples,)"

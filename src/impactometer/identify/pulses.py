@@ -42,7 +42,7 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
     if above[-1]:
         ends.append(force.size)
     pulses: list[Pulse] = []
-    for i0, i1 in zip(starts, ends):
+    for i0, i1 in zip(starts, ends, strict=False):
         segment = slice(max(i0 - 1, 0), min(i1 + 1, force.size))
         ipk = i0 + int(np.argmax(force[i0:i1]))
         t_start = time[max(i0 - 1, 0)]

@@ -22,8 +22,7 @@ import numpy as np
 from ..errors import ParameterError, ResponseMapError
 from ..recording import Recording
 from .features import FEATURE_SETS, extract_features, recording_signal
-from .response_map_build import (PRESSURE_TOLERANCE, ResponseMap, build_map_from_recordings, build_map_simulated,
-                                 refine)
+from .response_map_build import PRESSURE_TOLERANCE, ResponseMap, build_map_from_recordings, build_map_simulated, refine
 from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
 from .response_map_store import load_map, save_map
 
@@ -67,7 +66,7 @@ class MapIdentification:
     velocity_std: float | None = None
 
     @classmethod
-    def _make(cls, **values: Any) -> "MapIdentification":
+    def _make(cls, **values: Any) -> MapIdentification:
         """Build without the dataclass ``__init__`` (each frozen-field assignment costs more than the search)."""
         obj = cls.__new__(cls)
         obj.__dict__.update(mass_std=None, velocity_std=None, **values)
@@ -167,12 +166,12 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
     if available_at is None:
         available_at = rmap.feature_params.get("window", math.nan)
     return MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
-                                   search=search, features=dict(zip(labels, y.tolist())),
+                                   search=search, features=dict(zip(labels, y.tolist(), strict=False)),
                                    feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
 
 
 def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:
-    measured = ", ".join(f"{k} = {v:.4g}" for k, v in zip(rmap.labels, y))
+    measured = ", ".join(f"{k} = {v:.4g}" for k, v in zip(rmap.labels, y, strict=False))
     span = (f"mass {rmap.masses[0]:g}-{rmap.masses[-1]:g} kg, velocity {rmap.velocities[0]:.3g}-"
             f"{rmap.velocities[-1]:.3g} m/s")
     if residual > MISFIT_RESIDUAL:

@@ -118,7 +118,7 @@ class ResponseMap:
         return {
             "schema_version": SCHEMA_VERSION, "feature_set": self.feature_set, "feature_params": self.feature_params,
             "features": {label: {"unit": unit, "min": float(self.values[k].min()), "max": float(self.values[k].max())}
-                         for k, (label, unit) in enumerate(zip(fs.labels, fs.units))},
+                         for k, (label, unit) in enumerate(zip(fs.labels, fs.units, strict=False))},
             "grid": list(self.shape), "mass_range_kg": [float(self.masses[0]), float(self.masses[-1])],
             "velocity_range_m_s": [float(self.velocities[0]), float(self.velocities[-1])],
             "pressures_gauge_Pa": self.pressures_gauge.tolist(), "sample_rate_Hz": float(self.sample_rate),
@@ -341,7 +341,7 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         row = [r.truth("mass_kg"), r.truth("velocity_m_s"), r.truth("pressure_gauge_Pa")]
         row[2] = pressure_gauge if row[2] is None else row[2]
         if None in row:
-            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row) if x is None]
+            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row, strict=False) if x is None]
             raise ResponseMapError(f"{r.source}: metadata {missing} missing; expected the known truth of every "
                                    "calibration recording (metadata or manifest)")
         truth[i] = row

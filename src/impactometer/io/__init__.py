@@ -126,7 +126,7 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
         WRITERS[fmt](recording, temporary[0])
         if fmt == "csv":
             csv.write_sidecar(recording, temporary[1])
-        for tmp, target in zip(temporary, targets):
+        for tmp, target in zip(temporary, targets, strict=False):
             os.replace(tmp, target)
     except Exception as exc:
         for tmp in temporary:

@@ -10,8 +10,15 @@ from __future__ import annotations
 
 from numba import njit
 
-from .forces import (contact_energy, contact_force, contact_spring_force, friction_force, orifice_mass_flow,
-                     pneumatic_force, stop_force)
+from .forces import (
+    contact_energy,
+    contact_force,
+    contact_spring_force,
+    friction_force,
+    orifice_mass_flow,
+    pneumatic_force,
+    stop_force,
+)
 
 # state indices
 U1, V1, U2, V2, P_LOWER, P_UPPER, M_LOWER, M_UPPER, DISSIPATED = range(9)

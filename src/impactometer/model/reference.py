@@ -93,7 +93,7 @@ def pulse_peaks(time: np.ndarray, force: np.ndarray) -> tuple[np.ndarray, np.nda
     above = np.concatenate(([False], force > 0.0, [False]))
     edges = np.flatnonzero(np.diff(above.astype(np.int8)))
     times, peaks = [], []
-    for start, stop in zip(edges[::2], edges[1::2]):
+    for start, stop in zip(edges[::2], edges[1::2], strict=False):
         i = start + int(np.argmax(force[start:stop]))
         t_peak = time[i]
         if start < i < stop - 1:
@@ -133,7 +133,7 @@ def agreement(fast_force: np.ndarray, reference_force: np.ndarray, time: np.ndar
     peak = np.abs(fast_force.max(axis=1) / reference_force.max(axis=1) - 1.0)
     impulse = np.abs(np.trapezoid(fast_force, time, axis=1) / np.trapezoid(reference_force, time, axis=1) - 1.0)
     worst_time, mismatches, pulses = 0.0, 0, 0
-    for fast_row, ref_row in zip(fast_force, reference_force):
+    for fast_row, ref_row in zip(fast_force, reference_force, strict=False):
         t_fast, _ = pulse_peaks(time, fast_row)
         t_ref, _ = pulse_peaks(time, ref_row)
         if t_fast.size != t_ref.size:

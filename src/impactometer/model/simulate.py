@@ -138,7 +138,7 @@ def _result(t, chans, p, y0, rig, scenario, integrator) -> SimulationResult:
     energies = _energies(chans, p)
     # kinetic and elastic energies are absolute (never negative); potential and gas energies are changes from t = 0
     energies[1:3] -= energies[1:3, :1].copy()
-    named = dict(zip(d.CHANNELS, chans))
+    named = dict(zip(d.CHANNELS, chans, strict=False))
     return SimulationResult(
         time=t, u1=named["u1"], v1=named["v1"], u2=named["u2"], v2=named["v2"], a1=named["a1"], a2=named["a2"],
         contact_force=named["contact_force"], pneumatic_force=named["pneumatic_force"],
@@ -236,7 +236,7 @@ def compare_integrators(mass, velocity, pressure_gauge, rig: Rig | None = None, 
     batch = simulate_batch(mass, velocity, pressure_gauge, rig, duration=duration, sample_rate=sample_rate,
                            channels=("contact_force",), rtol=rtol)
     reference_force = np.empty_like(batch["contact_force"])
-    for i, (p, y0) in enumerate(zip(batch.params, initial_states(batch.params))):
+    for i, (p, y0) in enumerate(zip(batch.params, initial_states(batch.params), strict=False)):
         states = reference.integrate(p, y0, batch.time, rtol=ref_rtol, atol=absolute_tolerance(ref_rtol))
         reference_force[i] = reference.channels_of(states, p)[d.CHANNELS.index("contact_force")]
     return reference.agreement(batch["contact_force"], reference_force, batch.time)

@@ -125,7 +125,7 @@ def evaluate_noisy(study: str, cases: Sequence[Row], options: StudyOptions) -> l
     Each case's noise comes from :func:`case_seed` (root seed, study, case index) only.
     """
     rows = []
-    for case, clean in zip(cases, clean_recordings(cases, options)):
+    for case, clean in zip(cases, clean_recordings(cases, options), strict=False):
         level = options.noise
         recording = with_noise(clean, {"contact_force": level, "piston_acceleration": level},
                                case_seed(options, study, case["case"]))

@@ -8,8 +8,18 @@ and the realisation only. The paper finds force noise more harmful than accelera
 from __future__ import annotations
 
 from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
-from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, mean_abs, pct, per_method,
-                             seeded_grid, with_failures, with_noise)
+from .identification import (
+    REQUIRES,
+    by_method,
+    clean_recordings,
+    identify_rows,
+    mean_abs,
+    pct,
+    per_method,
+    seeded_grid,
+    with_failures,
+    with_noise,
+)
 
 NAME = "noise"
 #: default values per grid axis (the paper's 125 scenarios)
@@ -33,7 +43,7 @@ def _variants(options: StudyOptions) -> list[tuple[str, float]]:
 def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
     rows = []
     variants = _variants(options)
-    for case, clean in zip(cases, clean_recordings(cases, options)):
+    for case, clean in zip(cases, clean_recordings(cases, options), strict=False):
         for j, (target, level) in enumerate(variants):
             noise = {channel: (level if channel in TARGETS.get(target, ()) else 0.0)
                      for channel in ("contact_force", "piston_acceleration")}

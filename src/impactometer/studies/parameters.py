@@ -9,8 +9,7 @@ from __future__ import annotations
 from functools import partial
 
 from .base import Row, Study, StudyOptions, register, scenario_grid
-from .identification import (REQUIRES, by_method, evaluate_noisy, mean_abs, pct, per_method, seeded_grid,
-                             with_failures)
+from .identification import REQUIRES, by_method, evaluate_noisy, mean_abs, pct, per_method, seeded_grid, with_failures
 
 NAME = "parameters"
 AXES = (("mass", "M1 [kg]", 1.0), ("pressure_gauge", "p0 [kPa]", 1e-3), ("velocity", "V0 [m/s]", 1.0))

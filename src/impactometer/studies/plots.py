@@ -15,7 +15,7 @@ COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue"
 
 
 def _color(method: str) -> str:
-    return COLORS.get(method, None)
+    return COLORS.get(method)
 
 
 def _methods(rows: Sequence[Row], column: str = "method") -> list[str]:
@@ -55,21 +55,21 @@ def plot_case_bars(rows: Sequence[Row]):
     methods = _methods(rows)
     fig, axes = plt.subplots(len(pressures), 2, figsize=(13, 3.2 * len(pressures)), squeeze=False,
                              constrained_layout=True)
-    for row_axes, p in zip(axes, pressures):
+    for row_axes, p in zip(axes, pressures, strict=False):
         subset = pick(rows, pressure_gauge=p)
         labels = list(dict.fromkeys(f"{r['mass']:g} kg\n{r['velocity']:.2g} m/s" for r in subset))
         x = np.arange(len(labels))
         width = 0.8 / max(len(methods), 1)
         for j, method in enumerate(methods):
             chosen = pick(subset, method=method)
-            for ax, column in zip(row_axes, ("mass_error", "velocity_error")):
+            for ax, column in zip(row_axes, ("mass_error", "velocity_error"), strict=False):
                 values = np.array([r[column] for r in chosen], dtype=float) * 100
                 at = x[:values.size] + (j - (len(methods) - 1) / 2) * width
                 ax.bar(at, values, width, label=method, color=_color(method))
                 failed = ~np.isfinite(values)
                 ax.plot(at[failed], np.zeros(failed.sum()), "x", color=_color(method), ms=7,
                         label=f"{method} failed" if failed.any() and ax is row_axes[0] else None)
-        for ax, what in zip(row_axes, ("mass", "velocity")):
+        for ax, what in zip(row_axes, ("mass", "velocity"), strict=False):
             ax.set_yscale("symlog", linthresh=2.0)
             ax.axhline(0, color="k", lw=0.6)
             ax.set_xticks(x, labels, fontsize=6)
@@ -89,7 +89,7 @@ def plot_mean_error_vs(rows: Sequence[Row], parameters: Sequence[tuple[str, str,
     fig, axes = plt.subplots(len(errors), len(parameters), figsize=(4.8 * max(len(parameters), 2), 3.8 * len(errors)),
                              squeeze=False, constrained_layout=True)
     for i, error in enumerate(errors):
-        for ax, (column, label, scale) in zip(axes[i], parameters):
+        for ax, (column, label, scale) in zip(axes[i], parameters, strict=False):
             for method in _methods(rows):
                 stats = sorted(group_stats(pick(rows, method=method), (column,), (error,)), key=lambda s: s[column])
                 x = np.array([s[column] for s in stats]) * scale
@@ -146,10 +146,10 @@ def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = T
     series = list(dict.fromkeys(tuple(r.get(k) for k in keys) for r in rows))
     styles = ["-", "--", ":", "-."]
     feature_sets = list(dict.fromkeys(r.get("feature_set") for r in rows))
-    for ax, (column, label, scale) in zip(axes[0], panels):
+    for ax, (column, label, scale) in zip(axes[0], panels, strict=False):
         for values in series:
-            chosen = sorted(pick(rows, **dict(zip(keys, values))), key=lambda r: r[x])
-            setting = dict(zip(keys, values))
+            chosen = sorted(pick(rows, **dict(zip(keys, values, strict=False))), key=lambda r: r[x])
+            setting = dict(zip(keys, values, strict=False))
             ls = styles[feature_sets.index(setting.get("feature_set")) % len(styles)]
             marker = "s" if setting.get("cases") == "grid125" else "o"
             ax.plot([r[x] * x_scale for r in chosen], [r[column] * scale for r in chosen], ls=ls, marker=marker, ms=4,
@@ -171,7 +171,7 @@ def plot_strategy_distributions(rows: Sequence[Row]):
     panels = [("efficiency", "efficiency η [-]", 1.0), ("peak_force_controlled_N", "peak force after control [kN]",
                                                          1e-3), ("stroke_used_m", "stroke used [mm]", 1e3)]
     fig, axes = plt.subplots(1, len(panels), figsize=(14, 4.2), constrained_layout=True)
-    for ax, (column, label, scale) in zip(axes, panels):
+    for ax, (column, label, scale) in zip(axes, panels, strict=False):
         data = []
         for strategy in strategies:
             values = np.array([np.nan if r.get(column) is None else float(r[column]) * scale for r in rows

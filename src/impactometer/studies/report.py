@@ -113,7 +113,7 @@ def render(results: list[dict[str, Any]]) -> str:
              f"{options.get('seeds')} noise realisation(s) per case; base noise {options.get('noise', 0) * 100:g} % "
              f"of RMS at {options.get('sample_rate', 0) / 1e3:g} kHz.") if options else ""
     setup = html.escape(setup)
-    stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    stamp = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
     return f"""<!DOCTYPE html>
 {MARKER}
 <html lang="en"><head><meta charset="utf-8"><title>impactometer studies</title>

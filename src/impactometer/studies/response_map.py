@@ -8,7 +8,6 @@ next to the paper's statements (velocity 5-10× more accurate than mass; more th
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from .base import Row, Study, StudyOptions, register

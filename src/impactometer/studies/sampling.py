@@ -6,10 +6,20 @@ above 30-40 kHz with outliers near 20 %, and recommends 50 kHz or more.
 
 from __future__ import annotations
 
-
 from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
-from .identification import (REQUIRES, by_method, clean_recordings, identify_rows, max_abs, mean_abs, pct,
-                             per_method, seeded_grid, with_failures, with_noise)
+from .identification import (
+    REQUIRES,
+    by_method,
+    clean_recordings,
+    identify_rows,
+    max_abs,
+    mean_abs,
+    pct,
+    per_method,
+    seeded_grid,
+    with_failures,
+    with_noise,
+)
 
 NAME = "sampling"
 #: default values per grid axis (the paper's 125 scenarios)
@@ -31,7 +41,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
     rows = []
     for rate in dict.fromkeys(c["sample_rate"] for c in cases):
         group = [c for c in cases if c["sample_rate"] == rate]
-        for case, clean in zip(group, clean_recordings(group, options, sample_rate=rate)):
+        for case, clean in zip(group, clean_recordings(group, options, sample_rate=rate), strict=False):
             recording = with_noise(clean, {"contact_force": level, "piston_acceleration": level},
                                    case_seed(options, NAME, case["case"]))
             rows += identify_rows(recording, {**case, "noise": level})

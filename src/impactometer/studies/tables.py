@@ -57,7 +57,7 @@ def group_stats(rows: Iterable[Row], by: Sequence[str], values: Sequence[str], *
         groups.setdefault(tuple(row[k] for k in by), []).append(row)
     out = []
     for key, members in groups.items():
-        entry: Row = dict(zip(by, key))
+        entry: Row = dict(zip(by, key, strict=False))
         entry["n"] = len(members)
         failed = [r for r in members if any(not _finite(r.get(v)) for v in values)]
         entry["failed"] = len(failed)
