@@ -1,96 +1,106 @@
-"""Contact onsets located to a fraction of a sample by fitting the foot of each rising force edge."""
+"""Contact onsets and separations located to a fraction of a sample by fitting the foot of a force edge.
+
+A contact that starts at T makes the force rise as F = A·s^p·(1 + q·s), s = t − T > 0, and zero before: p = 0 is a
+jump (viscous damping), 1 a linear and 1.5 a Hertzian foot; q bends the foot further up the edge. The exponent p
+is free (a grid of ``EXPONENTS``), A and q are linear and solved for at every trial T, and T is scanned on a grid
+of a fraction of a sample. A separation is the same fit run backwards in time from the end of a pulse.
+
+How far up the edge the fit reaches follows from the noise: far enough for the edge to rise ``FOOT_SIGMAS``
+noise standard deviations (between ``FOOT_TOP_MIN`` and ``FOOT_TOP_MAX`` of the pulse's peak). The curvature term
+q is used only when the fit reaches beyond ``CURVED_ABOVE`` of the peak (below that the power law alone is exact
+for the common contact laws). The answer is the centre of the set of trial times whose squares lie within one
+scatter of the minimum, and its standard error half the width of that set (at least ``MIN_STD``).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .pulses import PulseSpan
+from .pulses import PulseSpan, detection_levels
 
-#: exponents of the power-law foot F = A·(t - t0)^p tried (1: linear, 1.5: Hertz/Hunt-Crossley)
-FOOT_EXPONENTS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5)
-#: the foot is fitted up to this fraction of the pulse's peak force
-FOOT_TOP = 0.1
-#: smallest standard error of an onset [samples] (the foot is never exactly a power law)
-MIN_STD = 0.1
-#: onset grid resolution [samples]: a coarse scan over all foot models, then a fine one around the best
+#: exponents p of the foot F = A·s^p·(1 + q·s) tried (0: a jump)
+EXPONENTS = np.arange(0.0, 2.0001, 0.25)
+#: the fit reaches up the edge until it has risen this many noise standard deviations ...
+FOOT_SIGMAS = 25.0
+#: ... but at least and at most these fractions of the pulse's peak force
+FOOT_TOP_MIN, FOOT_TOP_MAX = 0.1, 0.4
+#: the curvature term q is fitted when the fit reaches beyond this fraction of the peak
+CURVED_ABOVE = 0.15
+#: smallest standard error of an edge time [samples]: an anti-alias filter smooths a jump over about a sample
+MIN_STD = 0.25
+#: scan steps [samples]: coarse over the whole window, then fine around the best
 COARSE_STEP, GRID_STEP = 0.25, 1.0 / 32.0
 
 
-def _fit_sse(t, f, t0_grid, exponent):
-    """Residual sum of squares of the best F = H(t-t0)·model over ``t0_grid`` for one foot family."""
-    s = t[None, :] - t0_grid[:, None]
+def _profile(t: np.ndarray, f: np.ndarray, grid: np.ndarray, curved: bool) -> np.ndarray:
+    """Least squares of the best foot at each trial time of ``grid`` (minimum over the exponents and A, q)."""
+    s = t[None, None, :] - grid[:, None, None]
     on = s > 0.0
-    if exponent is None:  # jump + line: F = J + S·(t - t0) after t0
-        c0 = on.astype(float)
-        c1 = np.where(on, s, 0.0)
-        g00, g01, g11 = (c0 * c0).sum(1), (c0 * c1).sum(1), (c1 * c1).sum(1)
-        r0, r1 = (c0 * f).sum(1), (c1 * f).sum(1)
-        det = g00 * g11 - g01 ** 2
-        det = np.where(det > 1e-12, det, np.inf)
-        jump = (g11 * r0 - g01 * r1) / det
-        slope = (g00 * r1 - g01 * r0) / det
-        bad = jump < 0.0
-        model = jump[:, None] * c0 + slope[:, None] * c1
-        sse = ((f[None, :] - model) ** 2).sum(1)
-        return np.where(bad, np.inf, sse)
-    m = np.where(on, np.abs(s) ** exponent, 0.0)
-    mm = (m * m).sum(1)
-    amp = np.where(mm > 0, (m * f).sum(1) / np.where(mm > 0, mm, 1.0), 0.0)
-    return ((f[None, :] - amp[:, None] * m) ** 2).sum(1)
+    ss = np.where(on, s, 0.0)
+    p = EXPONENTS[None, :, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b1 = np.where(on, np.where(p == 0.0, 1.0, ss ** p), 0.0)
+    ff = float(f @ f)
+    g11, r1 = (b1 * b1).sum(-1), (b1 * f).sum(-1)
+    if not curved:
+        amp = r1 / np.where(g11 > 0, g11, 1.0)
+        return np.where((g11 > 0) & (amp > 0), ff - amp * r1, np.inf).min(1)
+    b2 = b1 * ss
+    g12, g22, r2 = (b1 * b2).sum(-1), (b2 * b2).sum(-1), (b2 * f).sum(-1)
+    det = g11 * g22 - g12 ** 2
+    ok = det > 1e-12 * np.maximum(g11 * g22, 1e-300)
+    det = np.where(ok, det, 1.0)
+    amp = (g22 * r1 - g12 * r2) / det
+    bend = (g11 * r2 - g12 * r1) / det
+    sse = ff - 2.0 * (amp * r1 + bend * r2) + amp * amp * g11 + 2.0 * amp * bend * g12 + bend * bend * g22
+    return np.where(ok & (amp > 0), sse, np.inf).min(1)
 
 
 def onset_index(force: np.ndarray, span: PulseSpan, noise: float, *, earliest: int = 0) -> tuple[float, float]:
     """Sub-sample onset of a pulse and its standard error, both in samples.
 
-    Fits the foot of the rising edge (from two samples before the last zero-consistent sample up to
-    ``FOOT_TOP`` of the peak) with a power law A·(t-t0)^p (p in ``FOOT_EXPONENTS``) and with a jump plus a line
-    (the signature of viscous contact damping), each zero before t0; the family and t0 with the least squares,
-    penalised by 2σ² per extra parameter, win. The onset is the centre of the t0 interval where the squares
-    stay within σ² of the minimum and its standard error half that interval's width, at least the
-    resolution of a jump (1/√12 sample). The search never starts before sample ``earliest`` (the end of the
-    previous pulse).
+    ``span`` gives the last zero-consistent sample before the pulse, its first detected sample and its peak; the
+    search never starts before sample ``earliest`` (the end of the previous pulse).
     """
     f_all = np.asarray(force, dtype=float)
     sigma = max(float(noise), 1e-12)
-    top = max(FOOT_TOP * f_all[span.peak], 10.0 * sigma)
+    peak = float(f_all[span.peak])
+    top = min(max(FOOT_TOP_MIN * peak, FOOT_SIGMAS * sigma), FOOT_TOP_MAX * peak)
     stop = span.first
     while stop < span.peak and f_all[stop] < top:
         stop += 1
     stop = max(stop + 1, min(span.first + 3, span.peak + 1))
-    # samples the edge needs to rise through the detection level: the onset may lie that far before it
-    slope = max((f_all[stop - 1] - f_all[span.first]) / max(stop - 1 - span.first, 1), 1e-12)
-    rise = int(min(np.ceil(f_all[span.first] / slope), 64))
-    lo = max(min(span.zero, span.first - 2 * rise) - 2, earliest, 0)
+    rise = stop - span.first
+    lo = max(min(span.zero, span.first - max(2 * rise, 8)) - 2, earliest, 0)
     t = np.arange(lo, stop, dtype=float)
     f = f_all[lo:stop]
-    families = [(p, 0) for p in FOOT_EXPONENTS] + [(None, 1)]
-
-    def scan(grid, candidates):
-        best = None
-        for exponent, extra in candidates:
-            sse = _fit_sse(t, f, grid, exponent) + 2.0 * sigma ** 2 * extra
-            k = int(np.argmin(sse))
-            if best is None or sse[k] < best[0][best[1]]:
-                best = (sse, k, exponent, extra)
-        return best
-
-    def interval(grid, sse, k):
-        # the contiguous run around the minimum where the squares stay within one scatter of it
-        scatter2 = max(sigma ** 2, sse[k] / max(t.size - 3, 1))  # the noise, or the misfit of the foot model
-        inside = sse <= sse[k] + scatter2
-        lo_k = hi_k = k
-        while lo_k > 0 and inside[lo_k - 1]:
-            lo_k -= 1
-        while hi_k < grid.size - 1 and inside[hi_k + 1]:
-            hi_k += 1
-        return lo_k, hi_k
-
+    curved = top > CURVED_ABOVE * peak
     coarse = np.arange(lo, span.first + 1e-9, COARSE_STEP)
-    sse, k, exponent, extra = scan(coarse, families)
-    lo_k, hi_k = interval(coarse, sse, k)
-    fine = np.arange(coarse[max(lo_k - 1, 0)], coarse[min(hi_k + 1, coarse.size - 1)] + 1e-9, GRID_STEP)
-    sse, k, _, _ = scan(fine, [(exponent, extra)])
-    lo_k, hi_k = interval(fine, sse, k)
-    onset = 0.5 * (fine[lo_k] + fine[hi_k])
-    std = max(0.5 * (fine[hi_k] - fine[lo_k]), MIN_STD)
-    return float(onset), float(std)
+    k = int(np.argmin(_profile(t, f, coarse, curved)))
+    fine = np.arange(coarse[max(k - 8, 0)], coarse[min(k + 8, coarse.size - 1)] + 1e-9, GRID_STEP)
+    sse = _profile(t, f, fine, curved)
+    k = int(np.argmin(sse))
+    # trial times whose squares stay within one scatter (the noise, or the misfit of the foot model) of the least
+    scatter2 = max(sigma ** 2, sse[k] / max(t.size - 4, 1))
+    inside = np.flatnonzero(sse <= sse[k] + scatter2)
+    first, last = fine[inside[0]], fine[inside[-1]]
+    return float(0.5 * (first + last)), float(max(0.5 * (last - first), MIN_STD))
+
+
+def separation_index(force: np.ndarray, span: PulseSpan, noise: float, *, latest: int | None = None,
+                     force_scale: float | None = None) -> tuple[float, float]:
+    """Sub-sample time where a complete pulse's force returns to zero, and its standard error [samples].
+
+    The onset fit run backwards in time; the search never goes past sample ``latest`` (the start of the next
+    pulse). ``force_scale`` [N] is the largest force, which sets the detection level as in
+    :func:`~impactometer.identify.pulses.detect_pulses`.
+    """
+    f_all = np.asarray(force, dtype=float)
+    n = f_all.size
+    detect, _ = detection_levels(noise, float(np.max(np.abs(f_all))) if force_scale is None else force_scale)
+    above = np.flatnonzero(f_all[span.peak:span.end] > detect)
+    last = span.peak + (int(above[-1]) if above.size else 0)
+    mirrored = PulseSpan(zero=n - 1 - span.end, first=n - 1 - last, peak=n - 1 - span.peak, end=-1)
+    earliest = 0 if latest is None else n - 1 - int(latest)
+    index, std = onset_index(f_all[::-1], mirrored, noise, earliest=earliest)
+    return float(n - 1 - index), std

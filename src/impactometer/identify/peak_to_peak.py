@@ -1,168 +1,60 @@
 """Peak-to-peak identification of the impacting mass M1 and impact velocity V0 (paper section 4).
 
-Two variants: ``paper`` (eqs. (3)-(5) as published) and ``robust`` (default; zero relative displacement at every
-contact onset, generalised least squares with propagated noise, an early and a final answer). Both work on the
-same prepared segment: the first impact found by the trigger, offsets removed with the pre-trigger samples.
+Two variants: ``paper`` (eqs. (3)-(5) as published) and ``robust`` (default). Both work on the same prepared
+segment (:mod:`segment`): the first impact found by the trigger, offsets removed with the pre-trigger samples.
+
+``robust`` gives two answers. The **early** one, as soon as the second pulse is past its peak, fits the contact
+phase of the first two pulses (:mod:`early`: a contact-law family with free parameters). The **final** one, and
+every later update, is contact-law agnostic (:mod:`robust`): one generalised least-squares estimate from every
+onset, every separation and the stage-B samples of the record. Each answer states the equations it used.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
 from ..errors import IdentificationError, RecordingError
 from ..recording import Recording
-from . import trigger
 from .early import solve_early
-from .onsets import onset_index
-from .pulses import PulseSpan, detect_pulses, noise_std
+from .pulses import PulseSpan
 from .result import Identification
-from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
+from .robust import Equations, Kinematics, combine, solve_rows
+from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
+    MAX_DURATION,
+    PRE_SAMPLES,
+    QUIET_TIME,
+    TRIGGER_FLOOR,
+    Segment,
+    check_channels,
+    check_clipping,
+    early_cut,
+    early_ready,
+    edges,
+    prepare,
+    quantum,
+    segment_bounds,
+    segment_of,
+    segment_onset,
+    segment_separation,
+    stage_b,
+)
 
 GRAVITY = 9.81
-#: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
-#: offset, double-integrated, is the largest error of the final answer, so keep up to 0.1 s at 50 kHz
-PRE_SAMPLES = 5000
-#: samples next to the trigger left out of the pre-trigger statistics (the foot of the first rise)
-GUARD_SAMPLES = 32
-#: fewest pre-trigger samples for removing offsets
-MIN_PRE_SAMPLES = 32
-#: smallest trigger level [N]: exact (simulated) records have no noise to set one
-TRIGGER_FLOOR = 1e-9
-#: quiet spell that ends an impact [s] (a mass rebounding at 1.5 m/s is airborne for 0.3 s) and longest impact [s]
-QUIET_TIME = 0.3
-MAX_DURATION = 1.0
-
-
-@dataclass(frozen=True)
-class Segment:
-    """One impact cut from the data: offset-free channels and what was learnt while preparing them."""
-
-    force: np.ndarray
-    acceleration: np.ndarray
-    sample_rate: float
-    start_time: float
-    noise_force: float
-    noise_acceleration: float
-    pre_samples: int
-    pulses: list[PulseSpan]
-    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments cut from
-    #: the same data with the same start (the early and the final answer, successive streaming estimates)
-    onset_cache: dict = field(default_factory=dict, compare=False)
-
-    def time_of(self, index: float) -> float:
-        """Time [s] of a (fractional) sample index of the segment."""
-        return self.start_time + float(index) / self.sample_rate
-
-
-def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.ndarray, float]:
-    """Validate the two channels; IdentificationError naming what is wrong."""
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
-            sample_rate) or sample_rate <= 0:
-        raise IdentificationError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
-    if acceleration is None:
-        raise IdentificationError("the piston acceleration channel is missing; peak-to-peak needs contact force "
-                                  "and piston acceleration")
-    try:
-        f = np.asarray(force, dtype=float)
-        a = np.asarray(acceleration, dtype=float)
-    except (TypeError, ValueError):
-        raise IdentificationError("force and acceleration must be arrays of numbers") from None
-    for name, x in (("contact_force", f), ("piston_acceleration", a)):
-        if x.ndim != 1:
-            raise IdentificationError(f"{name} must be a 1-D array, got shape {x.shape}")
-        bad = np.flatnonzero(~np.isfinite(x))
-        if bad.size:
-            raise IdentificationError(f"{name} has a non-finite sample ({x[bad[0]]!r}) at index {int(bad[0])}; "
-                                      "expected finite numbers")
-    if f.size != a.size:
-        raise IdentificationError(f"contact_force and piston_acceleration must have equal lengths, got {f.size} "
-                                  f"and {a.size} samples")
-    if f.size < 8:
-        raise IdentificationError(f"the record has {f.size} samples; expected at least 8")
-    if np.ptp(a) == 0.0:
-        raise IdentificationError(f"piston_acceleration is constant ({a[0]!r} m/s² throughout); expected a "
-                                  "measured acceleration")
-    return f, a, float(sample_rate)
-
-
-def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
-    """Trigger events (code, sample index) over a whole record."""
-    fstate, istate = trigger.new_state()
-    events = np.zeros((3 * force.size + 2, 2), dtype=np.int64)
-    n = trigger.run_trigger(force, fstate, istate, floor, max(int(QUIET_TIME * sample_rate), 1),
-                            max(int(MAX_DURATION * sample_rate), 1), events)
-    return events[:n]
-
-
-def quantum(x: np.ndarray) -> float:
-    """Step of a quantised channel (the smallest difference between its distinct values, when they all lie on
-    a grid of that step), or 0 for continuous values."""
-    values = np.unique(x)
-    if values.size < 3:
-        return 0.0
-    step = float(np.min(np.diff(values)))
-    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(np.round((values - values[0]) / step) * step, values - values[0],
-                                    rtol=0, atol=1e-3 * step):
-        return 0.0
-    return step
-
-
-def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
-            pre: int, *, cache: dict | None = None) -> Segment:
-    """Offsets and noise from the first ``pre`` samples (less the guard), then the pulses of the impact."""
-    n_pre = pre - GUARD_SAMPLES
-    if n_pre >= MIN_PRE_SAMPLES:
-        f0, a0 = float(np.mean(force[:n_pre])), float(np.mean(acceleration[:n_pre]))
-        sf, sa = float(np.std(force[:n_pre])), float(np.std(acceleration[:n_pre]))
-    else:
-        n_pre, f0, a0 = 0, 0.0, 0.0
-        sf, sa = noise_std(force), noise_std(acceleration)
-    # resolution floor: quantisation noise (step/√12), and rounding of exact (simulated) data
-    sf = max(sf, quantum(force) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(force))))
-    sa = max(sa, quantum(acceleration) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(acceleration))))
-    f = force - f0
-    a = acceleration - a0
-    pulses = detect_pulses(f, sf, start=max(n_pre, 0))  # nothing before the pre-trigger statistics' end
-    return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses, {} if cache is None else cache)
-
-
-def check_clipping(seg: Segment) -> None:
-    """IdentificationError when the force channel is saturated.
-
-    A quantised peak may sit a few samples at one level: about 2·√(2(q + 2σ)/|F''|) samples for a quantum q, noise
-    σ and the curvature F'' ≈ Fmax·(π/T)² of a pulse of T samples. A flat top twice that long, or the maximum
-    reached in two different pulses to the last digit, is a clipped channel.
-    """
-    f = seg.force
-    fmax = float(np.max(f))
-    at_max = np.flatnonzero(f >= fmax - 1e-12 * abs(fmax))
-    k = int(at_max[0])
-    run = int(np.argmax(np.diff(np.r_[at_max, -2]) != 1)) + 1
-    pulse = next((p for p in seg.pulses if p.first <= k and (not p.complete or k < p.end)), None)
-    rails = sum(any(p.first <= i and (not p.complete or i < p.end) for i in at_max) for p in seg.pulses)
-    if pulse is None or fmax <= 0:
-        return
-    length = (f.size if not pulse.complete else pulse.end) - pulse.zero
-    curvature = fmax * (np.pi / max(length, 1)) ** 2
-    near = f[max(k - 2 * run - 8, 0):k + 3 * run + 8]
-    steps = np.diff(np.unique(near))
-    quantum = float(steps.min()) if steps.size else 0.0
-    expected = 2.0 * np.sqrt(2.0 * (quantum + 2.0 * seg.noise_force) / curvature)
-    if rails >= 2 or run >= max(3.0, 2.0 * expected):
-        raise IdentificationError(f"contact_force is saturated: {run} samples sit at its maximum {fmax:.6g} N from "
-                                  f"t = {seg.time_of(k):.6g} s (a peak of that curvature stays about "
-                                  f"{expected:.1f} samples within the resolution); the force channel was "
-                                  "clipped, its range must be raised")
+#: lag-1 autocorrelation of the pre-trigger noise above which a channel counts as low-pass filtered [-]
+COLOURED_LIMIT = 0.5
+#: the separation lag λ is at most this fraction of the first pulse's duration [-]
+LAG_FRACTION = 0.5
 
 
 def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
-          contact_phase: bool = False) -> Identification:
-    """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`)."""
+          contact_phase: bool = False, stage: str = "final") -> Identification:
+    """Identify from a prepared segment with the named variant (``contact_phase``, ``stage``: see
+    :func:`solve_robust`)."""
     if variant == "robust":
-        return solve_robust(seg, gravity, early, contact_phase=contact_phase)
+        return solve_robust(seg, gravity, early, contact_phase=contact_phase, stage=stage)
     return VARIANT_SOLVERS[variant](seg, gravity, early)
 
 
@@ -222,120 +114,110 @@ def paper_caution(seg: Segment) -> str | None:
             "may be far off (the robust variant accounts for the noise)")
 
 
-def segment_onset(seg: Segment, pulse: PulseSpan) -> tuple[float, float]:
-    """Sub-sample onset and its standard error [samples] of a pulse of the segment (cached)."""
-    k = next((i for i, p in enumerate(seg.pulses) if p.first == pulse.first), 0)
-    earliest = seg.pulses[k - 1].end if k > 0 else 0
-    key = (pulse.zero, pulse.first, pulse.peak, earliest, seg.noise_force)
-    if key not in seg.onset_cache:
-        seg.onset_cache[key] = onset_index(seg.force, pulse, seg.noise_force, earliest=earliest)
-    return seg.onset_cache[key]
+
+def check_white_noise(seg: Segment) -> None:
+    """IdentificationError when the pre-trigger noise of a channel is correlated from sample to sample.
+
+    A low-pass filter (CFC, a smoothing DAQ setting) colours the noise and spreads every contact onset ahead of
+    the contact: the robust variant's noise model and onset times would then be wrong and its standard errors far
+    too small, so it refuses rather than answer.
+    """
+    if seg.noise_correlation > COLOURED_LIMIT:
+        raise IdentificationError(
+            f"the channels look low-pass filtered: their pre-trigger noise has a sample-to-sample correlation of "
+            f"{seg.noise_correlation:.2f} (white noise: about 0, limit {COLOURED_LIMIT}); the robust variant needs "
+            "the unfiltered channels (a filter colours the noise and moves the contact onsets ahead of the "
+            "contact) -- identify the record without --cfc, or use --variant paper")
 
 
-def _onsets(seg: Segment, pulses) -> tuple[np.ndarray, np.ndarray]:
-    pairs = [segment_onset(seg, p) for p in pulses]
-    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+def equations(seg: Segment) -> tuple[Equations, list[PulseSpan], float, float]:
+    """Every row the segment holds: (equations, pulses whose onsets were used, t00 and its standard error
+    [samples])."""
+    pulses = [p for p in seg.pulses if p.complete]
+    sustained, cells, cell_force, cell_size = stage_b(seg)
+    if sustained is not None and not seg.pulses[sustained].complete:
+        pulses = pulses + [seg.pulses[sustained]]
+    elif len(seg.pulses) > len(pulses) and early_ready(seg) and len(pulses) == 1:
+        pulses = pulses + [seg.pulses[1]]  # the second pulse is past its peak: its onset is complete
+    onsets, stds = edges(seg, pulses)
+    seps = [segment_separation(seg, p) for p in seg.pulses if p.complete]
+    eqs = Equations(onsets=onsets[1:], onset_std=stds[1:], separations=np.array([s[0] for s in seps]),
+                    separation_std=np.array([s[1] for s in seps]), cells=cells, cell_force=cell_force,
+                    cell_size=cell_size)
+    return eqs, pulses, float(onsets[0]), float(stds[0])
+
+
+def _determined(eqs: Equations) -> bool:
+    """Whether the agnostic rows leave at least one degree of freedom once (V0, w) and the nuisances are fitted."""
+    rows = eqs.onsets.size + eqs.separations.size + eqs.cells.size
+    nuisances = (eqs.separations.size + eqs.cells.size > 0) + 2 * (eqs.cells.size > 0)
+    return eqs.onsets.size >= 1 and rows - 2 - nuisances >= 1
 
 
 def solve_robust(seg: Segment, gravity: float, early: Identification | None = None, *,
-                 contact_phase: bool = False) -> Identification:
-    """Zero relative displacement at every complete pulse's onset; GLS with propagated noise (module notes).
+                 contact_phase: bool = False, stage: str = "final") -> Identification:
+    """The robust variant's answer from a prepared segment.
 
-    With only two separated pulses the contact phase gives the answer (:mod:`early`). With ``contact_phase`` the
-    onset answer is combined with the contact-phase fit of the first two pulses (best linear unbiased, with the
-    shared acceleration noise): on the built-in stand at 5 % noise this lowers the velocity error by a third
-    and leaves the mass error about as it is, at the price of depending on the contact-law family.
+    ``stage="early"``: the contact-phase fit of the first two pulses (:func:`~impactometer.identify.early.
+    solve_early`). ``stage="final"``: the agnostic rows of :func:`~impactometer.identify.robust.solve_rows` --
+    every onset, separation and stage-B cell -- where they leave at least one degree of freedom, else the
+    contact-phase fit. With ``contact_phase`` the agnostic answer is combined with the contact-phase fit (best
+    linear unbiased, with the shared acceleration noise), at the price of depending on the contact-law family.
     """
-    pulses = [p for p in seg.pulses if p.complete]
-    if len(pulses) < 2 and early_ready(seg):  # the second pulse is past its peak: enough for the contact phase
-        pulses = [pulses[0], replace(seg.pulses[1], end=seg.force.size)]
-    _need_pulses(seg, 2 - (len(pulses) >= 2), "the robust variant")
-    onsets, stds = _onsets(seg, pulses)
-    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, onsets[0], gravity, onset_std0=stds[0])
-    common = dict(t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
-                  variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
-                  available_at=seg.time_of(min(pulses[-1].end, seg.force.size - 1)))
+    check_white_noise(seg)
+    if not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2 or not (
+            seg.pulses[1].complete or early_ready(seg)):
+        _need_pulses(seg, 2, "the robust variant")
+    eqs, pulses, t00, std0 = equations(seg)
+    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity, onset_std0=std0)
     noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                  pre_samples=seg.pre_samples)
-    if len(pulses) - 1 >= MIN_ONSET_ROWS:
-        theta, cov, chi2, dof, sens = solve_onsets(kin, onsets[1:], stds[1:], **noise)
-        rows = len(pulses) - 1
+    second = seg.pulses[1]
+    onset1 = (np.array([segment_onset(seg, second)[0]]), np.array([segment_onset(seg, second)[1]]))
+    used: dict = {}
+    if stage == "final" and _determined(eqs):
+        lag_max = LAG_FRACTION * (seg.pulses[0].end - seg.pulses[0].zero) / seg.sample_rate
+        sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
+        theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
+        used = {**eqs.counts(), **sol.nuisances}
         if contact_phase:
-            contact = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
-            theta, cov = combine((theta, cov, sens), (contact[0], contact[1], contact[4]),
+            contact = solve_early(kin, [seg.pulses[0], replace(second, end=second.end if second.complete else
+                                                                 seg.force.size)], onset1[0][0], onset1[1][0], **noise)
+            theta, cov = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
                                  noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples,
                                  dt=kin.dt)
+            used["contact_phase_samples"] = int(contact[4][1].size - 1)
+        last = max([p.end if p.complete else seg.force.size - 1 for p in seg.pulses])
     else:
-        theta, cov, chi2, dof, _ = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
-        rows = -1
+        stage = "early" if stage == "early" else "final"
+        contact_pulses = [seg.pulses[0], second if second.complete else replace(second, end=seg.force.size)]
+        theta, cov, chi2, dof, sens = solve_early(kin, contact_pulses, onset1[0][0], onset1[1][0], **noise)
+        used = {"onsets": 1, "separations": 0, "stage_b_rows": 0, "stage_b_samples": 0,
+                "contact_phase_samples": int(sens[1].size - 1)}
+        last = second.end if second.complete else seg.force.size - 1
     velocity, w = float(theta[0]), float(theta[1])
-    if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity):
-        raise IdentificationError(f"the onset equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses "
-                                  "found are not contact separations of a falling mass")
-    mass = 1.0 / w
-    return Identification(mass=mass, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
-                          velocity_std=float(np.sqrt(cov[0, 0])), early=early,
-                          details={"onset_rows": rows, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
-                                   "noise_acceleration_m_s2": seg.noise_acceleration,
-                                   "pre_trigger_samples": seg.pre_samples}, **common)
+    if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity) or not np.all(np.isfinite(cov)):
+        raise IdentificationError(f"the equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses found "
+                                  "are not contact separations of a falling mass")
+    return Identification(
+        mass=1.0 / w, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
+        velocity_std=float(np.sqrt(cov[0, 0])), early=early, t00=seg.time_of(t00),
+        t01=seg.time_of(seg.pulses[0].peak), t11=seg.time_of(second.peak), variant="robust",
+        onsets=tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), available_at=seg.time_of(last),
+        details={"stage": stage, "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
+                 "noise_acceleration_m_s2": seg.noise_acceleration, "pre_trigger_samples": seg.pre_samples})
 
 
 VARIANT_SOLVERS = {"robust": solve_robust, "paper": solve_paper}
 
 
-def _segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, list[int], int]:
-    """First impact: (start, stop) sample indices of its segment and the pulse-end indices in it."""
-    events = run_trigger(force, sample_rate, floor=TRIGGER_FLOOR)
-    trig = [int(i) for c, i in events if c == trigger.EVENT_TRIGGER]
-    if not trig:
-        raise IdentificationError("no impact found: the contact force never leaves its noise; expected at least "
-                                  "one contact pulse")
-    if trig[0] <= trigger.WARM_SAMPLES:  # fired at the first chance: no quiet history before the impact
-        return 0, _first_close(events, trig[0], force.size), _pulse_ends(events, trig[0], force.size), 0
-    start = max(trig[0] - PRE_SAMPLES, 0)
-    stop = _first_close(events, trig[0], force.size)
-    return start, stop, _pulse_ends(events, trig[0], stop), trig[0] - start
-
-
-def _first_close(events, trig: int, size: int) -> int:
-    closes = [int(i) for c, i in events if c == trigger.EVENT_CLOSE and i > trig]
-    return closes[0] + 1 if closes else size
-
-
-def _pulse_ends(events, trig: int, stop: int) -> list[int]:
-    """Samples after which an answer may have become possible: pulse ends and pulses past their peak."""
-    codes = (trigger.EVENT_PULSE_END, trigger.EVENT_PAST_PEAK)
-    return sorted({int(i) for c, i in events if c in codes and trig < i < stop})
-
-
-def segment_of(force, acceleration, sample_rate, start_time, start, stop, pre, cache=None) -> Segment:
-    """Prepared segment [start, stop) of the arrays."""
-    return prepare(force[start:stop], acceleration[start:stop], sample_rate, start_time + start / sample_rate, pre,
-                   cache=cache)
-
-
-def early_ready(seg: Segment) -> bool:
-    """Whether the segment holds a complete first pulse and a second one past its peak (the early answer)."""
-    p = seg.pulses
-    return len(p) >= 2 and p[0].complete and (
-        p[1].complete or seg.force[-1] < trigger.PAST_PEAK_FRACTION * seg.force[p[1].peak])
-
-
-def early_cut(force, acceleration, sample_rate, start_time, start, ends, pre, cache=None) -> Segment | None:
-    """The segment up to the first event after which the early answer is possible (None if never)."""
-    for end in ends:
-        seg = segment_of(force, acceleration, sample_rate, start_time, start, end + 1, pre, cache)
-        if early_ready(seg):
-            return seg
-    return None
-
-
 def early_answer(cut: Segment | None, gravity: float) -> Identification | None:
-    """The robust answer from the data up to the second pulse, or None when that data allows none."""
+    """The robust variant's early answer from the data up to the second pulse, or None when that data allows
+    none."""
     if cut is None:
         return None
     try:
-        return solve(cut, "robust", gravity)
+        return solve(cut, "robust", gravity, stage="early")
     except IdentificationError:
         return None
 
@@ -375,7 +257,7 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     if not (isinstance(gravity, (int, float)) and math.isfinite(gravity) and gravity >= 0):
         raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {gravity!r}")
     f, a, fs = check_channels(force, acceleration, sample_rate)
-    start, stop, ends, pre = _segment_bounds(f, fs)
+    start, stop, ends, pre = segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
     check_clipping(seg)
     early = None

@@ -133,8 +133,8 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ for ``HOLD`` consecutive samples (not before
     sample ``start``) and ends where it stays below ``RELEASE_SIGMAS``·σ for ``HOLD`` samples. A gap between two
     pulses counts as a separation only when the force in it is consistent with zero (the mean of its middle half
-    within 3σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still running at the end of
-    the data has ``end = -1``.
+    within 3σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still running at
+    the end of the data has ``end = -1``.
     """
     f = np.asarray(force, dtype=float)
     scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)
@@ -172,17 +172,28 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     return out
 
 
-def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 4.0) -> int | None:
-    """Sample index where sustained contact (stage B) starts, or None.
+def sustained_index(spans: list[PulseSpan], *, size: int, factor: float = 2.0) -> int | None:
+    """Index in ``spans`` of the pulse where sustained contact (stage B) starts, or None.
 
-    Stage B is the first pulse that lasts longer than ``factor`` times the first pulse or is still running at the
-    end of the data (``size`` samples), provided it is not the first pulse itself.
+    Stage B is the first pulse after the first that lasts longer than ``factor`` times the longest pulse before
+    it, counting a pulse still running at the end of the data (``size`` samples) by how long it has run so far.
+    A bounce lasts as long as the contact's stiffness makes it, whatever the law; sustained contact lasts as long
+    as the gas spring holds the bodies together, many bounces long.
     """
     if len(spans) < 2 or not spans[0].complete:
         return None
-    first = spans[0].end - spans[0].first
-    for span in spans[1:]:
-        length = (size if not span.complete else span.end) - span.first
-        if not span.complete or length > factor * first:
-            return span.zero
+    longest = 0
+    for k, span in enumerate(spans):
+        length = (span.end if span.complete else size) - span.zero
+        if k > 0 and length > factor * longest:
+            return k
+        if not span.complete:
+            return None
+        longest = max(longest, length)
     return None
+
+
+def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 2.0) -> int | None:
+    """Sample index where sustained contact (stage B) starts (see :func:`sustained_index`), or None."""
+    k = sustained_index(spans, size=size, factor=factor)
+    return None if k is None else spans[k].zero

@@ -1,22 +1,34 @@
-"""Robust peak-to-peak identification: zero relative displacement at every contact onset.
+"""Robust peak-to-peak identification: every equation the record holds, one generalised least-squares estimate.
 
 Axis down, t measured from first contact t00. The mass obeys M1·ü1 = M1·g − Fc, the piston's acceleration a2 is
-measured, so the relative displacement (compression) is
+measured, so the relative displacement (compression) and its rate are
 
-    δ(t) = V0·τ + g·τ²/2 − w·IF(t) − D2(t),   τ = t − t00,  w = 1/M1,
+    δ(t) = V0·τ + (g + b)·τ²/2 − w·IF(t) − D2(t),    δ'(t) = V0 + (g + b)·τ − w·JF(t) − V2(t),
 
-with IF = ∬Fc and D2 = ∬a2 from t00 (the piston at rest before contact). Whatever the contact law, the force is
-positive only while δ > 0, so δ = 0 at every onset: one row V0·τk − w·IF(tk) = D2(tk) − g·τk²/2 per onset, linear
-in (V0, w). The rows are solved by generalised least squares with the covariance propagated from the noise of
-both channels (double-integrated), the residual offsets and the onset-time errors.
+τ = t − t00, w = 1/M1, JF/IF the single/double integrals of the force and V2/D2 those of the acceleration from t00
+(the piston at rest before contact), b the offset left in the channels after the pre-trigger correction. The
+equations, all linear in (V0, w) and whatever the contact law:
+
+- onset k (a pulse starts): δ(Tk) = 0 -- the force is positive only while the bodies overlap;
+- separation k (a pulse ends): δ(Sk) + λ·δ'(Sk) = 0, with one lag λ >= 0 shared by all pulses (a viscous contact
+  lets go before the overlap is gone: λ = c/k for Kelvin-Voigt, 0 for a force that vanishes with the overlap);
+- stage B (sustained contact): the bodies move together and the overlap follows the force,
+  δ(t) + λ·δ'(t) = β0 + β1·F(t), in cells of a few samples (F averaged over the cell), β0 and β1 unknown.
+
+The nuisances (b with its pre-trigger prior, λ, β0, β1) are estimated with (V0, w). The covariance of the rows
+is that of the double-integrated white noise of both channels (kernels below), of the onset and separation times
+(rate × time error; the t00 error acts on every row alike) and of the cell-averaged force; it depends on the
+estimate, so the solution is iterated (Gauss-Newton in λ).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
-#: smallest number of onsets after t00 for the final answer (two unknowns)
-MIN_ONSET_ROWS = 2
+#: Gauss-Newton / reweighting iterations
+ITERATIONS = 8
 
 
 def cumulative_integrals(signal: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -71,9 +83,22 @@ def white_kernel(tau: np.ndarray, dt: float) -> np.ndarray:
 
     K(s, t) = dt·∫₀^min(s,t) (s − u)(t − u) du [s⁵ → multiply by the noise variance [m²/s⁴] to get m²].
     """
-    s, t = np.meshgrid(tau, tau, indexing="ij")
+    return lagged_kernel(tau, np.zeros_like(np.asarray(tau, dtype=float)), dt)
+
+
+def lagged_kernel(tau: np.ndarray, lag: np.ndarray, dt: float) -> np.ndarray:
+    """Covariance of e(τi) + lag_i·e'(τi), e the double integral from 0 of unit white noise at step ``dt``.
+
+    With m = min(s, t): cov(e(s), e(t)) = dt·(s·t·m − (s+t)·m²/2 + m³/3), cov(e(s), e'(t)) = dt·(s·m − m²/2),
+    cov(e'(s), e'(t)) = dt·m.
+    """
+    tau = np.asarray(tau, dtype=float)
+    lag = np.asarray(lag, dtype=float)
+    s, t = tau[:, None], tau[None, :]
     m = np.minimum(s, t)
-    return dt * (s * t * m - (s + t) * m ** 2 / 2.0 + m ** 3 / 3.0)
+    k_dd = s * t * m - (s + t) * m ** 2 / 2.0 + m ** 3 / 3.0
+    k_dv = s * m - m ** 2 / 2.0  # cov(e(s), e'(t))
+    return dt * (k_dd + lag[None, :] * k_dv + lag[:, None] * k_dv.T + lag[:, None] * lag[None, :] * m)
 
 
 def kernel_form(weights: np.ndarray, tau: np.ndarray, dt: float) -> np.ndarray:
@@ -96,57 +121,156 @@ def kernel_form(weights: np.ndarray, tau: np.ndarray, dt: float) -> np.ndarray:
     return wb @ wb.T
 
 
-def solve_onsets(kin: Kinematics, onsets, onset_std, *, noise_force, noise_acceleration, pre_samples):
-    """Generalised least squares for (V0, w) from the onsets after t00.
+@dataclass(frozen=True)
+class Equations:
+    """The rows available in a record (fractional sample indices of the segment, standard errors in samples).
+
+    ``onsets`` excludes t00; ``cells``/``cell_force`` are the centres and mean forces [N] of the stage-B cells of
+    ``cell_size`` samples.
+    """
+
+    onsets: np.ndarray
+    onset_std: np.ndarray
+    separations: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    separation_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cells: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cell_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cell_size: int = 1
+
+    def counts(self) -> dict[str, int]:
+        """Equations used: onsets after t00, separations, stage-B rows and the samples they average."""
+        return {"onsets": int(self.onsets.size), "separations": int(self.separations.size),
+                "stage_b_rows": int(self.cells.size), "stage_b_samples": int(self.cells.size * self.cell_size)}
+
+
+@dataclass(frozen=True)
+class Solution:
+    """(V0 [m/s], w [1/kg]), their covariance, the fit's chi-square and degrees of freedom, the nuisances and
+    d(V0, w)/d(error of δ at the times ``tau``) for combining with another estimate."""
+
+    theta: np.ndarray
+    cov: np.ndarray
+    chi2: float
+    dof: int
+    nuisances: dict
+    gain: np.ndarray
+    tau: np.ndarray
+
+
+def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
+               pre_samples: int, lag_max: float) -> Solution:
+    """Generalised least squares for (V0, w) from the rows of ``eqs`` (module notes).
 
     Parameters
     ----------
     kin : Kinematics
-    onsets, onset_std : array_like
-        Fractional sample indices of the onsets after t00 and their standard errors [samples].
+    eqs : Equations
     noise_force, noise_acceleration : float
-        Noise standard deviations [N], [m/s²].
+        White-noise standard deviations [N], [m/s²].
     pre_samples : int
-        Samples the offsets were estimated from (0: offsets not removed).
+        Samples the offsets were removed with (0: no offset correction, b is taken as zero).
+    lag_max : float
+        Largest separation lag λ [s].
 
-    Returns
-    -------
-    theta, cov, chi2, dof : the estimate (V0 [m/s], w [1/kg]), its covariance, chi-square and degrees of freedom.
+    Notes
+    -----
+    The stage-B overlap is h(F) = β0 + Σ βj·(F/Fs)^(j/3), j = 1..3 (Fs the largest cell force): a smooth function
+    of the force that holds linear springs (j = 3), Hertzian contact (j = 2) and a permanent set (β0). Separations
+    and stage-B cells rest on models of the contact (the lag, h): where their rows scatter more than their noise
+    explains, a white model-error variance is added to that group until its chi-square matches its rows, so a
+    poor model weighs less instead of pulling the estimate.
     """
-    onsets = np.asarray(onsets, dtype=float)
-    tau, _, jf, i_f, _, va, da = kin.at(onsets)
-    g = kin.gravity
-    a = np.column_stack([tau, -i_f])
-    b = da - g * tau ** 2 / 2.0
-    kernel = white_kernel(tau, kin.dt)
-    std_t0 = kin.onset_std0 * kin.dt
-    theta = np.linalg.lstsq(a, b, rcond=None)[0]
-    for _ in range(3):
-        v0, w = theta
-        w = max(w, 0.0)
-        closing = np.maximum(v0 + g * tau - w * jf - va, 0.0)
-        white = (noise_acceleration ** 2 + (w * noise_force) ** 2)
-        cov = white * kernel + np.diag((closing * np.asarray(onset_std) * kin.dt) ** 2) + (v0 * std_t0) ** 2
-        cov = cov + np.diag(np.full(tau.size, 1e-30 + 1e-12 * float(np.max(np.abs(b))) ** 2))
+    dt, g = kin.dt, kin.gravity
+    n_on, n_sep, n_cell = eqs.onsets.size, eqs.separations.size, eqs.cells.size
+    index = np.concatenate([eqs.onsets, eqs.separations, eqs.cells])
+    group = np.r_[np.zeros(n_on, int), np.ones(n_sep, int), np.full(n_cell, 2)]
+    lagged = (group > 0).astype(float)
+    timing = np.r_[eqs.onset_std, eqs.separation_std, np.zeros(n_cell)] * dt
+    tau, force, jf, i_f, acc, va, da = kin.at(index)
+    fit_lag, fit_b, fit_h = bool(n_sep + n_cell) and lag_max > 0, pre_samples > 0, n_cell > 0
+    names = ["V0", "w"] + ["b"] * fit_b + ["h0", "h1", "h2", "h3"] * fit_h
+    cols = {name: i for i, name in enumerate(names)}
+    cell = (group == 2).astype(float)
+    scale = float(np.max(eqs.cell_force)) if n_cell else 1.0
+    x = np.r_[np.zeros(n_on + n_sep), np.maximum(eqs.cell_force, 0.0) / scale]
+    powers = [x ** (j / 3.0) for j in range(4)]
+
+    def design(lag):
+        lam = lagged * lag
+        a = np.zeros((index.size, len(names)))
+        a[:, 0] = tau + lam
+        a[:, 1] = -(i_f + lam * jf)
+        if fit_b:
+            a[:, cols["b"]] = tau ** 2 / 2.0 + lam * tau
+        if fit_h:
+            for j in range(4):
+                a[:, cols[f"h{j}"]] = -cell * powers[j]
+        y = da + lam * va - g * (tau ** 2 / 2.0 + lam * tau)
+        return a, y
+
+    def rates(theta):
+        b = theta[cols["b"]] if fit_b else 0.0
+        d1 = theta[0] + (g + b) * tau - theta[1] * jf - va  # δ'
+        d2 = g + b - theta[1] * force - acc  # δ''
+        return d1, d2
+
+    def slope(theta):  # dh/dF at the cell forces [m/N]
+        if not fit_h:
+            return np.zeros(index.size)
+        xs = np.maximum(x, 1e-3)
+        return cell * sum(theta[cols[f"h{j}"]] * j / 3.0 * xs ** (j / 3.0 - 1.0) for j in (1, 2, 3)) / scale
+
+    lag = 0.0
+    a, y = design(lag)
+    theta = np.linalg.lstsq(a, y, rcond=None)[0]
+    tiny = (1e-9 * (np.sqrt(np.mean(np.square(y))) + 1e-30)) ** 2
+    model = np.zeros(3)  # model-error variance of each group [m²]
+    for _ in range(ITERATIONS):
+        v0, w = theta[0], max(theta[1], 0.0)
+        white = noise_acceleration ** 2 + (w * noise_force) ** 2
+        d1, d2 = rates(theta)
+        speed = np.abs(d1 + lagged * lag * d2)
+        cov = white * lagged_kernel(tau, lagged * lag, dt) + (v0 * kin.onset_std0 * dt) ** 2
+        cov += np.diag((speed * timing) ** 2 + (slope(theta) * noise_force) ** 2 / eqs.cell_size
+                       + model[group] + tiny)
+        a, y = design(lag)
+        jac = a
+        if fit_lag:
+            jac = np.column_stack([a, lagged * d1])
+            y = y + lagged * d1 * lag  # Gauss-Newton about the current lag
         chol = np.linalg.cholesky(cov)
-        aw = np.linalg.solve(chol, a)
-        bw = np.linalg.solve(chol, b)
-        theta, *_ = np.linalg.lstsq(aw, bw, rcond=None)
-    resid = bw - aw @ theta
+        aw = np.linalg.solve(chol, jac)
+        yw = np.linalg.solve(chol, y)
+        if fit_b:  # the pre-trigger's residual offset: a prior row b = 0 ± its standard error
+            prior = np.zeros(jac.shape[1])
+            prior[cols["b"]] = 1.0 / np.sqrt(white / pre_samples)
+            aw = np.vstack([aw, prior])
+            yw = np.append(yw, 0.0)
+        sol = np.linalg.lstsq(aw, yw, rcond=None)[0]
+        theta = sol[:len(names)]
+        if fit_lag:
+            lag = float(np.clip(sol[-1], 0.0, lag_max))
+        # whitened residuals of a later group are its innovations given the earlier rows: its own chi-square
+        resid = (yw - aw @ sol)[:index.size]
+        for k in (1, 2):
+            inside = group == k
+            excess = float(np.sum(resid[inside] ** 2)) / max(int(inside.sum()), 1)
+            if inside.any():
+                noise_part = float(np.mean(np.diag(cov)[inside])) - model[k]
+                model[k] = max((model[k] + noise_part) * excess - noise_part, 0.0)
+    resid = yw - aw @ sol
     chi2 = float(resid @ resid)
-    dof = tau.size - 2
-    # the offsets left after the pre-trigger correction act on every row alike (∝ τ²): weighting by them would
-    # trade the mass against an offset, so they enter the error only (sandwich covariance)
-    bread = np.linalg.inv(aw.T @ aw)
-    cov_theta = bread
-    if dof > 0:
-        cov_theta = cov_theta * max(1.0, chi2 / dof)
-    gain = bread @ aw.T @ np.linalg.inv(chol)  # d theta / d b = d theta / d(error of D2 at each row)
-    if pre_samples > 0:
-        shape = tau ** 2 / 2.0
-        spread = (noise_acceleration ** 2 + (w * noise_force) ** 2) / pre_samples
-        cov_theta = cov_theta + spread * np.outer(gain @ shape, gain @ shape)
-    return theta, cov_theta, chi2, dof, (gain, tau)
+    n_param = aw.shape[1]
+    dof = int(index.size - (n_param - fit_b))
+    bread = np.linalg.pinv(aw.T @ aw)
+    cov_theta = bread[:2, :2]
+    gain = (bread @ aw.T)[:2, :index.size] @ np.linalg.inv(chol)
+    nuisances = {"lag_s": lag} if fit_lag else {}
+    if fit_b:
+        nuisances["offset_m_s2"] = float(theta[cols["b"]])
+    nuisances["model_error_m"] = {"separations": float(np.sqrt(model[1])), "stage_b": float(np.sqrt(model[2]))}
+    return Solution(theta=theta[:2].copy(), cov=cov_theta, chi2=chi2, dof=dof, nuisances=nuisances, gain=gain,
+                    tau=tau)
 
 
 def combine(first, second, *, noise_acceleration, pre_samples, dt):
