@@ -36,7 +36,9 @@ def pack(rig: rigmod.Rig, scenario: rigmod.Scenario) -> np.ndarray:
     p[d.FRICTION_SCALE] = rig.friction.velocity_scale
     p[d.LAW] = LAW_CODES[rig.contact.law]
     p[d.CONTACT_K] = rig.contact.stiffness
-    p[d.CONTACT_C] = rig.contact.damping
+    # the second contact parameter: the damping, or the unloading stiffness k2 of the hysteretic law [N/m]
+    p[d.CONTACT_C] = (rig.contact.unloading_stiffness if rig.contact.law == "hysteretic"
+                      else rig.contact.damping)
     p[d.STOP_K] = rig.stops.stiffness
     p[d.STOP_C] = rig.stops.damping
     p[d.VALVE_AREA] = rig.valve.area
