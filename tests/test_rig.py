@@ -32,9 +32,41 @@ def test_default_stand_is_the_issue_stand():
     assert c.area == pytest.approx(math.pi * 0.04**2)
     assert c.annulus_area == pytest.approx(math.pi * (0.04**2 - 0.0125**2))
     assert (rig.gas.gamma, rig.gas.atmospheric_pressure, rig.gravity) == (1.4, 101325.0, 9.81)
-    assert (rig.friction.force, rig.friction.velocity_scale) == (30.0, 0.01)
-    assert (rig.contact.law, rig.contact.stiffness, rig.contact.damping) == ("kelvin-voigt", 2e6, 150.0)
+    assert (rig.friction.force, rig.friction.velocity_scale) == (100.0, 0.01)
+    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 2e6, 0.5)
+    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(8e6)
     assert (rig.stops.stiffness, rig.stops.damping) == (5e7, 2e3)
+
+
+def test_stiff_preset_is_the_earlier_stand():
+    stiff = get_rig("drop-stand-stiff")
+    assert stiff.name == "drop-stand-stiff"
+    assert (stiff.contact.law, stiff.contact.stiffness, stiff.contact.damping) == ("kelvin-voigt", 2e6, 150.0)
+    assert stiff.friction.force == 30.0 and stiff.contact.restitution is None
+    assert stiff.cylinder == get_rig().cylinder and stiff.gas == get_rig().gas
+
+
+@pytest.mark.parametrize("section, message", [
+    ({"law": "hysteretic", "restitution": 0.0}, "contact.restitution must be > 0"),
+    ({"law": "hysteretic", "restitution": 1.2}, "softer than the loading line"),
+    ({"law": "hysteretic", "stiffness": -1.0}, "contact.stiffness must be > 0"),
+    ({"law": "hysteretic", "damping": 150.0}, "contact.damping is not a parameter of the hysteretic"),
+    ({"law": "kelvin-voigt", "restitution": 0.5}, "contact.restitution is not a parameter of the kelvin-voigt"),
+    ({"law": "rubber"}, "contact.law must be one of"),
+    ({"law": "hysteretic", "restitution": "half"}, "contact.restitution must be a finite number"),
+])
+def test_bad_contact_sections_name_the_field(section, message):
+    from impactometer.rig import from_dict
+
+    with pytest.raises(ParameterError, match=message):
+        from_dict({"contact": section})
+
+
+def test_a_law_change_keeps_only_the_new_laws_parameters():
+    kv = get_rig().replace(**{"contact.law": "kv"}).contact
+    assert (kv.law, kv.stiffness, kv.damping, kv.restitution) == ("kelvin-voigt", 2e6, 150.0, None)
+    hys = get_rig("drop-stand-stiff").replace(**{"contact.law": "hysteretic", "contact.restitution": 0.6}).contact
+    assert (hys.stiffness, hys.restitution, hys.damping) == (2e6, 0.6, None)
 
 
 @pytest.mark.parametrize("name, law, stiffness, damping", [
@@ -179,7 +211,7 @@ def test_bad_toml_is_a_parameter_error_naming_the_file(tmp_path, text, match):
 
 
 def test_get_rig_errors(tmp_path):
-    with pytest.raises(ParameterError, match="rig must be one of \\['drop-stand'\\] or a .toml file"):
+    with pytest.raises(ParameterError, match="rig must be one of \\['drop-stand', 'drop-stand-stiff'\\] or a .toml file"):
         get_rig("tower")
     with pytest.raises(ParameterError, match="does not exist"):
         get_rig(tmp_path / "missing.toml")
