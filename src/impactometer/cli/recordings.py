@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import ParameterError
 from .app import app, console, output_path, quantity
-from .reading import ReaderOptions, reader_options
+from .reading import DEFAULT_READER, ReaderOptions, reader_options
 from .simulate import (
     ContactOpt,
     DurationOpt,
@@ -125,7 +125,7 @@ def inspect(
     = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
-    reader: ReaderOptions = ReaderOptions(),
+    reader: ReaderOptions = DEFAULT_READER,
 ) -> None:
     """Print what FILE holds: duration, rate, channels and units, peak force, contact pulses, stage B, noise."""
     from ..recording import inspect_recording

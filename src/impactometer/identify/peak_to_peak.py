@@ -48,8 +48,8 @@ class Segment:
     noise_acceleration: float
     pre_samples: int
     pulses: list[PulseSpan]
-    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments cut from
-    #: the same data with the same start (the early and the final answer, successive streaming estimates)
+    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments
+    #: cut from the same data with the same start (the early and the final answer, successive streaming estimates)
     onset_cache: dict = field(default_factory=dict, compare=False)
 
     def time_of(self, index: float) -> float:
@@ -104,8 +104,8 @@ def quantum(x: np.ndarray) -> float:
     if values.size < 3:
         return 0.0
     step = float(np.min(np.diff(values)))
-    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(np.round((values - values[0]) / step) * step, values - values[0],
-                                    rtol=0, atol=1e-3 * step):
+    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(
+            np.round((values - values[0]) / step) * step, values - values[0], rtol=0, atol=1e-3 * step):
         return 0.0
     return step
 

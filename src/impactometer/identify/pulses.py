@@ -133,8 +133,8 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ for ``HOLD`` consecutive samples (not before
     sample ``start``) and ends where it stays below ``RELEASE_SIGMAS``·σ for ``HOLD`` samples. A gap between two
     pulses counts as a separation only when the force in it is consistent with zero (the mean of its middle half
-    within 3σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still running at the end of
-    the data has ``end = -1``.
+    within 3σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still running at the
+    end of the data has ``end = -1``.
     """
     f = np.asarray(force, dtype=float)
     scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)

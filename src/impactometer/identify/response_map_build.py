@@ -341,7 +341,8 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         row = [r.truth("mass_kg"), r.truth("velocity_m_s"), r.truth("pressure_gauge_Pa")]
         row[2] = pressure_gauge if row[2] is None else row[2]
         if None in row:
-            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row, strict=False) if x is None]
+            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row, strict=False)
+                       if x is None]
             raise ResponseMapError(f"{r.source}: metadata {missing} missing; expected the known truth of every "
                                    "calibration recording (metadata or manifest)")
         truth[i] = row
