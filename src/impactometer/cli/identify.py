@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import time as clock
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.table import Table
@@ -13,6 +13,10 @@ from rich.table import Table
 from ..errors import IdentificationError, ParameterError
 from .app import app, console, output_path, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
+
+if TYPE_CHECKING:  # for annotations only: the identification modules are imported where they are used
+    from ..identify.response_map import MapIdentification
+    from ..identify.result import Identification
 
 METHODS = ("peak-to-peak", "response-map")
 VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
@@ -66,6 +70,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
     output_path(plot, force, field="--plot")
     rec = reader.read(file)
+    result: Identification | MapIdentification
     if method == "response-map":
         if map_path is None:
             raise ParameterError("--method response-map needs --map FILE "
@@ -86,7 +91,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     if plot is not None:
         if method != "peak-to-peak":
             raise ParameterError("--plot is available for --method peak-to-peak")
-        result.plot(rec).savefig(plot, dpi=120)
+        result.plot(rec).savefig(plot, dpi=120)  # type: ignore[union-attr]  # peak-to-peak result: map refused above
         if not as_json:
             console.print(f"figure written to {plot}")
 

@@ -35,8 +35,8 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
                                   f"{time.shape} and {force.shape}")
     above = force > threshold
     edges = np.diff(above.astype(np.int8))
-    starts = list(np.flatnonzero(edges == 1) + 1)
-    ends = list(np.flatnonzero(edges == -1) + 1)
+    starts = (np.flatnonzero(edges == 1) + 1).tolist()
+    ends = (np.flatnonzero(edges == -1) + 1).tolist()
     if above[0]:
         starts.insert(0, 0)
     if above[-1]:
