@@ -1,13 +1,22 @@
-"""Shared fixtures: the built-in stand and a stand reduced to two free bodies."""
+"""Shared fixtures: the built-in stand and a stand reduced to two free bodies; the hypothesis profiles."""
 
 from __future__ import annotations
 
+import os
+
 import matplotlib
 import pytest
+from hypothesis import settings
 
 from impactometer.rig import get_rig
 
 matplotlib.use("Agg")
+
+# "ci" (the default): the same examples on every run, so a property test cannot fail on one run and pass on the next;
+# "dev" (HYPOTHESIS_PROFILE=dev): hypothesis' own defaults, fresh random examples each run
+settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
+settings.register_profile("dev")
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 @pytest.fixture(scope="session")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -48,8 +49,8 @@ class Segment:
     noise_acceleration: float
     pre_samples: int
     pulses: list[PulseSpan]
-    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments cut from
-    #: the same data with the same start (the early and the final answer, successive streaming estimates)
+    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments
+    #: cut from the same data with the same start (the early and the final answer, successive streaming estimates)
     onset_cache: dict = field(default_factory=dict, compare=False)
 
     def time_of(self, index: float) -> float:
@@ -104,8 +105,8 @@ def quantum(x: np.ndarray) -> float:
     if values.size < 3:
         return 0.0
     step = float(np.min(np.diff(values)))
-    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(np.round((values - values[0]) / step) * step, values - values[0],
-                                    rtol=0, atol=1e-3 * step):
+    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(
+            np.round((values - values[0]) / step) * step, values - values[0], rtol=0, atol=1e-3 * step):
         return 0.0
     return step
 
@@ -198,7 +199,7 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
                                   f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
-    details = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
+    details: dict[str, Any] = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
     caution = paper_caution(seg)
     if caution:
         details["caution"] = caution
@@ -252,9 +253,10 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     _need_pulses(seg, 2 - (len(pulses) >= 2), "the robust variant")
     onsets, stds = _onsets(seg, pulses)
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, onsets[0], gravity, onset_std0=stds[0])
-    common = dict(t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
-                  variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
-                  available_at=seg.time_of(min(pulses[-1].end, seg.force.size - 1)))
+    common: dict[str, Any] = dict(
+        t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
+        variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
+        available_at=seg.time_of(min(pulses[-1].end, seg.force.size - 1)))
     noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                  pre_samples=seg.pre_samples)
     if len(pulses) - 1 >= MIN_ONSET_ROWS:

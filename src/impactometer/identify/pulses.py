@@ -35,8 +35,8 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
                                   f"{time.shape} and {force.shape}")
     above = force > threshold
     edges = np.diff(above.astype(np.int8))
-    starts = list(np.flatnonzero(edges == 1) + 1)
-    ends = list(np.flatnonzero(edges == -1) + 1)
+    starts = (np.flatnonzero(edges == 1) + 1).tolist()
+    ends = (np.flatnonzero(edges == -1) + 1).tolist()
     if above[0]:
         starts.insert(0, 0)
     if above[-1]:
@@ -134,9 +134,9 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
 
     A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ for ``HOLD`` consecutive samples (not before
     sample ``start``) and ends where it stays below ``RELEASE_SIGMAS``·σ for ``HOLD`` samples. A gap between two
-    pulses counts as a separation only when the force in it is consistent with zero (the median of its middle half
-    within 3·1.25·σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still running at the end of
-    the data has ``end = -1``.
+    pulses counts as a separation only when the force in it is consistent with zero (the median of its middle
+    half within 3·1.25·σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still
+    running at the end of the data has ``end = -1``.
     """
     f = np.asarray(force, dtype=float)
     scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)

@@ -72,10 +72,7 @@ def initial_step(p, y0, f0, t_end, rtol, atol, max_step, work, f1):
     for i in range(n):
         work[i] = f1[i] - f0[i]
     d2 = _rms(work, scale) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / 5.0)
+    h1 = max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1.0 / 5.0)
     return min(100.0 * h0, h1, t_end, max_step)
 
 

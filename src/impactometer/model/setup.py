@@ -83,7 +83,8 @@ def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
     if overrides:  # one validated stand per distinct combination of override values
         combos, inverse = np.unique(np.column_stack(flat[3:]), axis=0, return_inverse=True)
         for j, combo in enumerate(combos):
-            rows[inverse.ravel() == j] = pack(rig.replace(**dict(zip(overrides, map(float, combo), strict=False))), placeholder)
+            stand = rig.replace(**dict(zip(overrides, map(float, combo), strict=False)))
+            rows[inverse.ravel() == j] = pack(stand, placeholder)
     rows[:, d.MASS], rows[:, d.VELOCITY], rows[:, d.PRESSURE_GAUGE] = flat[0], flat[1], flat[2]
     rated = _rated_pressure(rig, overrides, flat)
     over = flat[2] > rated
