@@ -211,7 +211,8 @@ def test_bad_toml_is_a_parameter_error_naming_the_file(tmp_path, text, match):
 
 
 def test_get_rig_errors(tmp_path):
-    with pytest.raises(ParameterError, match="rig must be one of \\['drop-stand', 'drop-stand-stiff'\\] or a .toml file"):
+    with pytest.raises(ParameterError,
+                       match="rig must be one of \\['drop-stand', 'drop-stand-stiff'\\] or a .toml file"):
         get_rig("tower")
     with pytest.raises(ParameterError, match="does not exist"):
         get_rig(tmp_path / "missing.toml")

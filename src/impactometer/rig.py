@@ -170,7 +170,8 @@ class Contact:
     """
 
     law: str = "hysteretic"
-    stiffness: float | None = None
+    # None here means "the law's default"; every law has a stiffness, so it is a float once created
+    stiffness: float = None  # type: ignore[assignment]
     damping: float | None = None
     restitution: float | None = None
 
@@ -199,7 +200,7 @@ class Contact:
         """Unloading stiffness k2 = k1/e² of the hysteretic law [N/m]."""
         if self.law != "hysteretic":
             raise ParameterError(f"contact.unloading_stiffness exists for the hysteretic law only, not {self.law}")
-        return float(self.stiffness) / float(self.restitution) ** 2  # type: ignore[arg-type]
+        return self.stiffness / float(self.restitution) ** 2  # type: ignore[arg-type]  # set for this law
 
     @classmethod
     def preset(cls, law: str) -> Contact:
@@ -366,7 +367,8 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
 #: named stands; ``drop-stand`` is the default
 PRESETS: dict[str, Rig] = {
     "drop-stand": Rig(),
-    "drop-stand-stiff": Rig(name="drop-stand-stiff", contact=Contact(law="kelvin-voigt"), friction=Friction(force=30.0)),
+    "drop-stand-stiff": Rig(name="drop-stand-stiff", contact=Contact(law="kelvin-voigt"),
+                            friction=Friction(force=30.0)),
 }
 
 

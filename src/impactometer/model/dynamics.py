@@ -2,8 +2,9 @@
 
 State vector (indices ``U1 .. CONTACT_SET``): mass and piston displacement and velocity (axis down, both measured
 from the piston's top-stop position), the pressures and gas masses of the lower and upper chambers, the energy
-dissipated so far and the memory of the hysteretic contact (its set, see :func:`.forces.contact_set_rate`). Chamber pressures follow the energy balance of an adiabatic chamber,
-dp/dt = γ·(R·T_in·ṁ_in − R·T·ṁ_out − p·V')/V, which reduces to dp/dt = −γ·p·V'/V for the closed cylinder.
+dissipated so far and the memory of the hysteretic contact (its set, see :func:`.forces.contact_set_rate`).
+Chamber pressures follow the energy balance of an adiabatic chamber, dp/dt = γ·(R·T_in·ṁ_in − R·T·ṁ_out − p·V')/V,
+which reduces to dp/dt = −γ·p·V'/V for the closed cylinder.
 """
 
 from __future__ import annotations
