@@ -18,7 +18,7 @@ from ..recording import Recording
 from . import trigger
 from .early import solve_early
 from .onsets import onset_index
-from .pulses import PulseSpan, detect_pulses, noise_std
+from .pulses import PulseSpan, detect_pulses, detection_levels, first_peak, noise_std
 from .result import Identification
 from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
 
@@ -187,11 +187,13 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     t00 = first contact, t01/t11 = force peaks of the first two pulses; M1 = −∫Fc / ((V2(t11) − V2(t01)) −
     g·Δt) (eq. 4), V2 = ∫a2 from t00 (eq. 5), V0 = V2(t01) + ∫_{t00}^{t01}Fc/M1 − g·(t01 − t00).
     """
-    _need_pulses(seg, 2, "the paper variant")
-    p1, p2 = seg.pulses[0], seg.pulses[1]
+    peak2 = second_peak(seg)
+    if peak2 is None:
+        _need_pulses(seg, 2, "the paper variant")
+    p1 = seg.pulses[0]
     t00, _ = segment_onset(seg, p1)
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity)
-    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, p2.peak], dtype=float))
+    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, peak2], dtype=float))
     denominator = (va[1] - va[0]) - gravity * (tau[1] - tau[0])
     impulse = jf[1] - jf[0]
     if not denominator < 0.0 or impulse <= 0.0:
@@ -203,9 +205,18 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     caution = paper_caution(seg)
     if caution:
         details["caution"] = caution
-    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(p2.peak),
-                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(p2.peak),
+    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(peak2),
+                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(peak2),
                           variant="paper", details=details)
+
+
+def second_peak(seg: Segment) -> int | None:
+    """Sample of the second force peak of eqs. (3)-(5) (None while there is none): the peak of a complete second
+    pulse, or the first peak of a second pulse that runs into sustained contact (stage B)."""
+    if len(seg.pulses) < 2 or not seg.pulses[0].complete:
+        return None
+    detect, _ = detection_levels(seg.noise_force, float(np.max(seg.force)))
+    return first_peak(seg.force, seg.pulses[1], detect)
 
 
 #: noise, as a fraction of a channel's peak, above which the paper variant's answer carries a caution [-]

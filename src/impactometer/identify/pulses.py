@@ -175,6 +175,24 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     return out
 
 
+def first_peak(force: np.ndarray, span: PulseSpan, drop: float) -> int | None:
+    """Index of the first maximum of a pulse that the force then falls below by more than ``drop`` [N].
+
+    For a complete pulse this is the sample :attr:`PulseSpan.peak` when the pulse has one hump; for a pulse that
+    runs into sustained contact it is the end of the rebound part, the first force peak after the onset. None when
+    the force has not yet fallen that far from any maximum.
+    """
+    stop = force.size if not span.complete else span.end
+    f = np.asarray(force[span.first:stop], dtype=float)
+    if f.size == 0:
+        return None
+    running = np.maximum.accumulate(f)
+    fallen = np.flatnonzero(f < running - drop)
+    if fallen.size == 0:
+        return None
+    return span.first + int(np.argmax(f[:fallen[0]]))
+
+
 def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 4.0) -> int | None:
     """Sample index where sustained contact (stage B) starts, or None.
 
