@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -33,8 +34,9 @@ def test_default_stand_is_the_issue_stand():
     assert c.annulus_area == pytest.approx(math.pi * (0.04**2 - 0.0125**2))
     assert (rig.gas.gamma, rig.gas.atmospheric_pressure, rig.gravity) == (1.4, 101325.0, 9.81)
     assert (rig.friction.force, rig.friction.velocity_scale) == (100.0, 0.01)
-    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 2e6, 0.5)
-    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(8e6)
+    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 1e6, 0.5)
+    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(4e6)
+    assert (c.dead_volume_lower, c.dead_volume_upper) == (2e-5, 1e-5)
     assert (rig.stops.stiffness, rig.stops.damping) == (5e7, 2e3)
 
 
@@ -43,7 +45,9 @@ def test_stiff_preset_is_the_earlier_stand():
     assert stiff.name == "drop-stand-stiff"
     assert (stiff.contact.law, stiff.contact.stiffness, stiff.contact.damping) == ("kelvin-voigt", 2e6, 150.0)
     assert stiff.friction.force == 30.0 and stiff.contact.restitution is None
-    assert stiff.cylinder == get_rig().cylinder and stiff.gas == get_rig().gas
+    assert (stiff.cylinder.dead_volume_lower, stiff.cylinder.dead_volume_upper) == (0.0, 0.0)
+    assert dataclasses.replace(stiff.cylinder, dead_volume_lower=2e-5, dead_volume_upper=1e-5) == get_rig().cylinder
+    assert stiff.gas == get_rig().gas
 
 
 @pytest.mark.parametrize("section, message", [
@@ -66,7 +70,7 @@ def test_a_law_change_keeps_only_the_new_laws_parameters():
     kv = get_rig().replace(**{"contact.law": "kv"}).contact
     assert (kv.law, kv.stiffness, kv.damping, kv.restitution) == ("kelvin-voigt", 2e6, 150.0, None)
     hys = get_rig("drop-stand-stiff").replace(**{"contact.law": "hysteretic", "contact.restitution": 0.6}).contact
-    assert (hys.stiffness, hys.restitution, hys.damping) == (2e6, 0.6, None)
+    assert (hys.stiffness, hys.restitution, hys.damping) == (1e6, 0.6, None)
 
 
 @pytest.mark.parametrize("name, law, stiffness, damping", [
@@ -80,7 +84,7 @@ def test_contact_law_by_name_or_alias(name, law, stiffness, damping):
 def test_replace_by_dotted_names():
     rig = get_rig().replace(**{"contact.stiffness": 3e6, "gravity": 0.0, "cylinder.dead_volume_lower": 1e-4})
     assert (rig.contact.stiffness, rig.gravity, rig.cylinder.dead_volume_lower) == (3e6, 0.0, 1e-4)
-    assert get_rig().contact.stiffness == 2e6  # frozen original unchanged
+    assert get_rig().contact.stiffness == 1e6  # frozen original unchanged
 
 
 def test_changing_the_law_takes_its_defaults_unless_given():
@@ -106,8 +110,8 @@ def test_parameter_names_all_replaceable():
 @pytest.mark.parametrize("changes, match", [
     ({"cylinder.rod_diameter": 0.08}, r"cylinder.rod_diameter must be < bore \(0.08 m\), got 0.08"),
     ({"cylinder.rod_diameter": 0.1}, "cylinder.rod_diameter must be < bore"),
-    ({"cylinder.lower_length": 0.0}, "lower chamber has zero gas volume"),
-    ({"cylinder.upper_length": 0.0}, "upper chamber has zero gas volume"),
+    ({"cylinder.lower_length": 0.0, "cylinder.dead_volume_lower": 0.0}, "lower chamber has zero gas volume"),
+    ({"cylinder.upper_length": 0.0, "cylinder.dead_volume_upper": 0.0}, "upper chamber has zero gas volume"),
     ({"cylinder.stroke": 0.3}, "cylinder.stroke must not exceed the lower gas column"),
     ({"cylinder.piston_mass": 0.0}, r"cylinder.piston_mass must be > 0, got 0.0"),
     ({"cylinder.bore": float("nan")}, "cylinder.bore must be a finite number, got nan"),

@@ -190,6 +190,8 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     peak2 = second_peak(seg)
     if peak2 is None:
         _need_pulses(seg, 2, "the paper variant")
+        raise IdentificationError("the paper variant needs the second force peak: the second pulse has not yet "
+                                  "fallen from a maximum")
     p1 = seg.pulses[0]
     t00, _ = segment_onset(seg, p1)
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity)
