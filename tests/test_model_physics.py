@@ -42,17 +42,19 @@ def test_momentum_of_the_mass(stand, law, mass, velocity, pressure):
     assert np.max(np.abs(mass * r.v1 - expected)) < 1e-6 * mass * velocity
 
 
-@pytest.mark.parametrize("integrator, tolerance", [("fast", 1e-6), ("reference", 1e-7)])
+@pytest.mark.parametrize("integrator, rtol, tolerance", [("fast", 1e-9, 1e-6), ("reference", 1e-11, 1e-8)])
 @pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley"])
 @pytest.mark.parametrize("pressure", [20e3, 400e3])
-def test_total_energy_is_conserved(stand, integrator, tolerance, law, pressure):
+def test_total_energy_is_conserved(stand, integrator, rtol, tolerance, law, pressure):
     """Kinetic + potential + gas + elastic + dissipated energy stays constant.
 
     The gas holds ~pV/(γ−1) ≈ 10-25 × the impact energy E0 and every state carries a relative error ~rtol, so a
-    balance error of 1e-6·E0 (fast, rtol 1e-9) or 1e-7·E0 (reference, rtol 1e-10) is the integration error.
+    balance error of 1e-6·E0 (fast, rtol 1e-9) or 1e-8·E0 (reference, rtol 1e-11) is the integration error. (At
+    its default rtol 1e-10 the reference's DOP853 now and then steps across a contact onset with a balance error
+    up to ~2e-7·E0: without events, the kink is resolved only as well as the step that straddles it.)
     """
     scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=pressure)
-    r = simulate(scenario, stand.with_contact(law), duration=0.05, integrator=integrator)
+    r = simulate(scenario, stand.with_contact(law), duration=0.05, integrator=integrator, rtol=rtol)
     e0 = 0.5 * scenario.mass * scenario.velocity**2
     assert r.dissipated_energy[-1] > 0.05 * e0  # energy really moved between the terms
     assert np.ptp(r.gas_energy) > 0.5 * e0

@@ -55,7 +55,7 @@ def test_legacy_contact_pulses_and_stage_b():
 
 def test_the_built_in_stand_rebounds_then_stays_in_contact():
     """Stage A (a rebound or two) then stage B that lasts to the mass's deepest point, as in the paper's Fig. 2."""
-    r = simulate(Scenario(mass=30, velocity=2, pressure_gauge=2e5), duration=0.08)
+    r = simulate(Scenario(mass=30, velocity=2, pressure_gauge=2e5), "drop-stand-pad", duration=0.08)
     pulses = contact_pulses(r.time, r.contact_force)
     assert 2 <= len(pulses) <= 4 and not pulses[0].sustained and pulses[-1].sustained
     deepest = r.time[np.argmax(r.u1)]

@@ -24,9 +24,9 @@ from impactometer.rig import (
 )
 
 
-def test_default_stand_is_the_issue_stand():
-    rig = get_rig()
-    assert rig is PRESETS["drop-stand"]
+def test_pad_stand_is_the_paper_like_stand():
+    rig = get_rig("drop-stand-pad")
+    assert rig is PRESETS["drop-stand-pad"] and rig.name == "drop-stand-pad"
     c = rig.cylinder
     assert (c.piston_mass, c.bore, c.rod_diameter, c.stroke, c.lower_length, c.upper_length) == \
         (4.0, 0.08, 0.025, 0.20, 0.20, 0.02)
@@ -46,8 +46,11 @@ def test_stiff_preset_is_the_earlier_stand():
     assert (stiff.contact.law, stiff.contact.stiffness, stiff.contact.damping) == ("kelvin-voigt", 2e6, 150.0)
     assert stiff.friction.force == 30.0 and stiff.contact.restitution is None
     assert (stiff.cylinder.dead_volume_lower, stiff.cylinder.dead_volume_upper) == (0.0, 0.0)
-    assert dataclasses.replace(stiff.cylinder, dead_volume_lower=2e-5, dead_volume_upper=1e-5) == get_rig().cylinder
-    assert stiff.gas == get_rig().gas
+    pad = get_rig("drop-stand-pad")
+    assert dataclasses.replace(stiff.cylinder, dead_volume_lower=2e-5, dead_volume_upper=1e-5) == pad.cylinder
+    assert stiff.gas == pad.gas
+    default = get_rig()  # the default stand is the stiff one under its own name
+    assert default is PRESETS["drop-stand"] and dataclasses.replace(default, name="drop-stand-stiff") == stiff
 
 
 @pytest.mark.parametrize("section, message", [
@@ -67,7 +70,7 @@ def test_bad_contact_sections_name_the_field(section, message):
 
 
 def test_a_law_change_keeps_only_the_new_laws_parameters():
-    kv = get_rig().replace(**{"contact.law": "kv"}).contact
+    kv = get_rig("drop-stand-pad").replace(**{"contact.law": "kv"}).contact
     assert (kv.law, kv.stiffness, kv.damping, kv.restitution) == ("kelvin-voigt", 2e6, 150.0, None)
     hys = get_rig("drop-stand-stiff").replace(**{"contact.law": "hysteretic", "contact.restitution": 0.6}).contact
     assert (hys.stiffness, hys.restitution, hys.damping) == (1e6, 0.6, None)
@@ -84,7 +87,7 @@ def test_contact_law_by_name_or_alias(name, law, stiffness, damping):
 def test_replace_by_dotted_names():
     rig = get_rig().replace(**{"contact.stiffness": 3e6, "gravity": 0.0, "cylinder.dead_volume_lower": 1e-4})
     assert (rig.contact.stiffness, rig.gravity, rig.cylinder.dead_volume_lower) == (3e6, 0.0, 1e-4)
-    assert get_rig().contact.stiffness == 1e6  # frozen original unchanged
+    assert get_rig().contact.stiffness == 2e6  # frozen original unchanged
 
 
 def test_changing_the_law_takes_its_defaults_unless_given():
@@ -216,7 +219,8 @@ def test_bad_toml_is_a_parameter_error_naming_the_file(tmp_path, text, match):
 
 def test_get_rig_errors(tmp_path):
     with pytest.raises(ParameterError,
-                       match="rig must be one of \\['drop-stand', 'drop-stand-stiff'\\] or a .toml file"):
+                       match=r"rig must be one of \['drop-stand', 'drop-stand-pad', "
+                             r"'drop-stand-stiff'\] or a .toml file"):
         get_rig("tower")
     with pytest.raises(ParameterError, match="does not exist"):
         get_rig(tmp_path / "missing.toml")
