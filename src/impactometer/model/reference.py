@@ -84,8 +84,9 @@ def pulse_peaks(time: np.ndarray, force: np.ndarray) -> tuple[np.ndarray, np.nda
     """Peak times [s] and peak forces [N] of every contact pulse of a sampled force.
 
     A pulse is a run of force above 1e-6 of the largest force: below that a "pulse" is the rounding of the
-    integrator (a hysteretic contact whose set follows the receding body can touch at 1e-4 N). The peak time is refined by the parabola through the largest sample of the pulse and its two neighbours; a
-    pulse whose largest sample is at its edge keeps that sample's time.
+    integrator (a hysteretic contact whose set follows the receding body can touch at 1e-4 N). The peak time is
+    refined by the parabola through the largest sample of the pulse and its two neighbours; a pulse whose largest
+    sample is at its edge keeps that sample's time.
     """
     time, force = np.asarray(time, dtype=float), np.asarray(force, dtype=float)
     if time.ndim != 1 or time.shape != force.shape or time.size < 3:
