@@ -36,8 +36,12 @@ from impactometer.rig import get_rig
 DURATION, SAMPLE_RATE = 0.05, 50e3
 
 
-def plain_python(function, _memo={}):
+_PLAIN: dict = {}  # dispatcher -> its plain-Python function, built once
+
+
+def plain_python(function):
     """``function`` (a numba dispatcher) as plain Python, with every compiled function it calls replaced too."""
+    _memo = _PLAIN
     if function not in _memo:
         source = function.py_func
         namespace = dict(source.__globals__)

@@ -56,7 +56,8 @@ def test_units_in_headers_are_converted(tmp_path, header, time_unit, force_scale
     force = np.array([0.0, 1.0, 3.0, 2.0, 0.5, 0.0])
     acc = -0.5 * force
     path = tmp_path / "run.csv"
-    path.write_text(header + "\n" + "\n".join(f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(t, force, acc, strict=False)) + "\n")
+    rows = (f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(t, force, acc, strict=False))
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
     rec = read_recording(path)
     assert rec.sample_rate == pytest.approx(50e3, rel=1e-9)
     np.testing.assert_allclose(rec.contact_force, force * force_scale, rtol=1e-12)

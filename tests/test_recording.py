@@ -19,7 +19,7 @@ def test_time_base_and_properties():
     assert rec.with_metadata(velocity_m_s=2.0).truth("velocity_m_s") == 2.0 and "velocity_m_s" not in rec.metadata
     with pytest.raises(RecordingError, match=r"channel 'piston_acceleration' is missing; channels found: "
                                              r"\['contact_force'\]"):
-        rec.piston_acceleration
+        _ = rec.piston_acceleration
 
 
 def test_from_a_regular_time_vector():

@@ -53,6 +53,10 @@ class ReaderOptions:
         return rec
 
 
+#: the defaults of every reader option (frozen, so one shared instance serves as the default argument)
+DEFAULT_READER = ReaderOptions()
+
+
 def reader_options(command):
     """Decorator: append the :class:`ReaderOptions` options to a typer command that takes ``reader``."""
     signature = inspect.signature(command, eval_str=True)

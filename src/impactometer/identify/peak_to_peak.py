@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
 from ..errors import IdentificationError, RecordingError
 from ..recording import Recording
 from .early import solve_early
-from .pulses import PulseSpan
+from .pulses import PulseSpan, detection_levels, first_peak
 from .result import Identification
 from .robust import Equations, Kinematics, combine, solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
@@ -78,11 +79,17 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     t00 = first contact, t01/t11 = force peaks of the first two pulses; M1 = −∫Fc / ((V2(t11) − V2(t01)) −
     g·Δt) (eq. 4), V2 = ∫a2 from t00 (eq. 5), V0 = V2(t01) + ∫_{t00}^{t01}Fc/M1 − g·(t01 − t00).
     """
-    _need_pulses(seg, 2, "the paper variant")
-    p1, p2 = seg.pulses[0], seg.pulses[1]
+    peak2 = second_peak(seg)
+    if peak2 is None:
+        peak2 = second_peak(seg)
+    if peak2 is None:
+        _need_pulses(seg, 2, "the paper variant")
+        raise IdentificationError("the paper variant needs the second force peak: the second pulse has not yet "
+                                  "fallen from a maximum")
+    p1 = seg.pulses[0]
     t00, _ = segment_onset(seg, p1)
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity)
-    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, p2.peak], dtype=float))
+    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, peak2], dtype=float))
     denominator = (va[1] - va[0]) - gravity * (tau[1] - tau[0])
     impulse = jf[1] - jf[0]
     if not denominator < 0.0 or impulse <= 0.0:
@@ -90,13 +97,22 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
                                   f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
-    details = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
+    details: dict[str, Any] = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
     caution = paper_caution(seg)
     if caution:
         details["caution"] = caution
-    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(p2.peak),
-                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(p2.peak),
+    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(peak2),
+                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(peak2),
                           variant="paper", details=details)
+
+
+def second_peak(seg: Segment) -> int | None:
+    """Sample of the second force peak of eqs. (3)-(5) (None while there is none): the peak of a complete second
+    pulse, or the first peak of a second pulse that runs into sustained contact (stage B)."""
+    if len(seg.pulses) < 2 or not seg.pulses[0].complete:
+        return None
+    detect, _ = detection_levels(seg.noise_force, float(np.max(seg.force)))
+    return first_peak(seg.force, seg.pulses[1], detect)
 
 
 #: noise, as a fraction of a channel's peak, above which the paper variant's answer carries a caution [-]
@@ -165,17 +181,19 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     linear unbiased, with the shared acceleration noise), at the price of depending on the contact-law family.
     """
     check_white_noise(seg)
-    if not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2 or not (
-            seg.pulses[1].complete or early_ready(seg)):
+    if not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2:
         _need_pulses(seg, 2, "the robust variant")
     eqs, pulses, t00, std0 = equations(seg)
+    agnostic = stage == "final" and _determined(eqs)
+    if not agnostic and not (seg.pulses[1].complete or early_ready(seg)):
+        _need_pulses(seg, 2, "the robust variant")
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity, onset_std0=std0)
     noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                  pre_samples=seg.pre_samples)
     second = seg.pulses[1]
     onset1 = (np.array([segment_onset(seg, second)[0]]), np.array([segment_onset(seg, second)[1]]))
     used: dict = {}
-    if stage == "final" and _determined(eqs):
+    if agnostic:
         lag_max = LAG_FRACTION * (seg.pulses[0].end - seg.pulses[0].zero) / seg.sample_rate
         sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
         theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
@@ -202,7 +220,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     return Identification(
         mass=1.0 / w, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
         velocity_std=float(np.sqrt(cov[0, 0])), early=early, t00=seg.time_of(t00),
-        t01=seg.time_of(seg.pulses[0].peak), t11=seg.time_of(second.peak), variant="robust",
+        t01=seg.time_of(seg.pulses[0].peak), t11=seg.time_of(second_peak(seg) or second.peak), variant="robust",
         onsets=tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), available_at=seg.time_of(last),
         details={"stage": stage, "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
                  "noise_acceleration_m_s2": seg.noise_acceleration, "pre_trigger_samples": seg.pre_samples})

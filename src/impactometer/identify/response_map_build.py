@@ -188,7 +188,8 @@ def _default_duration(features: str, params: Mapping[str, float], sample_rate: f
 
 
 def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Sequence[float] = 200e3, *,
-                        masses: Sequence[float], velocities: Sequence[float], features: str = "max-impulse",
+                        masses: Sequence[float] | np.ndarray, velocities: Sequence[float] | np.ndarray,
+                        features: str = "max-impulse",
                         feature_params: Mapping[str, float] | None = None, sample_rate: float = 50e3,
                         duration: float | None = None, refine_to: int | tuple[int, int] | None = None,
                         progress: bool = False, chunk_size: int = 2000) -> ResponseMap:
@@ -341,7 +342,8 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         row = [r.truth("mass_kg"), r.truth("velocity_m_s"), r.truth("pressure_gauge_Pa")]
         row[2] = pressure_gauge if row[2] is None else row[2]
         if None in row:
-            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row, strict=False) if x is None]
+            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row, strict=False)
+                       if x is None]
             raise ResponseMapError(f"{r.source}: metadata {missing} missing; expected the known truth of every "
                                    "calibration recording (metadata or manifest)")
         truth[i] = row
@@ -353,9 +355,10 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
     params = fs.params(feature_params)
     y = np.array([extract_features(*recording_signal(r), features, params)[0] for r in recs])
     n_m, n_v = grid_size(grid, "grid")
-    masses = _axis(np.linspace(*(mass_range or (truth[:, 0].min(), truth[:, 0].max())), n_m), "mass range", "[kg]")
-    velocities = _axis(np.linspace(*(velocity_range or (truth[:, 1].min(), truth[:, 1].max())), n_v),
-                       "velocity range", "[m/s]")
+    m_low, m_high = mass_range or (truth[:, 0].min(), truth[:, 0].max())
+    v_low, v_high = velocity_range or (truth[:, 1].min(), truth[:, 1].max())
+    masses = _axis(np.linspace(m_low, m_high, n_m), "mass range", "[kg]")
+    velocities = _axis(np.linspace(v_low, v_high, n_v), "velocity range", "[m/s]")
     groups = _pressure_groups(truth[:, 2])
     _check_size(fs.size, len(groups), masses.size, velocities.size)
     layers, methods = [], set()

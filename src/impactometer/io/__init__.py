@@ -146,7 +146,7 @@ def _manifest(path: Path) -> dict[str, dict[str, float]]:
     if not rows:
         raise RecordingError(f"{path}: manifest has no rows; expected columns file,mass_kg,velocity_m_s"
                              f"[,pressure_gauge_Pa]")
-    columns = [c.strip() for c in rows[0].keys() if c is not None]
+    columns = [c.strip() for c in rows[0] if c is not None]
     missing = [c for c in ("file", "mass_kg", "velocity_m_s") if c not in columns]
     if missing:
         raise RecordingError(f"{path}: manifest lacks column(s) {missing}; columns found: {columns}")

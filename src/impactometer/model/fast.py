@@ -72,10 +72,7 @@ def initial_step(p, y0, f0, t_end, rtol, atol, max_step, work, f1):
     for i in range(n):
         work[i] = f1[i] - f0[i]
     d2 = _rms(work, scale) / h0
-    if d1 <= 1e-15 and d2 <= 1e-15:
-        h1 = max(1e-6, h0 * 1e-3)
-    else:
-        h1 = (0.01 / max(d1, d2)) ** (1.0 / 5.0)
+    h1 = max(1e-6, h0 * 1e-3) if d1 <= 1e-15 and d2 <= 1e-15 else (0.01 / max(d1, d2)) ** (1.0 / 5.0)
     return min(100.0 * h0, h1, t_end, max_step)
 
 
@@ -98,11 +95,12 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
     for j in range(channel_index.size):
         if channel_index[j] >= d.N_STATE:
             full = True
-    # only the states the requested channels depend on are interpolated (all of u1..pU for a force/acceleration)
+    # only the states the requested channels depend on are interpolated (u1..pU and the contact set for a force or
+    # an acceleration)
     need = np.empty(N, dtype=np.int64)
     m = 0
     for i in range(N):
-        used = full and i <= d.P_UPPER
+        used = full and (i <= d.P_UPPER or i == d.CONTACT_SET)
         for j in range(channel_index.size):
             used |= channel_index[j] == i
         if used:
@@ -200,7 +198,7 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
                 ys[i] = y[i] + h * theta * (k1[i] + theta * (q1[i] + theta * (q2[i] + theta * q3[i])))
             if full:  # scalars and a tuple only: a call, or an array handed on, costs as much as the forces
                 fc, fp, ff, f_top, f_bottom = d.forces_of(ys[d.U1], ys[d.V1], ys[d.U2], ys[d.V2], ys[d.P_LOWER],
-                                                          ys[d.P_UPPER], force_parameters)
+                                                          ys[d.P_UPPER], ys[d.CONTACT_SET], force_parameters)
             for j in range(channel_index.size):
                 c = channel_index[j]
                 out[j, i_out] = ys[c] if c < N else d.derived_value(c, gravity, mass, piston_mass, fc, fp, ff,

@@ -23,7 +23,7 @@ MAX_STEP = 1e-3
 #: default bound of the number of accepted steps per scenario
 MAX_STEPS = 10_000_000
 _CHUNK_BYTES = 64 * 2**20
-_STATE_SCALE = np.array([0.1, 1.0, 0.1, 1.0, 1e5, 1e5, 1e-3, 1e-4, 100.0])
+_STATE_SCALE = np.array([0.1, 1.0, 0.1, 1.0, 1e5, 1e5, 1e-3, 1e-4, 100.0, 1e-3])
 
 
 def _real(value) -> bool:
@@ -147,6 +147,7 @@ def _result(t, chans, p, y0, rig, scenario, integrator) -> SimulationResult:
         pressure_upper=named["pressure_upper"], gas_mass_lower=named["gas_mass_lower"],
         gas_mass_upper=named["gas_mass_upper"], kinetic_energy=energies[0], potential_energy=energies[1],
         gas_energy=energies[2], elastic_energy=energies[3], dissipated_energy=named["dissipated_energy"],
+        contact_set=named["contact_set"],
         rig=rig, scenario=scenario, integrator=integrator)
 
 

@@ -62,12 +62,12 @@ class StudyOptions:
     def __post_init__(self) -> None:
         if not isinstance(self.rig, Rig):
             raise ParameterError(f"rig must be a Rig, got {self.rig!r}")
-        for name, low in (("seed", 0), ("grid", 2), ("seeds", 1)):
+        for name, least in (("seed", 0), ("grid", 2), ("seeds", 1)):
             value = getattr(self, name)
             if name == "grid" and value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
-                raise ParameterError(f"{name} must be an integer >= {low}, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+                raise ParameterError(f"{name} must be an integer >= {least}, got {value!r}")
         for name, low, high in (("noise", 0.0, 1.0), ("sample_rate", 1e3, 1e7), ("duration", 1e-3, 1.0),
                                 ("pre_trigger", 0.0, 0.1)):
             value = getattr(self, name)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -14,7 +15,7 @@ COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue"
           "fast": "tab:blue"}
 
 
-def _color(method: str) -> str:
+def _color(method: Any) -> str | None:
     return COLORS.get(method)
 
 
