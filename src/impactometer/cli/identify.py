@@ -111,6 +111,9 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
     if chunk < 1:
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
     rec = reader.read(file)
+    from ..identify.peak_to_peak import check_unfiltered
+
+    check_unfiltered(rec, variant)
     f, a = rec.contact_force, rec.piston_acceleration
     ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
                                 contact_phase=contact_phase)
@@ -134,8 +137,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
 
 def _print_estimate(est, as_json: bool) -> None:
     d = est.to_dict()
-    kind = "early" if est.early is None and est.variant == "robust" and est.details.get("onset_rows") == -1 \
-        else "estimate"
+    kind = "early" if est.details.get("stage") == "early" else "estimate"
     if as_json:
         d.pop("early", None)
         d["kind"] = kind

@@ -29,15 +29,63 @@ def _law(delta, rate, k, c, n, m, dscale):
     return np.where(delta > 0, k * x ** n + c * x ** m * rate, 0.0)
 
 
-def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples):
-    """(V0, w) from the force samples of the first two pulses and the onset of the second.
+#: the whole pulses are fitted when their answer agrees with that of the loading parts alone: a Hausman
+#: statistic below the chi-square(2) quantile of this probability [-]
+AGREEMENT = 0.999
+
+
+def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, peaks, gap):
+    """(V0, w) from the contact phase of the first two pulses and the onset of the second.
+
+    ``pulses`` are the first two pulses (the second may be running), ``peaks`` the samples of their force peaks
+    and ``gap`` the (first, last) samples between them. A law of the family loads and unloads along one curve;
+    a hysteretic contact does not, but it still loads along one. So the law is fitted to the loading parts
+    (each onset to its peak) and to the whole pulses, and the whole-pulse answer is kept where it agrees with
+    the loading-only one (a Hausman test at ``AGREEMENT``). Where the overlap stayed positive throughout the gap
+    (a pad that unloaded to zero force and loaded again: the second pulse is not a fresh contact) only the
+    loading part of the first pulse is used.
+
+    Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
+    the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
+    used (``samples``, ``onset_row``, ``branches``).
+    """
+    common = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples)
+    ends = [p.end for p in pulses]
+    loading = _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, **common)
+    gap_index = np.arange(gap[0], gap[1], dtype=float)
+    if gap_index.size and np.all(np.isfinite(loading[0])):
+        tau, _, _, i_f, _, _, da = kin.at(gap_index)
+        v0, w = loading[0]
+        if float(np.min(v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da)) > 0.0:
+            fit = _fit(kin, pulses[:1], [peaks[0] + 1], None, 0.0, **common)
+            return (*fit, {"samples": int(fit[4][1].size), "onset_row": False, "branches": "loading"})
+    whole = _fit(kin, pulses, ends, onset1, onset1_std, **common)
+    diff = whole[0] - loading[0]
+    try:
+        statistic = float(diff @ np.linalg.solve(loading[1] - whole[1], diff))
+    except np.linalg.LinAlgError:
+        statistic = np.inf
+    if np.all(np.isfinite(whole[0])) and 0.0 <= statistic < chi2_quantile(AGREEMENT):
+        return (*whole, {"samples": int(whole[4][1].size - 1), "onset_row": True, "branches": "whole"})
+    return (*loading, {"samples": int(loading[4][1].size - 1), "onset_row": True, "branches": "loading"})
+
+
+def chi2_quantile(probability: float) -> float:
+    """Quantile of the chi-square distribution with two degrees of freedom: −2·ln(1 − p)."""
+    return -2.0 * float(np.log1p(-probability))
+
+
+def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples):
+    """The law fit to the samples of ``pulses`` up to ``stops`` and, unless ``onset1`` is None, the second
+    onset's row (see :func:`solve_early`).
 
     The first contact t00 is refined by the fit: a shift d0 of the compression (an error ε of t00 shifts δ by
-    −V0·ε at every sample) is a seventh unknown, with the foot fit's standard error of t00 as its prior. Returns
-    (theta, cov, chi2, dof, (weights, taus)): the estimate (V0 [m/s], w [1/kg]), its covariance, the fit's
-    chi-square and degrees of freedom, and d theta / d(error of δ) at the times ``taus`` [s].
+    −V0·ε at every sample) is a seventh unknown, with the foot fit's standard error of t00 as its prior.
     """
-    idx = np.concatenate([np.arange(max(p.zero, 0), p.end, dtype=float) for p in pulses])
+    idx = np.concatenate([np.arange(max(p.zero, 0), stop, dtype=float) for p, stop in zip(pulses, stops,
+                                                                                           strict=True)])
+    use_onset = onset1 is not None
+    onset1 = float(idx[-1]) if onset1 is None else onset1
     tau, f, jf, i_f, _, va, da = kin.at(idx)
     g = kin.gravity
     t1, _, jf1, if1, _, va1, da1 = kin.at(np.array([onset1]))
@@ -50,6 +98,8 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
         return delta, rate
 
     def onset_sigma(v0, w):  # the second onset row: double-integrated noise and its time error
+        if not use_onset:
+            return 1e30
         closing = max(v0 + g * t1[0] - w * jf1[0] - va1[0], 0.0)
         white = noise_acceleration ** 2 + (w * noise_force) ** 2
         return max(float(np.sqrt(white * kin.dt * t1[0] ** 3 / 3.0 + (closing * onset1_std * kin.dt) ** 2)), 1e-15)

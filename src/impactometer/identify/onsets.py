@@ -70,8 +70,10 @@ def onset_index(force: np.ndarray, span: PulseSpan, noise: float, *, earliest: i
     while stop < span.peak and f_all[stop] < top:
         stop += 1
     stop = max(stop + 1, min(span.first + 3, span.peak + 1))
-    rise = stop - span.first
-    lo = max(min(span.zero, span.first - max(2 * rise, 8)) - 2, earliest, 0)
+    # samples the edge needs to rise through the detection level: the onset may lie that far before it
+    slope = max((f_all[stop - 1] - f_all[span.first]) / max(stop - 1 - span.first, 1), 1e-12)
+    rise = int(min(np.ceil(max(f_all[span.first], 0.0) / slope), 64))
+    lo = max(min(span.zero, span.first - max(2 * rise, stop - span.first, 8)) - 2, earliest, 0)
     t = np.arange(lo, stop, dtype=float)
     f = f_all[lo:stop]
     curved = top > CURVED_ABOVE * peak
@@ -104,3 +106,89 @@ def separation_index(force: np.ndarray, span: PulseSpan, noise: float, *, latest
     earliest = 0 if latest is None else n - 1 - int(latest)
     index, std = onset_index(f_all[::-1], mirrored, noise, earliest=earliest)
     return float(n - 1 - index), std
+
+
+#: a turning point of the force must stand out by this many noise levels of the smoothed force [-]
+TURN_SIGMAS = 5.0
+#: the vertex fit reaches from a turning point until the force has moved this fraction of its swing [-]
+VERTEX_DROP = 0.25
+#: fewest samples on each side of a turning point in its vertex fit
+VERTEX_HALF_MIN = 3
+
+
+def turning_points(force: np.ndarray, lo: int, hi: int, noise: float, width: int) -> list[tuple[int, int, float]]:
+    """Alternating maxima and minima of the force between samples ``lo`` and ``hi``, starting with a maximum.
+
+    The force is smoothed by a moving average of ``width`` samples; a turning point counts once the smoothed
+    force has moved away from it by ``TURN_SIGMAS`` of its noise (σ/√width). Returns (sample, +1 for a maximum
+    or −1 for a minimum, swing [N] from the previous turning point or from the start).
+    """
+    f = np.asarray(force[lo:hi], dtype=float)
+    width = max(int(width), 1)
+    if f.size < width + 2:
+        return []
+    x = np.convolve(f, np.ones(width) / width, mode="same")
+    threshold = TURN_SIGMAS * max(float(noise), 1e-12) / np.sqrt(width)
+    out: list[tuple[int, int, float]] = []
+    sign, cand, last = 1, 0, float(x[0])
+    half = width // 2
+    for i in range(half, x.size - half):
+        if sign * (x[i] - x[cand]) > 0:
+            cand = i
+        elif sign * (x[cand] - x[i]) > threshold and sign * (x[cand] - last) > threshold:
+            out.append((lo + cand, sign, abs(float(x[cand]) - last)))
+            last, sign, cand = float(x[cand]), -sign, i
+    return out
+
+
+def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float,
+           width: int = 1) -> tuple[float, float, float] | None:
+    """Sub-sample time [samples], its standard error [samples] and the force [N] of a turning point.
+
+    Where the overlap turns, the force of any contact law turns with zero slope, but its curvature may differ
+    on the two sides (a hysteretic contact loads and unloads along different lines: a cusp-like peak). So the
+    samples around ``centre`` -- out to where the force, smoothed over ``width`` samples, has moved
+    ``VERTEX_DROP`` of the ``swing`` on each side -- are fitted with F = F_E + a±·s² + c±·s³, s = t − E, the
+    coefficients on each side of E free; E is scanned like an onset. None where the window leaves the data or
+    the best E is not a maximum (``sign`` = +1) or a minimum (−1) inside the window.
+    """
+    f = np.asarray(force, dtype=float)
+    width = max(int(width), 1)
+    lo_w, hi_w = max(centre - 8 * width - 64, 0), min(centre + 8 * width + 64, f.size)
+    x = np.convolve(f[lo_w:hi_w], np.ones(width) / width, mode="same")
+    c = centre - lo_w
+    level, drop = x[c], VERTEX_DROP * abs(swing)
+    left = right = VERTEX_HALF_MIN
+    while c - left - 1 >= width // 2 and abs(x[c - left] - level) < drop:
+        left += 1
+    while c + right + 1 < x.size - width // 2 and abs(x[c + right] - level) < drop:
+        right += 1
+    if centre - left < 0 or centre + right >= f.size or c - left < width // 2 or c + right >= x.size - width // 2:
+        return None
+    t = np.arange(-left, right + 1, dtype=float)
+    y = f[centre - left:centre + right + 1]
+
+    def profile(grid):
+        s = t[None, :] - grid[:, None]
+        before, after = s < 0, s >= 0
+        basis = np.stack([np.ones_like(s), np.where(before, s * s, 0), np.where(after, s * s, 0),
+                          np.where(before, s ** 3, 0), np.where(after, s ** 3, 0)], axis=-1)
+        gram = np.einsum("gni,gnj->gij", basis, basis) + 1e-12 * np.eye(5)
+        coef = np.linalg.solve(gram, np.einsum("gni,n->gi", basis, y)[..., None])[..., 0]
+        return np.sum((y[None, :] - np.einsum("gni,gi->gn", basis, coef)) ** 2, axis=1), coef
+
+    coarse = np.arange(-(left // 2), right // 2 + 1e-9, COARSE_STEP)
+    sse, _ = profile(coarse)
+    k = int(np.argmin(sse))
+    fine = np.arange(coarse[max(k - 4, 0)], coarse[min(k + 4, coarse.size - 1)] + 1e-9, GRID_STEP)
+    sse, coef = profile(fine)
+    k = int(np.argmin(sse))
+    if not (0 < k < fine.size - 1 or coarse[0] < fine[k] < coarse[-1]) or np.any(sign * coef[k, 1:3] > 0):
+        return None
+    scatter2 = max(float(noise) ** 2, float(sse[k]) / max(t.size - 6, 1))
+    full, _ = profile(coarse)
+    inside = coarse[full <= sse[k] + scatter2]
+    inside_fine = fine[sse <= sse[k] + scatter2]
+    first = min(inside.min(), inside_fine.min()) if inside.size else inside_fine.min()
+    last = max(inside.max(), inside_fine.max()) if inside.size else inside_fine.max()
+    return centre + float(fine[k]), max(0.5 * (last - first), GRID_STEP), float(coef[k, 0])

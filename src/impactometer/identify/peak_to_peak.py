@@ -20,13 +20,14 @@ import numpy as np
 from ..errors import IdentificationError, RecordingError
 from ..recording import Recording
 from .early import solve_early
-from .pulses import PulseSpan, detection_levels, first_peak
+from .pulses import detection_levels, first_peak, sustained_index
 from .result import Identification
 from .robust import Equations, Kinematics, combine, solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
     PRE_SAMPLES,
     QUIET_TIME,
+    SUSTAINED_FACTOR,
     TRIGGER_FLOOR,
     Segment,
     check_channels,
@@ -34,13 +35,13 @@ from .segment import (  # noqa: F401 - re-exported: the streaming identifier and
     early_cut,
     early_ready,
     edges,
+    extrema,
     prepare,
     quantum,
     segment_bounds,
     segment_of,
     segment_onset,
     segment_separation,
-    stage_b,
 )
 
 GRAVITY = 9.81
@@ -48,6 +49,8 @@ GRAVITY = 9.81
 COLOURED_LIMIT = 0.5
 #: the separation lag λ is at most this fraction of the first pulse's duration [-]
 LAG_FRACTION = 0.5
+#: an answer whose standard error exceeds this fraction of itself says nothing and is refused [-]
+MAX_RELATIVE_STD = 0.5
 
 
 def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
@@ -146,28 +149,29 @@ def check_white_noise(seg: Segment) -> None:
             "contact) -- identify the record without --cfc, or use --variant paper")
 
 
-def equations(seg: Segment) -> tuple[Equations, list[PulseSpan], float, float]:
-    """Every row the segment holds: (equations, pulses whose onsets were used, t00 and its standard error
-    [samples])."""
-    pulses = [p for p in seg.pulses if p.complete]
-    sustained, cells, cell_force, cell_size = stage_b(seg)
-    if sustained is not None and not seg.pulses[sustained].complete:
-        pulses = pulses + [seg.pulses[sustained]]
-    elif len(seg.pulses) > len(pulses) and early_ready(seg) and len(pulses) == 1:
-        pulses = pulses + [seg.pulses[1]]  # the second pulse is past its peak: its onset is complete
+def equations(seg: Segment) -> tuple[Equations, float, float]:
+    """Every row the segment holds: (equations, t00 and its standard error [samples])."""
+    sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
+    pulses = [p for k, p in enumerate(seg.pulses) if p.complete or k == sustained or (k == 1 and early_ready(seg))]
     onsets, stds = edges(seg, pulses)
-    seps = [segment_separation(seg, p) for p in seg.pulses if p.complete]
-    eqs = Equations(onsets=onsets[1:], onset_std=stds[1:], separations=np.array([s[0] for s in seps]),
-                    separation_std=np.array([s[1] for s in seps]), cells=cells, cell_force=cell_force,
-                    cell_size=cell_size)
-    return eqs, pulses, float(onsets[0]), float(stds[0])
+    gaps = np.array([[max(prev.end, prev.peak), int(o)] for prev, o in zip(seg.pulses, onsets[1:], strict=False)],
+                    dtype=int)
+    complete = [p for p in seg.pulses if p.complete]
+    seps = [segment_separation(seg, p) for p in complete]
+    times, time_std, stage, span = extrema(seg)
+    eqs = Equations(onsets=onsets[1:], onset_std=stds[1:], extrema=times, extremum_std=time_std, stage_b=stage,
+                    separations=np.array([s[0] for s in seps]), separation_std=np.array([s[1] for s in seps]),
+                    peaks=np.array([float(p.peak) for p in complete]), stage_b_samples=span,
+                    gaps=gaps.reshape(-1, 2))
+    return eqs, float(onsets[0]), float(stds[0])
 
 
-def _determined(eqs: Equations) -> bool:
-    """Whether the agnostic rows leave at least one degree of freedom once (V0, w) and the nuisances are fitted."""
-    rows = eqs.onsets.size + eqs.separations.size + eqs.cells.size
-    nuisances = (eqs.separations.size + eqs.cells.size > 0) + 2 * (eqs.cells.size > 0)
-    return eqs.onsets.size >= 1 and rows - 2 - nuisances >= 1
+def _determined(eqs: Equations, dof: int = 1) -> bool:
+    """Whether the agnostic rows leave ``dof`` degrees of freedom once (V0, w) and the nuisances are fitted
+    (extrema bring one nuisance, separations two; see :func:`~impactometer.identify.robust.solve_rows`)."""
+    n_ext, n_sep = eqs.extrema.size, eqs.separations.size
+    rows = eqs.onsets.size + (n_ext - 1 if n_ext >= 2 else 0) + (n_sep - 2 if n_sep >= 3 else 0)
+    return rows >= 2 + dof
 
 
 def solve_robust(seg: Segment, gravity: float, early: Identification | None = None, *,
@@ -183,7 +187,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     check_white_noise(seg)
     if not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2:
         _need_pulses(seg, 2, "the robust variant")
-    eqs, pulses, t00, std0 = equations(seg)
+    eqs, t00, std0 = equations(seg)
     agnostic = stage == "final" and _determined(eqs)
     if not agnostic and not (seg.pulses[1].complete or early_ready(seg)):
         _need_pulses(seg, 2, "the robust variant")
@@ -191,32 +195,35 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                  pre_samples=seg.pre_samples)
     second = seg.pulses[1]
-    onset1 = (np.array([segment_onset(seg, second)[0]]), np.array([segment_onset(seg, second)[1]]))
+    peak2 = second_peak(seg) or second.peak
     used: dict = {}
     if agnostic:
         lag_max = LAG_FRACTION * (seg.pulses[0].end - seg.pulses[0].zero) / seg.sample_rate
         sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
         theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
-        used = {**eqs.counts(), **sol.nuisances}
+        used = {**sol.used, **sol.nuisances}
         if contact_phase:
-            contact = solve_early(kin, [seg.pulses[0], replace(second, end=second.end if second.complete else
-                                                                 seg.force.size)], onset1[0][0], onset1[1][0], **noise)
+            contact = _contact_phase(seg, kin, peak2, noise)
             theta, cov = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
                                  noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples,
                                  dt=kin.dt)
-            used["contact_phase_samples"] = int(contact[4][1].size - 1)
+            used["contact_phase"] = contact[5]
         last = max([p.end if p.complete else seg.force.size - 1 for p in seg.pulses])
     else:
         stage = "early" if stage == "early" else "final"
-        contact_pulses = [seg.pulses[0], second if second.complete else replace(second, end=seg.force.size)]
-        theta, cov, chi2, dof, sens = solve_early(kin, contact_pulses, onset1[0][0], onset1[1][0], **noise)
-        used = {"onsets": 1, "separations": 0, "stage_b_rows": 0, "stage_b_samples": 0,
-                "contact_phase_samples": int(sens[1].size - 1)}
+        theta, cov, chi2, dof, _, info = _contact_phase(seg, kin, peak2, noise)
+        used = {"onsets": int(info["onset_row"]), "extrema": 0, "stage_b_extrema": 0, "separations": 0,
+                "stage_b_samples": 0, "contact_phase": info}
         last = second.end if second.complete else seg.force.size - 1
     velocity, w = float(theta[0]), float(theta[1])
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity) or not np.all(np.isfinite(cov)):
         raise IdentificationError(f"the equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses found "
                                   "are not contact separations of a falling mass")
+    spread = max(float(np.sqrt(cov[1, 1])) / w, float(np.sqrt(cov[0, 0])) / max(abs(velocity), 1e-12))
+    if spread > MAX_RELATIVE_STD:
+        raise IdentificationError(f"the {stage} equations do not determine the impact: the standard error is "
+                                  f"{spread:.0%} of the answer (at most {MAX_RELATIVE_STD:.0%} is an answer); "
+                                  "more of the record is needed")
     return Identification(
         mass=1.0 / w, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
         velocity_std=float(np.sqrt(cov[0, 0])), early=early, t00=seg.time_of(t00),
@@ -224,6 +231,15 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
         onsets=tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), available_at=seg.time_of(last),
         details={"stage": stage, "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
                  "noise_acceleration_m_s2": seg.noise_acceleration, "pre_trigger_samples": seg.pre_samples})
+
+
+def _contact_phase(seg: Segment, kin: Kinematics, peak2: int, noise: dict):
+    """The contact-phase fit of the first two pulses (:func:`~impactometer.identify.early.solve_early`)."""
+    first, second = seg.pulses[0], seg.pulses[1]
+    onset, onset_std = segment_onset(seg, second)
+    running = second if second.complete else replace(second, end=seg.force.size)
+    return solve_early(kin, [first, running], onset, onset_std, peaks=[first.peak, peak2],
+                       gap=(max(first.end, first.peak), int(onset)), **noise)
 
 
 VARIANT_SOLVERS = {"robust": solve_robust, "paper": solve_paper}
@@ -284,11 +300,33 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     return solve(seg, variant, gravity, early=early, contact_phase=contact_phase)
 
 
+def check_unfiltered(recording: Recording, variant: str) -> None:
+    """IdentificationError when the robust variant is asked to identify channels the recording says were
+    CFC-filtered (``metadata['cfc']``, as :func:`~impactometer.filters.filter_recording` notes it).
+
+    A zero-phase low-pass filter spreads each contact onset ahead of the contact and colours the noise: the
+    robust variant's onset times, noise model and standard errors would all be wrong (answers off by several
+    standard errors, or absurd). It identifies the unfiltered channels instead; the paper variant, which reads
+    peaks, accepts filtered ones.
+    """
+    filtered = recording.metadata.get("cfc")
+    if variant != "robust" or not isinstance(filtered, dict):
+        return
+    named = {name: cfc for name, cfc in filtered.items() if name in ("contact_force", "piston_acceleration")}
+    if named:
+        listed = ", ".join(f"{name} (CFC {cfc})" for name, cfc in named.items())
+        raise IdentificationError(f"{recording.source}: {listed} filtered; the robust identification needs the "
+                                  "unfiltered channels (a zero-phase filter moves the contact onsets ahead of the "
+                                  "contact and colours the noise, so its answers and standard errors would be "
+                                  "wrong) -- identify without --cfc, or use --variant paper")
+
+
 def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY,
              contact_phase: bool = False) -> Identification:
     """Identify M1 and V0 from a :class:`~impactometer.recording.Recording` (see :func:`identify_arrays`)."""
     if not isinstance(recording, Recording):
         raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
+    check_unfiltered(recording, variant)
     channels = {}
     for name in ("contact_force", "piston_acceleration"):
         try:

@@ -1,24 +1,31 @@
 """Robust peak-to-peak identification: every equation the record holds, one generalised least-squares estimate.
 
 Axis down, t measured from first contact t00. The mass obeys M1·ü1 = M1·g − Fc, the piston's acceleration a2 is
-measured, so the relative displacement (compression) and its rate are
+measured, so the relative displacement (overlap) of mass and rod and its rates are
 
     δ(t) = V0·τ + (g + b)·τ²/2 − w·IF(t) − D2(t),    δ'(t) = V0 + (g + b)·τ − w·JF(t) − V2(t),
+    δ''(t) = g + b − w·Fc(t) − a2(t),
 
 τ = t − t00, w = 1/M1, JF/IF the single/double integrals of the force and V2/D2 those of the acceleration from t00
 (the piston at rest before contact), b the offset left in the channels after the pre-trigger correction. The
-equations, all linear in (V0, w) and whatever the contact law:
+equations, all linear in (V0, w, b):
 
-- onset k (a pulse starts): δ(Tk) = 0 -- the force is positive only while the bodies overlap;
-- separation k (a pulse ends): δ(Sk) + λ·δ'(Sk) = 0, with one lag λ >= 0 shared by all pulses (a viscous contact
-  lets go before the overlap is gone: λ = c/k for Kelvin-Voigt, 0 for a force that vanishes with the overlap);
-- stage B (sustained contact): the bodies move together and the overlap follows the force,
-  δ(t) + λ·δ'(t) = β0 + β1·F(t), in cells of a few samples (F averaged over the cell), β0 and β1 unknown.
+- onset k (a pulse starts): δ(Tk) = 0 -- whatever the contact law, the force is positive only while the bodies
+  overlap (a pulse starts from a fresh contact);
+- force extremum k (a peak of a bounce, or a peak or trough of the force in sustained contact, stage B):
+  δ'(Ek) + λe·δ''(Ek) = 0 -- the force turns where the overlap turns (exactly for an elastic or hysteretic law,
+  with the lag λe = c/k for a viscous one). In stage B consecutive extrema are the exact integral of
+  M1·(g − a2) = Fc over the samples between them: the mass and the rod share one acceleration on average over
+  every half-cycle of the contact's own oscillation, whatever the law;
+- separation k (a pulse ends): δ(Sk) + λs·δ'(Sk) − μ·δ(Pk) = 0 -- the contact lets go ahead of zero overlap by a
+  lag (viscous contact, λs = c/k) or at a fraction μ of the pulse's largest overlap δ(Pk) (a set, as a hysteretic
+  pad takes one); 0 for a force that vanishes with the overlap.
 
-The nuisances (b with its pre-trigger prior, λ, β0, β1) are estimated with (V0, w). The covariance of the rows
-is that of the double-integrated white noise of both channels (kernels below), of the onset and separation times
-(rate × time error; the t00 error acts on every row alike) and of the cell-averaged force; it depends on the
-estimate, so the solution is iterated (Gauss-Newton in λ).
+The nuisances b (with its pre-trigger prior), λe, λs and μ are estimated with (V0, w). The covariance of the
+rows is that of the double-integrated white noise of both channels (the kernels of :func:`atom_kernel`), of the
+times of the onsets, extrema and separations (rate × time error; the error of t00 acts on every displacement
+alike), and, for the rows that rest on a model of the contact (extrema, separations), a model-error variance
+estimated from their own scatter. It depends on the estimate, so the solution is iterated (Gauss-Newton).
 """
 
 from __future__ import annotations
@@ -78,27 +85,20 @@ class Kinematics:
         return tau, f, jf, i_f, a, va, da
 
 
-def white_kernel(tau: np.ndarray, dt: float) -> np.ndarray:
-    """Covariance of the double integral (from τ = 0) of unit-variance white noise sampled at step ``dt``.
-
-    K(s, t) = dt·∫₀^min(s,t) (s − u)(t − u) du [s⁵ → multiply by the noise variance [m²/s⁴] to get m²].
-    """
-    return lagged_kernel(tau, np.zeros_like(np.asarray(tau, dtype=float)), dt)
-
-
-def lagged_kernel(tau: np.ndarray, lag: np.ndarray, dt: float) -> np.ndarray:
-    """Covariance of e(τi) + lag_i·e'(τi), e the double integral from 0 of unit white noise at step ``dt``.
+def atom_kernel(tau: np.ndarray, cd: np.ndarray, cv: np.ndarray, dt: float) -> np.ndarray:
+    """Covariance of cd_i·e(τi) + cv_i·e'(τi), e the double integral from 0 of unit white noise at step ``dt``.
 
     With m = min(s, t): cov(e(s), e(t)) = dt·(s·t·m − (s+t)·m²/2 + m³/3), cov(e(s), e'(t)) = dt·(s·m − m²/2),
-    cov(e'(s), e'(t)) = dt·m.
+    cov(e'(s), e'(t)) = dt·m [multiply by the noise variance [m²/s⁴]].
     """
     tau = np.asarray(tau, dtype=float)
-    lag = np.asarray(lag, dtype=float)
     s, t = tau[:, None], tau[None, :]
     m = np.minimum(s, t)
     k_dd = s * t * m - (s + t) * m ** 2 / 2.0 + m ** 3 / 3.0
     k_dv = s * m - m ** 2 / 2.0  # cov(e(s), e'(t))
-    return dt * (k_dd + lag[None, :] * k_dv + lag[:, None] * k_dv.T + lag[:, None] * lag[None, :] * m)
+    cd, cv = np.asarray(cd, dtype=float), np.asarray(cv, dtype=float)
+    return dt * (cd[:, None] * cd[None, :] * k_dd + cd[:, None] * cv[None, :] * k_dv
+                 + cv[:, None] * cd[None, :] * k_dv.T + cv[:, None] * cv[None, :] * m)
 
 
 def kernel_form(weights: np.ndarray, tau: np.ndarray, dt: float) -> np.ndarray:
@@ -123,38 +123,52 @@ def kernel_form(weights: np.ndarray, tau: np.ndarray, dt: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Equations:
-    """The rows available in a record (fractional sample indices of the segment, standard errors in samples).
+    """The rows available in a record: fractional sample indices of the segment, standard errors in samples.
 
-    ``onsets`` excludes t00; ``cells``/``cell_force`` are the centres and mean forces [N] of the stage-B cells of
-    ``cell_size`` samples.
+    ``onsets`` excludes t00; ``gaps`` holds the (first, last) samples of the force-free gap before each onset;
+    ``peaks`` are the samples of the largest overlap of the separating pulses (force peaks); ``stage_b`` flags the
+    extrema in sustained contact and ``stage_b_samples`` counts the samples between the first and last of them.
     """
 
     onsets: np.ndarray
     onset_std: np.ndarray
+    extrema: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    extremum_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stage_b: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
     separations: np.ndarray = field(default_factory=lambda: np.zeros(0))
     separation_std: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    cells: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    cell_force: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    cell_size: int = 1
+    peaks: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    stage_b_samples: int = 0
+    gaps: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))
 
     def counts(self) -> dict[str, int]:
-        """Equations used: onsets after t00, separations, stage-B rows and the samples they average."""
-        return {"onsets": int(self.onsets.size), "separations": int(self.separations.size),
-                "stage_b_rows": int(self.cells.size), "stage_b_samples": int(self.cells.size * self.cell_size)}
+        """Equations available: onsets after t00, force extrema (of them in stage B), separations, stage-B
+        samples."""
+        return {"onsets": int(self.onsets.size), "extrema": int(self.extrema.size),
+                "stage_b_extrema": int(np.count_nonzero(self.stage_b)), "separations": int(self.separations.size),
+                "stage_b_samples": int(self.stage_b_samples)}
 
 
 @dataclass(frozen=True)
 class Solution:
-    """(V0 [m/s], w [1/kg]), their covariance, the fit's chi-square and degrees of freedom, the nuisances and
-    d(V0, w)/d(error of δ at the times ``tau``) for combining with another estimate."""
+    """(V0 [m/s], w [1/kg]), their covariance, the fit's chi-square and degrees of freedom, the nuisances, the
+    rows used, and d(V0, w)/d(error of a row) with the rows' times ``tau`` [s] for combining with another
+    estimate."""
 
     theta: np.ndarray
     cov: np.ndarray
     chi2: float
     dof: int
     nuisances: dict
+    used: dict
     gain: np.ndarray
     tau: np.ndarray
+
+
+#: kinds of rows and atoms: onsets, extrema, separations, and the peak overlap of a separation
+ONSET, EXTREMUM, SEPARATION, PEAK = 0, 1, 2, 3
+#: largest set fraction μ of the separations [-]
+SET_MAX = 0.95
 
 
 def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
@@ -170,107 +184,124 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     pre_samples : int
         Samples the offsets were removed with (0: no offset correction, b is taken as zero).
     lag_max : float
-        Largest separation lag λ [s].
+        Largest lag λe, λs [s].
 
     Notes
     -----
-    The stage-B overlap is h(F) = β0 + Σ βj·(F/Fs)^(j/3), j = 1..3 (Fs the largest cell force): a smooth function
-    of the force that holds linear springs (j = 3), Hertzian contact (j = 2) and a permanent set (β0). Separations
-    and stage-B cells rest on models of the contact (the lag, h): where their rows scatter more than their noise
-    explains, a white model-error variance is added to that group until its chi-square matches its rows, so a
-    poor model weighs less instead of pulling the estimate.
+    Each row is a sum of atoms cd·δ(t) + cv·δ'(t) + ca·δ''(t); a separation has two (at Sk and at Pk). Extrema
+    and separations rest on models of the contact (the lags, the set): a group is used only when it outnumbers
+    its own nuisances, and where it scatters more than its noise explains, a white model-error variance is added
+    to it until its chi-square matches its rows, so a poor model weighs less instead of pulling the estimate.
     """
     dt, g = kin.dt, kin.gravity
-    n_on, n_sep, n_cell = eqs.onsets.size, eqs.separations.size, eqs.cells.size
-    index = np.concatenate([eqs.onsets, eqs.separations, eqs.cells])
-    group = np.r_[np.zeros(n_on, int), np.ones(n_sep, int), np.full(n_cell, 2)]
-    lagged = (group > 0).astype(float)
-    timing = np.r_[eqs.onset_std, eqs.separation_std, np.zeros(n_cell)] * dt
-    tau, force, jf, i_f, acc, va, da = kin.at(index)
-    fit_lag, fit_b, fit_h = bool(n_sep + n_cell) and lag_max > 0, pre_samples > 0, n_cell > 0
-    names = ["V0", "w"] + ["b"] * fit_b + ["h0", "h1", "h2", "h3"] * fit_h
-    cols = {name: i for i, name in enumerate(names)}
-    cell = (group == 2).astype(float)
-    scale = float(np.max(eqs.cell_force)) if n_cell else 1.0
-    x = np.r_[np.zeros(n_on + n_sep), np.maximum(eqs.cell_force, 0.0) / scale]
-    powers = [x ** (j / 3.0) for j in range(4)]
+    n_on = eqs.onsets.size
+    use_ext, use_sep = eqs.extrema.size >= 2 and lag_max > 0, eqs.separations.size >= 3 and lag_max > 0
+    n_ext, n_sep = eqs.extrema.size * use_ext, eqs.separations.size * use_sep
+    rows = n_on + n_ext + n_sep
+    group = np.r_[np.full(n_on, ONSET), np.full(n_ext, EXTREMUM), np.full(n_sep, SEPARATION)]
+    # atoms: the rows' own times, then the peak overlap of each separation
+    atom_row = np.r_[np.arange(rows), n_on + n_ext + np.arange(n_sep)]
+    atom_index = np.concatenate([eqs.onsets, eqs.extrema[:n_ext], eqs.separations[:n_sep], eqs.peaks[:n_sep]])
+    atom_std = np.concatenate([eqs.onset_std, eqs.extremum_std[:n_ext], eqs.separation_std[:n_sep],
+                               np.zeros(n_sep)]) * dt
+    kind = np.r_[group, np.full(n_sep, PEAK)]
+    tau, force, jf, i_f, acc, va, da = kin.at(atom_index)
+    fit_b = pre_samples > 0
+    nonlinear = ["lag_e"] * use_ext + ["lag_s", "set"] * use_sep
+    n_lin = 2 + fit_b
+    # δ, δ', δ'' of every atom as (design over (V0, w, b), constant)
+    basis = {"d": (np.column_stack([tau, -i_f, tau ** 2 / 2.0]), g * tau ** 2 / 2.0 - da),
+             "v": (np.column_stack([np.ones_like(tau), -jf, tau]), g * tau - va),
+             "a": (np.column_stack([np.zeros_like(tau), -force, np.ones_like(tau)]), g - acc)}
+    mixer = np.zeros((rows, atom_index.size))
+    mixer[atom_row, np.arange(atom_index.size)] = 1.0
+    bounds = {"lag_e": (0.0, lag_max), "lag_s": (0.0, lag_max), "set": (0.0, SET_MAX)}
+    phi = {name: 0.0 for name in nonlinear}
 
-    def design(lag):
-        lam = lagged * lag
-        a = np.zeros((index.size, len(names)))
-        a[:, 0] = tau + lam
-        a[:, 1] = -(i_f + lam * jf)
-        if fit_b:
-            a[:, cols["b"]] = tau ** 2 / 2.0 + lam * tau
-        if fit_h:
-            for j in range(4):
-                a[:, cols[f"h{j}"]] = -cell * powers[j]
-        y = da + lam * va - g * (tau ** 2 / 2.0 + lam * tau)
-        return a, y
+    def coefficients():
+        cd = np.select([kind == ONSET, kind == SEPARATION, kind == PEAK], [1.0, 1.0, -phi.get("set", 0.0)], 0.0)
+        cv = np.select([kind == EXTREMUM, kind == SEPARATION], [1.0, phi.get("lag_s", 0.0)], 0.0)
+        ca = np.where(kind == EXTREMUM, phi.get("lag_e", 0.0), 0.0)
+        return cd, cv, ca
 
-    def rates(theta):
-        b = theta[cols["b"]] if fit_b else 0.0
-        d1 = theta[0] + (g + b) * tau - theta[1] * jf - va  # δ'
-        d2 = g + b - theta[1] * force - acc  # δ''
-        return d1, d2
+    def values(theta_lin):  # δ, δ', δ'' of every atom
+        full = np.r_[theta_lin[:2], theta_lin[2] if fit_b else 0.0]
+        return {key: m @ full + c for key, (m, c) in basis.items()}
 
-    def slope(theta):  # dh/dF at the cell forces [m/N]
-        if not fit_h:
-            return np.zeros(index.size)
-        xs = np.maximum(x, 1e-3)
-        return cell * sum(theta[cols[f"h{j}"]] * j / 3.0 * xs ** (j / 3.0 - 1.0) for j in (1, 2, 3)) / scale
+    def derivatives(vals):  # d(row)/d(nonlinear parameter) at the current estimate
+        cols = {"lag_e": np.where(kind == EXTREMUM, vals["a"], 0.0),
+                "lag_s": np.where(kind == SEPARATION, vals["v"], 0.0),
+                "set": np.where(kind == PEAK, -vals["d"], 0.0)}
+        return np.column_stack([mixer @ cols[name] for name in nonlinear]) if nonlinear else np.zeros((rows, 0))
 
-    lag = 0.0
-    a, y = design(lag)
-    theta = np.linalg.lstsq(a, y, rcond=None)[0]
-    tiny = (1e-9 * (np.sqrt(np.mean(np.square(y))) + 1e-30)) ** 2
-    model = np.zeros(3)  # model-error variance of each group [m²]
-    for _ in range(ITERATIONS):
+    # a gap in the force need not be a flight: a pad with a set unloads to zero force and may load again before
+    # the bodies part; such an onset is not at zero overlap, and its row is dropped once the estimate shows that
+    # the overlap stayed positive throughout the gap
+    gap_index = [np.arange(lo, hi, max((hi - lo) // 64, 1), dtype=float) for lo, hi in eqs.gaps[:n_on]]
+    gap_basis = [kin.at(i) for i in gap_index]
+    dips = np.zeros(n_on, dtype=bool)
+    theta = np.zeros(n_lin)
+    model = np.zeros(3)  # model-error variance of each group [m², (m/s)² for extrema]
+    for it in range(ITERATIONS):
+        cd, cv, ca = coefficients()
+        design = mixer @ ((cd[:, None] * basis["d"][0] + cv[:, None] * basis["v"][0]
+                           + ca[:, None] * basis["a"][0])[:, :n_lin])
+        const = mixer @ (cd * basis["d"][1] + cv * basis["v"][1] + ca * basis["a"][1])
+        if it == 0:
+            theta = np.linalg.lstsq(design, -const, rcond=None)[0]
+        vals = values(theta)
+        if it in (2, 5) and gap_basis:
+            full = np.r_[theta[:2], theta[2] if fit_b else 0.0]
+            dips = np.array([gb[0].size > 0 and float(np.min(full[0] * gb[0] + (g + full[2]) * gb[0] ** 2 / 2
+                                                             - full[1] * gb[3] - gb[6])) > 0.0
+                             for gb in gap_basis])
         v0, w = theta[0], max(theta[1], 0.0)
         white = noise_acceleration ** 2 + (w * noise_force) ** 2
-        d1, d2 = rates(theta)
-        speed = np.abs(d1 + lagged * lag * d2)
-        cov = white * lagged_kernel(tau, lagged * lag, dt) + (v0 * kin.onset_std0 * dt) ** 2
-        cov += np.diag((speed * timing) ** 2 + (slope(theta) * noise_force) ** 2 / eqs.cell_size
-                       + model[group] + tiny)
-        a, y = design(lag)
-        jac = a
-        if fit_lag:
-            jac = np.column_stack([a, lagged * d1])
-            y = y + lagged * d1 * lag  # Gauss-Newton about the current lag
+        rate = cd * vals["v"] + cv * vals["a"]  # d(atom)/dt, the third derivative left out
+        cov = white * (mixer @ atom_kernel(tau, cd, cv, dt) @ mixer.T)
+        cov += np.diag(mixer @ ((rate * atom_std) ** 2 + ca ** 2 * white))
+        shift = mixer @ (cd * v0 * kin.onset_std0 * dt)  # t00's error moves every overlap alike
+        cov += np.outer(shift, shift)
+        cov += np.diag(model[group] + 1e-30 + 1e-18 * float(np.mean(np.diag(cov))))
+        cov[np.flatnonzero(dips), np.flatnonzero(dips)] += 1e12 * float(np.max(np.diag(cov)))
+        jac_nl = derivatives(vals)
+        jac = np.column_stack([design, jac_nl])
+        target = -const + jac_nl @ np.array([phi[name] for name in nonlinear])  # Gauss-Newton about φ
         chol = np.linalg.cholesky(cov)
         aw = np.linalg.solve(chol, jac)
-        yw = np.linalg.solve(chol, y)
+        yw = np.linalg.solve(chol, target)
         if fit_b:  # the pre-trigger's residual offset: a prior row b = 0 ± its standard error
             prior = np.zeros(jac.shape[1])
-            prior[cols["b"]] = 1.0 / np.sqrt(white / pre_samples)
+            prior[2] = 1.0 / np.sqrt(white / pre_samples)
             aw = np.vstack([aw, prior])
             yw = np.append(yw, 0.0)
         sol = np.linalg.lstsq(aw, yw, rcond=None)[0]
-        theta = sol[:len(names)]
-        if fit_lag:
-            lag = float(np.clip(sol[-1], 0.0, lag_max))
+        theta = sol[:n_lin]
+        for k, name in enumerate(nonlinear):
+            phi[name] = float(np.clip(sol[n_lin + k], *bounds[name]))
         # whitened residuals of a later group are its innovations given the earlier rows: its own chi-square
-        resid = (yw - aw @ sol)[:index.size]
-        for k in (1, 2):
+        resid = (yw - aw @ sol)[:rows]
+        for k in (EXTREMUM, SEPARATION):
             inside = group == k
-            excess = float(np.sum(resid[inside] ** 2)) / max(int(inside.sum()), 1)
             if inside.any():
+                excess = float(np.sum(resid[inside] ** 2)) / int(inside.sum())
                 noise_part = float(np.mean(np.diag(cov)[inside])) - model[k]
                 model[k] = max((model[k] + noise_part) * excess - noise_part, 0.0)
     resid = yw - aw @ sol
     chi2 = float(resid @ resid)
-    n_param = aw.shape[1]
-    dof = int(index.size - (n_param - fit_b))
+    dof = int(rows - np.count_nonzero(dips) - (aw.shape[1] - fit_b))
     bread = np.linalg.pinv(aw.T @ aw)
-    cov_theta = bread[:2, :2]
-    gain = (bread @ aw.T)[:2, :index.size] @ np.linalg.inv(chol)
-    nuisances = {"lag_s": lag} if fit_lag else {}
+    gain = (bread @ aw.T)[:2, :rows] @ np.linalg.inv(chol)
+    nuisances: dict = dict(phi)
     if fit_b:
-        nuisances["offset_m_s2"] = float(theta[cols["b"]])
-    nuisances["model_error_m"] = {"separations": float(np.sqrt(model[1])), "stage_b": float(np.sqrt(model[2]))}
-    return Solution(theta=theta[:2].copy(), cov=cov_theta, chi2=chi2, dof=dof, nuisances=nuisances, gain=gain,
-                    tau=tau)
+        nuisances["offset_m_s2"] = float(theta[2])
+    nuisances["model_error"] = {"extrema_m_s": float(np.sqrt(model[EXTREMUM])),
+                                "separations_m": float(np.sqrt(model[SEPARATION]))}
+    used = {"onsets": int(n_on - np.count_nonzero(dips)), "extrema": int(n_ext),
+            "stage_b_extrema": int(np.count_nonzero(eqs.stage_b) * use_ext),
+            "separations": int(n_sep), "stage_b_samples": int(eqs.stage_b_samples * use_ext)}
+    return Solution(theta=theta[:2].copy(), cov=bread[:2, :2], chi2=chi2, dof=dof, nuisances=nuisances,
+                    used=used, gain=gain, tau=tau[:rows])
 
 
 def combine(first, second, *, noise_acceleration, pre_samples, dt):

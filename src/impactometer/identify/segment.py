@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import IdentificationError
 from . import trigger
-from .onsets import onset_index, separation_index
+from .onsets import onset_index, separation_index, turning_points, vertex
 from .pulses import PulseSpan, detect_pulses, noise_std, sustained_index
 
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
@@ -33,8 +33,8 @@ MAX_DURATION = 1.0
 NOISE_GROWTH = 1.5
 #: a sustained contact (stage B) lasts longer than this many times the longest bounce before it [-]
 SUSTAINED_FACTOR = 2.0
-#: stage-B cells: this many per duration of the first pulse (they resolve the contact's own oscillation) [-]
-CELLS_PER_PULSE = 10
+#: turning points of the force are found on a moving average over this fraction of the first pulse [1/-]
+SMOOTH_PER_PULSE = 16
 
 
 @dataclass(frozen=True)
@@ -256,27 +256,36 @@ def edges(seg: Segment, pulses) -> tuple[np.ndarray, np.ndarray]:
     return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
 
 
-def stage_b(seg: Segment) -> tuple[int | None, np.ndarray, np.ndarray, int]:
-    """Sustained contact of the segment: (index of its pulse or None, cell centres [samples], cell mean forces
-    [N], samples per cell).
+def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Turning points of the force in every pulse: (sub-sample times [samples], standard errors [samples],
+    whether each lies in sustained contact (stage B), samples between the first and last of those).
 
     Stage B is the first pulse that lasts longer than ``SUSTAINED_FACTOR`` times the longest bounce before it
-    (contact-law agnostic: a bounce lasts as long as the contact's stiffness makes it, sustained contact as long
-    as the gas spring holds the bodies together). Its cells run from the landing's force maximum to the end of
-    the pulse (or of the data), ``CELLS_PER_PULSE`` per duration of the first pulse.
+    (:func:`~impactometer.identify.pulses.sustained_index`). The force is smoothed over ``1/SMOOTH_PER_PULSE`` of
+    the first pulse's duration to find the turning points (:func:`~impactometer.identify.onsets.turning_points`),
+    which a cubic then places to a fraction of a sample (:func:`~impactometer.identify.onsets.vertex`).
     """
-    k = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
-    if k is None:
-        return None, np.zeros(0), np.zeros(0), 1
-    pulse = seg.pulses[k]
+    sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
     first = seg.pulses[0]
-    size = max((first.end - first.zero) // CELLS_PER_PULSE, 1)
-    longest = max(p.end - p.zero for p in seg.pulses[:k])
-    landing = pulse.zero + int(np.argmax(seg.force[pulse.zero:pulse.zero + longest]))
-    stop = pulse.end if pulse.complete else seg.force.size
-    n = (stop - landing) // size
-    if n < 1:
-        return k, np.zeros(0), np.zeros(0), size
-    cells = seg.force[landing:landing + n * size].reshape(n, size).mean(axis=1)
-    centres = landing + np.arange(n) * size + (size - 1) / 2.0
-    return k, centres, cells, size
+    width = max(((first.end if first.complete else seg.force.size) - first.zero) // SMOOTH_PER_PULSE, 1)
+    times, stds, stage = [], [], []
+    for k, pulse in enumerate(seg.pulses):
+        hi = pulse.end if pulse.complete else seg.force.size
+        key = ("extrema", pulse.zero, hi, width, seg.noise_force)
+        if key not in seg.onset_cache:
+            found = []
+            for centre, sign, swing in turning_points(seg.force, pulse.zero, hi, seg.noise_force, width):
+                point = ("vertex", centre, sign, round(swing, 6), width, seg.noise_force)
+                if point not in seg.onset_cache:
+                    seg.onset_cache[point] = vertex(seg.force, centre, sign, swing, seg.noise_force, width)
+                if seg.onset_cache[point] is not None:
+                    found.append(seg.onset_cache[point][:2])
+            seg.onset_cache[key] = found
+        for t, std in seg.onset_cache[key]:
+            times.append(t)
+            stds.append(std)
+            stage.append(k == sustained)
+    stage_arr = np.array(stage, dtype=bool)
+    inside = np.array(times)[stage_arr] if stage_arr.any() else np.zeros(0)
+    span = int(inside[-1] - inside[0]) if inside.size > 1 else 0
+    return np.array(times), np.array(stds), stage_arr, span
