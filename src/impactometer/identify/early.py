@@ -11,6 +11,8 @@ force-noise part (sandwich form), inflated by the reduced chi-square when it exc
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -51,23 +53,23 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     """
     common = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples)
     ends = [p.end for p in pulses]
-    loading = _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, **common)
+    whole = _fit(kin, pulses, ends, onset1, onset1_std, **common)
+    loading = _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole[6], **common)
     gap_index = np.arange(gap[0], gap[1], dtype=float)
     if gap_index.size and np.all(np.isfinite(loading[0])):
         tau, _, _, i_f, _, _, da = kin.at(gap_index)
         v0, w = loading[0]
         if float(np.min(v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da)) > 0.0:
-            fit = _fit(kin, pulses[:1], [peaks[0] + 1], None, 0.0, **common)
-            return (*fit, {"samples": int(fit[4][1].size), "onset_row": False, "branches": "loading"})
-    whole = _fit(kin, pulses, ends, onset1, onset1_std, **common)
+            fit = _fit(kin, pulses[:1], [peaks[0] + 1], None, 0.0, start=loading[6], **common)
+            return (*fit[:5], {"samples": int(fit[4][1].size), "onset_row": False, "branches": "loading"})
     diff = whole[0] - loading[0]
     try:
         statistic = float(diff @ np.linalg.solve(loading[1] - whole[1], diff))
     except np.linalg.LinAlgError:
         statistic = np.inf
     if np.all(np.isfinite(whole[0])) and 0.0 <= statistic < chi2_quantile(AGREEMENT):
-        return (*whole, {"samples": int(whole[4][1].size - 1), "onset_row": True, "branches": "whole"})
-    return (*loading, {"samples": int(loading[4][1].size - 1), "onset_row": True, "branches": "loading"})
+        return (*whole[:5], {"samples": int(whole[4][1].size - 1), "onset_row": True, "branches": "whole"})
+    return (*loading[:5], {"samples": int(loading[4][1].size - 1), "onset_row": True, "branches": "loading"})
 
 
 def chi2_quantile(probability: float) -> float:
@@ -75,9 +77,10 @@ def chi2_quantile(probability: float) -> float:
     return -2.0 * float(np.log1p(-probability))
 
 
-def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples):
+def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, start=None):
     """The law fit to the samples of ``pulses`` up to ``stops`` and, unless ``onset1`` is None, the second
-    onset's row (see :func:`solve_early`).
+    onset's row (see :func:`solve_early`), started from each law of ``LAW_STARTS`` or from ``start`` (the
+    parameters of another fit). Returns (theta, cov, chi2, dof, (weights, taus), info, parameters).
 
     The first contact t00 is refined by the fit: a shift d0 of the compression (an error ε of t00 shifts δ by
     −V0·ε at every sample) is a seventh unknown, with the foot fit's standard error of t00 as its prior.
@@ -136,27 +139,36 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
         jac[-1, 2] = 1.0 / shift_sigma(v0)
         return jac
 
+    lower = [0.0, 0.0, -np.inf, 0.0, -np.inf, N_BOUNDS[0], M_BOUNDS[0]]
+    upper = [np.inf, np.inf, np.inf, np.inf, np.inf, N_BOUNDS[1], M_BOUNDS[1]]
+    if start is None:
+        starts = []
+        for w0 in START_INVERSE_MASSES:
+            v0 = max(float(da1[0] - g * t1[0] ** 2 / 2 + w0 * if1[0]) / max(t1[0], kin.dt), 0.05)
+            delta0, _ = kinematics(v0, w0, 0.0)
+            dscale = max(float(np.max(delta0)), 1e-6)
+            starts += [(np.array([v0, w0, 0.0, fpeak, 0.0 if m0 == 0 else 0.3 * fpeak, n0, m0]), dscale)
+                       for n0, m0 in LAW_STARTS]
+    else:
+        starts = [start]
     best = None
-    for w0 in START_INVERSE_MASSES:
-        v0 = max(float(da1[0] - g * t1[0] ** 2 / 2 + w0 * if1[0]) / max(t1[0], kin.dt), 0.05)
-        delta0, _ = kinematics(v0, w0, 0.0)
-        dscale = max(float(np.max(delta0)), 1e-6)
-        for n0, m0 in LAW_STARTS:
-            x = np.array([v0, w0, 0.0, fpeak, 0.0 if m0 == 0 else 0.3 * fpeak, n0, m0])
-            lower = [0.0, 0.0, -np.inf, 0.0, -np.inf, N_BOUNDS[0], M_BOUNDS[0]]
-            upper = [np.inf, np.inf, np.inf, np.inf, np.inf, N_BOUNDS[1], M_BOUNDS[1]]
-            try:
-                for _ in range(2):  # the onset row's weight depends on the estimate
-                    s1 = onset_sigma(x[0], x[1])
-                    fit = least_squares(residuals, x, jac=jacobian, args=(dscale, s1), bounds=(lower, upper),
-                                        x_scale="jac", max_nfev=300)
-                    x = fit.x
-            except (ValueError, np.linalg.LinAlgError):
-                continue
-            if best is None or fit.cost < best[0].cost:
-                best = (fit, dscale, s1)
+    for x, dscale in starts:
+        try:
+            s1 = onset_sigma(x[0], x[1])
+            fit = least_squares(residuals, np.clip(x, lower, upper), jac=jacobian, args=(dscale, s1),
+                                bounds=(lower, upper), x_scale="jac", max_nfev=50)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if best is None or fit.cost < best[0].cost:
+            best = (fit, dscale, s1)
+    if best is not None and abs(onset_sigma(*best[0].x[:2]) / best[2] - 1.0) > 0.1:
+        fit, dscale, _ = best  # the onset row's weight depends on the estimate: once more with the new one
+        s1 = onset_sigma(*fit.x[:2])
+        with contextlib.suppress(ValueError, np.linalg.LinAlgError):
+            best = (least_squares(residuals, fit.x, jac=jacobian, args=(dscale, s1), bounds=(lower, upper),
+                                  x_scale="jac", max_nfev=50), dscale, s1)
     if best is None:
-        return np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0))
+        return np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)), None, None
     fit, dscale, s1 = best
     jac = fit.jac
     chi2 = float(fit.fun @ fit.fun)
@@ -164,7 +176,7 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     try:
         bread = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
-        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0))
+        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0)), None, None
     cov = bread * max(1.0, chi2 / max(dof, 1))
     # correlated part: the double-integrated acceleration noise and residual offset shift δ at every sample
     v0, w, d0, k, c, n, m = fit.x
@@ -178,4 +190,4 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     if pre_samples > 0:
         shift = weights @ (taus ** 2 / 2.0)
         cov = cov + noise_acceleration ** 2 / pre_samples * np.outer(shift, shift)
-    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus)
+    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus), None, (fit.x, dscale)

@@ -26,6 +26,8 @@ FOOT_SIGMAS = 25.0
 FOOT_TOP_MIN, FOOT_TOP_MAX = 0.1, 0.4
 #: the curvature term q is fitted when the fit reaches beyond this fraction of the peak
 CURVED_ABOVE = 0.15
+#: the fit reaches at most this many samples on either side of the first detected sample
+FOOT_SPAN = 64
 #: smallest standard error of an edge time [samples]: an anti-alias filter smooths a jump over about a sample
 MIN_STD = 0.25
 #: scan steps [samples]: coarse over the whole window, then fine around the best
@@ -67,13 +69,14 @@ def onset_index(force: np.ndarray, span: PulseSpan, noise: float, *, earliest: i
     peak = float(f_all[span.peak])
     top = min(max(FOOT_TOP_MIN * peak, FOOT_SIGMAS * sigma), FOOT_TOP_MAX * peak)
     stop = span.first
-    while stop < span.peak and f_all[stop] < top:
+    while stop < min(span.peak, span.first + FOOT_SPAN) and f_all[stop] < top:
         stop += 1
     stop = max(stop + 1, min(span.first + 3, span.peak + 1))
     # samples the edge needs to rise through the detection level: the onset may lie that far before it
     slope = max((f_all[stop - 1] - f_all[span.first]) / max(stop - 1 - span.first, 1), 1e-12)
     rise = int(min(np.ceil(max(f_all[span.first], 0.0) / slope), 64))
-    lo = max(min(span.zero, span.first - max(2 * rise, stop - span.first, 8)) - 2, earliest, 0)
+    lo = max(min(span.zero, span.first - max(2 * rise, stop - span.first, 8)) - 2, earliest, 0,
+             span.first - FOOT_SPAN)
     t = np.arange(lo, stop, dtype=float)
     f = f_all[lo:stop]
     curved = top > CURVED_ABOVE * peak
@@ -112,8 +115,8 @@ def separation_index(force: np.ndarray, span: PulseSpan, noise: float, *, latest
 TURN_SIGMAS = 5.0
 #: the vertex fit reaches from a turning point until the force has moved this fraction of its swing [-]
 VERTEX_DROP = 0.25
-#: fewest samples on each side of a turning point in its vertex fit
-VERTEX_HALF_MIN = 3
+#: fewest and most samples on each side of a turning point in its vertex fit
+VERTEX_HALF_MIN, VERTEX_HALF_MAX = 3, 128
 
 
 def turning_points(force: np.ndarray, lo: int, hi: int, noise: float, width: int) -> list[tuple[int, int, float]]:
@@ -159,9 +162,9 @@ def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float
     c = centre - lo_w
     level, drop = x[c], VERTEX_DROP * abs(swing)
     left = right = VERTEX_HALF_MIN
-    while c - left - 1 >= width // 2 and abs(x[c - left] - level) < drop:
+    while left < VERTEX_HALF_MAX and c - left - 1 >= width // 2 and abs(x[c - left] - level) < drop:
         left += 1
-    while c + right + 1 < x.size - width // 2 and abs(x[c + right] - level) < drop:
+    while right < VERTEX_HALF_MAX and c + right + 1 < x.size - width // 2 and abs(x[c + right] - level) < drop:
         right += 1
     if centre - left < 0 or centre + right >= f.size or c - left < width // 2 or c + right >= x.size - width // 2:
         return None
@@ -173,14 +176,15 @@ def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float
         before, after = s < 0, s >= 0
         basis = np.stack([np.ones_like(s), np.where(before, s * s, 0), np.where(after, s * s, 0),
                           np.where(before, s ** 3, 0), np.where(after, s ** 3, 0)], axis=-1)
-        gram = np.einsum("gni,gnj->gij", basis, basis) + 1e-12 * np.eye(5)
-        coef = np.linalg.solve(gram, np.einsum("gni,n->gi", basis, y)[..., None])[..., 0]
-        return np.sum((y[None, :] - np.einsum("gni,gi->gn", basis, coef)) ** 2, axis=1), coef
+        gram = np.matmul(basis.transpose(0, 2, 1), basis) + 1e-12 * np.eye(5)
+        coef = np.linalg.solve(gram, (basis.transpose(0, 2, 1) @ y)[..., None])[..., 0]
+        return np.sum((y[None, :] - (basis @ coef[..., None])[..., 0]) ** 2, axis=1), coef
 
-    coarse = np.arange(-(left // 2), right // 2 + 1e-9, COARSE_STEP)
+    step = max(1.0, float((left + right) // 64))
+    coarse = np.arange(-(left // 2), right // 2 + 1e-9, step)
     sse, _ = profile(coarse)
     k = int(np.argmin(sse))
-    fine = np.arange(coarse[max(k - 4, 0)], coarse[min(k + 4, coarse.size - 1)] + 1e-9, GRID_STEP)
+    fine = np.arange(coarse[max(k - 1, 0)], coarse[min(k + 1, coarse.size - 1)] + 1e-9, GRID_STEP * step)
     sse, coef = profile(fine)
     k = int(np.argmin(sse))
     if not (0 < k < fine.size - 1 or coarse[0] < fine[k] < coarse[-1]) or np.any(sign * coef[k, 1:3] > 0):

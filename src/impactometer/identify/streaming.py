@@ -35,7 +35,7 @@ def _store(force, acceleration, ring_force, ring_acceleration, seen):
 
 
 #: while the contact is sustained (stage B), the answer is updated this often [s]
-UPDATE_INTERVAL = 0.005
+UPDATE_INTERVAL = 0.01
 
 
 class StreamingIdentifier:
