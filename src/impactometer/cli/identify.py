@@ -42,12 +42,24 @@ def _table(result: dict, title: str) -> Table:
         _row(table, prefix + "energy", sub["energy_J"], sub.get("energy_std_J"), "J")
         if sub.get("available_at_s") is not None:
             table.add_row(prefix + "available at", f"{sub['available_at_s'] * 1e3:.3f} ms")
+        if sub.get("equations"):
+            table.add_row(prefix + "equations", equations_text(sub["equations"]))
     for key in ("t00_s", "t01_s", "t11_s"):
         if result.get(key) is not None:
             table.add_row(key[:-2], f"{result[key] * 1e3:.3f} ms")
     if result.get("caution"):
         table.add_row("caution", result["caution"])
     return table
+
+
+def equations_text(used: dict) -> str:
+    """One line naming the equations an answer used."""
+    text = (f"{used.get('onsets', 0)} onsets, {used.get('extrema', 0)} force extrema "
+            f"({used.get('stage_b_extrema', 0)} in stage B over {used.get('stage_b_samples', 0)} samples), "
+            f"{used.get('separations', 0)} separations")
+    if used.get("contact_phase"):
+        text += f", contact phase ({used['contact_phase'].get('samples', 0)} samples)"
+    return text
 
 
 @app.command()

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import IdentificationError
 from . import trigger
-from .onsets import onset_index, separation_index, turning_points, vertex
+from .onsets import VERTEX_HALF_MAX, onset_index, separation_index, turning_points, vertex
 from .pulses import PulseSpan, detect_pulses, noise_std, sustained_index
 
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
@@ -275,7 +275,9 @@ def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         if key not in seg.onset_cache:
             found = []
             for centre, sign, swing in turning_points(seg.force, pulse.zero, hi, seg.noise_force, width):
-                point = ("vertex", centre, sign, round(swing, 6), width, seg.noise_force)
+                # the samples the vertex fit may read: a key that changes until they have all arrived
+                reach = min(seg.force.size, centre + VERTEX_HALF_MAX + 8 * width + 64)
+                point = ("vertex", centre, sign, round(swing, 6), width, seg.noise_force, reach)
                 if point not in seg.onset_cache:
                     seg.onset_cache[point] = vertex(seg.force, centre, sign, swing, seg.noise_force, width)
                 if seg.onset_cache[point] is not None:
