@@ -192,8 +192,8 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     if not agnostic and not (seg.pulses[1].complete or early_ready(seg)):
         _need_pulses(seg, 2, "the robust variant")
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity, onset_std0=std0)
-    noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
-                 pre_samples=seg.pre_samples)
+    noise: dict[str, Any] = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
+                                 pre_samples=seg.pre_samples)
     second = seg.pulses[1]
     peak2 = second_peak(seg) or second.peak
     used: dict = {}
