@@ -180,9 +180,10 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
 
     ``stage="early"``: the contact-phase fit of the first two pulses (:func:`~impactometer.identify.early.
     solve_early`). ``stage="final"``: the agnostic rows of :func:`~impactometer.identify.robust.solve_rows` --
-    every onset, separation and stage-B cell -- where they leave at least one degree of freedom, else the
-    contact-phase fit. With ``contact_phase`` the agnostic answer is combined with the contact-phase fit (best
-    linear unbiased, with the shared acceleration noise), at the price of depending on the contact-law family.
+    every onset, turning point of the force and separation -- where they leave at least one degree of freedom,
+    else the contact-phase fit. With ``contact_phase`` the agnostic answer is combined with the contact-phase fit
+    (best linear unbiased, with the shared acceleration noise), at the price of depending on the contact-law
+    family.
     """
     check_white_noise(seg)
     if not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2:

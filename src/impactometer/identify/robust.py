@@ -102,7 +102,8 @@ def atom_kernel(tau: np.ndarray, cd: np.ndarray, cv: np.ndarray, dt: float) -> n
 
 
 def kernel_form(weights: np.ndarray, tau: np.ndarray, dt: float) -> np.ndarray:
-    """``weights @ white_kernel(tau, dt) @ weights.T`` in O(P·n) without forming the n×n kernel.
+    """``weights @ K @ weights.T`` in O(P·n) without forming the n×n kernel K of the double-integrated white
+    noise (:func:`atom_kernel` with cd = 1, cv = 0).
 
     The kernel factors as B·Bᵀ with B[j, u] = √(dt·h)·(τj − u)₊ over nodes u spaced h = dt (midpoint rule), so
     weights·B follows from suffix sums of the weights sorted by τ.
@@ -140,13 +141,6 @@ class Equations:
     peaks: np.ndarray = field(default_factory=lambda: np.zeros(0))
     stage_b_samples: int = 0
     gaps: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=int))
-
-    def counts(self) -> dict[str, int]:
-        """Equations available: onsets after t00, force extrema (of them in stage B), separations, stage-B
-        samples."""
-        return {"onsets": int(self.onsets.size), "extrema": int(self.extrema.size),
-                "stage_b_extrema": int(np.count_nonzero(self.stage_b)), "separations": int(self.separations.size),
-                "stage_b_samples": int(self.stage_b_samples)}
 
 
 @dataclass(frozen=True)

@@ -2,7 +2,7 @@
 
 Shared by the batch (:mod:`peak_to_peak`) and the streaming (:mod:`streaming`) identification: the compiled
 trigger finds the impact, up to ``PRE_SAMPLES`` samples before it give the offsets and the noise of both channels,
-the pulses are detected and their onsets, separations and the stage-B cells located.
+the pulses are detected and their onsets, separations and the turning points of the force located.
 """
 
 from __future__ import annotations
