@@ -44,8 +44,8 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     a hysteretic contact does not, but it still loads along one. So the law is fitted to the loading parts
     (each onset to its peak) and to the whole pulses, and the whole-pulse answer is kept where it agrees with
     the loading-only one (a Hausman test at ``AGREEMENT``). Where the overlap stayed positive throughout the gap
-    (a pad that unloaded to zero force and loaded again: the second pulse is not a fresh contact) only the
-    loading part of the first pulse is used.
+    (a pad that unloaded to zero force and loaded again: the second pulse is not a fresh contact) there is no
+    answer: the first pulse alone determines V0 but hardly the mass (theta is NaN).
 
     Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
     the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
@@ -60,8 +60,9 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
         tau, _, _, i_f, _, _, da = kin.at(gap_index)
         v0, w = loading[0]
         if float(np.min(v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da)) > 0.0:
-            fit = _fit(kin, pulses[:1], [peaks[0] + 1], None, 0.0, start=loading[6], **common)
-            return (*fit[:5], {"samples": int(fit[4][1].size), "onset_row": False, "branches": "loading"})
+            # the first pulse alone determines V0 but hardly the mass: no answer
+            return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
+                    {"samples": 0, "onset_row": False, "branches": "none"})
     diff = whole[0] - loading[0]
     try:
         statistic = float(diff @ np.linalg.solve(loading[1] - whole[1], diff))

@@ -213,6 +213,10 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     else:
         stage = "early" if stage == "early" else "final"
         theta, cov, chi2, dof, _, info = _contact_phase(seg, kin, peak2, noise)
+        if info["branches"] == "none":
+            raise IdentificationError("the contact phase does not determine the mass here: the second pulse is "
+                                      "not a fresh contact (the overlap stayed positive through the gap before "
+                                      "it), and the first pulse alone fixes the velocity but hardly the mass")
         used = {"onsets": int(info["onset_row"]), "extrema": 0, "stage_b_extrema": 0, "separations": 0,
                 "stage_b_samples": 0, "contact_phase": info}
         last = second.end if second.complete else seg.force.size - 1

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 #: Gauss-Newton / reweighting iterations
-ITERATIONS = 8
+ITERATIONS = 10
 
 
 def cumulative_integrals(signal: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -229,12 +229,17 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
         return np.column_stack([mixer @ cols[name] for name in nonlinear]) if nonlinear else np.zeros((rows, 0))
 
     # a gap in the force need not be a flight: a pad with a set unloads to zero force and may load again before
-    # the bodies part; such an onset is not at zero overlap, and its row is dropped once the estimate shows that
-    # the overlap stayed positive throughout the gap
+    # the bodies part; such an onset is not at zero overlap, and its row is dropped where the estimate shows
+    # that the overlap stayed positive throughout the gap
     gap_index = [np.arange(lo, hi, max((hi - lo) // 64, 1), dtype=float) for lo, hi in eqs.gaps[:n_on]]
     gap_basis = [kin.at(i) for i in gap_index]
-    dips = np.zeros(n_on, dtype=bool)
-    theta = np.zeros(n_lin)
+    # the onsets are first left out where the other rows determine the answer, so that a gap is judged by an
+    # estimate its own (perhaps wrong) onset row has not pulled
+    # (where stage B gives an estimate of its own: at least STAGE_B_ROWS turning points in sustained contact)
+    strong = use_ext and int(np.count_nonzero(eqs.stage_b)) >= STAGE_B_ROWS
+    dips = np.full(n_on, strong and bool(gap_basis), dtype=bool)
+    theta: np.ndarray = np.zeros(n_lin)
+    aw: np.ndarray = np.zeros((0, n_lin + len(nonlinear)))
     model = np.zeros(3)  # model-error variance of each group [m², (m/s)² for extrema]
     for it in range(ITERATIONS):
         cd, cv, ca = coefficients()
@@ -244,11 +249,13 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
         if it == 0:
             theta = np.linalg.lstsq(design, -const, rcond=None)[0]
         vals = values(theta)
-        if it in (2, 5) and gap_basis:
-            full = np.r_[theta[:2], theta[2] if fit_b else 0.0]
-            dips = np.array([gb[0].size > 0 and float(np.min(full[0] * gb[0] + (g + full[2]) * gb[0] ** 2 / 2
-                                                             - full[1] * gb[3] - gb[6])) > 0.0
-                             for gb in gap_basis])
+        if it in (2, 4) and gap_basis:
+            # first judged by the estimate without the onsets: sure flights and sure dips; the unsure ones are
+            # left out until the estimate from the other rows, sure flights included, settles them by sign
+            least, spread = _least_overlap(gap_basis, theta, np.linalg.pinv(aw.T @ aw)[:n_lin, :n_lin], g, fit_b)
+            # without a stage-B estimate of its own the estimate leans on the onsets: only a sure dip loses its row
+            threshold = (-DIP_SIGMAS * spread if it == 2 else 0.0) if strong else DIP_SIGMAS * spread
+            dips = least > threshold
         v0, w = theta[0], max(theta[1], 0.0)
         white = noise_acceleration ** 2 + (w * noise_force) ** 2
         rate = cd * vals["v"] + cv * vals["a"]  # d(atom)/dt, the third derivative left out
@@ -296,6 +303,32 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
             "separations": int(n_sep), "stage_b_samples": int(eqs.stage_b_samples * use_ext)}
     return Solution(theta=theta[:2].copy(), cov=bread[:2, :2], chi2=chi2, dof=dof, nuisances=nuisances,
                     used=used, gain=gain, tau=tau[:rows])
+
+
+#: turning points in stage B from which its own estimate judges the gaps before the onsets are used [-]
+STAGE_B_ROWS = 3
+#: a gap is surely a flight (or surely not) when its least overlap is negative (positive) by this many standard
+#: errors of the estimate from the other rows [-]
+DIP_SIGMAS = 2.0
+
+
+def _least_overlap(gap_basis, theta, cov, g, fit_b) -> tuple[np.ndarray, np.ndarray]:
+    """The least overlap in each gap [m] and its standard error from the estimate's covariance ``cov``."""
+    full = np.r_[theta[:2], theta[2] if fit_b else 0.0]
+    cov3 = np.zeros((3, 3))
+    cov3[:cov.shape[0], :cov.shape[1]] = cov
+    least, spread = [], []
+    for tau, _, _, i_f, _, _, da in gap_basis:
+        if tau.size == 0:
+            least.append(-np.inf)
+            spread.append(0.0)
+            continue
+        delta = full[0] * tau + (g + full[2]) * tau ** 2 / 2 - full[1] * i_f - da
+        k = int(np.argmin(delta))
+        grad = np.array([tau[k], -i_f[k], tau[k] ** 2 / 2])
+        least.append(float(delta[k]))
+        spread.append(float(np.sqrt(max(float(grad @ cov3 @ grad), 0.0))))
+    return np.array(least), np.array(spread)
 
 
 def combine(first, second, *, noise_acceleration, pre_samples, dt):
