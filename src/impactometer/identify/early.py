@@ -31,9 +31,12 @@ def _law(delta, rate, k, c, n, m, dscale):
     return np.where(delta > 0, k * x ** n + c * x ** m * rate, 0.0)
 
 
-#: the whole pulses are fitted when their answer agrees with that of the loading parts alone: a Hausman
-#: statistic below the chi-square(2) quantile of this probability [-]
-AGREEMENT = 0.999
+#: the law fits the whole pulses when their chi-square exceeds its degrees of freedom ν by at most this many
+#: standard deviations √(2ν) of it [-]
+FIT_SIGMAS = 4.0
+#: the overlap in the gap counts as positive throughout when its least value is this many standard errors above
+#: zero [-]
+DIP_SIGMAS = 2.0
 
 
 def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, peaks, gap):
@@ -41,41 +44,35 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
 
     ``pulses`` are the first two pulses (the second may be running), ``peaks`` the samples of their force peaks
     and ``gap`` the (first, last) samples between them. A law of the family loads and unloads along one curve;
-    a hysteretic contact does not, but it still loads along one. So the law is fitted to the loading parts
-    (each onset to its peak) and to the whole pulses, and the whole-pulse answer is kept where it agrees with
-    the loading-only one (a Hausman test at ``AGREEMENT``). Where the overlap stayed positive throughout the gap
-    (a pad that unloaded to zero force and loaded again: the second pulse is not a fresh contact) there is no
-    answer: the first pulse alone determines V0 but hardly the mass (theta is NaN).
+    a hysteretic contact does not, but it still loads along one. So the law is fitted to the whole pulses, and
+    where it does not fit them (a chi-square more than ``FIT_SIGMAS`` standard deviations above its degrees of
+    freedom) to their loading parts alone (each onset to its peak). Where the overlap stayed positive throughout
+    the gap (by ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and loaded again, so the second
+    pulse is not a fresh contact) there is no answer: the first pulse alone determines V0 but hardly the mass
+    (theta is NaN).
 
     Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
     the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
     used (``samples``, ``onset_row``, ``branches``).
     """
     common = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples)
-    ends = [p.end for p in pulses]
-    whole = _fit(kin, pulses, ends, onset1, onset1_std, **common)
-    loading = _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole[6], **common)
+    whole = _fit(kin, pulses, [p.end for p in pulses], onset1, onset1_std, **common)
+    fits = np.all(np.isfinite(whole[0])) and whole[2] <= whole[3] + FIT_SIGMAS * np.sqrt(2.0 * max(whole[3], 1))
+    chosen = whole if fits else _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole[6],
+                                     **common)
     gap_index = np.arange(gap[0], gap[1], dtype=float)
-    if gap_index.size and np.all(np.isfinite(loading[0])):
+    if gap_index.size and np.all(np.isfinite(chosen[0])):
         tau, _, _, i_f, _, _, da = kin.at(gap_index)
-        v0, w = loading[0]
-        if float(np.min(v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da)) > 0.0:
+        v0, w = chosen[0]
+        delta = v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da
+        k = int(np.argmin(delta))
+        grad = np.array([tau[k], -i_f[k]])
+        if delta[k] > DIP_SIGMAS * np.sqrt(max(float(grad @ chosen[1] @ grad), 0.0)):
             # the first pulse alone determines V0 but hardly the mass: no answer
             return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
                     {"samples": 0, "onset_row": False, "branches": "none"})
-    diff = whole[0] - loading[0]
-    try:
-        statistic = float(diff @ np.linalg.solve(loading[1] - whole[1], diff))
-    except np.linalg.LinAlgError:
-        statistic = np.inf
-    if np.all(np.isfinite(whole[0])) and 0.0 <= statistic < chi2_quantile(AGREEMENT):
-        return (*whole[:5], {"samples": int(whole[4][1].size - 1), "onset_row": True, "branches": "whole"})
-    return (*loading[:5], {"samples": int(loading[4][1].size - 1), "onset_row": True, "branches": "loading"})
-
-
-def chi2_quantile(probability: float) -> float:
-    """Quantile of the chi-square distribution with two degrees of freedom: −2·ln(1 − p)."""
-    return -2.0 * float(np.log1p(-probability))
+    return (*chosen[:5], {"samples": int(chosen[4][1].size - 1), "onset_row": True,
+                          "branches": "whole" if fits else "loading"})
 
 
 def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, start=None):
