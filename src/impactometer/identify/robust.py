@@ -157,6 +157,8 @@ class Solution:
     used: dict
     gain: np.ndarray
     tau: np.ndarray
+    #: largest model-error variance of a group over its noise variance [-]
+    scatter: float = 0.0
 
 
 #: kinds of rows and atoms: onsets, extrema, separations, and the peak overlap of a separation
@@ -167,6 +169,23 @@ SET_MAX = 0.95
 
 def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
                pre_samples: int, lag_max: float) -> Solution:
+    """Generalised least squares for (V0, w) from the rows of ``eqs`` (module notes and :func:`_solve_rows`).
+
+    Every gap is first taken for a flight. Where stage B has an estimate of its own, the gaps are also judged by
+    that estimate first (a pad with a set may never let the mass fly), and of the two answers the one whose
+    turning points and separations scatter less beyond their noise is kept.
+    """
+    options: dict = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples,
+                         lag_max=lag_max)
+    flights = _solve_rows(kin, eqs, judge_by_stage_b=False, **options)
+    if int(np.count_nonzero(eqs.stage_b)) < STAGE_B_ROWS or not eqs.onsets.size:
+        return flights
+    judged = _solve_rows(kin, eqs, judge_by_stage_b=True, **options)
+    return judged if judged.scatter < flights.scatter else flights
+
+
+def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
+                pre_samples: int, lag_max: float, judge_by_stage_b: bool) -> Solution:
     """Generalised least squares for (V0, w) from the rows of ``eqs`` (module notes).
 
     Parameters
@@ -236,7 +255,7 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     # the onsets are first left out where the other rows determine the answer, so that a gap is judged by an
     # estimate its own (perhaps wrong) onset row has not pulled
     # (where stage B gives an estimate of its own: at least STAGE_B_ROWS turning points in sustained contact)
-    strong = use_ext and int(np.count_nonzero(eqs.stage_b)) >= STAGE_B_ROWS
+    strong = judge_by_stage_b and use_ext
     dips = np.full(n_on, strong and bool(gap_basis), dtype=bool)
     theta: np.ndarray = np.zeros(n_lin)
     aw: np.ndarray = np.zeros((0, n_lin + len(nonlinear)))
@@ -298,11 +317,14 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
         nuisances["offset_m_s2"] = float(theta[2])
     nuisances["model_error"] = {"extrema_m_s": float(np.sqrt(model[EXTREMUM])),
                                 "separations_m": float(np.sqrt(model[SEPARATION]))}
+    noise_var = np.array([float(np.mean(np.diag(cov)[group == k]) - model[k]) if np.any(group == k) else 1.0
+                          for k in range(3)])
+    scatter = float(np.max(model / np.maximum(noise_var, 1e-300)))
     used = {"onsets": int(n_on - np.count_nonzero(dips)), "extrema": int(n_ext),
             "stage_b_extrema": int(np.count_nonzero(eqs.stage_b) * use_ext),
             "separations": int(n_sep), "stage_b_samples": int(eqs.stage_b_samples * use_ext)}
     return Solution(theta=theta[:2].copy(), cov=bread[:2, :2], chi2=chi2, dof=dof, nuisances=nuisances,
-                    used=used, gain=gain, tau=tau[:rows])
+                    used=used, gain=gain, tau=tau[:rows], scatter=scatter)
 
 
 #: turning points in stage B from which its own estimate judges the gaps before the onsets are used [-]
