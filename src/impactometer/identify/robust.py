@@ -173,7 +173,8 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
 
     Every gap is first taken for a flight. Where stage B has an estimate of its own, the gaps are also judged by
     that estimate first (a pad with a set may never let the mass fly), and of the two answers the one whose
-    turning points and separations scatter less beyond their noise is kept.
+    turning points and separations scatter less beyond their noise is kept -- unless that one needs a contact
+    model at the edge of its range (a set or a lag at its bound).
     """
     options: dict = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples,
                          lag_max=lag_max)
@@ -181,7 +182,9 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     if int(np.count_nonzero(eqs.stage_b)) < STAGE_B_ROWS or not eqs.onsets.size:
         return flights
     judged = _solve_rows(kin, eqs, judge_by_stage_b=True, **options)
-    return judged if judged.scatter < flights.scatter else flights
+    bounded = any(value >= 0.99 * limit for name, limit in (("set", SET_MAX), ("lag_e", lag_max), ("lag_s", lag_max))
+                  if isinstance(value := judged.nuisances.get(name), float))
+    return judged if judged.scatter < flights.scatter and not bounded else flights
 
 
 def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
