@@ -56,7 +56,8 @@ def test_units_in_headers_are_converted(tmp_path, header, time_unit, force_scale
     force = np.array([0.0, 1.0, 3.0, 2.0, 0.5, 0.0])
     acc = -0.5 * force
     path = tmp_path / "run.csv"
-    path.write_text(header + "\n" + "\n".join(f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(t, force, acc, strict=False)) + "\n")
+    rows = (f"{a:.17g},{b:.17g},{c:.17g}" for a, b, c in zip(t, force, acc, strict=False))
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
     rec = read_recording(path)
     assert rec.sample_rate == pytest.approx(50e3, rel=1e-9)
     np.testing.assert_allclose(rec.contact_force, force * force_scale, rtol=1e-12)
@@ -119,7 +120,9 @@ def test_bad_csv_raises_recording_error_naming_the_file(tmp_path, text, match):
     ("{not json", "sidecar must be valid JSON"),
     ("[1, 2]", "sidecar must hold a JSON object"),
     ('{"sample_rate": "fast"}', "sidecar sample_rate must be a number"),
-    ('{"sample_rate": -5}', "must be a finite number > 0"),
+    ('{"sample_rate": -5}', r"must be a number within \[1, 1e\+08\] Hz"),
+    ('{"sample_rate": 1e300}', r"must be a number within \[1, 1e\+08\] Hz"),
+    ('{"mass_kg": "heavy", "sample_rate": 1000}', "metadata mass_kg must be a number with an optional mass unit"),
 ])
 def test_bad_sidecar_raises_recording_error(tmp_path, sidecar, match):
     path = _csv(tmp_path, "force [N]\n1\n2\n", "run.csv")

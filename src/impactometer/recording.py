@@ -14,7 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from .errors import RecordingError
+from .errors import RecordingError, UnitError
+from .rig import MASS_RANGE, VELOCITY_RANGE
+from .units import parse_quantity
 
 FORCE = "contact_force"
 ACCELERATION = "piston_acceleration"
@@ -22,6 +24,48 @@ ACCELERATION = "piston_acceleration"
 CHANNEL_UNITS = {FORCE: "N", ACCELERATION: "m/s^2", "u1": "m", "u2": "m", "piston_displacement": "m",
                  "pressure_lower": "Pa", "pressure_upper": "Pa"}
 TRUTH_KEYS = ("mass_kg", "velocity_m_s", "pressure_gauge_Pa")
+#: known-truth key -> SI unit, and (dimension, lowest, highest value) [SI]
+TRUTH_UNITS = {"mass_kg": "kg", "velocity_m_s": "m/s", "pressure_gauge_Pa": "Pa"}
+TRUTH_RANGES = {"mass_kg": ("mass", 0.0, MASS_RANGE[1]), "velocity_m_s": ("velocity", 0.0, VELOCITY_RANGE[1]),
+                "pressure_gauge_Pa": ("pressure", 0.0, 1e8)}
+#: largest magnitude of the time of a recording's first sample [s] (a clock time since 1970 fits)
+START_TIME_LIMIT = 1e10
+#: sample rates a recording may have [Hz], from a slow logger to a fast transient recorder
+SAMPLE_RATE_RANGE = (1.0, 1e8)
+
+
+def check_sample_rate(value: Any, field: str = "sample_rate", *, error: type[Exception] = RecordingError) -> float:
+    """``value`` as a sample rate [Hz] within :data:`SAMPLE_RATE_RANGE`; ``error`` naming ``field`` otherwise."""
+    low, high = SAMPLE_RATE_RANGE
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or not low <= value <= high:
+        shown = float(value) if isinstance(value, (np.integer, np.floating)) else value
+        raise error(f"{field} must be a number within [{low:g}, {high:g}] Hz, got {shown!r}")
+    return float(value)
+
+
+def truth_value(key: str, value: Any, where: str = "") -> float:
+    """A known-truth metadata value (a number, or a text such as ``"30"`` or ``"30 kg"``) in SI units.
+
+    RecordingError naming ``where`` and the key unless it is a finite number within :data:`TRUTH_RANGES`.
+    """
+    dimension, low, high = TRUTH_RANGES[key]
+    shown = value.item() if isinstance(value, np.generic) else value
+    if isinstance(shown, bool) or not isinstance(shown, (int, float, str)):
+        raise RecordingError(f"{where}metadata {key} must be a number, got {_short(shown)}")
+    try:
+        number = parse_quantity(shown, dimension, field=f"metadata {key}")
+    except UnitError as exc:
+        raise RecordingError(f"{where}{exc}") from None
+    if not low <= number <= high:
+        raise RecordingError(f"{where}metadata {key} must be within [{low:g}, {high:g}] {TRUTH_UNITS[key]}, got "
+                             f"{_short(shown)}")
+    return number
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np.ndarray:
@@ -65,11 +109,13 @@ class Recording:
 
     def __post_init__(self) -> None:
         where = f"{self.source}: "
-        if isinstance(self.sample_rate, bool) or not isinstance(self.sample_rate, (int, float)) \
-                or not math.isfinite(self.sample_rate) or self.sample_rate <= 0:
-            raise RecordingError(f"{where}sample_rate must be a finite number > 0 [Hz], got {self.sample_rate!r}")
-        if not isinstance(self.start_time, (int, float)) or not math.isfinite(self.start_time):
-            raise RecordingError(f"{where}start_time must be a finite number [s], got {self.start_time!r}")
+        object.__setattr__(self, "sample_rate", check_sample_rate(self.sample_rate, f"{where}sample_rate"))
+        if isinstance(self.start_time, bool) or not isinstance(self.start_time, (int, float, np.integer, np.floating)) \
+                or not abs(self.start_time) <= START_TIME_LIMIT:
+            shown = float(self.start_time) if isinstance(self.start_time, np.generic) else self.start_time
+            raise RecordingError(f"{where}start_time must be a number within ±{START_TIME_LIMIT:g} [s], got "
+                                 f"{shown!r}")
+        object.__setattr__(self, "start_time", float(self.start_time))
         if not isinstance(self.channels, dict) or not self.channels:
             raise RecordingError(f"{where}channels must be a non-empty mapping of name -> samples")
         length = None
@@ -84,6 +130,9 @@ class Recording:
         object.__setattr__(self, "channels", clean)
         if not isinstance(self.metadata, dict):
             raise RecordingError(f"{where}metadata must be a mapping, got {type(self.metadata).__name__}")
+        truth = {k: truth_value(k, v, where) for k, v in self.metadata.items() if k in TRUTH_KEYS and v is not None}
+        if truth:
+            object.__setattr__(self, "metadata", {**self.metadata, **truth})
 
     def __len__(self) -> int:
         return next(iter(self.channels.values())).size

@@ -19,13 +19,20 @@ from .errors import ParameterError
 
 ATMOSPHERIC_PRESSURE = 101325.0  # [Pa]
 STANDARD_GRAVITY = 9.81  # [m/s²], the value of the reference model
+#: free-fall heights of a drop test [m]: from a tenth of a millimetre to a tall drop tower
+FREE_FALL_HEIGHTS = (1e-4, 12.0)
+#: impact velocities a drop test can have [m/s]: free fall over :data:`FREE_FALL_HEIGHTS`
+VELOCITY_RANGE = tuple(math.sqrt(2.0 * STANDARD_GRAVITY * h) for h in FREE_FALL_HEIGHTS)
+#: impacting masses a drop test can have [kg]: from a gram to a hundred tonnes
+MASS_RANGE = (1e-3, 1e5)
 
 
 def _check(name: str, value: Any, *, low: float | None = None, high: float | None = None,
            low_open: bool = True, unit: str = "") -> None:
     """Raise ParameterError unless ``value`` is a finite real within the bounds."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ParameterError(f"{name} must be a finite number{unit}, got {value!r}")
+        shown = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else value
+        raise ParameterError(f"{name} must be a finite number{unit}, got {shown!r}")
     value = float(value)  # numpy scalars print as plain numbers below
     if low is not None and (value <= low if low_open else value < low):
         raise ParameterError(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {value!r}")
@@ -361,8 +368,8 @@ class Scenario:
     pressure_gauge: float = 200e3
 
     def __post_init__(self) -> None:
-        _check("mass", self.mass, low=0.0, unit=" [kg]")
-        _check("velocity", self.velocity, low=0.0, unit=" [m/s]")
+        _check("mass", self.mass, low=MASS_RANGE[0], low_open=False, high=MASS_RANGE[1], unit=" [kg]")
+        _check("velocity", self.velocity, low=0.0, high=VELOCITY_RANGE[1], unit=" [m/s]")
         _check("pressure_gauge", self.pressure_gauge, low=0.0, low_open=False, unit=" [Pa]")
 
     @classmethod

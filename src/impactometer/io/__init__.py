@@ -9,16 +9,15 @@ from __future__ import annotations
 
 import csv as _csv
 import dataclasses
-import math
 import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from ..errors import ImpactometerError, RecordingError
-from ..recording import TRUTH_KEYS, Recording
+from ..recording import TRUTH_KEYS, Recording, truth_value
 from . import csv, hdf5, mat, tdms
-from .channels import RawData, assemble
+from .channels import RawData, assemble, merge_metadata
 
 #: file extension -> format name
 FORMATS = {".csv": "csv", ".txt": "csv", ".tsv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5",
@@ -33,6 +32,8 @@ WRITERS: dict[str, Callable[[Recording, Path], None]] = {
 #: formats whose files have groups
 GROUPED = ("hdf5", "tdms")
 MANIFEST_NAME = "manifest.csv"
+#: a manifest may round the truth a file states by this much (relative)
+MANIFEST_TOLERANCE = 0.01
 
 
 def format_of(path: str | Path) -> str:
@@ -146,7 +147,7 @@ def _manifest(path: Path) -> dict[str, dict[str, float]]:
     if not rows:
         raise RecordingError(f"{path}: manifest has no rows; expected columns file,mass_kg,velocity_m_s"
                              f"[,pressure_gauge_Pa]")
-    columns = [c.strip() for c in rows[0].keys() if c is not None]
+    columns = [c.strip() for c in rows[0] if c is not None]
     missing = [c for c in ("file", "mass_kg", "velocity_m_s") if c not in columns]
     if missing:
         raise RecordingError(f"{path}: manifest lacks column(s) {missing}; columns found: {columns}")
@@ -156,26 +157,18 @@ def _manifest(path: Path) -> dict[str, dict[str, float]]:
         name = row["file"]
         if not name or name in out:
             raise RecordingError(f"{path}: line {i}: file must be a distinct non-empty name, got {name!r}")
-        values = {}
-        for key in TRUTH_KEYS:
-            if row.get(key, "") == "":
-                continue
-            try:
-                values[key] = float(row[key])
-            except ValueError:
-                raise RecordingError(f"{path}: line {i}: {key} must be a number, got {row[key]!r}") from None
-            if not math.isfinite(values[key]) or values[key] < 0:
-                raise RecordingError(f"{path}: line {i}: {key} must be a finite number >= 0, got {row[key]!r}")
-        out[name] = values
+        out[name] = {key: truth_value(key, row[key], f"{path}: line {i}: ") for key in TRUTH_KEYS
+                     if row.get(key, "") != ""}
     return out
 
 
 def read_calibration_set(folder: str | Path, manifest: str | Path | None = None,
                          **read_options: Any) -> list[Recording]:
-    """All recordings in ``folder`` (sorted by name), the manifest's truth overriding each file's metadata.
+    """All recordings in ``folder`` (sorted by name), the manifest's truth completing each file's metadata.
 
     The manifest (default ``folder/manifest.csv`` when present) has columns ``file,mass_kg,velocity_m_s`` and
-    optionally ``pressure_gauge_Pa``; ``read_options`` go to :func:`read_recording`.
+    optionally ``pressure_gauge_Pa``; ``read_options`` go to :func:`read_recording`. Where a file states a truth
+    too, the two must agree within :data:`MANIFEST_TOLERANCE` (a manifest with swapped columns is refused).
     """
     folder = Path(folder)
     if not folder.is_dir():
@@ -194,8 +187,10 @@ def read_calibration_set(folder: str | Path, manifest: str | Path | None = None,
     recordings = []
     for path in files:
         recording = read_recording(path, **read_options)
-        if path.name in truth:
-            recording = dataclasses.replace(recording, metadata=recording.metadata | truth[path.name])
+        if path.name in truth:  # the manifest completes the file's metadata; where both state a truth, they agree
+            metadata = merge_metadata([("the file's", recording.metadata), ("the manifest's", truth[path.name])],
+                                      str(path), tolerance=MANIFEST_TOLERANCE)
+            recording = dataclasses.replace(recording, metadata=metadata)
         recordings.append(recording)
     return recordings
 

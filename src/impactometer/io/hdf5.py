@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..recording import Recording
-from .channels import RawData, metadata_from_json, metadata_to_json, time_attributes
+from .channels import RawData, merge_metadata, metadata_from_json, metadata_to_json, time_attributes
 
 UNIT_ATTRIBUTES = ("unit", "units", "unit_string")
 FORMAT_NAME = "impactometer-recording"
@@ -64,15 +64,16 @@ def read(path: Path, *, group: str | None = None) -> RawData:
         if not datasets:
             raise RecordingError(f"{source}: no numeric 1-D datasets in group {node.name!r}")
         columns = {name: (np.asarray(ds[()]), _unit(ds)) for name, ds in datasets.items()}
-        attrs = dict(handle.attrs)
+        levels = [("file attribute", dict(handle.attrs))]
         if node is not handle:
-            attrs.update(node.attrs)
-    rate, start, rest = time_attributes(attrs, source)
+            levels.append((f"group {node.name!r} attribute", dict(node.attrs)))
+    rate, start, rest = time_attributes(levels, source)
     metadata = {}
     if "metadata" in rest:
         metadata = metadata_from_json(rest.pop("metadata"), source, "attribute 'metadata'")
     rest = {k: v for k, v in rest.items() if k not in ("format", "version")}
-    return RawData(columns=columns, source=source, sample_rate=rate, start_time=start, metadata=rest | metadata)
+    return RawData(columns=columns, source=source, sample_rate=rate, start_time=start,
+                   metadata=merge_metadata([("attribute", rest), ("attribute 'metadata'", metadata)], source))
 
 
 def write(recording: Recording, path: Path) -> None:

@@ -18,7 +18,15 @@ from nptdms import ChannelObject, GroupObject, RootObject, TdmsFile, TdmsWriter
 
 from ..errors import RecordingError
 from ..recording import FORCE, Recording
-from .channels import RawData, metadata_from_json, metadata_to_json, pick_channel, time_attributes
+from .channels import (
+    RawData,
+    merge_metadata,
+    metadata_from_json,
+    metadata_to_json,
+    one_value,
+    pick_channel,
+    time_attributes,
+)
 
 GROUP = "Recording"
 METADATA_PROPERTY = "impactometer_metadata"
@@ -71,13 +79,21 @@ def read(path: Path, *, group: str | None = None) -> RawData:
     if len(rates) > 1 or len(starts) > 1:
         raise RecordingError(f"{source}: channels of group {node.name!r} have different wf_increment or "
                              f"wf_start_offset ({sorted(rates)} Hz, {sorted(starts)} s); expected one time base")
-    properties = {k: v for k, v in tdms.properties.items() if k != "name"} | dict(node.properties)
+    levels = [("file property", {k: v for k, v in tdms.properties.items() if k != "name"}),
+              (f"group {node.name!r} property", dict(node.properties))]
     metadata = {}
-    if METADATA_PROPERTY in properties:
-        metadata = metadata_from_json(properties.pop(METADATA_PROPERTY), source, METADATA_PROPERTY)
-    rate, start, rest = time_attributes(properties, source)
-    return RawData(columns=columns, source=source, sample_rate=next(iter(rates), rate),
-                   start_time=next(iter(starts), start), metadata=rest | metadata)
+    for _, level in levels:
+        if METADATA_PROPERTY in level:
+            metadata = metadata_from_json(level.pop(METADATA_PROPERTY), source, METADATA_PROPERTY)
+    rate, start, rest = time_attributes(levels, source)
+    stated = [(f"wf_increment of the channels of group {node.name!r}", r) for r in rates]
+    rate = one_value(stated + ([("a file or group property", rate)] if rate is not None else []), source,
+                "sample rate", "Hz", 1e-6)
+    begun = [(f"wf_start_offset of the channels of group {node.name!r}", t) for t in starts]
+    start = one_value(begun + ([("a file or group property", start)] if start is not None else []), source,
+                 "start time", "s", 1e-9)
+    return RawData(columns=columns, source=source, sample_rate=rate, start_time=start,
+                   metadata=merge_metadata([("property", rest), (METADATA_PROPERTY, metadata)], source))
 
 
 def write(recording: Recording, path: Path, *, group: str = GROUP) -> None:
