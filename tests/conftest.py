@@ -1,13 +1,20 @@
-"""Shared fixtures: the built-in stand and a stand reduced to two free bodies."""
+"""Shared fixtures: the built-in stand and a stand reduced to two free bodies; the hypothesis profiles."""
 
 from __future__ import annotations
 
+import os
+
 import matplotlib
 import pytest
+from hypothesis import settings
 
 from impactometer.rig import get_rig
 
 matplotlib.use("Agg")
+# property tests draw the same examples on every run (CI); HYPOTHESIS_PROFILE=explore draws new ones
+settings.register_profile("ci", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 
 @pytest.fixture(scope="session")

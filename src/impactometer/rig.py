@@ -8,6 +8,8 @@ stand, representative of the stand of the reference paper (Fig. 1): a 4 kg pisto
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import math
 import numbers
 import tomllib
@@ -307,6 +309,23 @@ def from_dict(data: dict[str, Any], *, source: str = "rig") -> Rig:
         except TypeError as exc:  # pragma: no cover - keys were checked above
             raise ParameterError(f"{source}: [{name}] {exc}") from None
     return Rig(**kwargs)
+
+
+def fingerprint(rig: Rig | dict[str, Any]) -> str:
+    """A short hash of every parameter of a stand (a :class:`Rig` or its :func:`to_dict` form).
+
+    Two stands with the same parameters have the same fingerprint whatever their names (a name is a label) and
+    however their numbers are written (``2e6`` or ``2000000``); any other parameter gives another fingerprint.
+    """
+    stand = rig if isinstance(rig, Rig) else from_dict(rig, source="stand")
+
+    def plain(value: Any) -> Any:
+        if isinstance(value, dict):
+            return {k: plain(v) for k, v in value.items()}
+        return float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else value
+
+    data = plain({k: v for k, v in to_dict(stand).items() if k != "name"})
+    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def parameter_names() -> list[str]:

@@ -32,7 +32,7 @@ from .errors import ParameterError
 from .model import simulate_batch
 from .model.dynamics import CHANNELS as MODEL_CHANNELS
 from .recording import ACCELERATION, FORCE, Recording
-from .rig import Rig, Scenario, get_rig
+from .rig import Rig, Scenario, fingerprint, get_rig
 
 #: model channel -> recording channel name
 MODEL_TO_RECORDING = {"contact_force": FORCE, "a2": ACCELERATION, "u2": "piston_displacement"}
@@ -199,6 +199,22 @@ def _model_channel(name: str) -> str:
     return model
 
 
+def _fingerprints(rig: Rig, overrides, scenarios, n: int) -> list[str]:
+    """Fingerprint of the stand of each of ``n`` scenarios (``overrides`` change it per scenario)."""
+    if not overrides:
+        return [fingerprint(rig)] * n
+    values = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (*scenarios, *overrides.values())))
+    rows = np.column_stack([np.atleast_1d(v).ravel() for v in values[3:]])
+    cache: dict[tuple, str] = {}
+    out = []
+    for row in rows:
+        key = tuple(row.tolist())
+        if key not in cache:
+            cache[key] = fingerprint(rig.replace(**dict(zip(overrides, key, strict=True))))
+        out.append(cache[key])
+    return out
+
+
 def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, sample_rate: float = 50e3,
                  duration: float = 0.05, noise: float | Mapping[str, float] = 0.0, seed=None, seeds=None,
                  pre_trigger: float = 0.0, anti_alias: str | bool = True, adc_bits: int | None = None,
@@ -239,7 +255,8 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
     Returns
     -------
     list of Recording
-        One per scenario, with truth metadata ``mass_kg``, ``velocity_m_s``, ``pressure_gauge_Pa``.
+        One per scenario, with truth metadata ``mass_kg``, ``velocity_m_s``, ``pressure_gauge_Pa``, the stand's
+        name (``rig``, a label) and the fingerprint of its parameters (``rig_fingerprint``).
     """
     rig = get_rig(rig)
     sample_rate = _check_rate(sample_rate)
@@ -274,12 +291,14 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
     outputs = _degrade(internal, factor, pad, design=design, levels=levels, rngs=rngs, adc_bits=adc_bits,
                        adc_range=adc_range, gravity_offset=rig.gravity if include_gravity else None,
                        trigger=n_pre)
+    prints = _fingerprints(rig, overrides, (mass, velocity, pressure_gauge), n)
     recordings = []
     for i, chans in enumerate(outputs):
         chans = {name: x[:n_pre + n_out] for name, x in chans.items()}
         metadata = {"mass_kg": float(batch.mass[i]), "velocity_m_s": float(batch.velocity[i]),
                     "pressure_gauge_Pa": float(batch.pressure_gauge[i]), "contact_law": rig.contact.law,
-                    "rig": rig.name, "noise": {k: v for k, v in levels.items() if v > 0}, "seed": used_seeds[i],
+                    "rig": rig.name, "rig_fingerprint": prints[i],
+                    "noise": {k: v for k, v in levels.items() if v > 0}, "seed": used_seeds[i],
                     "anti_alias": design, "anti_alias_delay_s": anti_alias_delay(design, sample_rate),
                     "adc_bits": adc_bits, "acceleration_includes_gravity": bool(include_gravity)}
         recordings.append(Recording(sample_rate=sample_rate, channels=chans, start_time=-n_pre / sample_rate,

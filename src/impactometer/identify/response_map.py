@@ -22,7 +22,14 @@ import numpy as np
 from ..errors import ParameterError, ResponseMapError
 from ..recording import Recording
 from .features import FEATURE_SETS, extract_features, recording_signal
-from .response_map_build import PRESSURE_TOLERANCE, ResponseMap, build_map_from_recordings, build_map_simulated, refine
+from .response_map_build import (
+    PRESSURE_TOLERANCE,
+    ResponseMap,
+    build_map_from_recordings,
+    build_map_simulated,
+    check_stand,
+    refine,
+)
 from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
 from .response_map_store import load_map, save_map
 
@@ -174,6 +181,10 @@ def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolat
     measured = ", ".join(f"{k} = {v:.4g}" for k, v in zip(rmap.labels, y, strict=False))
     span = (f"mass {rmap.masses[0]:g}-{rmap.masses[-1]:g} kg, velocity {rmap.velocities[0]:.3g}-"
             f"{rmap.velocities[-1]:.3g} m/s")
+    if not math.isfinite(residual):  # no answer to give, even by extrapolation
+        raise ResponseMapError(f"features ({measured}) fit nowhere in or near the map ({span}): eq. (7) overflows, "
+                               "a feature is many orders of magnitude off the map's; expected a map of the same "
+                               "stand, contact law and feature parameters as the measurement")
     if residual > MISFIT_RESIDUAL:
         text = (f"features ({measured}) fit nowhere in or near the map ({span}): the best eq. (7) residual is "
                 f"{residual:.2g} > {MISFIT_RESIDUAL:g}, at {mass:.3g} kg and {velocity:.3g} m/s")
@@ -194,22 +205,20 @@ def check_recording(recording: Recording, rmap: ResponseMap) -> None:
         raise ResponseMapError(f"{where}sampled at {recording.sample_rate:g} Hz, the map was built from signals at "
                                f"{rmap.sample_rate:g} Hz; expected the same sample rate (build the map with "
                                f"--sample-rate {recording.sample_rate:g}Hz)")
-    stand = recording.metadata.get("rig")
-    if isinstance(stand, str) and stand != rmap.rig.get("name"):
-        raise ResponseMapError(f"{where}recorded on stand {stand!r}, the map describes stand "
-                               f"{rmap.rig.get('name')!r}; expected a map of the same stand (map build --rig)")
     law = recording.metadata.get("contact_law")
     map_law = rmap.rig.get("contact", {}).get("law")
     if isinstance(law, str) and law != map_law:
         raise ResponseMapError(f"{where}contact law {law!r}, the map was made with {map_law!r}; expected a map "
                                "of the same contact")
+    check_stand(recording, rmap.rig)
 
 
 def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Path, *, search: str = "fast",
                        allow_extrapolation: bool = False) -> MapIdentification:
     """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
 
-    The recording must have the map's sample rate, stand and contact law (when its metadata names them); its
+    The recording must have the map's sample rate, contact law and stand (when its metadata states them: the
+    stand by the fingerprint of its parameters, see :func:`impactometer.rig.fingerprint`); its
     charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis), and the
     delay of its anti-alias filter (``anti_alias_delay_s``) is taken out of its time base.
     """

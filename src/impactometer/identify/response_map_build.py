@@ -18,7 +18,7 @@ from scipy.interpolate import CubicSpline, RBFInterpolator
 from .. import __version__
 from ..errors import ParameterError, ResponseMapError
 from ..recording import Recording
-from ..rig import Rig, from_dict, get_rig, to_dict
+from ..rig import PRESETS, Rig, fingerprint, from_dict, get_rig, to_dict
 from .features import extract_batch, extract_features, get_feature_set, recording_signal
 
 SCHEMA_VERSION = 1
@@ -32,10 +32,19 @@ def _axis(values, name: str, unit: str) -> np.ndarray:
     try:
         arr = np.asarray(values, dtype=float).ravel()
     except (TypeError, ValueError):
-        arr = np.array([np.nan])
-    if arr.size < 1 or not np.all(np.isfinite(arr)) or np.any(np.diff(arr) <= 0):
         raise ResponseMapError(f"{name} must be a non-empty, finite, strictly increasing axis {unit}, got "
-                               f"{str(values)[:80]}")
+                               f"{type(values).__name__} that does not hold numbers") from None
+    expected = f"{name} must be a non-empty, finite, strictly increasing axis {unit}"
+    if arr.size < 1:
+        raise ResponseMapError(f"{expected}, got no values")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ResponseMapError(f"{expected}, got {float(arr[bad[0]])!r} at index {int(bad[0])} of {arr.size}")
+    steps = np.flatnonzero(np.diff(arr) <= 0)
+    if steps.size:
+        i = int(steps[0])
+        raise ResponseMapError(f"{expected}, got {float(arr[i + 1]):g} after {float(arr[i]):g} at index {i + 1} of "
+                               f"{arr.size}")
     return arr
 
 
@@ -137,6 +146,27 @@ def spline_basis(x: np.ndarray, x_new: np.ndarray, derivative: int = 0) -> np.nd
 def _provenance(source: str, **extra: Any) -> dict[str, Any]:
     return {"source": source, "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
             "impactometer_version": __version__, **extra}
+
+
+#: metadata key holding the fingerprint of the stand a recording was made on
+STAND_KEY = "rig_fingerprint"
+
+
+def check_stand(recording: Recording, stand: dict[str, Any], *,
+                hint: str = "expected a map of the same stand (map build --rig FILE)") -> None:
+    """ResponseMapError when ``recording`` states a stand (the fingerprint of its parameters) other than ``stand``.
+
+    A stand's name is a label: two stands are the same when all their parameters are.
+    """
+    stated = recording.metadata.get(STAND_KEY)
+    if stated is None:
+        return
+    expected = fingerprint(stand)
+    if str(stated) != expected:
+        name = recording.metadata.get("rig")
+        raise ResponseMapError(f"{recording.source}: recorded on a stand{f' labelled {name!r}' if name else ''} "
+                               f"with other parameters (fingerprint {str(stated)[:16]}) than the map's stand "
+                               f"{stand.get('name')!r} (fingerprint {expected}); {hint}")
 
 
 def _check_size(n_features: int, n_p: int, n_m: int, n_v: int) -> None:
@@ -322,7 +352,8 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         Size of the map (masses × velocities).
     features, feature_params : see :func:`build_map_simulated`.
     rig : Rig or str, optional
-        The stand (default: the preset named in the recordings' ``rig`` metadata, else ``drop-stand``).
+        The stand (default: the preset named in the recordings' ``rig`` metadata, else ``drop-stand``); where the
+        recordings state the fingerprint of their stand's parameters, it must be this stand's.
     pressure_gauge : float, optional
         Charge pressure [Pa gauge] of recordings that do not state it.
     mass_range, velocity_range : (float, float), optional
@@ -341,14 +372,21 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         row = [r.truth("mass_kg"), r.truth("velocity_m_s"), r.truth("pressure_gauge_Pa")]
         row[2] = pressure_gauge if row[2] is None else row[2]
         if None in row:
-            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row, strict=False) if x is None]
+            keys = ("mass_kg", "velocity_m_s", "pressure_gauge_Pa")
+            missing = [k for k, x in zip(keys, row, strict=False) if x is None]
             raise ResponseMapError(f"{r.source}: metadata {missing} missing; expected the known truth of every "
                                    "calibration recording (metadata or manifest)")
         truth[i] = row
-    names = {str(r.metadata.get("rig")) for r in recs if r.metadata.get("rig") is not None}
-    if len(names) > 1:
-        raise ResponseMapError(f"recordings come from different stands {sorted(names)}; expected one stand")
-    stand = get_rig(rig if rig is not None else (names.pop() if names else None))
+    prints = {str(r.metadata[STAND_KEY]) for r in recs if r.metadata.get(STAND_KEY) is not None}
+    if len(prints) > 1:
+        raise ResponseMapError(f"recordings come from stands with different parameters (fingerprints "
+                               f"{sorted(prints)}); expected one stand")
+    names = sorted({str(r.metadata["rig"]) for r in recs if isinstance(r.metadata.get("rig"), str)})
+    if rig is None and len(names) == 1 and names[0] in PRESETS:
+        rig = names[0]
+    stand = get_rig(rig)
+    for r in recs[:1] if prints else ():
+        check_stand(r, to_dict(stand), hint="pass the stand they were recorded on (rig=, map build --rig FILE)")
     fs = get_feature_set(features)
     params = fs.params(feature_params)
     y = np.array([extract_features(*recording_signal(r), features, params)[0] for r in recs])
