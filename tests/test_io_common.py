@@ -55,7 +55,7 @@ def test_writing_refuses_to_overwrite_unless_asked(tmp_path, ext):
 
 def test_csv_sidecar_is_protected_too(tmp_path):
     (tmp_path / "r.json").write_text("{}")
-    with pytest.raises(RecordingError, match=r"r\.json: exists"):
+    with pytest.raises(RecordingError, match=r"r\.json' exists"):
         write_recording(_rec(), tmp_path / "r.csv")
     assert not (tmp_path / "r.csv").exists()
 

@@ -38,3 +38,7 @@ class ResponseMapError(ImpactometerError, ValueError):
 class ControlError(ImpactometerError, RuntimeError):
     """An absorption strategy could not be computed or applied."""
 
+
+
+class OutputError(ImpactometerError, OSError):
+    """A result could not be written (disk full, permission denied, ...); nothing half-written is left."""

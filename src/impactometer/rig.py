@@ -352,10 +352,13 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``rig`` to ``path`` as TOML."""
     import tomli_w
 
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise ParameterError(f"rig file {str(path)!r} exists; pass overwrite=True to replace it")
-    path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+    from .outputs import check_file, write_failed
+
+    path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
+    try:
+        path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+    except OSError as exc:
+        raise write_failed(path, exc) from None
     return path
 
 

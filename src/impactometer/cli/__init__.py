@@ -14,7 +14,8 @@ __all__ = ["app", "main"]
 
 
 def _fail(message: str, code: int) -> None:
-    console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
+    line = " ".join(message.split())  # one line, whatever the message holds
+    console.print(f"[bold red]error:[/] {escape(line)}", highlight=False, soft_wrap=True)
     sys.exit(code)
 
 
@@ -29,6 +30,11 @@ def main(argv: list[str] | None = None) -> None:
         _fail(str(exc), 2)
     except KeyboardInterrupt:
         _fail("interrupted", 130)
+    except OSError as exc:  # reading or writing a file failed where no check could foresee it (disk full, ...)
+        from ..outputs import write_failed
+
+        target = exc.filename if exc.filename is not None else "a file"
+        _fail(str(write_failed(target, exc)).replace("cannot write", "cannot read or write", 1), 2)
     except Exception as exc:
         # click's exceptions (typer may bundle its own copy of click, so match by interface, not by class)
         name = type(exc).__name__

@@ -65,8 +65,10 @@ def absorb(
     pressure: PressureOpt = "200kPa",
     strategy: Annotated[str, typer.Option("--strategy", help="all, closed, constant or realtime.")] = "all",
     identify: Annotated[str, typer.Option("--identify", help="robust, paper, oracle or response-map.")] = "robust",
-    response_map: Annotated[Path | None, typer.Option("--response-map", help="Map file for --identify response-map.")] = None,
-    noise: Annotated[str, typer.Option("--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
+    response_map: Annotated[Path | None, typer.Option(
+        "--response-map", help="Map file for --identify response-map.")] = None,
+    noise: Annotated[str, typer.Option(
+        "--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the sensor noise.")] = 0,
     contact: ContactOpt = None,
     rig: RigOpt = None,
@@ -81,7 +83,7 @@ def absorb(
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
                                          default_height="0.3m")
     names = strategy_names(strategy)
-    output_path(plot, force, field="--plot")
+    output_path(plot, force, field="--plot", kind="figure")
     if response_map is not None and identify != "response-map":
         raise ParameterError(f"--response-map is only used with --identify response-map, got --identify {identify}")
     if response_map is not None and not response_map.is_file():
@@ -95,6 +97,8 @@ def absorb(
         for note in result.notes:
             console.print(f"[yellow]note:[/yellow] {escape(note)}")
     if plot is not None:
-        result.plot().savefig(plot, dpi=120)
+        from ..outputs import save_figure
+
+        save_figure(result.plot(), plot)
         if not as_json:
             console.print(f"figure written to {plot}")

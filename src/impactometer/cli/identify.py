@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
 from .app import app, console, output_path, with_uncertainty
-from .reading import ReaderOptions, reader_options
+from .reading import READER, ReaderOptions, reader_options
 
 METHODS = ("peak-to-peak", "response-map")
 VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
@@ -54,19 +54,24 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
              contact_phase: ContactOpt = False,
              map_path: Annotated[Path | None, typer.Option("--map", help="Response map (.h5).")] = None,
              search: Annotated[str, typer.Option("--search", help="Map search: fast or brute.")] = "fast",
-             allow_extrapolation: Annotated[bool, typer.Option("--allow-extrapolation", help="response-map: answer outside the map's grid (else an error).")] = False,
+             allow_extrapolation: Annotated[bool, typer.Option(
+                 "--allow-extrapolation", help="response-map: answer outside the map's grid (else an error).")]
+             = False,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Path | None, typer.Option("--plot", help="Save a figure of the instants used.")] = None,
              force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
-             reader: ReaderOptions = ReaderOptions()) -> None:
+             reader: ReaderOptions = READER) -> None:
     """Identify the impacting mass and velocity of the first impact in FILE."""
     if method not in METHODS:
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
-    output_path(plot, force, field="--plot")
+    if plot is not None and method != "peak-to-peak":
+        raise ParameterError("--plot is available for --method peak-to-peak")
+    output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
     if method == "response-map":
         if map_path is None:
-            raise ParameterError("--method response-map needs --map FILE (a response map built with impactometer map build)")
+            raise ParameterError("--method response-map needs --map FILE (a response map built with impactometer map "
+                                 "build)")
         from ..identify.response_map import identify_recording
 
         result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation)
@@ -81,9 +86,9 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
-        if method != "peak-to-peak":
-            raise ParameterError("--plot is available for --method peak-to-peak")
-        result.plot(rec).savefig(plot, dpi=120)
+        from ..outputs import save_figure
+
+        save_figure(result.plot(rec), plot)
         if not as_json:
             console.print(f"figure written to {plot}")
 
@@ -96,7 +101,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
            chunk: Annotated[int, typer.Option("--chunk", help="Samples per push.")] = 64,
            realtime: Annotated[bool, typer.Option("--realtime", help="Replay at the file's sample rate.")] = False,
            as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate.")] = False,
-           reader: ReaderOptions = ReaderOptions()) -> None:
+           reader: ReaderOptions = READER) -> None:
     """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
     from ..identify.streaming import StreamingIdentifier
 
@@ -133,6 +138,7 @@ def _print_estimate(est, as_json: bool) -> None:
         d["kind"] = kind
         typer.echo(json.dumps(d))
         return
-    console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {with_uncertainty(est.mass, est.mass_std, 'kg')}  "
+    mass = with_uncertainty(est.mass, est.mass_std, "kg")
+    console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {mass}  "
                   f"V0 = {with_uncertainty(est.velocity, est.velocity_std, 'm/s')}  E = {est.energy:.1f} J",
                   highlight=False, soft_wrap=True)

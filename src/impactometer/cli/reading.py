@@ -53,6 +53,10 @@ class ReaderOptions:
         return rec
 
 
+#: the default reader options (a command's ``reader`` parameter default; the options replace it)
+READER = ReaderOptions()
+
+
 def reader_options(command):
     """Decorator: append the :class:`ReaderOptions` options to a typer command that takes ``reader``."""
     signature = inspect.signature(command, eval_str=True)

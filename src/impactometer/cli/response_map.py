@@ -82,7 +82,7 @@ def build(
     from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
     from ..rig import get_rig
 
-    output_path(out, force)
+    output_path(out, force, kind="hdf5")
     n_m, n_v = parse_grid(grid)
     params = {} if window is None else {"window": quantity(window, "time", "--window")}
     if window is not None and features not in ("max-impulse", "impulse-profile"):

@@ -15,7 +15,8 @@ MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30
 HeightOpt = Annotated[str | None, typer.Option("--height", help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
 VelocityOpt = Annotated[str | None, typer.Option("--velocity", help="Impact velocity V0 (e.g. 2m/s).")]
 PressureOpt = Annotated[str, typer.Option("--pressure", help="Charge pressure p0, gauge (e.g. 200kPa).")]
-ContactOpt = Annotated[str | None, typer.Option("--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
+ContactOpt = Annotated[str | None, typer.Option(
+    "--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
 RigOpt = Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")]
 DurationOpt = Annotated[str, typer.Option("--duration", help="Simulated time after first contact.")]
 RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the histories.")]
@@ -85,19 +86,23 @@ def simulate(
     """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""
     from ..model import simulate as run_simulation
     from ..model.io import save_simulation
+    from ..outputs import save_figure, write_failed
 
     announce_compilation()
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)
-    output_path(out, force)
-    output_path(plot, force, field="--plot")
+    output_path(out, force, kind="hdf5")
+    output_path(plot, force, field="--plot", kind="figure")
     result = run_simulation(scenario, stand, duration=quantity(duration, "time", "--duration"),
                             sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), integrator=integrator)
     table, pulses = summary_table(result, f"{scenario.mass:g} kg at {scenario.velocity:.3f} m/s, "
                                           f"p0 = {scenario.pressure_gauge / 1e3:g} kPa ({stand.contact.law})")
     console.print(table)
     if out is not None:
-        save_simulation(result, out, overwrite=force)
+        try:
+            save_simulation(result, out, overwrite=force)
+        except OSError as exc:
+            raise write_failed(out, exc) from None
         console.print(f"histories written to {out}")
     if plot is not None:
-        result.plot(pulses=pulses).savefig(plot, dpi=120)
+        save_figure(result.plot(pulses=pulses), plot)
         console.print(f"figure written to {plot}")

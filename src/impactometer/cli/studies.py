@@ -109,6 +109,9 @@ def study(
         return
     if out is None:
         raise ParameterError("--out is required: the folder for the tables, figures and index.html")
+    from ..outputs import check_folder
+
+    check_folder(out, "--out")
     if name == "report":
         from ..studies.report import markdown, write_report
 

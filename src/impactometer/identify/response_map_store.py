@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ImpactometerError, ParameterError, ResponseMapError
+from ..outputs import check_file, write_failed
 from ..recording import check_sample_rate
 from .features import get_feature_set
 from .response_map_build import SCHEMA_VERSION, ResponseMap
@@ -34,11 +35,7 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
 
     if not isinstance(rmap, ResponseMap):
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise ParameterError(f"{str(path)!r} exists; pass overwrite=True (--force) to replace it")
-    if not path.parent.exists():
-        raise ParameterError(f"folder {str(path.parent)!r} does not exist")
+    path = check_file(path, overwrite=overwrite, flag="overwrite=True (--force)")
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     try:
         with h5py.File(tmp, "w") as h5:
@@ -53,6 +50,8 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
             for name in _DATASETS:
                 h5.create_dataset(name, data=getattr(rmap, name))
         os.replace(tmp, path)
+    except OSError as exc:
+        raise write_failed(path, exc) from None
     finally:
         if tmp.exists():
             tmp.unlink()

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ImpactometerError, RecordingError
+from ..outputs import check_file, write_failed
 from ..recording import TRUTH_KEYS, Recording, truth_value
 from . import csv, hdf5, mat, tdms
 from .channels import RawData, assemble, merge_metadata
@@ -116,12 +117,9 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
         raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
     path = Path(path)
     fmt = format_of(path)
-    if not path.parent.is_dir():
-        raise RecordingError(f"{path}: folder {str(path.parent)!r} does not exist")
     targets = _targets(path, fmt)
     for target in targets:
-        if target.exists() and not overwrite:
-            raise RecordingError(f"{target}: exists; pass overwrite=True (--force) to replace it")
+        check_file(target, overwrite=overwrite, flag="overwrite=True (--force)", error=RecordingError)
     temporary = [t.with_name(f".{t.stem}.partial-{os.getpid()}{t.suffix}") for t in targets]
     try:
         WRITERS[fmt](recording, temporary[0])
@@ -134,6 +132,8 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
             tmp.unlink(missing_ok=True)
         if isinstance(exc, ImpactometerError):
             raise
+        if isinstance(exc, OSError):
+            raise write_failed(path, exc) from None
         raise RecordingError(f"{path}: cannot write {fmt} file ({type(exc).__name__}: {exc})") from None
     return path
 

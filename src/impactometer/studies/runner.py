@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactometerError, ParameterError, SimulationError
+from ..outputs import check_folder
 from . import store
 from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases
 from .tables import to_csv
@@ -209,7 +210,7 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     if not isinstance(options, StudyOptions):
         raise ParameterError(f"options must be StudyOptions, got {options!r}")
     start = time.perf_counter()
-    out = Path(out)
+    out = check_folder(out, "--out")
     out.mkdir(parents=True, exist_ok=True)
     key = options.key(name)
     folder = store.prepare_folder(out, name, key, options.to_dict(), force=force)
@@ -265,6 +266,7 @@ def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | N
     names = list(names)
     for name in names:
         get_study(name)
+    check_folder(out, "--out")
     if report:
         from .report import check_target
 
