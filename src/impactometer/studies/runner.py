@@ -211,7 +211,14 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
         raise ParameterError(f"options must be StudyOptions, got {options!r}")
     start = time.perf_counter()
     out = check_folder(out, "--out")
-    out.mkdir(parents=True, exist_ok=True)
+    with store.locked(out):
+        return _run_locked(name, study, out, options, start, workers=workers, scheduler=scheduler, force=force,
+                           progress=progress, executor=executor)
+
+
+def _run_locked(name, study, out: Path, options: StudyOptions, start: float, *, workers, scheduler, force,
+                progress, executor) -> StudyRun:
+    """:func:`run_study` in ``out``, whose lock the caller holds."""
     key = options.key(name)
     folder = store.prepare_folder(out, name, key, options.to_dict(), force=force)
     cases = indexed_cases(study, options)
@@ -267,20 +274,21 @@ def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | N
     for name in names:
         get_study(name)
     check_folder(out, "--out")
-    if report:
-        from .report import check_target
+    with store.locked(Path(out)):
+        if report:
+            from .report import check_target
 
-        check_target(out, force=force)
-    executor = backend(workers, scheduler)
-    try:
-        runs = [run_study(name, out, options, force=force, progress=progress, executor=executor)
-                for name in names]
-    finally:
-        executor.close()
-    if report:
-        from .report import write_report
+            check_target(out, force=force)
+        executor = backend(workers, scheduler)
+        try:
+            runs = [run_study(name, out, options, force=force, progress=progress, executor=executor)
+                    for name in names]
+        finally:
+            executor.close()
+        if report:
+            from .report import write_report
 
-        write_report(out, force=force)
+            write_report(out, force=force)
     return runs
 
 
