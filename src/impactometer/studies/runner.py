@@ -222,9 +222,7 @@ def _run_locked(name, study, out: Path, options: StudyOptions, start: float, *, 
     key = options.key(name)
     folder = store.prepare_folder(out, name, key, options.to_dict(), force=force)
     cases = indexed_cases(study, options)
-    size = options.param(name, "chunk_size", study.chunk_size)
-    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-        raise ParameterError(f"{name}.chunk_size must be an integer >= 1, got {size!r}")
+    size = options.param(name, "chunk_size", study.chunk_size)  # checked with the options
     chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
     results: dict[int, tuple[list[Row], float]] = {}
     for index, chunk in enumerate(chunks):
