@@ -112,6 +112,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
     ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
                                 contact_phase=contact_phase)
     t_wall = clock.perf_counter()
+    concluded = 0
     for k in range(0, f.size, chunk):
         if realtime:
             lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
@@ -119,14 +120,26 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
                 clock.sleep(lag)
         for est in ident.push(f[k:k + chunk], a[k:k + chunk]):
             _print_estimate(est, as_json)
+        for outcome in ident.outcomes[concluded:]:  # an impact refused at its end, as identify refuses it
+            if isinstance(outcome, IdentificationError):
+                _print_refusal(outcome, rec.start_time + min(k + chunk, f.size) / rec.sample_rate, as_json)
+        concluded = len(ident.outcomes)
     shown = len(ident.estimates)
-    final = ident.finish()
+    final = ident.finish()  # raises the refusal of the last impact
     for est in ident.estimates[shown:]:  # the answer the end of the input completes
         _print_estimate(est, as_json)
     if final is None:
         raise IdentificationError("no estimate: the stream holds no impact with enough contact pulses")
     if not as_json:
         console.print(_table(final.to_dict(), f"{file.name}: final answer of the stream ({variant})"))
+
+
+def _print_refusal(error: IdentificationError, at: float, as_json: bool) -> None:
+    if as_json:
+        typer.echo(json.dumps({"kind": "refused", "available_at_s": at, "error": str(error)}))
+    else:
+        console.print(f"t = {at * 1e3:9.3f} ms  refused  {' '.join(str(error).split())}", highlight=False,
+                      markup=False, soft_wrap=True)
 
 
 def _print_estimate(est, as_json: bool) -> None:

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import IdentificationError, RecordingError
-from ..recording import Recording
+from ..recording import Recording, check_sample_rate
 from . import trigger
 from .early import solve_early
 from .onsets import onset_index
@@ -48,8 +48,8 @@ class Segment:
     noise_acceleration: float
     pre_samples: int
     pulses: list[PulseSpan]
-    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments cut from
-    #: the same data with the same start (the early and the final answer, successive streaming estimates)
+    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments
+    #: cut from the same data with the same start (the early and the final answer, successive streaming estimates)
     onset_cache: dict = field(default_factory=dict, compare=False)
 
     def time_of(self, index: float) -> float:
@@ -59,9 +59,7 @@ class Segment:
 
 def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.ndarray, float]:
     """Validate the two channels; IdentificationError naming what is wrong."""
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
-            sample_rate) or sample_rate <= 0:
-        raise IdentificationError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
+    sample_rate = check_sample_rate(sample_rate, error=IdentificationError)
     if acceleration is None:
         raise IdentificationError("the piston acceleration channel is missing; peak-to-peak needs contact force "
                                   "and piston acceleration")
@@ -82,9 +80,6 @@ def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.nda
                                   f"and {a.size} samples")
     if f.size < 8:
         raise IdentificationError(f"the record has {f.size} samples; expected at least 8")
-    if np.ptp(a) == 0.0:
-        raise IdentificationError(f"piston_acceleration is constant ({a[0]!r} m/s² throughout); expected a "
-                                  "measured acceleration")
     return f, a, float(sample_rate)
 
 
@@ -104,8 +99,9 @@ def quantum(x: np.ndarray) -> float:
     if values.size < 3:
         return 0.0
     step = float(np.min(np.diff(values)))
-    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(np.round((values - values[0]) / step) * step, values - values[0],
-                                    rtol=0, atol=1e-3 * step):
+    shifted = values - values[0]
+    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(np.round(shifted / step) * step, shifted,
+                                                                       rtol=0, atol=1e-3 * step):
         return 0.0
     return step
 
@@ -127,6 +123,19 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     a = acceleration - a0
     pulses = detect_pulses(f, sf, start=max(n_pre, 0))  # nothing before the pre-trigger statistics' end
     return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses, {} if cache is None else cache)
+
+
+def check_segment(seg: Segment) -> None:
+    """IdentificationError when the impact's data cannot give an answer: a constant acceleration (a dead or
+    disconnected accelerometer) or a saturated force channel (:func:`check_clipping`).
+
+    Every answer, batch or streaming, early or final, passes this check first (see :func:`solve`).
+    """
+    a = seg.acceleration
+    if a.size and float(np.ptp(a)) == 0.0:
+        raise IdentificationError(f"piston_acceleration is constant ({float(a[0])!r} m/s² throughout the impact); "
+                                  "expected a measured acceleration")
+    check_clipping(seg)
 
 
 def check_clipping(seg: Segment) -> None:
@@ -160,7 +169,12 @@ def check_clipping(seg: Segment) -> None:
 
 def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
           contact_phase: bool = False) -> Identification:
-    """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`)."""
+    """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`).
+
+    The segment passes :func:`check_segment` first: the batch and the streaming identification, their early and
+    final answers, refuse the same data.
+    """
+    check_segment(seg)
     if variant == "robust":
         return solve_robust(seg, gravity, early, contact_phase=contact_phase)
     return VARIANT_SOLVERS[variant](seg, gravity, early)
@@ -377,7 +391,6 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = _segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
-    check_clipping(seg)
     early = None
     if variant == "robust":
         early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
