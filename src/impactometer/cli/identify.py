@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
@@ -43,6 +44,8 @@ def _table(result: dict, title: str) -> Table:
             table.add_row(key[:-2], f"{result[key] * 1e3:.3f} ms")
     if result.get("caution"):
         table.add_row("caution", result["caution"])
+    for warning in result.get("warnings") or ():
+        table.add_row("warning", escape(warning))
     return table
 
 
@@ -155,3 +158,5 @@ def _print_estimate(est, as_json: bool) -> None:
     console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {mass}  "
                   f"V0 = {with_uncertainty(est.velocity, est.velocity_std, 'm/s')}  E = {est.energy:.1f} J",
                   highlight=False, soft_wrap=True)
+    for warning in est.warnings:
+        console.print(f"{'':15s}warning: {warning}", highlight=False, markup=False, soft_wrap=True)

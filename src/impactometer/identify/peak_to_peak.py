@@ -17,6 +17,7 @@ from ..recording import Recording, check_sample_rate
 from . import trigger
 from .early import solve_early
 from .onsets import onset_index
+from .plausibility import check_answer
 from .pulses import PulseSpan, detect_pulses, noise_std
 from .result import Identification
 from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
@@ -176,8 +177,23 @@ def solve(seg: Segment, variant: str, gravity: float, *, early: Identification |
     """
     check_segment(seg)
     if variant == "robust":
-        return solve_robust(seg, gravity, early, contact_phase=contact_phase)
-    return VARIANT_SOLVERS[variant](seg, gravity, early)
+        result = solve_robust(seg, gravity, early, contact_phase=contact_phase)
+    else:
+        result = VARIANT_SOLVERS[variant](seg, gravity, early)
+    return replace(result, warnings=plausibility(seg, result, gravity))
+
+
+def plausibility(seg: Segment, result: Identification, gravity: float) -> tuple[str, ...]:
+    """What makes ``result`` implausible for the segment's signals (:func:`.plausibility.check_answer`)."""
+    details = result.details
+    fitted = details.get("onset_rows", 0) >= MIN_ONSET_ROWS  # the onset equations' χ² measures the fit to noise
+    return check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
+                        onset=(result.t00 - seg.start_time) * seg.sample_rate,
+                        pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
+                        noise_force=seg.noise_force, acceleration=seg.acceleration,
+                        noise_acceleration=seg.noise_acceleration, chi2=details.get("chi2") if fitted else None,
+                        dof=details.get("dof") if fitted else None, mass_std=result.mass_std,
+                        velocity_std=result.velocity_std)
 
 
 def _need_pulses(seg: Segment, needed: int, what: str) -> None:

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError, ResponseMapError
-from ..recording import Recording
+from ..recording import Recording, inspect_recording
 from .features import FEATURE_SETS, extract_features, recording_signal
+from .plausibility import check_answer
 from .response_map_build import (
     PRESSURE_TOLERANCE,
     ResponseMap,
@@ -58,6 +59,7 @@ class MapIdentification:
     pressure_gauge : Charge pressure the map was read at [Pa gauge].
     extrapolated : The answer lies outside the map (only with ``allow_extrapolation``).
     mass_std, velocity_std : Standard uncertainties [kg], [m/s]; None (not estimated).
+    warnings : Sentences on what makes the answer implausible (see :mod:`.plausibility`).
     """
 
     mass: float
@@ -71,12 +73,13 @@ class MapIdentification:
     extrapolated: bool = False
     mass_std: float | None = None
     velocity_std: float | None = None
+    warnings: tuple[str, ...] = ()
 
     @classmethod
     def _make(cls, **values: Any) -> MapIdentification:
         """Build without the dataclass ``__init__`` (each frozen-field assignment costs more than the search)."""
         obj = cls.__new__(cls)
-        obj.__dict__.update(mass_std=None, velocity_std=None, **values)
+        obj.__dict__.update(mass_std=None, velocity_std=None, warnings=(), **values)
         return obj
 
     @property
@@ -91,7 +94,7 @@ class MapIdentification:
                 "method": "response-map", "search": self.search, "residual": self.residual,
                 "features": dict(self.features), "feature_set": self.feature_set,
                 "pressure_gauge_Pa": self.pressure_gauge, "extrapolated": self.extrapolated,
-                "mass_std_kg": self.mass_std, "velocity_std_m_s": self.velocity_std}
+                "mass_std_kg": self.mass_std, "velocity_std_m_s": self.velocity_std, "warnings": list(self.warnings)}
 
 
 def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapolation: bool) -> float:
@@ -172,9 +175,13 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         mass, velocity, residual, _, _ = brute_search(rmap, y, p)  # python floats, like fast_search
     if available_at is None:
         available_at = rmap.feature_params.get("window", math.nan)
-    return MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
-                                   search=search, features=dict(zip(labels, y.tolist(), strict=False)),
-                                   feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
+    found = MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
+                                    search=search, features=dict(zip(labels, y.tolist(), strict=False)),
+                                    feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
+    ranges = check_answer(mass, velocity)
+    if ranges:
+        object.__setattr__(found, "warnings", ranges)
+    return found
 
 
 def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:
@@ -229,5 +236,19 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
     time, force = recording_signal(recording)
     values, available = extract_features(time, force, rmap.feature_set, rmap.feature_params)
     delay = recording.time[0] - time[0]  # the filter delay: the features are complete that much later
-    return identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
-                             allow_extrapolation=allow_extrapolation, available_at=available + delay)
+    found = identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
+                              allow_extrapolation=allow_extrapolation, available_at=available + delay)
+    object.__setattr__(found, "warnings", force_plausibility(recording, found.mass, found.velocity, rmap.stand.gravity))
+    return found
+
+
+def force_plausibility(recording: Recording, mass: float, velocity: float, gravity: float) -> tuple[str, ...]:
+    """What makes an answer implausible for the recording's contact force (:func:`.plausibility.check_answer`;
+    the pulses and the offset are those :func:`~impactometer.recording.inspect_recording` finds)."""
+    found = inspect_recording(recording)
+    force = recording.contact_force - found.force_offset
+    index = [(p.start - recording.start_time) * recording.sample_rate for p in found.pulses]
+    ends = [round((p.end - recording.start_time) * recording.sample_rate) for p in found.pulses if not p.sustained]
+    return check_answer(mass, velocity, force=force, sample_rate=recording.sample_rate,
+                        onset=index[0] if index else 0.0, pulse_ends=ends, gravity=gravity,
+                        noise_force=found.channels["contact_force"].noise)
