@@ -243,6 +243,26 @@ class Rig:
         _check("rig.gravity", self.gravity, low=0.0, low_open=False)
         if not isinstance(self.name, str):
             raise ParameterError(f"rig.name must be a string, got {self.name!r}")
+        self._check_stops()
+
+    def _check_stops(self) -> None:
+        """Refuse a stand whose top stop cannot hold the piston within its upper gas column.
+
+        Charged to the rated pressure, the gas pushes the piston into the top stop with up to the rated pressure on
+        the full piston area (plus its weight, counted ten times over for the blow of a bounce); a stop that yields
+        more than the upper gas column under that load would compress the gas to a negative volume: no real stand
+        is built so, and its simulation would show a negative stroke and negative absolute pressures.
+        """
+        c = self.cylinder
+        load = c.rated_pressure_gauge * c.area + 10.0 * c.piston_mass * max(self.gravity, 1.0)
+        yielding = load / self.stops.stiffness
+        column = c.upper_length + c.dead_volume_upper / c.annulus_area
+        if yielding >= column:
+            raise ParameterError(f"stops.stiffness {self.stops.stiffness:g} N/m lets the top stop yield "
+                                 f"{yielding:.3g} m under the rated {c.rated_pressure_gauge:g} Pa on the {c.bore:g} m "
+                                 f"bore, more than the upper gas column ({column:.3g} m); expected a stand whose stops "
+                                 "hold the piston within its gas columns (stiffer stops, a smaller bore or a lower "
+                                 "rated pressure)")
 
     def with_contact(self, law: str) -> Rig:
         """This stand with the default contact of ``law``."""
@@ -345,6 +365,9 @@ def load_toml(path: str | Path) -> Rig:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParameterError(f"rig file {str(path)!r} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ParameterError(f"rig file {str(path)!r} nests arrays or tables too deeply; expected a stand "
+                             "description (sections of numbers)") from None
     return from_dict(data, source=str(path))
 
 

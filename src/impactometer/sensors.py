@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from .errors import ParameterError
+from .errors import ParameterError, shown
 from .model import simulate_batch
 from .model.dynamics import CHANNELS as MODEL_CHANNELS
 from .recording import ACCELERATION, FORCE, Recording
@@ -84,13 +84,13 @@ def _check_rate(sample_rate: float, field: str = "sample_rate") -> float:
     if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(sample_rate) \
             or not MIN_SAMPLE_RATE <= sample_rate <= MAX_SAMPLE_RATE:
         raise ParameterError(f"{field} must be within [{MIN_SAMPLE_RATE:g}, {MAX_SAMPLE_RATE:g}] Hz, "
-                             f"got {sample_rate!r}")
+                             f"got {shown(sample_rate)}")
     return float(sample_rate)
 
 
 def _check_nonnegative(value: Any, field: str, unit: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise ParameterError(f"{field} must be a finite number >= 0 {unit}, got {value!r}")
+        raise ParameterError(f"{field} must be a finite number >= 0 {unit}, got {shown(value)}")
     return float(value)
 
 
@@ -177,12 +177,23 @@ def _degrade(channels: dict[str, np.ndarray], factor: int, first: int, *, design
     return out
 
 
+def _check_seed(seed: Any, field: str = "seed") -> Any:
+    """A seed numpy accepts: None, an integer >= 0, a SeedSequence or a Generator; ParameterError otherwise."""
+    if seed is None or isinstance(seed, (np.random.SeedSequence, np.random.Generator, np.random.BitGenerator)):
+        return seed
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        shown = int(seed) if isinstance(seed, np.integer) else seed
+        raise ParameterError(f"{field} must be None or an integer >= 0, got {shown!r}")
+    return int(seed)
+
+
 def _rngs(n: int, seed, seeds) -> tuple[list[np.random.Generator], list[Any]]:
     if seeds is not None:
-        seeds = list(seeds)
+        seeds = [_check_seed(s, f"seeds[{i}]") for i, s in enumerate(seeds)]
         if len(seeds) != n:
             raise ParameterError(f"seeds must have one entry per scenario ({n}), got {len(seeds)}")
         return [np.random.default_rng(s) for s in seeds], seeds
+    seed = _check_seed(seed)
     if seed is None:
         return [np.random.default_rng() for _ in range(n)], [None] * n
     if n == 1:
@@ -263,7 +274,7 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
     duration = _check_nonnegative(duration, "duration", "[s]")
     pre_trigger = _check_nonnegative(pre_trigger, "pre_trigger", "[s]")
     if duration <= 0:
-        raise ParameterError(f"duration must be > 0 [s], got {duration!r}")
+        raise ParameterError(f"duration must be > 0 [s], got {shown(duration)}")
     design = _design(anti_alias)
     extras = [str(name) for name in extra_channels]
     model_channels = ["contact_force", "a2"] + [_model_channel(name) for name in extras]
@@ -314,7 +325,7 @@ def record(scenario: Scenario, rig: Rig | None = None, *, sample_rate: float = 5
     if not isinstance(scenario, Scenario):
         raise ParameterError(f"scenario must be a Scenario, got {scenario!r}")
     return record_batch(scenario.mass, scenario.velocity, scenario.pressure_gauge, rig, sample_rate=sample_rate,
-                        duration=duration, noise=noise, seeds=[seed], pre_trigger=pre_trigger,
+                        duration=duration, noise=noise, seeds=[_check_seed(seed)], pre_trigger=pre_trigger,
                         anti_alias=anti_alias, adc_bits=adc_bits, adc_range=adc_range,
                         include_gravity=include_gravity, extra_channels=extra_channels)[0]
 
@@ -361,7 +372,7 @@ def apply_sensors(data: Recording | Mapping[str, Any], *, input_rate: float | No
     factor = int(round(ratio))
     if not math.isfinite(ratio) or factor < 1 or abs(ratio - factor) > 1e-9 * ratio:
         raise ParameterError(f"sample_rate must divide the input rate {base.sample_rate:g} Hz by an integer, "
-                             f"got {sample_rate!r}")
+                             f"got {shown(sample_rate)}")
     design = _design(anti_alias)
     names = list(base.channels)
     levels = noise_levels(noise, names)
@@ -369,7 +380,7 @@ def apply_sensors(data: Recording | Mapping[str, Any], *, input_rate: float | No
     first_t = base.start_time
     trigger = max(0, int(math.ceil(-first_t * out_rate - 1e-9)))
     outputs = _degrade({k: v[None, :] for k, v in base.channels.items()}, factor, 0, design=design, levels=levels,
-                       rngs=[np.random.default_rng(seed)], adc_bits=adc_bits, adc_range=adc_range,
+                       rngs=[np.random.default_rng(_check_seed(seed))], adc_bits=adc_bits, adc_range=adc_range,
                        gravity_offset=g if include_gravity else None, trigger=trigger)
     meta = dict(base.metadata)
     meta.update({"noise": {k: v for k, v in levels.items() if v > 0}, "seed": seed})

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import sys
 
 from rich.markup import escape
@@ -11,10 +12,12 @@ from . import control, demo, identify, recordings, response_map, simulate, studi
 from .app import app, console
 
 __all__ = ["app", "main"]
+_NUMPY_SCALAR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool)\w*\(([^()]*)\)")
 
 
 def _fail(message: str, code: int) -> None:
     line = " ".join(message.split())  # one line, whatever the message holds
+    line = _NUMPY_SCALAR.sub(r"\1", line)  # np.float64(3.0) -> 3.0, wherever a message kept a numpy repr
     console.print(f"[bold red]error:[/] {escape(line)}", highlight=False, soft_wrap=True)
     sys.exit(code)
 

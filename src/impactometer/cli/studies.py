@@ -98,8 +98,10 @@ def study(
     if out is None:
         raise ParameterError("--out is required: the folder for the tables, figures and index.html")
     from ..outputs import check_folder
+    from ..studies.runner import check_backend
 
     check_folder(out, "--out")
+    check_backend(workers, scheduler)
     if name == "report":
         from ..studies.report import markdown, write_report
 

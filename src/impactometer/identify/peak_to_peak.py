@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import IdentificationError, RecordingError
+from ..errors import IdentificationError, RecordingError, shown
 from ..recording import Recording, check_sample_rate
 from . import trigger
 from .early import solve_early
@@ -403,7 +403,7 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     if variant not in VARIANT_SOLVERS:
         raise IdentificationError(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {variant!r}")
     if not (isinstance(gravity, (int, float)) and math.isfinite(gravity) and gravity >= 0):
-        raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {gravity!r}")
+        raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {shown(gravity)}")
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = _segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})

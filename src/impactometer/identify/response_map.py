@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, ResponseMapError
+from ..errors import ParameterError, ResponseMapError, shown
 from ..recording import Recording, inspect_recording
 from .features import FEATURE_SETS, extract_features, recording_signal
 from .plausibility import check_answer
@@ -106,7 +106,7 @@ def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapo
         return float(axis[0])
     p = float(pressure_gauge)
     if not math.isfinite(p):
-        raise ParameterError(f"pressure_gauge must be a finite number [Pa], got {pressure_gauge!r}")
+        raise ParameterError(f"pressure_gauge must be a finite number [Pa], got {shown(pressure_gauge)}")
     lo, hi = axis[0], axis[-1]
     tol = max(PRESSURE_TOLERANCE[0], PRESSURE_TOLERANCE[1] * hi)
     if lo - tol <= p <= hi + tol:

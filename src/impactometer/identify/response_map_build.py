@@ -6,7 +6,6 @@ and refined by interpolation (tensor-product cubic spline, not-a-knot) to any N�
 
 from __future__ import annotations
 
-import math
 import time as _time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -17,13 +16,16 @@ from scipy.interpolate import CubicSpline, RBFInterpolator
 
 from .. import __version__
 from ..errors import ParameterError, ResponseMapError
-from ..recording import Recording
+from ..recording import Recording, check_sample_rate
 from ..rig import PRESETS, Rig, fingerprint, from_dict, get_rig, to_dict
 from .features import extract_batch, extract_features, get_feature_set, recording_signal
 
 SCHEMA_VERSION = 1
 #: largest map (number of stored feature values) refine or build will create: 800 MB in float64
 MAX_VALUES = 100_000_000
+#: most impacts a map build simulates (a 500×500 grid; about a thousand a second on two cores): larger maps come
+#: from interpolating a simulated one (:func:`refine`)
+MAX_SIMULATED = 250_000
 #: two charge pressures closer than max(absolute, relative·p) are the same [Pa], [-]
 PRESSURE_TOLERANCE = (1e3, 0.01)
 
@@ -98,9 +100,7 @@ class ResponseMap:
                                    f"{values[f, p, i, j]!r} at mass {self.masses[i]:g} kg, velocity "
                                    f"{self.velocities[j]:g} m/s, pressure {self.pressures_gauge[p]:g} Pa")
         set_(self, "values", values)
-        if not isinstance(self.sample_rate, (int, float)) or not math.isfinite(self.sample_rate) \
-                or self.sample_rate <= 0:
-            raise ResponseMapError(f"sample_rate must be a finite number > 0 [Hz], got {self.sample_rate!r}")
+        set_(self, "sample_rate", check_sample_rate(self.sample_rate, error=ResponseMapError))
         try:
             from_dict(self.rig, source="map rig")
         except ParameterError as exc:
@@ -258,9 +258,12 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     velocities = _axis(velocities, "velocities", "[m/s]")
     pressures = _axis(np.atleast_1d(pressure_gauge), "pressure_gauge", "[Pa gauge]")
     _check_size(fs.size, pressures.size, masses.size, velocities.size)
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(sample_rate) \
-            or sample_rate <= 0:
-        raise ParameterError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
+    count = pressures.size * masses.size * velocities.size
+    if count > MAX_SIMULATED:
+        raise ParameterError(f"a {masses.size}×{velocities.size} grid at {pressures.size} pressure(s) needs {count} "
+                             f"simulations, above the limit of {MAX_SIMULATED}; simulate a smaller grid and "
+                             f"interpolate it (refine_to=, map build --refine {masses.size}x{velocities.size})")
+    sample_rate = check_sample_rate(sample_rate, error=ParameterError)
     duration = _default_duration(features, params, sample_rate) if duration is None else float(duration)
     from ..model import simulate_batch
 

@@ -181,6 +181,8 @@ def metadata_from_json(text: Any, source: str, field: str) -> dict[str, Any]:
         data = json.loads(text)
     except (TypeError, ValueError) as exc:
         raise RecordingError(f"{source}: {field} must be valid JSON ({exc})") from None
+    except RecursionError:
+        raise RecordingError(f"{source}: {field} nests too deeply; expected a JSON object of metadata") from None
     if not isinstance(data, dict):
         raise RecordingError(f"{source}: {field} must hold a JSON object, got {type(data).__name__}")
     return data

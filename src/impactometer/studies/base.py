@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, shown
 from ..rig import Rig, get_rig, to_dict
 
 Row = dict[str, Any]
@@ -161,7 +161,7 @@ class StudyOptions:
             if name == "grid" and value is None:
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-                raise ParameterError(f"{name} must be an integer within [{low}, {high}], got {value!r}")
+                raise ParameterError(f"{name} must be an integer within [{low}, {high}], got {shown(value)}")
         if (self.grid or 5) ** 3 * self.seeds > MAX_SCENARIOS:
             raise ParameterError(f"grid³ × seeds must be at most {MAX_SCENARIOS} scenarios, got "
                                  f"{self.grid or 5}³ × {self.seeds} = {(self.grid or 5) ** 3 * self.seeds}")
@@ -170,7 +170,7 @@ class StudyOptions:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                     or not low <= value <= high:
-                raise ParameterError(f"{name} must be a number within [{low:g}, {high:g}], got {value!r}")
+                raise ParameterError(f"{name} must be a number within [{low:g}, {high:g}], got {shown(value)}")
         if not isinstance(self.params, Mapping):
             raise ParameterError(f"params must be a mapping of setting -> value, got {self.params!r}")
         object.__setattr__(self, "params", check_params(self.params))

@@ -155,19 +155,33 @@ class _Dask:
         self.client.close()
 
 
-def backend(workers: int | None = None, scheduler: str | None = None):
-    """The executor for ``workers`` local processes (default: all cores) or a Dask ``scheduler`` address."""
+#: address schemes of a Dask scheduler reachable from another process
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def check_backend(workers: int | None = None, scheduler: str | None = None) -> None:
+    """ParameterError unless ``workers`` (an integer >= 1) or ``scheduler`` (``tcp://HOST:PORT``) is well formed;
+    nothing is started or contacted."""
     if scheduler is not None:
         if workers is not None:
             raise ParameterError(f"give either --workers or --scheduler, got workers={workers!r} and "
                                  f"scheduler={scheduler!r}")
-        if not isinstance(scheduler, str) or "://" not in scheduler:
-            raise ParameterError(f"--scheduler must be an address like tcp://HOST:PORT, got {scheduler!r}")
+        scheme, _, rest = scheduler.partition("://") if isinstance(scheduler, str) else ("", "", "")
+        host, _, port = rest.rpartition(":")
+        if scheme not in SCHEDULER_SCHEMES or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise ParameterError(f"--scheduler must be an address like tcp://HOST:PORT (scheme "
+                                 f"{', '.join(SCHEDULER_SCHEMES)}), got {scheduler!r}")
+    elif workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ParameterError(f"--workers must be an integer >= 1, got {workers!r}")
+
+
+def backend(workers: int | None = None, scheduler: str | None = None):
+    """The executor for ``workers`` local processes (default: all cores) or a Dask ``scheduler`` address."""
+    check_backend(workers, scheduler)
+    if scheduler is not None:
         return _Dask(scheduler)
     if workers is None:
         workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ParameterError(f"--workers must be an integer >= 1, got {workers!r}")
     return _Serial() if workers == 1 else _Pool(workers)
 
 
