@@ -273,6 +273,16 @@ SUSTAINED_FACTOR = 4.0
 MIN_OFFSET_SAMPLES = 10
 
 
+def _samples_before_contact(recording: Recording) -> int:
+    """Number of samples at t < 0 (the pre-trigger), without forming the time array."""
+    n = int(np.clip(np.ceil(-recording.start_time * recording.sample_rate), 0, len(recording)))
+    while n > 0 and recording.start_time + (n - 1) / recording.sample_rate >= 0:
+        n -= 1
+    while n < len(recording) and recording.start_time + n / recording.sample_rate < 0:
+        n += 1
+    return n
+
+
 def inspect_recording(recording: Recording) -> Inspection:
     """Duration, rate, channels with ranges and noise, peak force, contact pulses and stage B of ``recording``.
 
@@ -289,19 +299,24 @@ def inspect_recording(recording: Recording) -> Inspection:
     peak = peak_time = None
     offset = 0.0
     if FORCE in recording.channels:
-        t, f = recording.time, recording.contact_force
-        before = f[t < 0]
+        f = recording.contact_force
+        dt = 1.0 / recording.sample_rate
+
+        def t(i: int) -> float:  # as Recording.time gives it, without the array
+            return recording.start_time + i / recording.sample_rate
+
+        before = f[:_samples_before_contact(recording)]
         offset = float(np.median(before)) if before.size >= MIN_OFFSET_SAMPLES else 0.0
         f = f - offset
         k = int(np.argmax(f))
-        peak, peak_time = float(f[k]), float(t[k])
+        peak, peak_time = float(f[k]), t(k)
         for span in detect_pulses(f, channels[FORCE].noise):
             stop = span.end if span.complete else f.size - 1
             first = pulses[0].end - pulses[0].start if pulses else None
-            sustained = not span.complete or (first is not None and t[stop] - t[span.zero] > SUSTAINED_FACTOR * first)
-            pulses.append(Pulse(start=float(t[span.zero]), peak_time=float(t[span.peak]), end=float(t[stop]),
+            sustained = not span.complete or (first is not None and t(stop) - t(span.zero) > SUSTAINED_FACTOR * first)
+            pulses.append(Pulse(start=t(span.zero), peak_time=t(span.peak), end=t(stop),
                                 peak_force=float(f[span.peak]),
-                                impulse=float(np.trapezoid(f[span.zero:stop + 1], t[span.zero:stop + 1])),
+                                impulse=float(np.trapezoid(f[span.zero:stop + 1], dx=dt)),
                                 sustained=bool(sustained)))
             if sustained:
                 break

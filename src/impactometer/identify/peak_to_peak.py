@@ -84,13 +84,22 @@ def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.nda
     return f, a, float(sample_rate)
 
 
+#: samples the batch trigger advances at a time: its event buffer stays small whatever the record's length
+TRIGGER_BLOCK = 1 << 16
+
+
 def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
-    """Trigger events (code, sample index) over a whole record."""
+    """Trigger events (code, sample index) of a record, up to the end of its first impact."""
     fstate, istate = trigger.new_state()
-    events = np.zeros((3 * force.size + 2, 2), dtype=np.int64)
-    n = trigger.run_trigger(force, fstate, istate, floor, max(int(QUIET_TIME * sample_rate), 1),
-                            max(int(MAX_DURATION * sample_rate), 1), events)
-    return events[:n]
+    events = np.empty((3 * TRIGGER_BLOCK + 2, 2), dtype=np.int64)
+    quiet, longest = max(int(QUIET_TIME * sample_rate), 1), max(int(MAX_DURATION * sample_rate), 1)
+    found = [np.empty((0, 2), dtype=np.int64)]
+    for start in range(0, force.size, TRIGGER_BLOCK):
+        n = trigger.run_trigger(force[start:start + TRIGGER_BLOCK], fstate, istate, floor, quiet, longest, events)
+        found.append(events[:n].copy())
+        if np.any(events[:n, 0] == trigger.EVENT_CLOSE):  # the first impact is over (a close follows a trigger)
+            break
+    return np.concatenate(found)
 
 
 def quantum(x: np.ndarray) -> float:

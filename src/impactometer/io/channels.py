@@ -50,6 +50,8 @@ SI_UNITS = {"force": "N", "acceleration": "m/s^2", "pressure": "Pa", "length": "
 STANDARD_GRAVITY = 9.80665
 #: a time column is regular when no sample is further than this fraction of a period from the fitted grid
 TIME_JITTER = 0.05
+#: samples of a time column checked at a time
+TIME_BLOCK = 1 << 20
 
 _UNIT_IN_NAME = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
@@ -136,22 +138,27 @@ def pick_channel(names: list[str], standard: str, explicit: str | None, *, optio
 def time_base(time: np.ndarray, unit: str | None, source: str) -> tuple[float, float]:
     """(sample rate [Hz], start time [s]) of a time column; refuses non-monotonic or irregular time."""
     known = unit_factor(unit, dimension="time", field="time", source=source)
-    t = samples(time, "time", source, squeeze=True) * (1.0 if known is None else known[1])
+    t = samples(time, "time", source, squeeze=True)
+    scale = 1.0 if known is None else known[1]
     if t.size < 2:
         raise RecordingError(f"{source}: time must have at least 2 samples, got {t.size}")
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        i = int(np.flatnonzero(steps <= 0)[0])
-        raise RecordingError(f"{source}: time must increase strictly; sample {i + 1} ({t[i + 1]!r} s) does not "
-                             f"follow sample {i} ({t[i]!r} s)")
-    period = float(t[-1] - t[0]) / (t.size - 1)
+    for start in range(0, t.size, TIME_BLOCK):  # a block at a time: no temporaries the size of the column
+        steps = np.diff(t[start:start + TIME_BLOCK + 1])
+        if np.any(steps <= 0):
+            i = start + int(np.flatnonzero(steps <= 0)[0])
+            raise RecordingError(f"{source}: time must increase strictly; sample {i + 1} ({float(t[i + 1]) * scale!r} "
+                                 f"s) does not follow sample {i} ({float(t[i]) * scale!r} s)")
+    first, period = float(t[0]) * scale, float(t[-1] - t[0]) * scale / (t.size - 1)
     check_sample_rate(1.0 / period if period > 0 else math.inf, f"{source}: the sample rate of the time column")
-    deviation = np.abs(t - (t[0] + period * np.arange(t.size)))
-    if deviation.max() > TIME_JITTER * period:
-        i = int(np.argmax(deviation))
-        raise RecordingError(f"{source}: time must be regularly sampled; sample {i} is {deviation[i]:.3g} s off "
-                             f"the grid of period {period:.6g} s (tolerance {TIME_JITTER:g} period)")
-    return 1.0 / period, float(t[0])
+    for start in range(0, t.size, TIME_BLOCK):
+        block = t[start:start + TIME_BLOCK] * scale
+        deviation = np.abs(block - (first + period * np.arange(start, start + block.size)))
+        if deviation.max() > TIME_JITTER * period:
+            i = int(np.argmax(deviation))
+            raise RecordingError(f"{source}: time must be regularly sampled; sample {start + i} is "
+                                 f"{deviation[i]:.3g} s off the grid of period {period:.6g} s (tolerance "
+                                 f"{TIME_JITTER:g} period)")
+    return 1.0 / period, first
 
 
 def plain(value: Any) -> Any:

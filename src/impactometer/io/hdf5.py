@@ -30,6 +30,13 @@ def _datasets(group: h5py.Group) -> dict[str, h5py.Dataset]:
             and sum(s > 1 for s in item.shape) == 1}
 
 
+def _samples(dataset: h5py.Dataset) -> np.ndarray:
+    """A numeric dataset's samples, converted by HDF5 straight into a float64 array (no copy in the file's type)."""
+    out = np.empty(dataset.shape, dtype=np.float64)
+    dataset.read_direct(out)
+    return out.reshape(-1)
+
+
 def _unit(dataset: h5py.Dataset) -> str | None:
     for key in UNIT_ATTRIBUTES:
         if key in dataset.attrs:
@@ -63,7 +70,7 @@ def read(path: Path, *, group: str | None = None) -> RawData:
         datasets = _datasets(node)
         if not datasets:
             raise RecordingError(f"{source}: no numeric 1-D datasets in group {node.name!r}")
-        columns = {name: (np.asarray(ds[()]), _unit(ds)) for name, ds in datasets.items()}
+        columns = {name: (_samples(ds), _unit(ds)) for name, ds in datasets.items()}
         levels = [("file attribute", dict(handle.attrs))]
         if node is not handle:
             levels.append((f"group {node.name!r} attribute", dict(node.attrs)))

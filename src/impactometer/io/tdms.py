@@ -53,16 +53,39 @@ def _group(tdms: TdmsFile, group: str | None, source: str):
     raise RecordingError(f"{source}: no group holds a force channel; pass group (groups found: {names})")
 
 
+#: samples of a channel read at a time (into its float64 array)
+READ_BLOCK = 1 << 20
+
+
+def _samples(channel) -> np.ndarray | None:
+    """A numeric channel's samples as float64, read a block at a time; None for other channels."""
+    dtype = getattr(channel, "dtype", None)
+    size = len(channel)
+    if dtype is None or np.dtype(dtype).kind not in "iuf" or size == 0:
+        return None
+    out = np.empty(size)
+    for start in range(0, size, READ_BLOCK):
+        block = np.asarray(channel.read_data(start, min(READ_BLOCK, size - start)))
+        if block.dtype.kind not in "iuf":
+            return None
+        out[start:start + block.size] = block
+    return out
+
+
 def read(path: Path, *, group: str | None = None) -> RawData:
-    """What a TDMS file holds (read-only)."""
+    """What a TDMS file holds (read-only); channel data is read in blocks, straight into float64 arrays."""
     source = str(path)
-    tdms = TdmsFile.read(path)
+    with TdmsFile.open(path) as tdms:
+        return _read(tdms, group, source)
+
+
+def _read(tdms, group: str | None, source: str) -> RawData:
     node = _group(tdms, group, source)
     columns = {}
     rates, starts = set(), set()
     for channel in node.channels():
-        data = channel[:]
-        if not isinstance(data, np.ndarray) or data.dtype.kind not in "iuf" or data.size == 0:
+        data = _samples(channel)
+        if data is None:
             continue
         props = dict(channel.properties)
         unit = props.get("unit_string")
