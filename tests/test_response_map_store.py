@@ -81,18 +81,28 @@ def test_damaged_files_are_refused_with_the_reason(saved, change, message):
 
 def test_a_byte_flipped_file_is_refused_in_one_line(saved):
     raw = bytearray(saved.read_bytes())
+    original = load_map(saved)
     outcomes = set()
     for position in range(0, len(raw), max(1, len(raw) // 97)):  # one flipped byte at a time, across the file
         flipped = bytearray(raw)
         flipped[position] ^= 0xFF
         saved.write_bytes(bytes(flipped))
         try:
-            load_map(saved)
-            outcomes.add("read")  # a byte of padding or of a value that stays valid
+            loaded = load_map(saved)
+            for name in ("masses", "velocities", "pressures_gauge", "values"):  # a padding byte: nothing changed
+                np.testing.assert_array_equal(getattr(loaded, name), getattr(original, name))
+            assert loaded.rig == original.rig and loaded.feature_params == original.feature_params
+            outcomes.add("read")
         except ResponseMapError as exc:
             assert "\n" not in str(exc)
             outcomes.add("refused")
     assert "refused" in outcomes
+
+
+def test_an_edit_that_keeps_the_file_valid_breaks_its_checksum(saved):
+    _edit(saved, lambda h5: h5["values"].__setitem__((0, 0, 0, 0), 2.0 * h5["values"][0, 0, 0, 0]))
+    with pytest.raises(ResponseMapError, match="does not match its checksum; the file was damaged or edited"):
+        load_map(saved)
 
 
 def test_values_of_the_wrong_shape_or_sign_are_refused(saved):

@@ -2,12 +2,14 @@
 
 Layout (schema 1): root attributes ``schema`` = ``"impactometer-response-map"``, ``schema_version``,
 ``feature_set``, ``feature_labels`` (JSON), ``feature_params`` (JSON), ``sample_rate`` [Hz], ``rig`` (JSON of
-``rig.to_dict``), ``provenance`` (JSON); datasets ``masses`` [kg], ``velocities`` [m/s], ``pressures_gauge`` [Pa]
-and ``values`` (features, pressures, masses, velocities). No pickle: only numbers and JSON text.
+``rig.to_dict``), ``provenance`` (JSON), ``content_sha256`` (the SHA-256 of all the others and the datasets,
+checked on loading when present); datasets ``masses`` [kg], ``velocities`` [m/s], ``pressures_gauge`` [Pa] and
+``values`` (features, pressures, masses, velocities). No pickle: only numbers and JSON text.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -24,6 +26,20 @@ SCHEMA = "impactometer-response-map"
 _ATTRS = ("schema", "schema_version", "feature_set", "feature_labels", "feature_params", "sample_rate", "rig",
           "provenance")
 _DATASETS = ("masses", "velocities", "pressures_gauge", "values")
+#: attribute holding the SHA-256 of the other attributes and the datasets (a byte changed anywhere is noticed)
+CHECKSUM = "content_sha256"
+
+
+def _digest(attrs, arrays: dict[str, np.ndarray]) -> str:
+    """SHA-256 of a map file's attributes (:data:`_ATTRS`, as read back) and datasets (as float64)."""
+    sha = hashlib.sha256()
+    for key in _ATTRS:
+        sha.update(f"{key}={_text(attrs[key])};".encode())
+    for name in _DATASETS:
+        data = np.ascontiguousarray(arrays[name], dtype=np.float64)
+        sha.update(f"{name}{data.shape};".encode())
+        sha.update(data.tobytes())
+    return sha.hexdigest()
 
 
 def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) -> Path:
@@ -49,6 +65,7 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
             h5.attrs["provenance"] = json.dumps(rmap.provenance)
             for name in _DATASETS:
                 h5.create_dataset(name, data=getattr(rmap, name))
+            h5.attrs[CHECKSUM] = _digest(h5.attrs, {name: np.asarray(h5[name][()], dtype=float) for name in _DATASETS})
         os.replace(tmp, path)
     except OSError as exc:
         raise write_failed(path, exc) from None
@@ -111,7 +128,7 @@ def load_map(path: str | Path) -> ResponseMap:
         detail = " ".join(str(exc).split())[:120]
         raise ResponseMapError(f"{where}: the file is damaged ({type(exc).__name__}: {detail}); rebuild it with "
                                "impactometer map build") from None
-    feature_set, labels = fields.pop("feature_set"), fields.pop("labels")
+    feature_set, labels, intact = fields.pop("feature_set"), fields.pop("labels"), fields.pop("intact")
     try:
         expected = list(get_feature_set(feature_set).labels)
         if labels != expected:
@@ -119,9 +136,13 @@ def load_map(path: str | Path) -> ResponseMap:
         for key in ("feature_params", "rig", "provenance"):
             if not isinstance(fields[key], dict):
                 raise ResponseMapError("feature_params, rig and provenance must be JSON objects")
-        return ResponseMap(feature_set=feature_set, **fields)
+        rmap = ResponseMap(feature_set=feature_set, **fields)
     except ImpactometerError as exc:
         raise ResponseMapError(f"{where}: {exc}") from None
+    if not intact:  # valid in every part, yet not what map build wrote
+        raise ResponseMapError(f"{where}: the content does not match its checksum; the file was damaged or edited "
+                               "after map build (rebuild it with impactometer map build)")
+    return rmap
 
 
 def _read(h5, where: str) -> dict:
@@ -146,7 +167,9 @@ def _read(h5, where: str) -> dict:
         if not isinstance(item, h5py.Dataset) or item.dtype.kind not in "iuf":
             raise ResponseMapError(f"{where}: {key!r} must be a numeric dataset; the file was edited or damaged")
         arrays[key] = np.asarray(item[()], dtype=float)
-    return {"feature_set": _text(h5.attrs["feature_set"]), "labels": _json(h5.attrs, "feature_labels", where),
+    intact = CHECKSUM not in h5.attrs or _text(h5.attrs[CHECKSUM]) == _digest(h5.attrs, arrays)
+    return {"intact": intact, "feature_set": _text(h5.attrs["feature_set"]),
+            "labels": _json(h5.attrs, "feature_labels", where),
             "feature_params": _json(h5.attrs, "feature_params", where), "rig": _json(h5.attrs, "rig", where),
             "provenance": _json(h5.attrs, "provenance", where),
             "sample_rate": check_sample_rate(_number(h5.attrs, "sample_rate", where), f"{where}: attribute "
