@@ -125,7 +125,7 @@ def test_explicit_manifest_outside_the_folder(tmp_path):
     ("file,mass_kg\na.csv,3\n", r"lacks column\(s\) \['velocity_m_s'\]"),
     ("file,mass_kg,velocity_m_s\na.csv,heavy,2\n", "line 2: metadata mass_kg must be a number with an optional "
                                                    "mass unit"),
-    ("file,mass_kg,velocity_m_s\na.csv,-3,2\n", r"metadata mass_kg must be within \[0, 100000\] kg"),
+    ("file,mass_kg,velocity_m_s\na.csv,-3,2\n", r"metadata mass_kg must be within \[0, 10000\] kg"),
     ("file,mass_kg,velocity_m_s\na.csv,30,nan\n", "metadata velocity_m_s must be a finite number"),
     ("file,mass_kg,velocity_m_s\na.csv,2,30\n", r"metadata velocity_m_s must be within \[0, 15.3\d*\] m/s"),
     ("file,mass_kg,velocity_m_s\nz.csv,3,2\n", r"file\(s\) \['z.csv'\] not found"),

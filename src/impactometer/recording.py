@@ -28,6 +28,8 @@ TRUTH_KEYS = ("mass_kg", "velocity_m_s", "pressure_gauge_Pa")
 TRUTH_UNITS = {"mass_kg": "kg", "velocity_m_s": "m/s", "pressure_gauge_Pa": "Pa"}
 TRUTH_RANGES = {"mass_kg": ("mass", 0.0, MASS_RANGE[1]), "velocity_m_s": ("velocity", 0.0, VELOCITY_RANGE[1]),
                 "pressure_gauge_Pa": ("pressure", 0.0, 1e8)}
+#: largest magnitude of a sample of any channel (SI units: a force of 1e15 N, a pressure of 1e15 Pa, ...)
+SAMPLE_LIMIT = 1e15
 #: largest magnitude of the time of a recording's first sample [s] (a clock time since 1970 fits)
 START_TIME_LIMIT = 1e10
 #: sample rates a recording may have [Hz], from a slow logger to a fast transient recorder
@@ -85,6 +87,10 @@ def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np
     if bad.size:
         raise RecordingError(f"{source}: channel {name!r} has a non-finite sample ({float(arr[bad[0]])!r}) at "
                              f"index {int(bad[0])}; expected finite numbers")
+    if arr.size and max(float(arr.max()), -float(arr.min())) > SAMPLE_LIMIT:
+        i = int(np.argmax(np.abs(arr) > SAMPLE_LIMIT))
+        raise RecordingError(f"{source}: channel {name!r} has a sample of {float(arr[i]):.3g} at index {i}; expected "
+                             f"magnitudes up to {SAMPLE_LIMIT:g} (SI units)")
     return arr
 
 

@@ -25,8 +25,8 @@ STANDARD_GRAVITY = 9.81  # [m/s²], the value of the reference model
 FREE_FALL_HEIGHTS = (1e-4, 12.0)
 #: impact velocities a drop test can have [m/s]: free fall over :data:`FREE_FALL_HEIGHTS`
 VELOCITY_RANGE = tuple(math.sqrt(2.0 * STANDARD_GRAVITY * h) for h in FREE_FALL_HEIGHTS)
-#: impacting masses a drop test can have [kg]: from a gram to a hundred tonnes
-MASS_RANGE = (1e-3, 1e5)
+#: impacting masses a drop test can have [kg]: from a tenth of a kilogram to ten tonnes
+MASS_RANGE = (0.1, 1e4)
 
 
 def _check(name: str, value: Any, *, low: float | None = None, high: float | None = None,

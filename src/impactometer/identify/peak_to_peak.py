@@ -237,6 +237,7 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
                                   f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
+    _check_velocity(velocity, "the paper's eqs. (3)-(5)")
     details = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
     caution = paper_caution(seg)
     if caution:
@@ -244,6 +245,13 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(p2.peak),
                           t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(p2.peak),
                           variant="paper", details=details)
+
+
+def _check_velocity(velocity: float, source: str) -> None:
+    """IdentificationError unless an impact velocity is positive (the mass falls onto the rod)."""
+    if not (math.isfinite(velocity) and velocity > 0.0):
+        raise IdentificationError(f"{source} give an impact velocity of {float(velocity):.4g} m/s, not a falling "
+                                  "mass; the pulses found are not contact separations of a falling mass")
 
 
 #: noise, as a fraction of a channel's peak, above which the paper variant's answer carries a caution [-]
@@ -311,6 +319,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity):
         raise IdentificationError(f"the onset equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses "
                                   "found are not contact separations of a falling mass")
+    _check_velocity(velocity, "the onset equations")
     mass = 1.0 / w
     return Identification(mass=mass, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
                           velocity_std=float(np.sqrt(cov[0, 0])), early=early,

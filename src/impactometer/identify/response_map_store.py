@@ -89,6 +89,8 @@ def _text(value) -> str:
         return value.decode("utf-8", "replace")
     if isinstance(value, str):
         return value
+    if isinstance(value, np.ndarray | np.generic):
+        value = value.tolist()
     return " ".join(repr(value).split())
 
 
