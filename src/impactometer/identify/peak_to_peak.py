@@ -17,7 +17,7 @@ from ..recording import Recording, check_sample_rate
 from . import trigger
 from .early import solve_early
 from .onsets import onset_index
-from .plausibility import check_answer
+from .plausibility import answer_warnings, check_segment
 from .pulses import PulseSpan, detect_pulses, noise_std
 from .result import Identification
 from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
@@ -135,74 +135,20 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses, {} if cache is None else cache)
 
 
-def check_segment(seg: Segment) -> None:
-    """IdentificationError when the impact's data cannot give an answer: a constant acceleration (a dead or
-    disconnected accelerometer) or a saturated force channel (:func:`check_clipping`).
-
-    Every answer, batch or streaming, early or final, passes this check first (see :func:`solve`).
-    """
-    a = seg.acceleration
-    if a.size and float(np.ptp(a)) == 0.0:
-        raise IdentificationError(f"piston_acceleration is constant ({float(a[0])!r} m/s² throughout the impact); "
-                                  "expected a measured acceleration")
-    check_clipping(seg)
-
-
-def check_clipping(seg: Segment) -> None:
-    """IdentificationError when the force channel is saturated.
-
-    A quantised peak may sit a few samples at one level: about 2·√(2(q + 2σ)/|F''|) samples for a quantum q, noise
-    σ and the curvature F'' ≈ Fmax·(π/T)² of a pulse of T samples. A flat top twice that long, or the maximum
-    reached in two different pulses to the last digit, is a clipped channel.
-    """
-    f = seg.force
-    fmax = float(np.max(f))
-    at_max = np.flatnonzero(f >= fmax - 1e-12 * abs(fmax))
-    k = int(at_max[0])
-    run = int(np.argmax(np.diff(np.r_[at_max, -2]) != 1)) + 1
-    pulse = next((p for p in seg.pulses if p.first <= k and (not p.complete or k < p.end)), None)
-    rails = sum(any(p.first <= i and (not p.complete or i < p.end) for i in at_max) for p in seg.pulses)
-    if pulse is None or fmax <= 0:
-        return
-    length = (f.size if not pulse.complete else pulse.end) - pulse.zero
-    curvature = fmax * (np.pi / max(length, 1)) ** 2
-    near = f[max(k - 2 * run - 8, 0):k + 3 * run + 8]
-    steps = np.diff(np.unique(near))
-    quantum = float(steps.min()) if steps.size else 0.0
-    expected = 2.0 * np.sqrt(2.0 * (quantum + 2.0 * seg.noise_force) / curvature)
-    if rails >= 2 or run >= max(3.0, 2.0 * expected):
-        raise IdentificationError(f"contact_force is saturated: {run} samples sit at its maximum {fmax:.6g} N from "
-                                  f"t = {seg.time_of(k):.6g} s (a peak of that curvature stays about "
-                                  f"{expected:.1f} samples within the resolution); the force channel was "
-                                  "clipped, its range must be raised")
-
-
 def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
           contact_phase: bool = False) -> Identification:
     """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`).
 
-    The segment passes :func:`check_segment` first: the batch and the streaming identification, their early and
-    final answers, refuse the same data.
+    The segment passes :func:`.plausibility.check_segment` first, so the batch and the streaming identification,
+    their early and final answers, refuse the same data; the answer carries the warnings of
+    :func:`.plausibility.answer_warnings`.
     """
     check_segment(seg)
     if variant == "robust":
         result = solve_robust(seg, gravity, early, contact_phase=contact_phase)
     else:
         result = VARIANT_SOLVERS[variant](seg, gravity, early)
-    return replace(result, warnings=plausibility(seg, result, gravity))
-
-
-def plausibility(seg: Segment, result: Identification, gravity: float) -> tuple[str, ...]:
-    """What makes ``result`` implausible for the segment's signals (:func:`.plausibility.check_answer`)."""
-    details = result.details
-    fitted = details.get("onset_rows", 0) >= MIN_ONSET_ROWS  # the onset equations' χ² measures the fit to noise
-    return check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
-                        onset=(result.t00 - seg.start_time) * seg.sample_rate,
-                        pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
-                        noise_force=seg.noise_force, acceleration=seg.acceleration,
-                        noise_acceleration=seg.noise_acceleration, chi2=details.get("chi2") if fitted else None,
-                        dof=details.get("dof") if fitted else None, mass_std=result.mass_std,
-                        velocity_std=result.velocity_std)
+    return replace(result, warnings=answer_warnings(seg, result, gravity))
 
 
 def _need_pulses(seg: Segment, needed: int, what: str) -> None:

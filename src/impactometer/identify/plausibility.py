@@ -1,6 +1,10 @@
-"""Plausibility of an identified impact: what the recorded signals allow its mass and velocity to be.
+"""Checks of an impact's data before an answer (refusals), and of the answer against what the data allow (warnings).
 
-An identification can pass its own checks and still give an answer that no drop test can have: the channels
+Refusals (:func:`check_segment`, run before every peak-to-peak answer): a constant acceleration over the impact
+(a dead accelerometer), a saturated force channel.
+
+Plausibility of an answer: an identification can pass its own checks and still give an answer that no drop test
+can have: the channels
 swapped, an acceleration in mm/s² read as m/s², a signal that is not an impact. The answer (M1, V0) is compared
 with physical bounds and with the recorded force:
 
@@ -24,7 +28,9 @@ import math
 
 import numpy as np
 
+from ..errors import IdentificationError
 from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
+from .robust import MIN_ONSET_ROWS
 
 #: the recorded impulse (energy) may exceed what the answer allows by this factor before a warning (noise,
 #: offsets, the piston's gas and friction forces)
@@ -41,6 +47,62 @@ VELOCITY_SLIPS = {1e3: "an acceleration in mm/s² read as m/s²", 1e-3: "an acce
                   9.80665: "an acceleration in m/s² read as g"}
 #: unit slips: factor by which the identified mass comes out too large -> how it happens
 MASS_SLIPS = {1e3: "a force in N read as kN", 1e-3: "a force in kN read as N"}
+
+
+def check_segment(seg) -> None:
+    """IdentificationError when the impact's data cannot give an answer: a constant acceleration (a dead or
+    disconnected accelerometer) or a saturated force channel (:func:`check_clipping`).
+
+    ``seg`` is a :class:`~.peak_to_peak.Segment`; every answer, batch or streaming, early or final, passes this
+    check first (see :func:`~.peak_to_peak.solve`).
+    """
+    a = seg.acceleration
+    if a.size and float(np.ptp(a)) == 0.0:
+        raise IdentificationError(f"piston_acceleration is constant ({float(a[0])!r} m/s² throughout the impact); "
+                                  "expected a measured acceleration")
+    check_clipping(seg)
+
+
+def check_clipping(seg) -> None:
+    """IdentificationError when the force channel is saturated.
+
+    A quantised peak may sit a few samples at one level: about 2·√(2(q + 2σ)/|F''|) samples for a quantum q, noise
+    σ and the curvature F'' ≈ Fmax·(π/T)² of a pulse of T samples. A flat top twice that long, or the maximum
+    reached in two different pulses to the last digit, is a clipped channel.
+    """
+    f = seg.force
+    fmax = float(np.max(f))
+    at_max = np.flatnonzero(f >= fmax - 1e-12 * abs(fmax))
+    k = int(at_max[0])
+    run = int(np.argmax(np.diff(np.r_[at_max, -2]) != 1)) + 1
+    pulse = next((p for p in seg.pulses if p.first <= k and (not p.complete or k < p.end)), None)
+    rails = sum(any(p.first <= i and (not p.complete or i < p.end) for i in at_max) for p in seg.pulses)
+    if pulse is None or fmax <= 0:
+        return
+    length = (f.size if not pulse.complete else pulse.end) - pulse.zero
+    curvature = fmax * (np.pi / max(length, 1)) ** 2
+    near = f[max(k - 2 * run - 8, 0):k + 3 * run + 8]
+    steps = np.diff(np.unique(near))
+    quantum = float(steps.min()) if steps.size else 0.0
+    expected = 2.0 * np.sqrt(2.0 * (quantum + 2.0 * seg.noise_force) / curvature)
+    if rails >= 2 or run >= max(3.0, 2.0 * expected):
+        raise IdentificationError(f"contact_force is saturated: {run} samples sit at its maximum {fmax:.6g} N from "
+                                  f"t = {seg.time_of(k):.6g} s (a peak of that curvature stays about "
+                                  f"{expected:.1f} samples within the resolution); the force channel was "
+                                  "clipped, its range must be raised")
+
+
+def answer_warnings(seg, result, gravity: float) -> tuple[str, ...]:
+    """What makes a peak-to-peak ``result`` implausible for the signals of its segment (:func:`check_answer`)."""
+    details = result.details
+    fitted = details.get("onset_rows", 0) >= MIN_ONSET_ROWS  # the onset equations' χ² measures the fit to noise
+    return check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
+                        onset=(result.t00 - seg.start_time) * seg.sample_rate,
+                        pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
+                        noise_force=seg.noise_force, acceleration=seg.acceleration,
+                        noise_acceleration=seg.noise_acceleration, chi2=details.get("chi2") if fitted else None,
+                        dof=details.get("dof") if fitted else None, mass_std=result.mass_std,
+                        velocity_std=result.velocity_std)
 
 
 def _slip(value: float, low: float, high: float, slips: dict[float, str]) -> str:

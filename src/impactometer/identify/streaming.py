@@ -57,7 +57,7 @@ class StreamingIdentifier:
     ``push`` returns the new estimates (each an :class:`Identification` whose ``available_at`` is the time of the
     last sample it used); ``estimates`` keeps those of the current impact, ``completed`` the final answer of
     every closed impact that has one, and ``outcomes`` the final answer or the refusal of every closed impact.
-    Every estimate passes the checks of the batch function (:func:`~.peak_to_peak.check_segment`), and the final
+    Every estimate passes the checks of the batch function (:func:`~.plausibility.check_segment`), and the final
     answer of an impact (or its refusal) equals the batch function's on the same samples.
     """
 
