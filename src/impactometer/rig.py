@@ -3,8 +3,9 @@
 A stand is loaded from and saved to TOML (unknown keys are errors). ``PRESETS['drop-stand']`` is the built-in
 stand, representative of the stand of the reference paper (Fig. 1): a 4 kg piston and rod in an 80 mm bore,
 25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge, with a nearly elastic Kelvin-Voigt contact (the rod bounces
-on the mass for the whole stroke; also named ``drop-stand-stiff``). ``PRESETS['drop-stand-pad']`` (the defaults of
-these classes) has a hysteretic elastomer pad between mass and rod, 100 N of seal friction and end-of-stroke gas
+on the mass for the whole stroke; also named ``drop-stand-stiff``; the defaults of these
+classes).
+``PRESETS['drop-stand-pad']`` has a hysteretic elastomer pad between mass and rod, 100 N of seal friction and end-of-stroke gas
 cushions: a rebound or two, then sustained contact to the deepest point, as the paper describes (Fig. 2).
 """
 
@@ -47,8 +48,8 @@ class Cylinder:
     rod_diameter : Rod diameter [m]; the rod passes through the upper chamber.
     stroke : Piston travel between the top and bottom stops [m].
     lower_length, upper_length : Gas column lengths with the piston at the top stop [m].
-    dead_volume_lower, dead_volume_upper : Extra gas volume of ports, cushions and fittings [m³]. The defaults,
-        20 cm³ and 10 cm³ (4 mm and 2 mm of the 80 mm bore), keep a gas cushion at the end of the stroke when the
+    dead_volume_lower, dead_volume_upper : Extra gas volume of ports, cushions and fittings [m³]. The pad stand's
+        20 cm³ and 10 cm³ (4 mm and 2 mm of the 80 mm bore) keep a gas cushion at the end of the stroke when the
         valve has let the lower chamber empty into the upper one.
     rated_pressure_gauge : Highest admissible charge pressure above atmosphere [Pa].
     """
@@ -59,8 +60,8 @@ class Cylinder:
     stroke: float = 0.20
     lower_length: float = 0.20
     upper_length: float = 0.02
-    dead_volume_lower: float = 2e-5
-    dead_volume_upper: float = 1e-5
+    dead_volume_lower: float = 0.0
+    dead_volume_upper: float = 0.0
     rated_pressure_gauge: float = 400e3
 
     def __post_init__(self) -> None:
@@ -125,12 +126,12 @@ class Friction:
 
     Attributes
     ----------
-    force : Coulomb friction force [N]. The default, 100 N, is about 15 % of the gas force on the 80 mm piston
+    force : Coulomb friction force [N]. The pad stand's 100 N is about 15 % of the gas force on the 80 mm piston
         at 100 kPa: published thrust losses of pneumatic cylinders are 10-25 % (about 50-250 N at this bore).
     velocity_scale : Smoothing velocity [m/s]: the friction reaches 76 % of its Coulomb level at this speed.
     """
 
-    force: float = 100.0
+    force: float = 30.0
     velocity_scale: float = 0.01
 
     def __post_init__(self) -> None:
@@ -163,16 +164,16 @@ def contact_law_name(name: str) -> str:
 class Contact:
     """Compressive-only contact between the falling mass and the rod tip (an elastomer pad or a sensor cap).
 
-    ``hysteretic`` (Walton-Braun, the default): loading F = k1·δ, unloading and reloading F = k2·(δ − s) with the
+    ``hysteretic`` (Walton-Braun): loading F = k1·δ, unloading and reloading F = k2·(δ − s) with the
     set s of the current pulse [stiffness = k1 N/m, restitution e = sqrt(k1/k2), 0 < e <= 1]; the force peaks
     exactly at maximum compression and a collision keeps e² of its relative kinetic energy;
-    ``kelvin-voigt``: F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
+    ``kelvin-voigt`` (the default): F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
     ``hunt-crossley``: F = k·δ^1.5·(1 + 1.5·α·δ') [stiffness N/m^1.5, damping = α s/m].
     The force is zero while δ <= 0 and never pulls. Parameters left out take the law's defaults
     (``CONTACT_LAWS``); a parameter of another law is an error.
     """
 
-    law: str = "hysteretic"
+    law: str = "kelvin-voigt"
     # None here means "the law's default"; every law has a stiffness, so it is a float once created
     stiffness: float = None  # type: ignore[assignment]
     damping: float | None = None
@@ -254,7 +255,7 @@ class Valve:
 class Rig:
     """The whole drop stand."""
 
-    name: str = "drop-stand-pad"
+    name: str = "drop-stand"
     cylinder: Cylinder = field(default_factory=Cylinder)
     gas: Gas = field(default_factory=Gas)
     friction: Friction = field(default_factory=Friction)
@@ -368,10 +369,10 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
 
 
 #: the stand with a nearly elastic Kelvin-Voigt contact: the rod bounces on the mass for the whole stroke
-STIFF_STAND = Rig(name="drop-stand-stiff", contact=Contact(law="kelvin-voigt"), friction=Friction(force=30.0),
-                  cylinder=Cylinder(dead_volume_lower=0.0, dead_volume_upper=0.0))
+STIFF_STAND = Rig(name="drop-stand-stiff")
 #: the stand with a hysteretic elastomer pad: a rebound or two (stage A), then sustained contact (stage B)
-PAD_STAND = Rig(name="drop-stand-pad")
+PAD_STAND = Rig(name="drop-stand-pad", contact=Contact(law="hysteretic"), friction=Friction(force=100.0),
+                cylinder=Cylinder(dead_volume_lower=2e-5, dead_volume_upper=1e-5))
 #: named stands; ``drop-stand`` is the default (today the stiff stand: the robust identification does not yet
 #: use stage B, which the pad stand reaches after one or two rebounds)
 PRESETS: dict[str, Rig] = {
