@@ -5,7 +5,8 @@ stand, representative of the stand of the reference paper (Fig. 1): a 4 kg pisto
 25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge, with a nearly elastic Kelvin-Voigt contact (the rod bounces
 on the mass for the whole stroke; also named ``drop-stand-stiff``; the defaults of these classes).
 ``PRESETS['drop-stand-pad']`` has a hysteretic elastomer pad between mass and rod, 100 N of seal friction and
-end-of-stroke gas cushions: a rebound or two, then sustained contact to the deepest point, as the paper describes (Fig. 2).
+end-of-stroke gas cushions: a rebound or two, then sustained contact to the deepest point, as the paper describes
+(Fig. 2).
 """
 
 from __future__ import annotations
