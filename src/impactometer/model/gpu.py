@@ -18,10 +18,12 @@ the GPU path is tested where no GPU exists.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import importlib.util
 import os
 import types
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -64,7 +66,8 @@ def unavailable_reason() -> str | None:
         error = cuda.cuda_error()
     except Exception as exc:
         error = exc
-    return f"no usable CUDA GPU ({error or 'no device found'})"
+    text = " ".join(str(error).split()).rstrip(" :")  # the driver's message spans several lines
+    return f"no usable CUDA GPU ({text or 'no device found'})"
 
 
 def resolve_device(device: str | None) -> str:
@@ -88,6 +91,22 @@ def resolve_device(device: str | None) -> str:
     if reason is not None:
         raise DeviceError(f"device='gpu' needs the optional GPU support ({EXTRA}) and a CUDA GPU: {reason}")
     return "gpu"
+
+
+@contextlib.contextmanager
+def use_device(device: str) -> Iterator[None]:
+    """Make ``device`` the default of :func:`.simulate.simulate_batch` inside the block, in this process and in
+    the processes it starts (through the environment variable IMPACTOMETER_DEVICE)."""
+    resolve_device(device)
+    previous = os.environ.get(DEVICE_VARIABLE)
+    os.environ[DEVICE_VARIABLE] = device
+    try:
+        yield
+    finally:
+        if previous is None:
+            os.environ.pop(DEVICE_VARIABLE, None)
+        else:
+            os.environ[DEVICE_VARIABLE] = previous
 
 
 # --- one source, two targets ------------------------------------------------------------------------------------
@@ -154,10 +173,14 @@ def integrate_batch(params, y0, t_out, channel_index, rtol, atol, max_step, max_
         _integrate_blocks(params, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out, status, steps,
                           block_bytes)
     except Exception as exc:  # compilation (numba-cuda against an unsupported numpy), launch or device memory
-        from importlib.metadata import version
+        from importlib.metadata import PackageNotFoundError, version
 
-        raise DeviceError(f"the GPU batch failed ({type(exc).__name__}: {exc}) with numba-cuda "
-                          f"{version('numba-cuda')} and numpy {np.__version__}; where numba-cuda does not support "
+        try:
+            release = version("numba-cuda")
+        except PackageNotFoundError:
+            release = "(not found)"
+        raise DeviceError(f"the GPU batch failed ({type(exc).__name__}: {exc}) with numba-cuda {release} and "
+                          f"numpy {np.__version__}; where numba-cuda does not support "
                           f"this numpy, install the versions the extra pins: pip install '{EXTRA}'") from exc
 
 

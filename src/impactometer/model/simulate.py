@@ -321,3 +321,15 @@ def compare_integrators(mass, velocity, pressure_gauge, rig: Rig | None = None, 
         states = reference.integrate(p, y0, batch.time, rtol=ref_rtol, atol=absolute_tolerance(ref_rtol))
         reference_force[i] = reference.channels_of(states, p)[d.CHANNELS.index("contact_force")]
     return reference.agreement(batch["contact_force"], reference_force, batch.time)
+
+
+def compare_devices(mass, velocity, pressure_gauge, rig: Rig | None = None, *, device: str = "gpu",
+                    duration: float = 0.05, sample_rate: float = 200e3,
+                    rtol: float | None = None) -> reference.Agreement:
+    """Agreement of the batch on ``device`` with the CPU batch on a set of scenarios (contact force histories).
+
+    Both are sampled at the same instants; see :func:`.reference.agreement` for the measures (relative to the CPU).
+    """
+    cpu, other = (simulate_batch(mass, velocity, pressure_gauge, rig, duration=duration, sample_rate=sample_rate,
+                                 channels=("contact_force",), rtol=rtol, device=name) for name in ("cpu", device))
+    return reference.agreement(other["contact_force"], cpu["contact_force"], cpu.time)
