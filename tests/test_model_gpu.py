@@ -84,6 +84,27 @@ def test_cuda_simulator_runs_the_same_model_as_the_cpu_batch():
     assert blocks["u1"] <= 1e-7 and blocks["a2"] <= 1e-7  # float32 storage (2^-24 relative) of the same histories
 
 
+@pytest.mark.skipif(not NUMBA_CUDA, reason="numba-cuda is not installed (it comes with the 'test' and 'gpu' "
+                                            "extras)")
+def test_device_functions_are_compiled_from_the_cpu_functions_code():
+    from numba.core.dispatcher import Dispatcher
+
+    from impactometer.model import dynamics, fast, forces
+
+    step = gpu.device_function(fast.integrate_into)
+    assert step.py_func.__code__ is fast.integrate_into.py_func.__code__  # the same code object, not a copy
+    module = step.py_func.__globals__["d"]  # the dynamics module, its compiled functions as device functions
+    assert module.rhs is gpu.device_function(dynamics.rhs)
+    assert module.rhs.py_func.__code__ is dynamics.rhs.py_func.__code__
+    law = module.rhs.py_func.__globals__["contact_force"]
+    assert law.py_func.__code__ is forces.contact_force.py_func.__code__
+    assert module.N_STATE == dynamics.N_STATE and step.py_func.__globals__["_P"] is fast._P
+    # nothing compiled for the CPU is left for the device code to call
+    for function in (step, module.rhs, law):
+        names = function.py_func.__code__.co_names
+        assert not any(isinstance(function.py_func.__globals__.get(n), Dispatcher) for n in names)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("law", LAWS)
 def test_real_gpu_agrees_with_the_cpu_batch_on_the_125_cases(law):
