@@ -38,3 +38,7 @@ class ResponseMapError(ImpactometerError, ValueError):
 class ControlError(ImpactometerError, RuntimeError):
     """An absorption strategy could not be computed or applied."""
 
+
+
+class DeviceError(ImpactometerError, RuntimeError):
+    """The requested compute device cannot be used (no GPU, or the optional GPU support is not installed)."""

@@ -181,6 +181,10 @@ def refine(rmap: ResponseMap, n: int | tuple[int, int]) -> ResponseMap:
                        rig=rmap.rig, provenance={**rmap.provenance, "refinements": history})
 
 
+#: scenarios per simulated batch of a map: enough to keep the CPU cores busy, or to fill a GPU
+CPU_CHUNK, GPU_CHUNK = 2000, 65536
+
+
 def _default_duration(features: str, params: Mapping[str, float], sample_rate: float) -> float:
     if "window" in params:
         return params["window"] + 2.0 / sample_rate
@@ -192,7 +196,8 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
                         features: str = "max-impulse",
                         feature_params: Mapping[str, float] | None = None, sample_rate: float = 50e3,
                         duration: float | None = None, refine_to: int | tuple[int, int] | None = None,
-                        progress: bool = False, chunk_size: int = 2000) -> ResponseMap:
+                        progress: bool = False, chunk_size: int | None = None,
+                        device: str | None = None) -> ResponseMap:
     """Response map by simulation of every grid node with the fast simulator (in parallel).
 
     Parameters
@@ -215,8 +220,10 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         Interpolate the simulated grid to this size afterwards (see :func:`refine`).
     progress : bool
         Show a rich progress bar.
-    chunk_size : int
-        Scenarios simulated per parallel batch.
+    chunk_size : int, optional
+        Scenarios simulated per parallel batch (default 2000 on the CPU, 65536 on a GPU).
+    device : {"cpu", "gpu", "auto"}, optional
+        Where the batches run (see :func:`impactometer.model.simulate_batch`).
 
     Returns
     -------
@@ -234,7 +241,11 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         raise ParameterError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
     duration = _default_duration(features, params, sample_rate) if duration is None else float(duration)
     from ..model import simulate_batch
+    from ..model.gpu import resolve_device
 
+    device = resolve_device(device)
+    if chunk_size is None:
+        chunk_size = GPU_CHUNK if device == "gpu" else CPU_CHUNK
     grid_p, grid_m, grid_v = (a.ravel() for a in np.meshgrid(pressures, masses, velocities, indexing="ij"))
     values = np.empty((grid_m.size, fs.size))
     from rich.progress import Progress
@@ -244,7 +255,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         for start in range(0, grid_m.size, max(1, int(chunk_size))):
             part = slice(start, start + max(1, int(chunk_size)))
             batch = simulate_batch(grid_m[part], grid_v[part], grid_p[part], rig, duration=duration,
-                                   sample_rate=sample_rate, channels=("contact_force",))
+                                   sample_rate=sample_rate, channels=("contact_force",), device=device)
             values[part], _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
             bar.advance(task, part.stop - part.start)
     bad = np.flatnonzero(~np.all(np.isfinite(values) & (values > 0), axis=1))
@@ -258,7 +269,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     rmap = ResponseMap(masses=masses, velocities=velocities, pressures_gauge=pressures, values=cube,
                        feature_set=features, feature_params=params, sample_rate=float(sample_rate),
                        rig=to_dict(rig), provenance=_provenance("simulation", base_grid=[masses.size, velocities.size],
-                                                                duration_s=duration, integrator="fast"))
+                                                                duration_s=duration, integrator="fast", device=device))
     return rmap if refine_to is None else refine(rmap, refine_to)
 
 
