@@ -55,7 +55,8 @@ def main() -> None:
             for search in ("fast", "brute"):
                 identify_features(ys[0], rmap, search=search)  # warm-up: compilation, cached surfaces
                 repeats = 200 if search == "fast" else (3 if size >= 1000 else 20)
-                wall, cpu = per_call(lambda y: identify_features(y, rmap, search=search), ys, repeats)
+                wall, cpu = per_call(lambda y, rmap=rmap, search=search: identify_features(y, rmap, search=search), ys,
+                                      repeats)
                 results = [identify_features(y, rmap, search=search) for y in ys]
                 em = np.mean([abs(r.mass / m - 1) for r, m in zip(results, m_true, strict=False)])
                 ev = np.mean([abs(r.velocity / v - 1) for r, v in zip(results, v_true, strict=False)])

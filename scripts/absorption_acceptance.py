@@ -66,7 +66,8 @@ def main() -> None:
     parser.add_argument("--max-area", type=float, default=None, help="largest valve opening A_max [m²]")
     parser.add_argument("--route", default="upper", help="where the valve discharges: upper or atmosphere")
     parser.add_argument("--force", action="store_true", help="overwrite existing outputs")
-    parser.add_argument("--summarise", action="store_true", help="only summarise an existing table (and redraw its figure)")
+    parser.add_argument("--summarise", action="store_true",
+                        help="only summarise an existing table (and redraw its figure)")
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     stem = f"absorption-{args.contact}" + ("-bounce-gate" if args.bounce_gate else "") \
@@ -104,7 +105,8 @@ def main() -> None:
     print(f"- realtime (identified) bottoms out where the oracle does not: {s['bottomed_out_identified_not_oracle']} "
           "case(s)")
     print(f"- realtime median η / η_max: {s['realtime: median efficiency'] / s['efficiency_max_median']:.3f}; "
-          f"realtime median η / closed median η: {s['realtime: median efficiency'] / s['closed: median efficiency']:.2f}")
+          "realtime median η / closed median η: "
+          f"{s['realtime: median efficiency'] / s['closed: median efficiency']:.2f}")
     print(f"- peak force after control start, identified vs oracle: median |Δ| {s['peak_vs_oracle_median']:.1%}, "
           f"max {s['peak_vs_oracle_max']:.1%}, within 10 % in {s['peak_vs_oracle_within_10pct']} of {s['cases']} cases")
     _bounce_summary(rows)

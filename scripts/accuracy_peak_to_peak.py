@@ -94,7 +94,8 @@ def main() -> None:
     args = ap.parse_args()
     m, v, p = grid(args.values)
     print(f"{m.size} cases, 50 kHz, duration {args.duration * 1e3:.0f} ms + {args.pre_trigger * 1e3:.0f} ms "
-          f"pre-trigger; errors in %, times in ms (median unless said), coverage = truth within ±2σ (mass / velocity)\n")
+          "pre-trigger; errors in %, times in ms (median unless said), "
+          "coverage = truth within ±2σ (mass / velocity)\n")
     print("| contact | noise | variant | mean dM | max dM | mean dV | max dV | available at | after t11 (median / max) "
           "| 2σ coverage | refused |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")

@@ -114,7 +114,8 @@ def test_inspect_reads_a_lab_csv_with_options(tmp_path, capsys):
     t = np.arange(400) / 10e3
     force = -np.where(t < 0.01, np.sin(np.pi * t / 0.01), 0.0)  # kN, tension-positive sensor
     acc = -9.80665 + 0 * t
-    path.write_text("Force [kN];Acc [m/s^2]\n" + "\n".join(f"{f:.6f};{a:.6f}" for f, a in zip(force, acc, strict=False)))
+    rows = (f"{f:.6f};{a:.6f}" for f, a in zip(force, acc, strict=False))
+    path.write_text("Force [kN];Acc [m/s^2]\n" + "\n".join(rows))
     main(["inspect", str(path), "--sample-rate", "10kHz", "--flip-force", "--acceleration-includes-gravity",
           "--json"])
     data = json.loads(capsys.readouterr().out)

@@ -226,8 +226,8 @@ def test_closed_capacity_is_the_work_of_the_adiabatic_gas_spring():
     c, gamma = rig.cylinder, rig.gas.gamma
     s = np.linspace(u0, u0 + travel, 200001)
     lower0, upper0 = d.volumes(u0, p)
-    lower = c.area * (c.lower_length - s)
-    upper = c.annulus_area * (c.upper_length + s)
+    lower = c.area * (c.lower_length - s) + c.dead_volume_lower
+    upper = c.annulus_area * (c.upper_length + s) + c.dead_volume_upper
     force = (p_lower * (lower0 / lower) ** gamma * c.area - p_upper * (upper0 / upper) ** gamma * c.annulus_area
              - rig.gas.atmospheric_pressure * c.rod_area + rig.friction.force)
     assert ctl.closed_capacity(p, p_lower, p_upper, u0, travel) == pytest.approx(np.trapezoid(force, s), rel=1e-8)

@@ -12,25 +12,29 @@ from impactometer.model import fast, simulate, simulate_batch
 from impactometer.model.reference import agreement, pulse_peaks
 from impactometer.model.setup import initial_state, pack
 from impactometer.model.simulate import absolute_tolerance, compare_integrators
-from impactometer.rig import Scenario
+from impactometer.rig import Scenario, get_rig
 
 GRID = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0],
                    [20e3, 115e3, 210e3, 305e3, 400e3], indexing="ij")
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley"])
-def test_fast_agrees_with_reference_on_the_paper_grid(stand, law):
+@pytest.mark.parametrize("name, law, pulses, peak_time", [
+    ("drop-stand", "kelvin-voigt", 3, 1e-6), ("drop-stand", "hunt-crossley", 3, 1e-6),
+    ("drop-stand-pad", "hysteretic", 2, 1.5e-6)])
+def test_fast_agrees_with_reference_on_the_paper_grid(name, law, pulses, peak_time):
     """125 scenarios (M1 10-50 kg, V0 1-3 m/s, p0 20-400 kPa), 50 ms at 200 kHz: peak contact force and impulse
     ∫Fc dt within 1e-4 relative, every contact-pulse peak time within 1 µs (fast: defaults, reference: DOP853
-    rtol 1e-10)."""
-    result = compare_integrators(*GRID, stand.with_contact(law), duration=0.05, sample_rate=200e3)
+    rtol 1e-10). The hysteretic pad stand has fewer pulses (a rebound or two, then sustained contact); the
+    maximum of its sustained contact is so flat that a force difference of 1e-6 moves it by up to 1.3 µs (the
+    sharp stage-A peaks agree within 1 µs)."""
+    result = compare_integrators(*GRID, get_rig(name, contact=law), duration=0.05, sample_rate=200e3)
     assert result.scenarios == 125
     assert result.pulse_count_mismatches == 0
-    assert result.pulses > 3 * 125  # several pulses per record were compared
+    assert result.pulses >= pulses * 125  # several pulses per record were compared
     assert result.peak_force < 1e-4
     assert result.impulse < 1e-4
-    assert result.peak_time < 1e-6
+    assert result.peak_time < peak_time
 
 
 def test_fast_kernel_is_scipy_rk45_step_for_step(free_bodies):

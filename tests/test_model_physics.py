@@ -29,7 +29,7 @@ def cumulative_impulse(time, force, delta):
     return np.concatenate(([0.0], np.cumsum(pieces)))
 
 
-@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley"])
+@pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley"])
 @pytest.mark.parametrize("mass, velocity, pressure", [(30.0, 2.0, 200e3), (10.0, 3.0, 20e3)])
 def test_momentum_of_the_mass(stand, law, mass, velocity, pressure):
     """M1·v1 = M1·V0 + M1·g·t − ∫Fc dt at every sample, to 1e-6 of M1·V0 (eq. 1 integrated in time)."""
@@ -42,17 +42,19 @@ def test_momentum_of_the_mass(stand, law, mass, velocity, pressure):
     assert np.max(np.abs(mass * r.v1 - expected)) < 1e-6 * mass * velocity
 
 
-@pytest.mark.parametrize("integrator, tolerance", [("fast", 1e-6), ("reference", 1e-7)])
-@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley"])
+@pytest.mark.parametrize("integrator, rtol, tolerance", [("fast", 1e-9, 1e-6), ("reference", 1e-11, 1e-8)])
+@pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley"])
 @pytest.mark.parametrize("pressure", [20e3, 400e3])
-def test_total_energy_is_conserved(stand, integrator, tolerance, law, pressure):
+def test_total_energy_is_conserved(stand, integrator, rtol, tolerance, law, pressure):
     """Kinetic + potential + gas + elastic + dissipated energy stays constant.
 
     The gas holds ~pV/(γ−1) ≈ 10-25 × the impact energy E0 and every state carries a relative error ~rtol, so a
-    balance error of 1e-6·E0 (fast, rtol 1e-9) or 1e-7·E0 (reference, rtol 1e-10) is the integration error.
+    balance error of 1e-6·E0 (fast, rtol 1e-9) or 1e-8·E0 (reference, rtol 1e-11) is the integration error. (At
+    its default rtol 1e-10 the reference's DOP853 now and then steps across a contact onset with a balance error
+    up to ~2e-7·E0: without events, the kink is resolved only as well as the step that straddles it.)
     """
     scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=pressure)
-    r = simulate(scenario, stand.with_contact(law), duration=0.05, integrator=integrator)
+    r = simulate(scenario, stand.with_contact(law), duration=0.05, integrator=integrator, rtol=rtol)
     e0 = 0.5 * scenario.mass * scenario.velocity**2
     assert r.dissipated_energy[-1] > 0.05 * e0  # energy really moved between the terms
     assert np.ptp(r.gas_energy) > 0.5 * e0
@@ -91,8 +93,8 @@ def test_first_pulse_peak_of_an_undamped_contact(stand, stiffness, mass, velocit
     first-order perturbation of relative size K/k, so K/k is the tolerance (1.8 % at k = 2e6 N/m, 1.8e-4 at
     k = 2e8 N/m); the damping (ζ ≈ 1e-6) adds nothing measurable.
     """
-    rig = stand.replace(**{"gravity": 0.0, "friction.force": 0.0, "contact.stiffness": stiffness,
-                           "contact.damping": 0.01})
+    rig = stand.with_contact("kelvin-voigt").replace(**{"gravity": 0.0, "friction.force": 0.0,
+                                                        "contact.stiffness": stiffness, "contact.damping": 0.01})
     mu = mass * rig.cylinder.piston_mass / (mass + rig.cylinder.piston_mass)
     period = 2 * math.pi * math.sqrt(mu / stiffness)
     r = simulate(Scenario(mass=mass, velocity=velocity, pressure_gauge=0.0), rig, duration=0.6 * period,

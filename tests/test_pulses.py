@@ -45,12 +45,22 @@ def test_noise_gaps_do_not_split_pulses():
 
 
 def test_legacy_contact_pulses_and_stage_b():
-    r = simulate(Scenario(mass=30, velocity=2, pressure_gauge=2e5), duration=0.05)
+    r = simulate(Scenario(mass=30, velocity=2, pressure_gauge=2e5), "drop-stand-stiff", duration=0.05)
     pulses = contact_pulses(r.time, r.contact_force)
     assert len(pulses) >= 4 and pulses[0].start == 0.0
     assert pulses[0].impulse == pytest.approx(np.trapezoid(r.contact_force[r.time <= pulses[0].end],
                                                            r.time[r.time <= pulses[0].end]), rel=1e-3)
     assert stage_b_start(pulses) in (None, pulses[-1].start)
+
+
+def test_the_built_in_stand_rebounds_then_stays_in_contact():
+    """Stage A (a rebound or two) then stage B that lasts to the mass's deepest point, as in the paper's Fig. 2."""
+    r = simulate(Scenario(mass=30, velocity=2, pressure_gauge=2e5), "drop-stand-pad", duration=0.08)
+    pulses = contact_pulses(r.time, r.contact_force)
+    assert 2 <= len(pulses) <= 4 and not pulses[0].sustained and pulses[-1].sustained
+    deepest = r.time[np.argmax(r.u1)]
+    assert pulses[-1].start < deepest < pulses[-1].end
+    assert stage_b_start(pulses) == pulses[-1].start < 0.03
 
 
 def test_sustained_start_with_noise():

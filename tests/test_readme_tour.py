@@ -34,7 +34,8 @@ def test_tour_block_is_found():
 @pytest.mark.slow
 def test_readme_tour_runs_verbatim(tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg",
-               PYTHONPATH=os.pathsep.join([str(Path(impactometer.__file__).parents[1]), os.environ.get("PYTHONPATH", "")]))
+               PYTHONPATH=os.pathsep.join([str(Path(impactometer.__file__).parents[1]),
+                                           os.environ.get("PYTHONPATH", "")]))
     outputs = {}
     for argv in tour_commands():
         done = subprocess.run([sys.executable, "-m", "impactometer", *argv[1:]], cwd=tmp_path, env=env,
@@ -44,11 +45,12 @@ def test_readme_tour_runs_verbatim(tmp_path):
     # the file the tour records starts at first contact and is identified: 30 kg at 1.98 m/s, 2 % noise
     robust = json.loads(outputs["impactometer identify drop.tdms --json"])
     assert abs(robust["mass_kg"] / 30.0 - 1) < 0.05 and abs(robust["velocity_m_s"] / 1.981 - 1) < 0.02
-    stream_final = [line for line in outputs["impactometer stream drop.tdms --realtime"].splitlines() if "estimate" in line][-1]
+    stream_final = [line for line in outputs["impactometer stream drop.tdms --realtime"].splitlines()
+                    if "estimate" in line][-1]
     # the stream's last estimate is the batch's final answer
     assert with_uncertainty(robust["mass_kg"], robust["mass_std_kg"], "kg") in stream_final
     paper = outputs["impactometer identify drop.tdms --variant paper"]
     assert "caution" in paper  # 2 % noise: the paper's noise-free assumption does not hold
-    for name in ("impactometer-demo/impact.png", "impactometer-demo/absorb.png", "run.h5", "run.png", "drop.tdms", "drop.png", "map.h5", "fig10.png",
-                 "studies/index.html"):
+    for name in ("impactometer-demo/impact.png", "impactometer-demo/absorb.png", "run.h5", "run.png", "drop.tdms",
+                 "drop.png", "map.h5", "fig10.png", "studies/index.html"):
         assert (tmp_path / name).exists(), name

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -23,18 +24,56 @@ from impactometer.rig import (
 )
 
 
-def test_default_stand_is_the_issue_stand():
-    rig = get_rig()
-    assert rig is PRESETS["drop-stand"]
+def test_pad_stand_is_the_paper_like_stand():
+    rig = get_rig("drop-stand-pad")
+    assert rig is PRESETS["drop-stand-pad"] and rig.name == "drop-stand-pad"
     c = rig.cylinder
     assert (c.piston_mass, c.bore, c.rod_diameter, c.stroke, c.lower_length, c.upper_length) == \
         (4.0, 0.08, 0.025, 0.20, 0.20, 0.02)
     assert c.area == pytest.approx(math.pi * 0.04**2)
     assert c.annulus_area == pytest.approx(math.pi * (0.04**2 - 0.0125**2))
     assert (rig.gas.gamma, rig.gas.atmospheric_pressure, rig.gravity) == (1.4, 101325.0, 9.81)
-    assert (rig.friction.force, rig.friction.velocity_scale) == (30.0, 0.01)
-    assert (rig.contact.law, rig.contact.stiffness, rig.contact.damping) == ("kelvin-voigt", 2e6, 150.0)
+    assert (rig.friction.force, rig.friction.velocity_scale) == (100.0, 0.01)
+    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 1e6, 0.5)
+    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(4e6)
+    assert (c.dead_volume_lower, c.dead_volume_upper) == (2e-5, 1e-5)
     assert (rig.stops.stiffness, rig.stops.damping) == (5e7, 2e3)
+
+
+def test_stiff_preset_is_the_earlier_stand():
+    stiff = get_rig("drop-stand-stiff")
+    assert stiff.name == "drop-stand-stiff"
+    assert (stiff.contact.law, stiff.contact.stiffness, stiff.contact.damping) == ("kelvin-voigt", 2e6, 150.0)
+    assert stiff.friction.force == 30.0 and stiff.contact.restitution is None
+    assert (stiff.cylinder.dead_volume_lower, stiff.cylinder.dead_volume_upper) == (0.0, 0.0)
+    pad = get_rig("drop-stand-pad")
+    assert dataclasses.replace(stiff.cylinder, dead_volume_lower=2e-5, dead_volume_upper=1e-5) == pad.cylinder
+    assert stiff.gas == pad.gas
+    default = get_rig()  # the default stand is the stiff one under its own name
+    assert default is PRESETS["drop-stand"] and dataclasses.replace(default, name="drop-stand-stiff") == stiff
+
+
+@pytest.mark.parametrize("section, message", [
+    ({"law": "hysteretic", "restitution": 0.0}, "contact.restitution must be > 0"),
+    ({"law": "hysteretic", "restitution": 1.2}, "softer than the loading line"),
+    ({"law": "hysteretic", "stiffness": -1.0}, "contact.stiffness must be > 0"),
+    ({"law": "hysteretic", "damping": 150.0}, "contact.damping is not a parameter of the hysteretic"),
+    ({"law": "kelvin-voigt", "restitution": 0.5}, "contact.restitution is not a parameter of the kelvin-voigt"),
+    ({"law": "rubber"}, "contact.law must be one of"),
+    ({"law": "hysteretic", "restitution": "half"}, "contact.restitution must be a finite number"),
+])
+def test_bad_contact_sections_name_the_field(section, message):
+    from impactometer.rig import from_dict
+
+    with pytest.raises(ParameterError, match=message):
+        from_dict({"contact": section})
+
+
+def test_a_law_change_keeps_only_the_new_laws_parameters():
+    kv = get_rig("drop-stand-pad").replace(**{"contact.law": "kv"}).contact
+    assert (kv.law, kv.stiffness, kv.damping, kv.restitution) == ("kelvin-voigt", 2e6, 150.0, None)
+    hys = get_rig("drop-stand-stiff").replace(**{"contact.law": "hysteretic", "contact.restitution": 0.6}).contact
+    assert (hys.stiffness, hys.restitution, hys.damping) == (1e6, 0.6, None)
 
 
 @pytest.mark.parametrize("name, law, stiffness, damping", [
@@ -74,8 +113,8 @@ def test_parameter_names_all_replaceable():
 @pytest.mark.parametrize("changes, match", [
     ({"cylinder.rod_diameter": 0.08}, r"cylinder.rod_diameter must be < bore \(0.08 m\), got 0.08"),
     ({"cylinder.rod_diameter": 0.1}, "cylinder.rod_diameter must be < bore"),
-    ({"cylinder.lower_length": 0.0}, "lower chamber has zero gas volume"),
-    ({"cylinder.upper_length": 0.0}, "upper chamber has zero gas volume"),
+    ({"cylinder.lower_length": 0.0, "cylinder.dead_volume_lower": 0.0}, "lower chamber has zero gas volume"),
+    ({"cylinder.upper_length": 0.0, "cylinder.dead_volume_upper": 0.0}, "upper chamber has zero gas volume"),
     ({"cylinder.stroke": 0.3}, "cylinder.stroke must not exceed the lower gas column"),
     ({"cylinder.piston_mass": 0.0}, r"cylinder.piston_mass must be > 0, got 0.0"),
     ({"cylinder.bore": float("nan")}, "cylinder.bore must be a finite number, got nan"),
@@ -182,7 +221,9 @@ def test_bad_toml_is_a_parameter_error_naming_the_file(tmp_path, text, match):
 
 
 def test_get_rig_errors(tmp_path):
-    with pytest.raises(ParameterError, match="rig must be one of \\['drop-stand'\\] or a .toml file"):
+    with pytest.raises(ParameterError,
+                       match=r"rig must be one of \['drop-stand', 'drop-stand-pad', "
+                             r"'drop-stand-stiff'\] or a .toml file"):
         get_rig("tower")
     with pytest.raises(ParameterError, match="does not exist"):
         get_rig(tmp_path / "missing.toml")

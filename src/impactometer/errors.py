@@ -51,6 +51,9 @@ class ControlError(ImpactometerError, RuntimeError):
     """An absorption strategy could not be computed or applied."""
 
 
+class DeviceError(ImpactometerError, RuntimeError):
+    """The requested compute device cannot be used (no GPU, or the optional GPU support is not installed)."""
+
 
 class OutputError(ImpactometerError, OSError):
     """A result could not be written (disk full, permission denied, ...); nothing half-written is left."""

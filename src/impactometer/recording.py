@@ -330,4 +330,4 @@ def inspect_recording(recording: Recording) -> Inspection:
                       start_time=recording.start_time, samples=len(recording), channels=channels, peak_force=peak,
                       peak_force_time=peak_time, force_offset=offset, pulses=pulses,
                       stage_b_start=stage_b_start(pulses),
-                      truth={k: recording.truth(k) for k in TRUTH_KEYS if recording.truth(k) is not None})
+                      truth={k: v for k in TRUTH_KEYS if (v := recording.truth(k)) is not None})

@@ -138,7 +138,7 @@ def _adc_ranges(adc_range, channels: Mapping[str, np.ndarray]) -> dict[str, tupl
     return out
 
 
-def quantise(x: np.ndarray, low: float, high: float, bits: int | None) -> np.ndarray:
+def quantise(x: np.ndarray, low: float, high: float, bits: int | np.integer | None) -> np.ndarray:
     """Clip ``x`` to [low, high] and, when ``bits`` is given, round it to the 2**bits ADC levels."""
     if bits is None:
         return np.clip(x, low, high)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, overload
 
 import typer
 import typer.core
@@ -48,6 +48,18 @@ def _version(value: bool) -> None:
 def _options(version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
                                                    help="Print the version and exit.")] = False) -> None:
     """On-line impact load identification and adaptive impact absorption."""
+
+
+@overload
+def quantity(text: str, dimension: str, field: str) -> float: ...
+
+
+@overload
+def quantity(text: None, dimension: str, field: str) -> None: ...
+
+
+@overload
+def quantity(text: str | None, dimension: str, field: str) -> float | None: ...
 
 
 def quantity(text: str | None, dimension: str, field: str) -> float | None:

@@ -65,10 +65,10 @@ def absorb(
     pressure: PressureOpt = "200kPa",
     strategy: Annotated[str, typer.Option("--strategy", help="all, closed, constant or realtime.")] = "all",
     identify: Annotated[str, typer.Option("--identify", help="robust, paper, oracle or response-map.")] = "robust",
-    response_map: Annotated[Path | None, typer.Option(
-        "--response-map", help="Map file for --identify response-map.")] = None,
-    noise: Annotated[str, typer.Option(
-        "--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
+    response_map: Annotated[Path | None,
+                            typer.Option("--response-map", help="Map file for --identify response-map.")] = None,
+    noise: Annotated[str,
+                     typer.Option("--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the sensor noise.")] = 0,
     contact: ContactOpt = None,
     rig: RigOpt = None,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import time as clock
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.markup import escape
@@ -13,7 +13,11 @@ from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
 from .app import app, console, output_path, with_uncertainty
-from .reading import READER, ReaderOptions, reader_options
+from .reading import DEFAULT_READER, ReaderOptions, reader_options
+
+if TYPE_CHECKING:  # for annotations only: the identification modules are imported where they are used
+    from ..identify.response_map import MapIdentification
+    from ..identify.result import Identification
 
 METHODS = ("peak-to-peak", "response-map")
 VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
@@ -58,12 +62,12 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
              map_path: Annotated[Path | None, typer.Option("--map", help="Response map (.h5).")] = None,
              search: Annotated[str, typer.Option("--search", help="Map search: fast or brute.")] = "fast",
              allow_extrapolation: Annotated[bool, typer.Option(
-                 "--allow-extrapolation", help="response-map: answer outside the map's grid (else an error).")]
-             = False,
+                 "--allow-extrapolation",
+                 help="response-map: answer outside the map's grid (else an error).")] = False,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Path | None, typer.Option("--plot", help="Save a figure of the instants used.")] = None,
              force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
-             reader: ReaderOptions = READER) -> None:
+             reader: ReaderOptions = DEFAULT_READER) -> None:
     """Identify the impacting mass and velocity of the first impact in FILE."""
     if method not in METHODS:
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
@@ -71,10 +75,11 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError("--plot is available for --method peak-to-peak")
     output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
+    result: Identification | MapIdentification
     if method == "response-map":
         if map_path is None:
-            raise ParameterError("--method response-map needs --map FILE (a response map built with impactometer map "
-                                 "build)")
+            raise ParameterError("--method response-map needs --map FILE "
+                                 "(a response map built with impactometer map build)")
         from ..identify.response_map import identify_recording
 
         result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation)
@@ -91,7 +96,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     if plot is not None:
         from ..outputs import save_figure
 
-        save_figure(result.plot(rec), plot)
+        save_figure(result.plot(rec), plot)  # type: ignore[union-attr]  # peak-to-peak: a map was refused above
         if not as_json:
             console.print(f"figure written to {plot}")
 
@@ -104,7 +109,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
            chunk: Annotated[int, typer.Option("--chunk", help="Samples per push.")] = 64,
            realtime: Annotated[bool, typer.Option("--realtime", help="Replay at the file's sample rate.")] = False,
            as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate.")] = False,
-           reader: ReaderOptions = READER) -> None:
+           reader: ReaderOptions = DEFAULT_READER) -> None:
     """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
     from ..identify.streaming import StreamingIdentifier
 
@@ -154,8 +159,8 @@ def _print_estimate(est, as_json: bool) -> None:
         d["kind"] = kind
         typer.echo(json.dumps(d))
         return
-    mass = with_uncertainty(est.mass, est.mass_std, "kg")
-    console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} M1 = {mass}  "
+    console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} "
+                  f"M1 = {with_uncertainty(est.mass, est.mass_std, 'kg')}  "
                   f"V0 = {with_uncertainty(est.velocity, est.velocity_std, 'm/s')}  E = {est.energy:.1f} J",
                   highlight=False, soft_wrap=True)
     for warning in est.warnings:

@@ -53,8 +53,8 @@ class ReaderOptions:
         return rec
 
 
-#: the default reader options (a command's ``reader`` parameter default; the options replace it)
-READER = ReaderOptions()
+#: the defaults of every reader option (frozen, so one shared instance serves as the default argument)
+DEFAULT_READER = ReaderOptions()
 
 
 def reader_options(command):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, overload
 
 import typer
 from rich.markup import escape
@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import ParameterError
 from .app import app, console, output_path, quantity
-from .reading import READER, ReaderOptions, reader_options
+from .reading import DEFAULT_READER, ReaderOptions, reader_options
 from .simulate import (
     ContactOpt,
     DurationOpt,
@@ -26,12 +26,22 @@ from .simulate import (
 )
 
 
+@overload
+def _fraction(text: str, field: str, force: bool = False) -> float: ...
+
+
+@overload
+def _fraction(text: str | None, field: str, force: bool = False) -> float | None: ...
+
+
 def _fraction(text: str | None, field: str, force: bool = False) -> float | None:
     """A noise level: ``2%`` or a bare fraction (0.02); a bare number above 0.5 is refused without ``--force``."""
+    if text is None:
+        return None
     value = quantity(text, "fraction", field)
-    if value is not None and not 0 <= value <= 10:
+    if not 0 <= value <= 10:
         raise ParameterError(f"{field} must be within [0, 1000%], got {text!r}")
-    if value is not None and value > 0.5 and "%" not in text and not force:
+    if value > 0.5 and "%" not in text and not force:
         raise ParameterError(f"{field} {text!r} is a fraction of the channel's RMS, that is {value:.0%}; write "
                              f"{text}% for {text} percent, or pass --force to record {value:.0%} noise")
     return value
@@ -78,9 +88,9 @@ def record(
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
                                          default_height="0.2m")
     level = _fraction(noise, "--noise", force)
-    levels = {"contact_force": _fraction(force_noise, "--force-noise", force),
-              "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise", force)}
-    levels = {name: level if value is None else value for name, value in levels.items()}
+    given = {"contact_force": _fraction(force_noise, "--force-noise", force),
+             "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise", force)}
+    levels = {name: level if value is None else value for name, value in given.items()}
     rec = make_recording(scenario, stand, sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
                          duration=quantity(duration, "time", "--duration"), noise=levels, seed=seed,
                          pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"), anti_alias=anti_alias,
@@ -125,7 +135,7 @@ def inspect(
     = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
     force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
-    reader: ReaderOptions = READER,
+    reader: ReaderOptions = DEFAULT_READER,
 ) -> None:
     """Print what FILE holds: duration, rate, channels and units, peak force, contact pulses, stage B, noise."""
     from ..recording import inspect_recording

@@ -76,6 +76,8 @@ def build(
     manifest: Annotated[Path | None, typer.Option("--manifest", help="Manifest CSV of the calibration "
                                                                         "set.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing map file.")] = False,
+    device: Annotated[str, typer.Option("--device", help="Where the simulations run: cpu, gpu (extra "
+                                                         "impactometer[gpu]) or auto (the GPU when usable).")] = "cpu",
 ) -> None:
     """Build a response map by simulation (or from calibration recordings) and save it (HDF5)."""
     import numpy as np
@@ -85,6 +87,9 @@ def build(
     from ..rig import get_rig
 
     output_path(out, force, kind="hdf5")
+    if from_recordings is not None and device != "cpu":
+        raise ParameterError(f"--device applies to maps built by simulation, got --device {device!r} with "
+                             "--from-recordings")
     n_m, n_v = parse_grid(grid)
     params = {} if window is None else {"window": quantity(window, "time", "--window")}
     if window is not None and features not in ("max-impulse", "impulse-profile"):
@@ -117,7 +122,7 @@ def build(
         rmap = build_map_simulated(stand, pressures if len(pressures) > 1 else pressures[0], masses=masses,
                                    velocities=velocities, features=features, feature_params=params,
                                    sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
-                                   progress=console.is_terminal)
+                                   progress=console.is_terminal, device=device)
     if refine_to is not None:
         rmap = refine(rmap, parse_grid(refine_to, "--refine"))
     save_map(rmap, out, overwrite=force)

@@ -15,8 +15,8 @@ MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30
 HeightOpt = Annotated[str | None, typer.Option("--height", help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
 VelocityOpt = Annotated[str | None, typer.Option("--velocity", help="Impact velocity V0 (e.g. 2m/s).")]
 PressureOpt = Annotated[str, typer.Option("--pressure", help="Charge pressure p0, gauge (e.g. 200kPa).")]
-ContactOpt = Annotated[str | None, typer.Option(
-    "--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
+ContactOpt = Annotated[str | None,
+                      typer.Option("--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
 RigOpt = Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")]
 DurationOpt = Annotated[str, typer.Option("--duration", help="Simulated time after first contact.")]
 RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the histories.")]

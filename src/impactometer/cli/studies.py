@@ -88,6 +88,9 @@ def study(
         "--set", help="Study setting STUDY.SETTING=JSON, e.g. noise.levels=[0,0.05] (repeatable).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Discard runs with other options; overwrite files.")]
     = False,
+    device: Annotated[str, typer.Option(
+        "--device", help="Where batches of simulations run: cpu, gpu (extra impactometer[gpu]) or auto (the GPU when "
+                         "usable); local workers inherit it, Dask workers read IMPACTOMETER_DEVICE.")] = "cpu",
 ) -> None:
     """Run a study of the paper (or all of them): tables (CSV), figures (PNG) and DIR/index.html."""
     from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
@@ -109,6 +112,9 @@ def study(
         console.print(markdown(out), highlight=False, markup=False, soft_wrap=True)
         console.print(f"report written to {path}")
         return
+    from ..model.gpu import resolve_device, use_device
+
+    device = resolve_device(device)  # a bad or unusable device fails before any study starts
     load_studies()
     if name == "all":
         names = available_studies()
@@ -136,8 +142,9 @@ def study(
             bar.update(tasks[study_name], completed=done, total=total)
 
         try:
-            runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
-                               progress=progress)
+            with use_device(device):
+                runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
+                                   progress=progress)
         except KeyboardInterrupt:
             console.print(f"interrupted: the finished chunks are kept in {out}; rerun the same command to resume")
             raise typer.Abort() from None

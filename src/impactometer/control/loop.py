@@ -15,7 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -28,6 +28,10 @@ from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
 from .metrics import AbsorptionMetrics, absorption_metrics
 from .strategies import ControlContext, get_strategy, strategy_names
 from .valve import Absorber
+
+if TYPE_CHECKING:  # for annotations only: the map module is imported where it is used
+    from ..identify.response_map import MapIdentification
+    from ..identify.result import Identification
 
 #: identification methods of the loop
 IDENTIFICATIONS = ("robust", "paper", "oracle", "response-map")
@@ -137,6 +141,7 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
 
     rec = record(scenario, rig, sample_rate=sample_rate, duration=IDENTIFICATION_WINDOW, noise=noise, seed=seed,
                  pre_trigger=PRE_TRIGGER)
+    found: Identification | MapIdentification | None
     try:
         if method == "response-map":
             from ..identify.response_map import identify_recording

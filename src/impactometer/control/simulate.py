@@ -44,6 +44,8 @@ from .controller import (
 )
 
 VALVE = d.N_STATE  # index of the valve opening in the controlled state
+FORCE_CHANNEL = d.CHANNELS.index("contact_force")
+ACCELERATION_CHANNEL = d.CHANNELS.index("a2")
 N_STATE = d.N_STATE + 1
 
 # sensor rows of the noise matrix
@@ -165,8 +167,8 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
         d.channels(y, p, row)
         for i in range(d.N_CHANNEL):
             out[i, j] = row[i]
-        force = row[11] + noise[SENSOR_FORCE, j]
-        accel = row[10] + noise[SENSOR_ACCELERATION, j]
+        force = row[FORCE_CHANNEL] + noise[SENSOR_FORCE, j]
+        accel = row[ACCELERATION_CHANNEL] + noise[SENSOR_ACCELERATION, j]
         if j > 0:
             impulse += 0.5 * (f_prev + force) * dt
             v2 += 0.5 * (a_prev + accel) * dt

@@ -124,7 +124,8 @@ def acceptance_summary(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                        and r["realtime"]["bottomed_out"] and not r[ORACLE]["bottomed_out"]]
     peak_ratio = [r["realtime"]["peak_force_controlled_N"] / r[ORACLE]["peak_force_controlled_N"] - 1.0
                   for r in by.values() if "realtime" in r and ORACLE in r
-                  and _finite(r["realtime"]["peak_force_controlled_N"]) and _finite(r[ORACLE]["peak_force_controlled_N"])
+                  and _finite(r["realtime"]["peak_force_controlled_N"])
+                  and _finite(r[ORACLE]["peak_force_controlled_N"])
                   and r[ORACLE]["peak_force_controlled_N"] > 0.0]
     failed = sum(1 for r in by.values() if any(row["identification_error"] for name, row in r.items()
                                                    if name != ORACLE))
@@ -132,7 +133,8 @@ def acceptance_summary(rows: Sequence[dict[str, Any]]) -> dict[str, Any]:
                  and _finite(r["realtime"].get("efficiency_first_collision"))]
     out = {"cases": len(by), "identification_failed": failed, "efficiency_max_median": float(np.median(bound))
            if bound else math.nan,
-           "efficiency_first_collision_median": float(np.median(reference)) if reference else math.nan, "bottomed_out_identified_not_oracle": len(extra_bottoming),
+           "efficiency_first_collision_median": float(np.median(reference)) if reference else math.nan,
+           "bottomed_out_identified_not_oracle": len(extra_bottoming),
            "peak_vs_oracle_median": float(np.median(np.abs(peak_ratio))) if peak_ratio else math.nan,
            "peak_vs_oracle_max": float(np.max(np.abs(peak_ratio))) if peak_ratio else math.nan,
            "peak_vs_oracle_within_10pct": int(np.sum(np.abs(peak_ratio) <= 0.1)) if peak_ratio else 0}

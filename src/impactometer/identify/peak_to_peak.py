@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from . import trigger
 from .early import solve_early
 from .onsets import onset_index
 from .plausibility import answer_warnings, check_segment
-from .pulses import PulseSpan, detect_pulses, noise_std
+from .pulses import PulseSpan, detect_pulses, detection_levels, first_peak, noise_std
 from .result import Identification
 from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
 
@@ -109,9 +110,8 @@ def quantum(x: np.ndarray) -> float:
     if values.size < 3:
         return 0.0
     step = float(np.min(np.diff(values)))
-    shifted = values - values[0]
-    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(np.round(shifted / step) * step, shifted,
-                                                                       rtol=0, atol=1e-3 * step):
+    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(
+            np.round((values - values[0]) / step) * step, values - values[0], rtol=0, atol=1e-3 * step):
         return 0.0
     return step
 
@@ -171,11 +171,15 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     t00 = first contact, t01/t11 = force peaks of the first two pulses; M1 = −∫Fc / ((V2(t11) − V2(t01)) −
     g·Δt) (eq. 4), V2 = ∫a2 from t00 (eq. 5), V0 = V2(t01) + ∫_{t00}^{t01}Fc/M1 − g·(t01 − t00).
     """
-    _need_pulses(seg, 2, "the paper variant")
-    p1, p2 = seg.pulses[0], seg.pulses[1]
+    peak2 = second_peak(seg)
+    if peak2 is None:
+        _need_pulses(seg, 2, "the paper variant")
+        raise IdentificationError("the paper variant needs the second force peak: the second pulse has not yet "
+                                  "fallen from a maximum")
+    p1 = seg.pulses[0]
     t00, _ = segment_onset(seg, p1)
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity)
-    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, p2.peak], dtype=float))
+    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, peak2], dtype=float))
     denominator = (va[1] - va[0]) - gravity * (tau[1] - tau[0])
     impulse = jf[1] - jf[0]
     if not denominator < 0.0 or impulse <= 0.0:
@@ -184,12 +188,12 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
     _check_velocity(velocity, "the paper's eqs. (3)-(5)")
-    details = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
+    details: dict[str, Any] = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
     caution = paper_caution(seg)
     if caution:
         details["caution"] = caution
-    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(p2.peak),
-                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(p2.peak),
+    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(peak2),
+                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(peak2),
                           variant="paper", details=details)
 
 
@@ -198,6 +202,15 @@ def _check_velocity(velocity: float, source: str) -> None:
     if not (math.isfinite(velocity) and velocity > 0.0):
         raise IdentificationError(f"{source} give an impact velocity of {float(velocity):.4g} m/s, not a falling "
                                   "mass; the pulses found are not contact separations of a falling mass")
+
+
+def second_peak(seg: Segment) -> int | None:
+    """Sample of the second force peak of eqs. (3)-(5) (None while there is none): the peak of a complete second
+    pulse, or the first peak of a second pulse that runs into sustained contact (stage B)."""
+    if len(seg.pulses) < 2 or not seg.pulses[0].complete:
+        return None
+    detect, _ = detection_levels(seg.noise_force, float(np.max(seg.force)))
+    return first_peak(seg.force, seg.pulses[1], detect)
 
 
 #: noise, as a fraction of a channel's peak, above which the paper variant's answer carries a caution [-]
@@ -245,9 +258,10 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     _need_pulses(seg, 2 - (len(pulses) >= 2), "the robust variant")
     onsets, stds = _onsets(seg, pulses)
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, onsets[0], gravity, onset_std0=stds[0])
-    common = dict(t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
-                  variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
-                  available_at=seg.time_of(min(pulses[-1].end, seg.force.size - 1)))
+    common: dict[str, Any] = dict(
+        t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
+        variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
+        available_at=seg.time_of(min(pulses[-1].end, seg.force.size - 1)))
     noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                  pre_samples=seg.pre_samples)
     if len(pulses) - 1 >= MIN_ONSET_ROWS:

@@ -35,8 +35,8 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
                                   f"{time.shape} and {force.shape}")
     above = force > threshold
     edges = np.diff(above.astype(np.int8))
-    starts = list(np.flatnonzero(edges == 1) + 1)
-    ends = list(np.flatnonzero(edges == -1) + 1)
+    starts = (np.flatnonzero(edges == 1) + 1).tolist()
+    ends = (np.flatnonzero(edges == -1) + 1).tolist()
     if above[0]:
         starts.insert(0, 0)
     if above[-1]:
@@ -77,6 +77,8 @@ HOLD = 3
 #: the levels never use a σ below this fraction of the largest force [-]: below it the shape of an edge is
 #: anti-alias ringing (about ±5 % of a force jump) and rounding rather than contact
 FLOOR_FRACTION = 5e-3
+#: standard error of the median of n Gaussian samples over that of their mean, sqrt(π/2)
+MEDIAN_EFFICIENCY = 1.2533141373155003
 
 
 def noise_std(signal: np.ndarray) -> float:
@@ -138,9 +140,9 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
 
     A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ for ``HOLD`` consecutive samples (not before
     sample ``start``) and ends where it stays below ``RELEASE_SIGMAS``·σ for ``HOLD`` samples. A gap between two
-    pulses counts as a separation only when the force in it is consistent with zero (the mean of its middle half
-    within 3σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still running at
-    the end of the data has ``end = -1``.
+    pulses counts as a separation only when the force in it is consistent with zero (the median of its middle
+    half within 3·1.25·σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still
+    running at the end of the data has ``end = -1``.
     """
     f = np.asarray(force, dtype=float)
     scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)
@@ -159,7 +161,8 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
         if spans and spans[-1][3] >= 0:
             quarter = (first - spans[-1][3]) // 4  # the middle half: away from the tail and the next foot
             gap = f[spans[-1][3] + quarter:first - quarter]
-            if gap.size > 0 and gap.mean() > 3.0 * gap_sigma / np.sqrt(gap.size):
+            # the median, not the mean: the slow foot of a gentle re-contact may reach into the middle half
+            if gap.size > 0 and np.median(gap) > 3.0 * MEDIAN_EFFICIENCY * gap_sigma / np.sqrt(gap.size):
                 spans[-1][3] = end  # not a separation: same pulse
                 first = -1
         if first >= 0:
@@ -176,6 +179,24 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
         stop = n if end < 0 else end
         out.append(PulseSpan(zero=zero, first=first, peak=first + int(np.argmax(f[first:stop])), end=end))
     return out
+
+
+def first_peak(force: np.ndarray, span: PulseSpan, drop: float) -> int | None:
+    """Index of the first maximum of a pulse that the force then falls below by more than ``drop`` [N].
+
+    For a complete pulse this is the sample :attr:`PulseSpan.peak` when the pulse has one hump; for a pulse that
+    runs into sustained contact it is the end of the rebound part, the first force peak after the onset. None when
+    the force has not yet fallen that far from any maximum.
+    """
+    stop = force.size if not span.complete else span.end
+    f = np.asarray(force[span.first:stop], dtype=float)
+    if f.size == 0:
+        return None
+    running = np.maximum.accumulate(f)
+    fallen = np.flatnonzero(f < running - drop)
+    if fallen.size == 0:
+        return None
+    return span.first + int(np.argmax(f[:fallen[0]]))
 
 
 def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 4.0) -> int | None:

@@ -211,6 +211,10 @@ def refine(rmap: ResponseMap, n: int | tuple[int, int]) -> ResponseMap:
                        rig=rmap.rig, provenance={**rmap.provenance, "refinements": history})
 
 
+#: scenarios per simulated batch of a map: enough to keep the CPU cores busy, or to fill a GPU
+CPU_CHUNK, GPU_CHUNK = 2000, 65536
+
+
 def _default_duration(features: str, params: Mapping[str, float], sample_rate: float) -> float:
     if "window" in params:
         return params["window"] + 2.0 / sample_rate
@@ -218,10 +222,12 @@ def _default_duration(features: str, params: Mapping[str, float], sample_rate: f
 
 
 def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Sequence[float] = 200e3, *,
-                        masses: Sequence[float], velocities: Sequence[float], features: str = "max-impulse",
+                        masses: Sequence[float] | np.ndarray, velocities: Sequence[float] | np.ndarray,
+                        features: str = "max-impulse",
                         feature_params: Mapping[str, float] | None = None, sample_rate: float = 50e3,
                         duration: float | None = None, refine_to: int | tuple[int, int] | None = None,
-                        progress: bool = False, chunk_size: int = 2000) -> ResponseMap:
+                        progress: bool = False, chunk_size: int | None = None,
+                        device: str | None = None) -> ResponseMap:
     """Response map by simulation of every grid node with the fast simulator (in parallel).
 
     Parameters
@@ -244,8 +250,10 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         Interpolate the simulated grid to this size afterwards (see :func:`refine`).
     progress : bool
         Show a rich progress bar.
-    chunk_size : int
-        Scenarios simulated per parallel batch.
+    chunk_size : int, optional
+        Scenarios simulated per parallel batch (default 2000 on the CPU, 65536 on a GPU).
+    device : {"cpu", "gpu", "auto"}, optional
+        Where the batches run (see :func:`impactometer.model.simulate_batch`).
 
     Returns
     -------
@@ -266,7 +274,11 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     sample_rate = check_sample_rate(sample_rate, error=ParameterError)
     duration = _default_duration(features, params, sample_rate) if duration is None else float(duration)
     from ..model import simulate_batch
+    from ..model.gpu import resolve_device
 
+    device = resolve_device(device)
+    if chunk_size is None:
+        chunk_size = GPU_CHUNK if device == "gpu" else CPU_CHUNK
     grid_p, grid_m, grid_v = (a.ravel() for a in np.meshgrid(pressures, masses, velocities, indexing="ij"))
     values = np.empty((grid_m.size, fs.size))
     from rich.progress import Progress
@@ -276,7 +288,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         for start in range(0, grid_m.size, max(1, int(chunk_size))):
             part = slice(start, start + max(1, int(chunk_size)))
             batch = simulate_batch(grid_m[part], grid_v[part], grid_p[part], rig, duration=duration,
-                                   sample_rate=sample_rate, channels=("contact_force",))
+                                   sample_rate=sample_rate, channels=("contact_force",), device=device)
             values[part], _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
             bar.advance(task, part.stop - part.start)
     bad = np.flatnonzero(~np.all(np.isfinite(values) & (values > 0), axis=1))
@@ -290,7 +302,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     rmap = ResponseMap(masses=masses, velocities=velocities, pressures_gauge=pressures, values=cube,
                        feature_set=features, feature_params=params, sample_rate=float(sample_rate),
                        rig=to_dict(rig), provenance=_provenance("simulation", base_grid=[masses.size, velocities.size],
-                                                                duration_s=duration, integrator="fast"))
+                                                                duration_s=duration, integrator="fast", device=device))
     return rmap if refine_to is None else refine(rmap, refine_to)
 
 
@@ -375,8 +387,8 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         row = [r.truth("mass_kg"), r.truth("velocity_m_s"), r.truth("pressure_gauge_Pa")]
         row[2] = pressure_gauge if row[2] is None else row[2]
         if None in row:
-            keys = ("mass_kg", "velocity_m_s", "pressure_gauge_Pa")
-            missing = [k for k, x in zip(keys, row, strict=False) if x is None]
+            missing = [k for k, x in zip(("mass_kg", "velocity_m_s", "pressure_gauge_Pa"), row, strict=False)
+                       if x is None]
             raise ResponseMapError(f"{r.source}: metadata {missing} missing; expected the known truth of every "
                                    "calibration recording (metadata or manifest)")
         truth[i] = row
@@ -394,9 +406,10 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
     params = fs.params(feature_params)
     y = np.array([extract_features(*recording_signal(r), features, params)[0] for r in recs])
     n_m, n_v = grid_size(grid, "grid")
-    masses = _axis(np.linspace(*(mass_range or (truth[:, 0].min(), truth[:, 0].max())), n_m), "mass range", "[kg]")
-    velocities = _axis(np.linspace(*(velocity_range or (truth[:, 1].min(), truth[:, 1].max())), n_v),
-                       "velocity range", "[m/s]")
+    m_low, m_high = mass_range or (truth[:, 0].min(), truth[:, 0].max())
+    v_low, v_high = velocity_range or (truth[:, 1].min(), truth[:, 1].max())
+    masses = _axis(np.linspace(m_low, m_high, n_m), "mass range", "[kg]")
+    velocities = _axis(np.linspace(v_low, v_high, n_v), "velocity range", "[m/s]")
     groups = _pressure_groups(truth[:, 2])
     _check_size(fs.size, len(groups), masses.size, velocities.size)
     layers, methods = [], set()

@@ -232,7 +232,12 @@ def _subsample(axis: np.ndarray) -> np.ndarray:
     return np.unique(np.round(np.linspace(0, axis.size - 1, FAST_NODES)).astype(np.int64))
 
 
-def fast_tables(rmap: ResponseMap) -> tuple[np.ndarray, ...]:
+#: (herm, xm, xv, coarse, cm, cv, inside box (mass low, mass high, velocity low, velocity high))
+FastTables = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                   tuple[float, float, float, float]]
+
+
+def fast_tables(rmap: ResponseMap) -> FastTables:
     """(herm, xm, xv, coarse, cm, cv, inside box) of the fast search, computed once per map and cached on it."""
     cached = rmap._cache.get("fast")
     if cached is not None:
@@ -279,13 +284,14 @@ def brute_search(rmap: ResponseMap, y: np.ndarray, pressure_gauge: float) -> tup
     Implements eq. (7) of the reference paper, evaluated over the whole grid.
     """
     k0, w, count = pressure_weights(rmap.pressures_gauge, float(pressure_gauge))
-    total = None
+    total: np.ndarray | None = None
     for f in range(y.size):
         layer = rmap.values[f, k0] if count == 1 and w[0] == 1.0 else \
             sum(w[q] * rmap.values[f, k0 + q] for q in range(count))
         d = (layer - y[f]) * (1.0 / y[f])
         d *= d
         total = d if total is None else total + d
+    assert total is not None  # y holds at least one feature
     flat = int(np.argmin(total))
     i, j = divmod(flat, rmap.velocities.size)
     return float(rmap.masses[i]), float(rmap.velocities[j]), float(total.flat[flat]), i, j

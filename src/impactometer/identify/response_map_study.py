@@ -108,7 +108,7 @@ def map_size_table(*, rig: Rig | str | None = None, sizes: Sequence[int] = PAPER
         params = (feature_params or {}) if features == "max-impulse" else {}
         for case in cases:
             m_true, v_true, p_true = test_impacts(case, rig, n=n_random, seed=seed)
-            acc = {}
+            acc: dict[tuple[int, str], list] = {}
             for pressure in np.unique(p_true):
                 sel = p_true == pressure
                 ys = _features_of(m_true[sel], v_true[sel], pressure, rig, features, params, sample_rate)

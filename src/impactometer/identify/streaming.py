@@ -78,7 +78,8 @@ class StreamingIdentifier:
         self._step = self.capacity // 4
         self._events = np.zeros((3 * self._step + 2, 2), dtype=np.int64)
         self.seen = 0
-        self._start = self._pre = None
+        self._start: int | None = None  # first buffered sample of the running impact; None while armed
+        self._pre = 0
         self._early: Identification | None = None
         self._early_done = False
         self._onsets: dict = {}
@@ -124,6 +125,7 @@ class StreamingIdentifier:
         return out
 
     def _segment(self, stop: int) -> p2p.Segment:
+        assert self._start is not None  # called only while an impact runs
         idx = np.arange(self._start, stop) % self.capacity
         return p2p.prepare(self._force[idx], self._acc[idx], self.sample_rate,
                            self.start_time + self._start / self.sample_rate, self._pre, cache=self._onsets)

@@ -74,8 +74,9 @@ def _starts_in_contact(x, index, fstate, floor):
 def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events):
     """Advance the trigger over ``force``; write (code, absolute sample index) rows into ``events``.
 
-    Returns the number of events written (at most two per sample: a pulse past its peak and its end). ``floor`` [N] is the smallest trigger level (resolution of the
-    channel), ``quiet_samples`` the release run that closes an impact, ``max_samples`` the longest impact.
+    Returns the number of events written (at most two per sample: a pulse past its peak and its end). ``floor`` [N]
+    is the smallest trigger level (resolution of the channel), ``quiet_samples`` the release run that closes an
+    impact, ``max_samples`` the longest impact.
     """
     alpha = 1.0 / BASELINE_SAMPLES
     n_events = 0

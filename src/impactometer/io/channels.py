@@ -116,7 +116,7 @@ def _matches(name: str, standard: str) -> bool:
 
 
 def pick_channel(names: list[str], standard: str, explicit: str | None, *, option: str, source: str,
-                 required: bool, taken: tuple[str, ...] = ()) -> str | None:
+                 required: bool, taken: tuple[str | None, ...] = ()) -> str | None:
     """The column holding ``standard``: ``explicit`` (exact or without unit, case-insensitive) or by pattern."""
     if explicit is not None:
         wanted = explicit.strip().lower()
@@ -306,7 +306,8 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
     force_name = pick_channel(names, FORCE, force_channel, option="force_channel", source=source, required=True)
     acc_name = pick_channel(names, ACCELERATION, acceleration_channel, option="acceleration_channel",
                             source=source, required=acceleration_channel is not None, taken=(force_name,))
-    units_in = raw.metadata.get("channel_units") if isinstance(raw.metadata.get("channel_units"), dict) else {}
+    noted_units = raw.metadata.get("channel_units")
+    units_in = noted_units if isinstance(noted_units, dict) else {}
     channels: dict[str, np.ndarray] = {}
     units_out: dict[str, str] = {}
     origin: dict[str, str] = {}
@@ -354,7 +355,7 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
                                  f"{next(iter(channels.values())).size}; expected equal lengths")
     if sample_rate is not None:
         given = check_sample_rate(sample_rate, f"{source}: sample_rate")
-        if raw_time is not None and abs(given - rate) > 1e-3 * given:
+        if raw_time is not None and rate is not None and abs(given - rate) > 1e-3 * given:
             raise RecordingError(f"{source}: sample_rate={given:g} Hz disagrees with the time column "
                                  f"({rate:g} Hz)")
         rate = given

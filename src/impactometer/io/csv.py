@@ -184,7 +184,7 @@ def read(path: Path) -> RawData:
     for field, value in (("sample_rate", rate), ("start_time", start)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
             raise RecordingError(f"{where}: sidecar {field} must be a number, got {value!r}")
-    columns = {name: (values[j], None) for j, name in enumerate(header)}
+    columns: dict[str, tuple[np.ndarray, str | None]] = {name: (values[j], None) for j, name in enumerate(header)}
     return RawData(columns=columns, source=str(path), sample_rate=rate, start_time=start, metadata=metadata)
 
 

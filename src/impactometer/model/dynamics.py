@@ -1,9 +1,10 @@
 """Right-hand side of the drop-stand model (paper eqs. 1-2) on a packed parameter vector.
 
-State vector (indices ``U1 .. DISSIPATED``): mass and piston displacement and velocity (axis down, both measured
-from the piston's top-stop position), the pressures and gas masses of the lower and upper chambers, and the
-energy dissipated so far. Chamber pressures follow the energy balance of an adiabatic chamber,
-dp/dt = γ·(R·T_in·ṁ_in − R·T·ṁ_out − p·V')/V, which reduces to dp/dt = −γ·p·V'/V for the closed cylinder.
+State vector (indices ``U1 .. CONTACT_SET``): mass and piston displacement and velocity (axis down, both measured
+from the piston's top-stop position), the pressures and gas masses of the lower and upper chambers, the energy
+dissipated so far and the memory of the hysteretic contact (its set, see :func:`.forces.contact_set_rate`).
+Chamber pressures follow the energy balance of an adiabatic chamber, dp/dt = γ·(R·T_in·ṁ_in − R·T·ṁ_out − p·V')/V,
+which reduces to dp/dt = −γ·p·V'/V for the closed cylinder.
 """
 
 from __future__ import annotations
@@ -13,7 +14,8 @@ from numba import njit
 from .forces import (
     contact_energy,
     contact_force,
-    contact_spring_force,
+    contact_loss,
+    contact_set_rate,
     friction_force,
     orifice_mass_flow,
     pneumatic_force,
@@ -21,8 +23,8 @@ from .forces import (
 )
 
 # state indices
-U1, V1, U2, V2, P_LOWER, P_UPPER, M_LOWER, M_UPPER, DISSIPATED = range(9)
-N_STATE = 9
+U1, V1, U2, V2, P_LOWER, P_UPPER, M_LOWER, M_UPPER, DISSIPATED, CONTACT_SET = range(10)
+N_STATE = 10
 
 # parameter indices
 (MASS, PISTON_MASS, GRAVITY, AREA, ROD_AREA, LOWER_LENGTH, UPPER_LENGTH, DEAD_LOWER, DEAD_UPPER, STROKE,
@@ -32,7 +34,7 @@ N_PARAM = 25
 
 #: channels a simulation can return, in the order of :func:`channels`
 CHANNELS = ("u1", "v1", "u2", "v2", "pressure_lower", "pressure_upper", "gas_mass_lower", "gas_mass_upper",
-            "dissipated_energy", "a1", "a2", "contact_force", "pneumatic_force", "friction_force",
+            "dissipated_energy", "contact_set", "a1", "a2", "contact_force", "pneumatic_force", "friction_force",
             "top_stop_force", "bottom_stop_force")
 N_CHANNEL = len(CHANNELS)
 
@@ -53,11 +55,12 @@ def force_parameters(p):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def forces_of(u1, v1, u2, v2, p_lower, p_upper, q):
+def forces_of(u1, v1, u2, v2, p_lower, p_upper, contact_set, q):
     """Contact, pneumatic, friction, top-stop and bottom-stop forces [N] (signs as in :mod:`.forces`) of the
-    displacements [m], velocities [m/s] and chamber pressures [Pa]; ``q`` from :func:`force_parameters`."""
+    displacements [m], velocities [m/s], chamber pressures [Pa] and contact set [m]; ``q`` from
+    :func:`force_parameters`."""
     law, k, c, area, rod_area, atmosphere, friction, friction_scale, stop_k, stop_c, stroke = q
-    fc = contact_force(u1 - u2, v1 - v2, law, k, c)
+    fc = contact_force(u1 - u2, v1 - v2, contact_set, law, k, c)
     fp = pneumatic_force(p_lower, p_upper, area, rod_area, atmosphere)
     ff = friction_force(v2, friction, friction_scale)
     f_top = stop_force(-u2, -v2, stop_k, stop_c)
@@ -80,7 +83,8 @@ def channels(y, p, out):
     """Fill ``out`` (length N_CHANNEL) with the state and the forces and accelerations it implies."""
     for i in range(N_STATE):
         out[i] = y[i]
-    fc, fp, ff, f_top, f_bottom = forces_of(y[U1], y[V1], y[U2], y[V2], y[P_LOWER], y[P_UPPER], force_parameters(p))
+    fc, fp, ff, f_top, f_bottom = forces_of(y[U1], y[V1], y[U2], y[V2], y[P_LOWER], y[P_UPPER], y[CONTACT_SET],
+                                         force_parameters(p))
     for i in range(N_STATE, N_CHANNEL):
         out[i] = derived_value(i, p[GRAVITY], p[MASS], p[PISTON_MASS], fc, fp, ff, f_top, f_bottom)
 
@@ -94,7 +98,9 @@ def rhs(y, p, valve_area, dy):
     delta_rate = y[V1] - v2
     law = int(p[LAW])
     # the forces of forces_of, written out: the benchmark's plain-Python model runs this function as Python
-    fc = contact_force(delta, delta_rate, law, p[CONTACT_K], p[CONTACT_C])
+    contact_set = y[CONTACT_SET]
+    fc = contact_force(delta, delta_rate, contact_set, law, p[CONTACT_K], p[CONTACT_C])
+    set_rate = contact_set_rate(delta, delta_rate, contact_set, law, p[CONTACT_K], p[CONTACT_C])
     fp = pneumatic_force(y[P_LOWER], y[P_UPPER], p[AREA], p[ROD_AREA], p[ATMOSPHERE])
     ff = friction_force(v2, p[FRICTION], p[FRICTION_SCALE])
     top_pen = -u2
@@ -129,12 +135,13 @@ def rhs(y, p, valve_area, dy):
     dy[M_UPPER] = mdot
 
     # dissipated power: work of the non-conservative parts of contact, stops and friction
-    power = (fc - contact_spring_force(delta, law, p[CONTACT_K])) * delta_rate + ff * v2
+    power = contact_loss(delta, delta_rate, contact_set, set_rate, fc, law, p[CONTACT_K]) + ff * v2
     if top_pen > 0.0:
         power += (f_top - p[STOP_K] * top_pen) * (-v2)
     if bottom_pen > 0.0:
         power += (f_bottom - p[STOP_K] * bottom_pen) * v2
     dy[DISSIPATED] = power
+    dy[CONTACT_SET] = set_rate
 
 
 @njit(cache=True, error_model="numpy")
@@ -147,7 +154,10 @@ def stored_energy(y, p):
     potential = -p[GRAVITY] * (p[MASS] * y[U1] + p[PISTON_MASS] * y[U2]) - p[ATMOSPHERE] * p[ROD_AREA] * y[U2]
     vol_lower, vol_upper = volumes(y[U2], p)
     gas = (y[P_LOWER] * vol_lower + y[P_UPPER] * vol_upper) / (p[GAMMA] - 1.0)
-    elastic = contact_energy(y[U1] - y[U2], int(p[LAW]), p[CONTACT_K])
+    delta = y[U1] - y[U2]
+    law = int(p[LAW])
+    force = contact_force(delta, y[V1] - y[V2], y[CONTACT_SET], law, p[CONTACT_K], p[CONTACT_C])
+    elastic = contact_energy(delta, force, law, p[CONTACT_K], p[CONTACT_C])
     top_pen = -y[U2]
     bottom_pen = y[U2] - p[STROKE]
     if top_pen > 0.0:

@@ -13,22 +13,27 @@ from numba import njit
 
 KELVIN_VOIGT = 0
 HUNT_CROSSLEY = 1
+HYSTERETIC = 2
 #: contact law name -> code used by the compiled model
-LAW_CODES = {"kelvin-voigt": KELVIN_VOIGT, "hunt-crossley": HUNT_CROSSLEY}
+LAW_CODES = {"kelvin-voigt": KELVIN_VOIGT, "hunt-crossley": HUNT_CROSSLEY, "hysteretic": HYSTERETIC}
 #: |x| from which math.tanh(x) is exactly ±1 in double precision (true from 19.06 on)
 TANH_SATURATION = 20.0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def contact_force(delta, delta_rate, law, stiffness, damping):
-    """Compressive-only contact force [N] for compression ``delta`` [m] and its rate [m/s].
+def contact_force(delta, delta_rate, contact_set, law, stiffness, damping):
+    """Compressive-only contact force [N] for compression ``delta`` [m], its rate [m/s] and the set [m].
 
-    Kelvin-Voigt: k·δ + c·δ'; Hunt-Crossley: k·δ^1.5·(1 + 1.5·α·δ') with ``damping`` = α [s/m].
+    Kelvin-Voigt: k·δ + c·δ'; Hunt-Crossley: k·δ^1.5·(1 + 1.5·α·δ') with ``damping`` = α [s/m];
+    hysteretic (Walton-Braun): min(k1·δ, k2·(δ − s)) with ``stiffness`` = k1, ``damping`` = k2 [N/m] and the
+    contact's memory ``contact_set`` = s [m] (see :func:`contact_set_rate`); the other laws ignore ``contact_set``.
     Zero when the bodies are apart (δ <= 0) and never negative (no adhesion).
     """
     if delta <= 0.0:
         return 0.0
-    if law == HUNT_CROSSLEY:
+    if law == HYSTERETIC:
+        force = min(stiffness * delta, damping * (delta - contact_set))
+    elif law == HUNT_CROSSLEY:
         force = stiffness * delta * math.sqrt(delta) * (1.0 + 1.5 * damping * delta_rate)
     else:
         force = stiffness * delta + damping * delta_rate
@@ -36,20 +41,51 @@ def contact_force(delta, delta_rate, law, stiffness, damping):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def contact_spring_force(delta, law, stiffness):
-    """Conservative part of the contact force [N] (the derivative of :func:`contact_energy`)."""
-    if delta <= 0.0:
+def contact_set_rate(delta, delta_rate, contact_set, law, stiffness, damping):
+    """Rate of the hysteretic contact's set s [m/s] (zero for the other laws).
+
+    The set is the compression at which the unloading line F = k2·(δ − s) reaches zero force. While the contact is
+    compressed further (δ' > 0) the set grows as (1 − k1/k2)·r²·δ', with r = F/(k1·δ) the force relative to the
+    loading line: on the loading line (r = 1) this keeps F = k1·δ exactly, and on a reloading line (r < 1) the
+    force bends smoothly back onto the loading line instead of meeting it at a corner (a Masing-type minor loop:
+    every closed load cycle dissipates energy). While the contact unloads the set is frozen, so the force follows
+    the stiffer unloading line; once the force is zero (δ <= s) the set follows the compression down to zero, so
+    a contact that opens fully starts the next pulse as a fresh pad.
+    """
+    if law != HYSTERETIC:
         return 0.0
-    if law == HUNT_CROSSLEY:
-        return stiffness * delta * math.sqrt(delta)
-    return stiffness * delta
+    if delta_rate > 0.0:
+        if delta <= 0.0 or delta <= contact_set:
+            return 0.0
+        ratio = min(1.0, damping * (delta - contact_set) / (stiffness * delta))
+        return (1.0 - stiffness / damping) * ratio * ratio * delta_rate
+    if delta_rate < 0.0 and delta <= contact_set and contact_set > 0.0:
+        return delta_rate
+    return 0.0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def contact_energy(delta, law, stiffness):
-    """Elastic energy stored in the contact [J]."""
+def contact_loss(delta, delta_rate, contact_set, set_rate, force, law, stiffness):
+    """Power dissipated in the contact [W] (force times rate, minus the rate of its stored energy)."""
+    if law == HYSTERETIC:
+        return force * set_rate
     if delta <= 0.0:
         return 0.0
+    if law == HUNT_CROSSLEY:
+        return (force - stiffness * delta * math.sqrt(delta)) * delta_rate
+    return (force - stiffness * delta) * delta_rate
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def contact_energy(delta, force, law, stiffness, damping):
+    """Elastic energy stored in the contact [J] at compression ``delta`` [m] carrying ``force`` [N].
+
+    Hysteretic: the energy the unloading line gives back, F²/(2·k2).
+    """
+    if delta <= 0.0:
+        return 0.0
+    if law == HYSTERETIC:
+        return 0.5 * force * force / damping
     if law == HUNT_CROSSLEY:
         return 0.4 * stiffness * delta * delta * math.sqrt(delta)
     return 0.5 * stiffness * delta * delta

@@ -81,16 +81,18 @@ def channels_of(states: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def pulse_peaks(time: np.ndarray, force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Peak times [s] and peak forces [N] of every contact pulse (run of ``force > 0``) of a sampled force.
+    """Peak times [s] and peak forces [N] of every contact pulse of a sampled force.
 
-    The peak time is refined by the parabola through the largest sample of the pulse and its two neighbours; a
-    pulse whose largest sample is at its edge keeps that sample's time.
+    A pulse is a run of force above 1e-6 of the largest force: below that a "pulse" is the rounding of the
+    integrator (a hysteretic contact whose set follows the receding body can touch at 1e-4 N). The peak time is
+    refined by the parabola through the largest sample of the pulse and its two neighbours; a pulse whose largest
+    sample is at its edge keeps that sample's time.
     """
     time, force = np.asarray(time, dtype=float), np.asarray(force, dtype=float)
     if time.ndim != 1 or time.shape != force.shape or time.size < 3:
         raise ParameterError(f"time and force must be 1-D arrays of equal length >= 3, got shapes {time.shape} "
                              f"and {force.shape}")
-    above = np.concatenate(([False], force > 0.0, [False]))
+    above = np.concatenate(([False], force > 1e-6 * max(float(force.max()), 0.0), [False]))
     edges = np.flatnonzero(np.diff(above.astype(np.int8)))
     times, peaks = [], []
     for start, stop in zip(edges[::2], edges[1::2], strict=False):

@@ -16,7 +16,8 @@ class SimulationResult:
 
     Displacements ``u1``, ``u2`` [m] (axis down, from the piston's top-stop position), velocities ``v1``, ``v2``
     [m/s], kinematic accelerations ``a1``, ``a2`` [m/s²], forces [N], chamber pressures [Pa absolute], gas masses
-    [kg] and energies [J] (changes since t = 0, except ``dissipated_energy`` which starts at 0).
+    [kg], energies [J] (changes since t = 0, except ``dissipated_energy`` which starts at 0) and the set of a
+    hysteretic contact ``contact_set`` [m] (zero for the other contact laws).
     """
 
     time: np.ndarray
@@ -40,6 +41,7 @@ class SimulationResult:
     gas_energy: np.ndarray
     elastic_energy: np.ndarray
     dissipated_energy: np.ndarray
+    contact_set: np.ndarray
     rig: Rig
     scenario: Scenario
     integrator: str
@@ -79,7 +81,7 @@ class SimulationResult:
 ARRAY_FIELDS = ("time", "u1", "v1", "u2", "v2", "a1", "a2", "contact_force", "pneumatic_force", "friction_force",
                 "top_stop_force", "bottom_stop_force", "pressure_lower", "pressure_upper", "gas_mass_lower",
                 "gas_mass_upper", "kinetic_energy", "potential_energy", "gas_energy", "elastic_energy",
-                "dissipated_energy")
+                "dissipated_energy", "contact_set")
 
 
 @dataclass(frozen=True, kw_only=True)

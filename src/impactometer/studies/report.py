@@ -107,8 +107,9 @@ def render(results: list[dict[str, Any]]) -> str:
     rig = options.get("rig", {})
     contact = rig.get("contact", {})
     grid = options.get("grid")
-    setup = (f"Stand {rig.get('name', '?')}, contact {contact.get('law')} (stiffness {contact.get('stiffness'):g}, "
-             f"damping {contact.get('damping'):g}); root seed {options.get('seed')}; "
+    law_parameters = ", ".join(f"{k} {v:g}" for k, v in contact.items() if k != "law" and v is not None)
+    setup = (f"Stand {rig.get('name', '?')}, contact {contact.get('law')} ({law_parameters}); "
+             f"root seed {options.get('seed')}; "
              f"{'each study' + chr(39) + 's default grid' if grid is None else f'{grid} values per grid axis'}; "
              f"{options.get('seeds')} noise realisation(s) per case; base noise {options.get('noise', 0) * 100:g} % "
              f"of RMS at {options.get('sample_rate', 0) / 1e3:g} kHz.") if options else ""

@@ -101,12 +101,13 @@ def atomic_write(path: Path, data: str | bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file in the same folder, fsync, ``os.replace``)."""
     path = Path(path)
     mode = "wb" if isinstance(data, bytes) else "w"
+    options: dict[str, Any] = {} if mode == "wb" else {"encoding": "utf-8"}
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     except OSError as exc:
         raise write_failed(path, exc) from None
     try:
-        with os.fdopen(fd, mode, **({} if mode == "wb" else {"encoding": "utf-8"})) as handle:
+        with os.fdopen(fd, mode, **options) as handle:
             handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())

@@ -86,6 +86,7 @@ def _finite(value: Any) -> bool:
 def fmt(value: Any) -> str:
     """A cell for humans: 4 significant digits for floats, ``failed`` for NaN."""
     if isinstance(value, (float, np.floating)):
+        value = float(value)
         if not math.isfinite(value):
             return "–"
         if value == round(value) and abs(value) < 1e9:
