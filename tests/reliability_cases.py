@@ -132,7 +132,7 @@ class Corpus:
             "folder that does not exist": ["simulate", "--out", str(folder / "none" / "x.h5")],
             "study --out names a file": ["study", "peak-force", "--out", str(plain_file), "--grid", "2"],
             "demo --out names a file": ["demo", "--out", str(plain_file), "--no-absorb"],
-            "map --out with extension .txt": ["map", "build", "--out", str(folder / "m.txt"), "--grid", "3"],
+            "map --out is a folder": ["map", "build", "--out", str(folder), "--grid", "3", "--force"],
             "identify --plot with a response map": ["identify", base, "--method", "response-map", "--map",
                                                     str(self.map), "--plot", str(folder / "f.png")],
         }

@@ -67,12 +67,8 @@ def quantity(text: str | None, dimension: str, field: str) -> float | None:
     return None if text is None else parse_quantity(text, dimension, field=field)
 
 
-#: output kind -> the file extensions it may have (figures: what matplotlib can write)
-OUTPUT_EXTENSIONS = {"hdf5": (".h5", ".hdf5", ".hdf")}
-
-
 def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: str | None = None) -> Path | None:
-    """Check an output file before any work: a file name with an extension of its ``kind`` (``figure``, ``hdf5``,
+    """Check an output file before any work: a file name (with an extension of its ``kind``: ``figure`` or
     ``recording``), in a writable folder, not replacing an existing file unless ``--force``."""
     if path is None:
         return None
@@ -85,7 +81,7 @@ def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: s
 
         extensions = list(FORMATS)
     else:
-        extensions = OUTPUT_EXTENSIONS.get(kind) if kind else None
+        extensions = None
     return check_file(path, field, overwrite=force, extensions=extensions)
 
 

@@ -86,7 +86,7 @@ def build(
     from ..identify.response_map_build import MAX_SIMULATED
     from ..rig import get_rig
 
-    output_path(out, force, kind="hdf5")
+    output_path(out, force)
     if from_recordings is not None and device != "cpu":
         raise ParameterError(f"--device applies to maps built by simulation, got --device {device!r} with "
                              "--from-recordings")

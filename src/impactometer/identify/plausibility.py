@@ -25,6 +25,7 @@ them). The checks never change the answer.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -117,7 +118,7 @@ def _cumulative(x: np.ndarray, dt: float) -> np.ndarray:
 
 
 def check_answer(mass: float, velocity: float, *, force: np.ndarray | None = None, sample_rate: float = 1.0,
-                 onset: float = 0.0, pulse_ends: tuple[int, ...] = (), gravity: float = 9.81, noise_force: float = 0.0,
+                 onset: float = 0.0, pulse_ends: Sequence[int] = (), gravity: float = 9.81, noise_force: float = 0.0,
                  acceleration: np.ndarray | None = None,
                  noise_acceleration: float = 0.0, chi2: float | None = None, dof: int | None = None,
                  mass_std: float | None = None, velocity_std: float | None = None) -> tuple[str, ...]:

@@ -77,7 +77,7 @@ class Setting:
         below = self.low is not None and (number <= self.low if self.low_open else number < self.low)
         if below or (self.high is not None and number > self.high):
             bounds = f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}]"
-            unit = _SI.get(self.dimension, "")
+            unit = _SI.get(self.dimension or "", "")
             raise ParameterError(f"--set {key} must lie within {bounds}{' ' + unit if unit else ''}, got "
                                  f"{_short(value)}")
         return int(number) if integer else number
@@ -156,12 +156,12 @@ class StudyOptions:
     def __post_init__(self) -> None:
         if not isinstance(self.rig, Rig):
             raise ParameterError(f"rig must be a Rig, got {self.rig!r}")
-        for name, low, high in (("seed", 0, 2**63 - 1), ("grid", 2, MAX_GRID), ("seeds", 1, MAX_SEEDS)):
+        for name, least, most in (("seed", 0, 2**63 - 1), ("grid", 2, MAX_GRID), ("seeds", 1, MAX_SEEDS)):
             value = getattr(self, name)
             if name == "grid" and value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-                raise ParameterError(f"{name} must be an integer within [{low}, {high}], got {shown(value)}")
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not least <= value <= most:
+                raise ParameterError(f"{name} must be an integer within [{least}, {most}], got {shown(value)}")
         if (self.grid or 5) ** 3 * self.seeds > MAX_SCENARIOS:
             raise ParameterError(f"grid³ × seeds must be at most {MAX_SCENARIOS} scenarios, got "
                                  f"{self.grid or 5}³ × {self.seeds} = {(self.grid or 5) ** 3 * self.seeds}")
