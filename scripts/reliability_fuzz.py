@@ -1,7 +1,8 @@
 """Fuzz the command line with the reliability corpus and print the acceptance table.
 
-Runs every case of ``tests/reliability_corpus.py`` (damaged recordings, stands, maps, options, output targets) in
-this process, then the cases that need processes of their own: two studies started together into one folder,
+Runs every case of ``tests/reliability_cases.py`` (damaged recordings, stands, maps, options, output targets) in
+this process and random bad arguments to the Python functions (``tests/reliability_api.py``), then the cases that
+need processes of their own: two studies started together into one folder,
 outputs into a read-only folder (as a user without the right to override permissions), and the peak memory of
 ``impactometer identify`` on a CSV of 10 million rows. Prints, per category, the cases tried and those unhandled
 (traceback, several-line error), silently wrong (a wrong answer without a warning) or losing data, then every case
@@ -27,6 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+from reliability_api import calls, fuzz  # noqa: E402
 from reliability_cases import Corpus  # noqa: E402
 from reliability_corpus import VERDICTS, Case, Outcome, judge, run  # noqa: E402
 
@@ -149,6 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rows", type=float, default=1e7, help="Rows of the CSV whose identification is measured.")
     parser.add_argument("--no-memory", action="store_true", help="Skip the memory measurement.")
     parser.add_argument("--all", action="store_true", help="List every case with its verdict.")
+    parser.add_argument("--api-calls", type=int, default=4000, help="Random calls of the Python functions.")
     options = parser.parse_args(argv)
     folder = options.folder or Path(tempfile.mkdtemp(prefix="impactometer-fuzz-"))
     corpus = Corpus(folder)
@@ -163,6 +166,10 @@ def main(argv: list[str] | None = None) -> int:
         verdict, reason = judge(case, outcome, outcomes.get(case.same_as) if case.same_as else None)
         results.append((case, verdict, reason))
     results += slow_cases(cases) + concurrent_studies(folder) + read_only_outputs(corpus)
+    made, failures = fuzz(calls(corpus.rec, corpus.base, corpus.map, folder), options.api_calls, seed=0)
+    for k in range(made):  # one row per call: the distinct failures count once each
+        case = Case("Python API", f"call {k}", [])
+        results.append((case, "unhandled", failures[k]) if k < len(failures) else (case, "handled", "ok"))
     table: dict[str, collections.Counter] = collections.defaultdict(collections.Counter)
     for case, verdict, _ in results:
         table[case.category]["tried"] += 1
@@ -177,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{counts['data-loss']:>10} {counts['over-refused']:>13}")
     print(f"{'total':<{width}} {total['tried']:>6} {total['unhandled']:>10} {total['silent-wrong']:>13} "
           f"{total['data-loss']:>10} {total['over-refused']:>13}")
-    shown = [r for r in results if options.all or r[1] != "handled"]
+    shown = [r for r in results if r[1] != "handled" or (options.all and r[0].category != "Python API")]
     for case, verdict, reason in shown:
         print(f"  [{verdict}] {case.category} / {case.name}: {reason}")
     if not options.no_memory:

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from impactometer.cli import main
+from reliability_api import calls, fuzz
 from reliability_cases import Corpus
 from reliability_corpus import judge, run
 
@@ -58,6 +59,12 @@ def test_the_stream_and_identify_agree_on_every_damaged_impact(cases):
     for stream, batch in pairs:
         a, b = run(stream), run(batch)
         assert a.code == b.code, (stream.name, a.output[-300:], b.output[-300:])
+
+
+def test_bad_arguments_to_the_python_functions_raise_impactometer_errors(corpus):
+    table = calls(corpus.rec, corpus.base, corpus.map, corpus.folder)
+    made, failures = fuzz(table, 1500, seed=1)
+    assert made == 1500 and not failures, "\n".join(failures)
 
 
 def test_a_second_study_into_a_locked_folder_is_refused(tmp_path, capsys):

@@ -11,8 +11,22 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 from .errors import OutputError, ParameterError
+
+
+def as_path(value: Any, field: str = "path", *, error: type[Exception] = ParameterError) -> Path:
+    """``value`` (a str or an os.PathLike) as a Path; ``error`` naming ``field`` for anything else."""
+    if isinstance(value, Path):
+        return value
+    if isinstance(value, str) or (isinstance(value, os.PathLike) and isinstance(os.fspath(value), str)):
+        if "\x00" in str(value):
+            raise error(f"{field} must be a file name without NUL characters, got {str(value)[:60]!r}")
+        return Path(value)
+    raise error(f"{field} must be a file name (str or path), got {type(value).__name__}")
 
 
 def figure_formats() -> list[str]:
@@ -34,7 +48,9 @@ def check_file(path: str | Path, field: str | None = None, *, overwrite: bool = 
 
     ``flag`` is what the message tells the caller to pass to replace an existing file.
     """
-    path = Path(path)
+    path = as_path(path, field or "path", error=error)
+    if not isinstance(overwrite, (bool, np.bool_)):
+        raise error(f"overwrite must be True or False, got {type(overwrite).__name__}")
     prefix = f"{field}: " if field else ""
     if path.is_dir():
         raise error(f"{prefix}{str(path)!r} is a folder; expected a file name")

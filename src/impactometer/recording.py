@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from .errors import RecordingError, UnitError
-from .rig import MASS_RANGE, VELOCITY_RANGE
+from .stands import MASS_RANGE, VELOCITY_RANGE
 from .units import parse_quantity
 
 FORCE = "contact_force"
@@ -196,11 +196,12 @@ class Recording:
         from .io.channels import time_base
 
         rate, start = time_base(time, None, source)
-        if np.size(time) != len(next(iter(channels.values()), [])):
+        recording = cls(sample_rate=rate, channels=channels, start_time=start, metadata=dict(metadata or {}),
+                        source=source)
+        if np.size(time) != len(recording):
             raise RecordingError(f"{source}: time has {np.size(time)} samples but the channels have "
-                                 f"{len(next(iter(channels.values()), []))}; expected equal lengths")
-        return cls(sample_rate=rate, channels=channels, start_time=start, metadata=dict(metadata or {}),
-                   source=source)
+                                 f"{len(recording)}; expected equal lengths")
+        return recording
 
     @classmethod
     def read(cls, path, **options: Any) -> Recording:

@@ -12,8 +12,6 @@ end-of-stroke gas cushions: a rebound or two, then sustained contact to the deep
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import math
 import numbers
 import tomllib
@@ -22,15 +20,10 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ParameterError
+from .stands import CYLINDER_LIMITS, MASS_RANGE, VELOCITY_RANGE, check_stops
 
 ATMOSPHERIC_PRESSURE = 101325.0  # [Pa]
 STANDARD_GRAVITY = 9.81  # [m/s²], the value of the reference model
-#: free-fall heights of a drop test [m]: from a tenth of a millimetre to a tall drop tower
-FREE_FALL_HEIGHTS = (1e-4, 12.0)
-#: impact velocities a drop test can have [m/s]: free fall over :data:`FREE_FALL_HEIGHTS`
-VELOCITY_RANGE = tuple(math.sqrt(2.0 * STANDARD_GRAVITY * h) for h in FREE_FALL_HEIGHTS)
-#: impacting masses a drop test can have [kg]: from a tenth of a kilogram to ten tonnes
-MASS_RANGE = (0.1, 1e4)
 
 
 def _check(name: str, value: Any, *, low: float | None = None, high: float | None = None,
@@ -74,10 +67,9 @@ class Cylinder:
     rated_pressure_gauge: float = 400e3
 
     def __post_init__(self) -> None:
-        for name in ("piston_mass", "bore", "rod_diameter", "stroke", "rated_pressure_gauge"):
-            _check(f"cylinder.{name}", getattr(self, name), low=0.0)
-        for name in ("lower_length", "upper_length", "dead_volume_lower", "dead_volume_upper"):
-            _check(f"cylinder.{name}", getattr(self, name), low=0.0, low_open=False)
+        for name, high in CYLINDER_LIMITS.items():
+            _check(f"cylinder.{name}", getattr(self, name), low=0.0, high=high, low_open=not name.endswith(
+                ("_length", "_lower", "_upper")))
         if self.rod_diameter >= self.bore:
             raise ParameterError(f"cylinder.rod_diameter must be < bore ({self.bore!r} m), got {self.rod_diameter!r}")
         if self.lower_length * self.area + self.dead_volume_lower <= 0.0:
@@ -280,26 +272,7 @@ class Rig:
         _check("rig.gravity", self.gravity, low=0.0, low_open=False)
         if not isinstance(self.name, str):
             raise ParameterError(f"rig.name must be a string, got {self.name!r}")
-        self._check_stops()
-
-    def _check_stops(self) -> None:
-        """Refuse a stand whose top stop cannot hold the piston within its upper gas column.
-
-        Charged to the rated pressure, the gas pushes the piston into the top stop with up to the rated pressure on
-        the full piston area (plus its weight, counted ten times over for the blow of a bounce); a stop that yields
-        more than the upper gas column under that load would compress the gas to a negative volume: no real stand
-        is built so, and its simulation would show a negative stroke and negative absolute pressures.
-        """
-        c = self.cylinder
-        load = c.rated_pressure_gauge * c.area + 10.0 * c.piston_mass * max(self.gravity, 1.0)
-        yielding = load / self.stops.stiffness
-        column = c.upper_length + c.dead_volume_upper / c.annulus_area
-        if yielding >= column:
-            raise ParameterError(f"stops.stiffness {self.stops.stiffness:g} N/m lets the top stop yield "
-                                 f"{yielding:.3g} m under the rated {c.rated_pressure_gauge:g} Pa on the {c.bore:g} m "
-                                 f"bore, more than the upper gas column ({column:.3g} m); expected a stand whose stops "
-                                 "hold the piston within its gas columns (stiffer stops, a smaller bore or a lower "
-                                 "rated pressure)")
+        check_stops(self)
 
     def with_contact(self, law: str) -> Rig:
         """This stand with the default contact of ``law``."""
@@ -366,23 +339,6 @@ def from_dict(data: dict[str, Any], *, source: str = "rig") -> Rig:
     return Rig(**kwargs)
 
 
-def fingerprint(rig: Rig | dict[str, Any]) -> str:
-    """A short hash of every parameter of a stand (a :class:`Rig` or its :func:`to_dict` form).
-
-    Two stands with the same parameters have the same fingerprint whatever their names (a name is a label) and
-    however their numbers are written (``2e6`` or ``2000000``); any other parameter gives another fingerprint.
-    """
-    stand = rig if isinstance(rig, Rig) else from_dict(rig, source="stand")
-
-    def plain(value: Any) -> Any:
-        if isinstance(value, dict):
-            return {k: plain(v) for k, v in value.items()}
-        return float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else value
-
-    data = plain({k: v for k, v in to_dict(stand).items() if k != "name"})
-    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
-
-
 def parameter_names() -> list[str]:
     """Dotted names of every numeric stand parameter (usable in :meth:`Rig.replace` and batch overrides)."""
     names = ["gravity"]
@@ -440,6 +396,8 @@ def get_rig(name_or_path: str | Path | Rig | None = None, *, contact: str | None
         rig = name_or_path
     elif name_or_path is None:
         rig = PRESETS["drop-stand"]
+    elif not isinstance(name_or_path, (str, Path)):
+        raise ParameterError(f"rig must be a Rig, a preset name or a .toml file, got {type(name_or_path).__name__}")
     elif str(name_or_path) in PRESETS:
         rig = PRESETS[str(name_or_path)]
     elif Path(name_or_path).suffix.lower() == ".toml":

@@ -31,8 +31,9 @@ from scipy import signal
 from .errors import ParameterError, shown
 from .model import simulate_batch
 from .model.dynamics import CHANNELS as MODEL_CHANNELS
-from .recording import ACCELERATION, FORCE, Recording
-from .rig import Rig, Scenario, fingerprint, get_rig
+from .recording import ACCELERATION, FORCE, Recording, check_sample_rate
+from .rig import Rig, Scenario, get_rig
+from .stands import fingerprint
 
 #: model channel -> recording channel name
 MODEL_TO_RECORDING = {"contact_force": FORCE, "a2": ACCELERATION, "u2": "piston_displacement"}
@@ -47,6 +48,8 @@ CUTOFF_FRACTION = 0.4
 #: length of the causal FIR in output sample periods (delay = half of it)
 CAUSAL_PERIODS = 16
 MIN_SAMPLE_RATE, MAX_SAMPLE_RATE = 5e3, 1e6
+#: most samples per channel of a simulated recording
+MAX_SAMPLES = 5e7
 
 
 def _zero_phase(x: np.ndarray, factor: int) -> np.ndarray:
@@ -275,6 +278,9 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
     pre_trigger = _check_nonnegative(pre_trigger, "pre_trigger", "[s]")
     if duration <= 0:
         raise ParameterError(f"duration must be > 0 [s], got {shown(duration)}")
+    if (duration + pre_trigger) * sample_rate > MAX_SAMPLES:
+        raise ParameterError(f"duration + pre_trigger must give at most {MAX_SAMPLES:g} samples at "
+                             f"{sample_rate:g} Hz, got {duration:g} s + {pre_trigger:g} s")
     design = _design(anti_alias)
     extras = [str(name) for name in extra_channels]
     model_channels = ["contact_force", "a2"] + [_model_channel(name) for name in extras]
@@ -367,8 +373,8 @@ def apply_sensors(data: Recording | Mapping[str, Any], *, input_rate: float | No
         base = Recording(sample_rate=input_rate, channels=dict(data), start_time=start_time, source="memory")
     else:
         raise ParameterError(f"data must be a Recording or a mapping of channel arrays, got {type(data).__name__}")
-    out_rate = base.sample_rate if sample_rate is None else sample_rate
-    ratio = base.sample_rate / out_rate if out_rate > 0 else math.inf
+    out_rate = base.sample_rate if sample_rate is None else check_sample_rate(sample_rate, error=ParameterError)
+    ratio = base.sample_rate / out_rate
     factor = int(round(ratio))
     if not math.isfinite(ratio) or factor < 1 or abs(ratio - factor) > 1e-9 * ratio:
         raise ParameterError(f"sample_rate must divide the input rate {base.sample_rate:g} Hz by an integer, "

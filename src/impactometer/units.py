@@ -80,6 +80,8 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
     float
         The value in SI units (fractions as plain numbers, ``2%`` -> 0.02).
     """
+    if not isinstance(dimension, str) or (dimension not in UNITS and dimension != "number"):
+        raise UnitError(f"dimension must be one of {sorted(UNITS)} or 'number', got {dimension!r}")
     if isinstance(text, bool):
         raise UnitError(f"{field} must be a number with an optional {dimension} unit, got {text!r}")
     if isinstance(text, (int, float)):

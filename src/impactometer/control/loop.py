@@ -192,8 +192,8 @@ def _check(scenario, noise, seed, identification, absorber, control_start) -> No
         raise ParameterError(f"noise must be a fraction within [0, 1] of each channel's RMS, got {shown(noise)}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError(f"seed must be an integer >= 0, got {shown(seed)}")
-    if identification not in IDENTIFICATIONS:
-        raise ParameterError(f"identification must be one of {list(IDENTIFICATIONS)}, got {identification!r}")
+    if not isinstance(identification, str) or identification not in IDENTIFICATIONS:
+        raise ParameterError(f"identification must be one of {list(IDENTIFICATIONS)}, got {shown(identification)}")
     if not isinstance(absorber, Absorber):
         raise ParameterError(f"absorber must be an Absorber, got {absorber!r}")
     if control_start is not None and (isinstance(control_start, bool) or not isinstance(control_start, (int, float))

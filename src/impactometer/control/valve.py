@@ -55,7 +55,7 @@ class ValveDrive:
     def __post_init__(self) -> None:
         _positive("valve_drive.time_constant", self.time_constant, unit=" [s]")
         _positive("valve_drive.max_rate", self.max_rate, allow_inf=True, unit=" [m²/s]")
-        if self.route not in ROUTES:
+        if not isinstance(self.route, str) or self.route not in ROUTES:
             raise ParameterError(f"valve_drive.route must be one of {sorted(ROUTES)}, got {self.route!r}")
 
 

@@ -293,8 +293,8 @@ FEATURE_SETS: dict[str, FeatureSet] = {
 
 def get_feature_set(name: str) -> FeatureSet:
     """The registered feature set ``name``; the error lists the valid names."""
-    if name not in FEATURE_SETS:
-        raise ParameterError(f"features must be one of {sorted(FEATURE_SETS)}, got {name!r}")
+    if not isinstance(name, str) or name not in FEATURE_SETS:
+        raise ParameterError(f"features must be one of {sorted(FEATURE_SETS)}, got {shown(name)}")
     return FEATURE_SETS[name]
 
 

@@ -14,7 +14,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import IdentificationError, RecordingError, shown
-from ..recording import Recording, check_sample_rate
+from ..recording import START_TIME_LIMIT, Recording, check_sample_rate
 from . import trigger
 from .early import solve_early
 from .onsets import onset_index
@@ -87,6 +87,20 @@ def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.nda
 
 #: samples the batch trigger advances at a time: its event buffer stays small whatever the record's length
 TRIGGER_BLOCK = 1 << 16
+
+
+def check_options(variant: Any, gravity: Any, start_time: Any, *,
+                  error: type[Exception] = IdentificationError) -> tuple[str, float, float]:
+    """The options the batch and the streaming identification share, checked: variant, gravity [m/s²] within
+    [0, 100], start time [s]; ``error`` naming the option otherwise."""
+    if not isinstance(variant, str) or variant not in VARIANT_SOLVERS:
+        raise error(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {shown(variant)}")
+    for name, value, low, high, unit in (("gravity", gravity, 0.0, 100.0, "m/s²"),
+                                         ("start_time", start_time, -START_TIME_LIMIT, START_TIME_LIMIT, "s")):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not low <= value <= high:
+            raise error(f"{name} must be a number within [{low:g}, {high:g}] [{unit}], got {shown(value)}")
+    return variant, float(gravity), float(start_time)
 
 
 def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
@@ -378,10 +392,7 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     The first impact in the data is used: the trigger finds it, up to ``PRE_SAMPLES`` samples before it give the
     offsets and noise of both channels, and it ends after ``QUIET_TIME`` without contact or ``MAX_DURATION``.
     """
-    if variant not in VARIANT_SOLVERS:
-        raise IdentificationError(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {variant!r}")
-    if not (isinstance(gravity, (int, float)) and math.isfinite(gravity) and gravity >= 0):
-        raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {shown(gravity)}")
+    variant, gravity, start_time = check_options(variant, gravity, start_time)
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = _segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})

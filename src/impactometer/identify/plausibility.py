@@ -8,9 +8,9 @@ can have: the channels
 swapped, an acceleration in mm/s² read as m/s², a signal that is not an impact. The answer (M1, V0) is compared
 with physical bounds and with the recorded force:
 
-- velocity within the free-fall range of a drop test (:data:`impactometer.rig.VELOCITY_RANGE`); outside it, a
+- velocity within the free-fall range of a drop test (:data:`impactometer.stands.VELOCITY_RANGE`); outside it, a
   unit slip (×1000, ×g) is named when undoing it gives a velocity within that range;
-- mass within :data:`impactometer.rig.MASS_RANGE`, and large enough for the recorded impulse (the mass can at
+- mass within :data:`impactometer.stands.MASS_RANGE`, and large enough for the recorded impulse (the mass can at
   most reverse its velocity: ∫Fc dt ≤ M1·(2·V0 + g·τ) from first contact to any pulse end τ) and for the energy
   the piston took in the first pulse (∫Fc·v2 dt ≤ M1·V0²/2 + M1·g·u1, u1 the mass's travel);
 - fit: the onset equations' residuals within a few noise standard deviations (reduced χ² below
@@ -29,8 +29,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..errors import IdentificationError
-from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
+from ..errors import IdentificationError, ParameterError, shown
+from ..stands import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
 from .robust import MIN_ONSET_ROWS
 
 #: the recorded impulse (energy) may exceed what the answer allows by this factor before a warning (noise,
@@ -144,6 +144,10 @@ def check_answer(mass: float, velocity: float, *, force: np.ndarray | None = Non
     mass_std, velocity_std : float, optional
         Standard errors [kg], [m/s].
     """
+    for name, value in (("mass", mass), ("velocity", velocity)):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not math.isfinite(value):
+            raise ParameterError(f"{name} must be a finite number, got {shown(value)}")
     out: list[str] = []
     low_v, high_v = VELOCITY_RANGE
     if not low_v <= velocity <= high_v:

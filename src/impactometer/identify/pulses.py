@@ -87,7 +87,12 @@ def noise_std(signal: np.ndarray) -> float:
     Median absolute second difference scaled for Gaussian noise (second differences of white noise have
     variance 6σ²); insensitive to the smooth signal and to a few jumps.
     """
-    x = np.asarray(signal, dtype=float)
+    try:
+        x = np.asarray(signal, dtype=float)
+    except (TypeError, ValueError):
+        raise IdentificationError("signal must be an array of numbers") from None
+    if x.ndim > 1:
+        raise IdentificationError(f"signal must be 1-D, got shape {x.shape}")
     if x.size < 3:
         return 0.0
     d2 = np.add(x[2:], x[:-2])  # one work array the size of the signal, whatever its length

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import ParameterError, ResponseMapError, shown
 from ..recording import Recording, inspect_recording
+from ..stands import check_recorded_on
 from .features import FEATURE_SETS, extract_features, recording_signal
 from .plausibility import check_answer
 from .response_map_build import (
@@ -28,7 +29,6 @@ from .response_map_build import (
     ResponseMap,
     build_map_from_recordings,
     build_map_simulated,
-    check_stand,
     refine,
 )
 from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
@@ -104,9 +104,10 @@ def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapo
             raise ResponseMapError(f"the map has a pressure axis ({axis[0] / 1e3:g}-{axis[-1] / 1e3:g} kPa); give "
                                    "the measured charge pressure (metadata pressure_gauge_Pa)")
         return float(axis[0])
-    p = float(pressure_gauge)
-    if not math.isfinite(p):
+    if isinstance(pressure_gauge, bool) or not isinstance(pressure_gauge, (int, float)) \
+            or not math.isfinite(pressure_gauge):
         raise ParameterError(f"pressure_gauge must be a finite number [Pa], got {shown(pressure_gauge)}")
+    p = float(pressure_gauge)
     lo, hi = axis[0], axis[-1]
     tol = max(PRESSURE_TOLERANCE[0], PRESSURE_TOLERANCE[1] * hi)
     if lo - tol <= p <= hi + tol:
@@ -152,8 +153,8 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
     map's edges, and an answer found out there is refused (or, with ``allow_extrapolation``, returned with a
     warning).
     """
-    if search not in SEARCHES:
-        raise ParameterError(f"search must be one of {list(SEARCHES)}, got {search!r}")
+    if not isinstance(search, str) or search not in SEARCHES:
+        raise ParameterError(f"search must be one of {list(SEARCHES)}, got {shown(search)}")
     if not isinstance(rmap, ResponseMap):
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
     labels = rmap.labels
@@ -175,6 +176,8 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         mass, velocity, residual, _, _ = brute_search(rmap, y, p)  # python floats, like fast_search
     if available_at is None:
         available_at = rmap.feature_params.get("window", math.nan)
+    elif isinstance(available_at, bool) or not isinstance(available_at, (int, float)) or math.isinf(available_at):
+        raise ParameterError(f"available_at must be a time [s] or None, got {shown(available_at)}")
     found = MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
                                     search=search, features=dict(zip(labels, y.tolist(), strict=False)),
                                     feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
@@ -217,7 +220,8 @@ def check_recording(recording: Recording, rmap: ResponseMap) -> None:
     if isinstance(law, str) and law != map_law:
         raise ResponseMapError(f"{where}contact law {law!r}, the map was made with {map_law!r}; expected a map "
                                "of the same contact")
-    check_stand(recording, rmap.rig)
+    check_recorded_on(recording, rmap.rig, error=ResponseMapError,
+                      hint="expected a map of the same stand (map build --rig FILE)")
 
 
 def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Path, *, search: str = "fast",
@@ -225,7 +229,7 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
     """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
 
     The recording must have the map's sample rate, contact law and stand (when its metadata states them: the
-    stand by the fingerprint of its parameters, see :func:`impactometer.rig.fingerprint`); its
+    stand by the fingerprint of its parameters, see :func:`impactometer.stands.fingerprint`); its
     charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis), and the
     delay of its anti-alias filter (``anti_alias_delay_s``) is taken out of its time base.
     """

@@ -7,7 +7,7 @@ and refined by interpolation (tensor-product cubic spline, not-a-knot) to any NÃ
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,7 +17,8 @@ from scipy.interpolate import CubicSpline, RBFInterpolator
 from .. import __version__
 from ..errors import ParameterError, ResponseMapError
 from ..recording import Recording, check_sample_rate
-from ..rig import PRESETS, Rig, fingerprint, from_dict, get_rig, to_dict
+from ..rig import PRESETS, Rig, from_dict, get_rig, to_dict
+from ..stands import STAND_KEY, check_recorded_on
 from .features import extract_batch, extract_features, get_feature_set, recording_signal
 
 SCHEMA_VERSION = 1
@@ -146,27 +147,6 @@ def spline_basis(x: np.ndarray, x_new: np.ndarray, derivative: int = 0) -> np.nd
 def _provenance(source: str, **extra: Any) -> dict[str, Any]:
     return {"source": source, "created": _time.strftime("%Y-%m-%dT%H:%M:%SZ", _time.gmtime()),
             "impactometer_version": __version__, **extra}
-
-
-#: metadata key holding the fingerprint of the stand a recording was made on
-STAND_KEY = "rig_fingerprint"
-
-
-def check_stand(recording: Recording, stand: dict[str, Any], *,
-                hint: str = "expected a map of the same stand (map build --rig FILE)") -> None:
-    """ResponseMapError when ``recording`` states a stand (the fingerprint of its parameters) other than ``stand``.
-
-    A stand's name is a label: two stands are the same when all their parameters are.
-    """
-    stated = recording.metadata.get(STAND_KEY)
-    if stated is None:
-        return
-    expected = fingerprint(stand)
-    if str(stated) != expected:
-        name = recording.metadata.get("rig")
-        raise ResponseMapError(f"{recording.source}: recorded on a stand{f' labelled {name!r}' if name else ''} "
-                               f"with other parameters (fingerprint {str(stated)[:16]}) than the map's stand "
-                               f"{stand.get('name')!r} (fingerprint {expected}); {hint}")
 
 
 def _check_size(n_features: int, n_p: int, n_m: int, n_v: int) -> None:
@@ -376,7 +356,12 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
     source : str
         Where the recordings came from (kept in the provenance).
     """
+    if isinstance(recordings, (str, bytes, Recording)) or not isinstance(recordings, Iterable):
+        raise ResponseMapError(f"recordings must be a sequence of Recording, got {type(recordings).__name__}")
     recs = list(recordings)
+    if any(not isinstance(r, Recording) for r in recs):
+        raise ResponseMapError(f"recordings must be a sequence of Recording, got one of "
+                               f"{type(next(r for r in recs if not isinstance(r, Recording))).__name__}")
     if len(recs) < 6:
         raise ResponseMapError(f"a map from recordings needs at least 6 recordings, got {len(recs)}")
     rates = sorted({float(r.sample_rate) for r in recs})
@@ -401,7 +386,8 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         rig = names[0]
     stand = get_rig(rig)
     for r in recs[:1] if prints else ():
-        check_stand(r, to_dict(stand), hint="pass the stand they were recorded on (rig=, map build --rig FILE)")
+        check_recorded_on(r, to_dict(stand), error=ResponseMapError,
+                          hint="pass the stand they were recorded on (rig=, map build --rig FILE)")
     fs = get_feature_set(features)
     params = fs.params(feature_params)
     y = np.array([extract_features(*recording_signal(r), features, params)[0] for r in recs])

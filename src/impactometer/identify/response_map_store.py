@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ImpactometerError, ParameterError, ResponseMapError
-from ..outputs import check_file, write_failed
+from ..outputs import as_path, check_file, write_failed
 from ..recording import check_sample_rate
 from .features import get_feature_set
 from .response_map_build import SCHEMA_VERSION, ResponseMap
@@ -112,7 +112,7 @@ def load_map(path: str | Path) -> ResponseMap:
     """
     import h5py
 
-    path = Path(path)
+    path = as_path(path, error=ResponseMapError)
     where = str(path)
     if not path.is_file():
         raise ResponseMapError(f"{where}: no such map file; expected an HDF5 file from impactometer map build")

@@ -9,11 +9,12 @@ duration) the identifier re-arms for the next one.
 from __future__ import annotations
 
 import contextlib
+import math
 
 import numpy as np
 from numba import njit
 
-from ..errors import IdentificationError, ParameterError
+from ..errors import IdentificationError, ParameterError, shown
 from ..recording import check_sample_rate
 from . import peak_to_peak as p2p
 from . import trigger
@@ -64,10 +65,11 @@ class StreamingIdentifier:
     def __init__(self, sample_rate: float, *, variant: str = "robust", gravity: float = p2p.GRAVITY,
                  start_time: float = 0.0, floor: float = p2p.TRIGGER_FLOOR, contact_phase: bool = False):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
-        if variant not in p2p.VARIANT_SOLVERS:
-            raise ParameterError(f"variant must be one of {sorted(p2p.VARIANT_SOLVERS)}, got {variant!r}")
-        self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, float(gravity)
-        self.start_time, self.floor = float(start_time), float(floor)
+        variant, gravity, start_time = p2p.check_options(variant, gravity, start_time, error=ParameterError)
+        if isinstance(floor, bool) or not isinstance(floor, (int, float)) or not 0.0 <= floor < math.inf:
+            raise ParameterError(f"floor must be a finite number >= 0 [N], got {shown(floor)}")
+        self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, gravity
+        self.start_time, self.floor = start_time, float(floor)
         self.contact_phase = bool(contact_phase)
         self.quiet = max(int(p2p.QUIET_TIME * sample_rate), 1)
         self.max_samples = max(int(p2p.MAX_DURATION * sample_rate), 1)
@@ -95,8 +97,11 @@ class StreamingIdentifier:
 
     def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
         """Feed samples (any number, down to one); return the estimates that became available."""
-        f = np.asarray(force_chunk, dtype=np.float64)
-        a = np.asarray(acceleration_chunk, dtype=np.float64)
+        try:
+            f = np.asarray(force_chunk, dtype=np.float64)
+            a = np.asarray(acceleration_chunk, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise IdentificationError("force and acceleration chunks must hold numbers") from None
         if f.ndim == 0:
             f, a = f.reshape(1), a.reshape(-1)
         if f.ndim != 1 or f.shape != a.shape:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ImpactometerError, RecordingError
-from ..outputs import check_file, write_failed
+from ..outputs import as_path, check_file, write_failed
 from ..recording import TRUTH_KEYS, Recording, truth_value
 from . import csv, hdf5, mat, tdms
 from .channels import RawData, assemble, merge_metadata
@@ -39,7 +39,7 @@ MANIFEST_TOLERANCE = 0.01
 
 def format_of(path: str | Path) -> str:
     """Format name of ``path`` from its extension; the error lists the known extensions."""
-    suffix = Path(path).suffix.lower()
+    suffix = as_path(path, error=RecordingError).suffix.lower()
     if suffix not in FORMATS:
         raise RecordingError(f"{path}: unknown extension {suffix or '(none)'!r}; expected one of "
                              f"{', '.join(sorted(FORMATS))}")
@@ -48,7 +48,7 @@ def format_of(path: str | Path) -> str:
 
 def read_raw(path: str | Path, *, group: str | None = None) -> RawData:
     """What the file at ``path`` holds, before channel selection (see :func:`read_recording`)."""
-    path = Path(path)
+    path = as_path(path, error=RecordingError)
     fmt = format_of(path)
     if not path.is_file():
         raise RecordingError(f"{path}: no such file")
@@ -115,7 +115,7 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
     """
     if not isinstance(recording, Recording):
         raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
-    path = Path(path)
+    path = as_path(path, error=RecordingError)
     fmt = format_of(path)
     targets = _targets(path, fmt)
     for target in targets:
@@ -170,10 +170,11 @@ def read_calibration_set(folder: str | Path, manifest: str | Path | None = None,
     optionally ``pressure_gauge_Pa``; ``read_options`` go to :func:`read_recording`. Where a file states a truth
     too, the two must agree within :data:`MANIFEST_TOLERANCE` (a manifest with swapped columns is refused).
     """
-    folder = Path(folder)
+    folder = as_path(folder, "folder", error=RecordingError)
     if not folder.is_dir():
         raise RecordingError(f"{folder}: not a folder; expected a folder of recordings")
-    manifest_path = Path(manifest) if manifest is not None else folder / MANIFEST_NAME
+    manifest_path = as_path(manifest, "manifest", error=RecordingError) if manifest is not None \
+        else folder / MANIFEST_NAME
     if manifest is not None and not manifest_path.is_file():
         raise RecordingError(f"{manifest_path}: manifest does not exist")
     truth = _manifest(manifest_path) if manifest_path.is_file() else {}

@@ -265,8 +265,8 @@ def register(study: Study) -> Study:
 
 def get_study(name: str) -> Study:
     """The registered study ``name``; an unknown name raises with the list of valid names."""
-    if name not in STUDIES:
-        raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {name!r}")
+    if not isinstance(name, str) or name not in STUDIES:
+        raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {shown(name)}")
     return STUDIES[name]
 
 
