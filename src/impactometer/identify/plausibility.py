@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 
@@ -44,7 +45,9 @@ RELATIVE_ERROR_LIMIT = 0.25
 SWING_FRACTION, SWING_SIGMAS = 0.05, 10.0
 #: unit slips: factor by which the identified velocity comes out too large -> how it happens
 VELOCITY_SLIPS = {1e3: "an acceleration in mm/s² read as m/s²", 1e-3: "an acceleration in m/s² read as mm/s²",
-                  9.80665: "an acceleration in m/s² read as g"}
+                  9.80665: "an acceleration in m/s² read as g", 1 / 9.80665: "an acceleration in g read as m/s²"}
+#: reduced χ² above which an acceleration unit slip is looked for, and how much better a slip must fit to be named
+SLIP_CHI2, SLIP_GAIN = 4.0, 25.0
 #: unit slips: factor by which the identified mass comes out too large -> how it happens
 MASS_SLIPS = {1e3: "a force in N read as kN", 1e-3: "a force in kN read as N"}
 
@@ -97,12 +100,38 @@ def answer_warnings(seg, result, gravity: float) -> tuple[str, ...]:
     details = result.details
     fitted = details.get("onset_rows", 0) >= MIN_ONSET_ROWS  # the onset equations' χ² measures the fit to noise
     chi2 = details["chi2"] / details["dof"] if fitted and details.get("dof") else None
-    return check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
-                        onset=(result.t00 - seg.start_time) * seg.sample_rate,
-                        pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
-                        noise_force=seg.noise_force, acceleration=seg.acceleration,
-                        noise_acceleration=seg.noise_acceleration, reduced_chi2=chi2, mass_std=result.mass_std,
-                        velocity_std=result.velocity_std)
+    found = check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
+                         onset=(result.t00 - seg.start_time) * seg.sample_rate,
+                         pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
+                         noise_force=seg.noise_force, acceleration=seg.acceleration,
+                         noise_acceleration=seg.noise_acceleration, reduced_chi2=chi2, mass_std=result.mass_std,
+                         velocity_std=result.velocity_std)
+    if chi2 is not None and chi2 > SLIP_CHI2:
+        found += _unit_slip(seg, result, gravity, chi2)
+    return found
+
+
+def _unit_slip(seg, result, gravity: float, chi2: float) -> tuple[str, ...]:
+    """An acceleration unit slip the signals recognise: the onset equations, which hold gravity as a known term,
+    fit the noise far better with the acceleration rescaled by the slip's factor, to a plausible answer."""
+    from .peak_to_peak import solve_robust
+
+    for factor, text in VELOCITY_SLIPS.items():
+        scaled = replace(seg, acceleration=seg.acceleration / factor, noise_acceleration=seg.noise_acceleration
+                         / factor)
+        try:
+            other = solve_robust(scaled, gravity)
+        except IdentificationError:
+            continue
+        rows = other.details
+        if rows.get("onset_rows", 0) < MIN_ONSET_ROWS or not rows.get("dof"):
+            continue
+        better = chi2 / max(rows["chi2"] / rows["dof"], 1.0)
+        if better >= SLIP_GAIN and not check_answer(other.mass, other.velocity):
+            return (f"the onset equations fit the noise {math.sqrt(better):.3g} times better with the acceleration "
+                    f"multiplied by {1 / factor:.6g}: {text} would give this answer; read so, M1 = "
+                    f"{other.mass:.4g} kg and V0 = {other.velocity:.4g} m/s",)
+    return ()
 
 
 def _slip(value: float, low: float, high: float, slips: dict[float, str]) -> str:
