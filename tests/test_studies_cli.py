@@ -38,7 +38,8 @@ def test_other_options_need_force(tmp_path, capsys):
     (["study", "nope", "--out", "x"], "study must be one of"),
     (["study", "peak-force"], "--out is required"),
     (["study", "peak-force", "--out", "x", "--noise", "3kg"], "--noise"),
-    (["study", "peak-force", "--out", "x", "--grid", "1"], "grid must be an integer >= 2"),
+    (["study", "peak-force", "--out", "x", "--grid", "1"], r"grid must be an integer within [2, 40]"),
+    (["study", "peak-force", "--out", "x", "--grid", "1000"], r"grid must be an integer within [2, 40]"),
     (["study", "peak-force", "--out", "x", "--set", "chunk_size=3"], "--set must look like STUDY.SETTING=VALUE"),
     (["study", "peak-force", "--out", "x", "--contact", "glue"], "contact.law must be one of"),
 ])

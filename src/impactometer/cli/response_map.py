@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -82,6 +83,7 @@ def build(
     import numpy as np
 
     from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
+    from ..identify.response_map_build import MAX_SIMULATED
     from ..rig import get_rig
 
     output_path(out, force)
@@ -114,6 +116,9 @@ def build(
         if pressures[-1] > stand.cylinder.rated_pressure_gauge:
             raise ParameterError(f"--pressure: {pressures[-1]:g} Pa exceeds the rated "
                                  f"{stand.cylinder.rated_pressure_gauge:g} Pa of {stand.name!r}")
+        if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
+            print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
+                  "pressure(s)) ...", file=sys.stderr, flush=True)
         rmap = build_map_simulated(stand, pressures if len(pressures) > 1 else pressures[0], masses=masses,
                                    velocities=velocities, features=features, feature_params=params,
                                    sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
