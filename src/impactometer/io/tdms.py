@@ -75,7 +75,8 @@ def _samples(channel) -> np.ndarray | None:
 def read(path: Path, *, group: str | None = None) -> RawData:
     """What a TDMS file holds (read-only); channel data is read in blocks, straight into float64 arrays."""
     source = str(path)
-    with TdmsFile.open(path) as tdms:
+    # the file is opened here, not by npTDMS, so that it is closed also when a damaged header stops npTDMS
+    with open(path, "rb") as handle, TdmsFile.open(handle) as tdms:
         return _read(tdms, group, source)
 
 
