@@ -65,7 +65,7 @@ def _samples(channel) -> np.ndarray | None:
         return None
     out = np.empty(size)
     for start in range(0, size, READ_BLOCK):
-        block = np.asarray(channel.read_data(start, min(READ_BLOCK, size - start)))
+        block = np.asarray(channel[start:start + READ_BLOCK])
         if block.dtype.kind not in "iuf":
             return None
         out[start:start + block.size] = block
