@@ -99,7 +99,9 @@ def test_filtered_channels_are_refused_by_the_robust_variant(cfc):
     with pytest.raises(IdentificationError, match="low-pass filtered"):
         identify_arrays(filtered.contact_force, filtered.piston_acceleration, FS, filtered.start_time)
     ident = StreamingIdentifier(FS, start_time=filtered.start_time)
-    assert ident.push(filtered.contact_force, filtered.piston_acceleration) == [] and ident.finish() is None
+    assert ident.push(filtered.contact_force, filtered.piston_acceleration) == []
+    with pytest.raises(IdentificationError, match="low-pass filtered"):
+        ident.finish()
     try:
         paper = identify(filtered, variant="paper")
     except IdentificationError:

@@ -20,6 +20,13 @@ def legend_outside(ax, **options) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, **options)
 
 
+def figure_legend(fig, ax) -> None:
+    """The legend of ``ax`` to the right of the whole (constrained-layout) figure, off every panel's data."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside right upper", fontsize=8)
+
+
 def shade_pulses(ax, pulses, *, scale: float = 1e3) -> None:
     """Shade contact pulses (stage A, blue) and sustained contact (stage B, orange) on ``ax`` (time in ms)."""
     first_a = first_b = True

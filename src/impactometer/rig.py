@@ -3,9 +3,10 @@
 A stand is loaded from and saved to TOML (unknown keys are errors). ``PRESETS['drop-stand']`` is the built-in
 stand, representative of the stand of the reference paper (Fig. 1): a 4 kg piston and rod in an 80 mm bore,
 25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge, with a nearly elastic Kelvin-Voigt contact (the rod bounces
-on the mass for the whole stroke; also named ``drop-stand-stiff``). ``PRESETS['drop-stand-pad']`` (the defaults of
-these classes) has a hysteretic elastomer pad between mass and rod, 100 N of seal friction and end-of-stroke gas
-cushions: a rebound or two, then sustained contact to the deepest point, as the paper describes (Fig. 2).
+on the mass for the whole stroke; also named ``drop-stand-stiff``; the defaults of these classes).
+``PRESETS['drop-stand-pad']`` has a hysteretic elastomer pad between mass and rod, 100 N of seal friction and
+end-of-stroke gas cushions: a rebound or two, then sustained contact to the deepest point, as the paper describes
+(Fig. 2).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ParameterError
+from .stands import CYLINDER_LIMITS, MASS_RANGE, VELOCITY_RANGE, check_stops
 
 ATMOSPHERIC_PRESSURE = 101325.0  # [Pa]
 STANDARD_GRAVITY = 9.81  # [m/s²], the value of the reference model
@@ -28,7 +30,8 @@ def _check(name: str, value: Any, *, low: float | None = None, high: float | Non
            low_open: bool = True, unit: str = "") -> None:
     """Raise ParameterError unless ``value`` is a finite real within the bounds."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ParameterError(f"{name} must be a finite number{unit}, got {value!r}")
+        shown = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else value
+        raise ParameterError(f"{name} must be a finite number{unit}, got {shown!r}")
     value = float(value)  # numpy scalars print as plain numbers below
     if low is not None and (value <= low if low_open else value < low):
         raise ParameterError(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {value!r}")
@@ -47,8 +50,8 @@ class Cylinder:
     rod_diameter : Rod diameter [m]; the rod passes through the upper chamber.
     stroke : Piston travel between the top and bottom stops [m].
     lower_length, upper_length : Gas column lengths with the piston at the top stop [m].
-    dead_volume_lower, dead_volume_upper : Extra gas volume of ports, cushions and fittings [m³]. The defaults,
-        20 cm³ and 10 cm³ (4 mm and 2 mm of the 80 mm bore), keep a gas cushion at the end of the stroke when the
+    dead_volume_lower, dead_volume_upper : Extra gas volume of ports, cushions and fittings [m³]. The pad stand's
+        20 cm³ and 10 cm³ (4 mm and 2 mm of the 80 mm bore) keep a gas cushion at the end of the stroke when the
         valve has let the lower chamber empty into the upper one.
     rated_pressure_gauge : Highest admissible charge pressure above atmosphere [Pa].
     """
@@ -59,15 +62,14 @@ class Cylinder:
     stroke: float = 0.20
     lower_length: float = 0.20
     upper_length: float = 0.02
-    dead_volume_lower: float = 2e-5
-    dead_volume_upper: float = 1e-5
+    dead_volume_lower: float = 0.0
+    dead_volume_upper: float = 0.0
     rated_pressure_gauge: float = 400e3
 
     def __post_init__(self) -> None:
-        for name in ("piston_mass", "bore", "rod_diameter", "stroke", "rated_pressure_gauge"):
-            _check(f"cylinder.{name}", getattr(self, name), low=0.0)
-        for name in ("lower_length", "upper_length", "dead_volume_lower", "dead_volume_upper"):
-            _check(f"cylinder.{name}", getattr(self, name), low=0.0, low_open=False)
+        for name, high in CYLINDER_LIMITS.items():
+            _check(f"cylinder.{name}", getattr(self, name), low=0.0, high=high, low_open=not name.endswith(
+                ("_length", "_lower", "_upper")))
         if self.rod_diameter >= self.bore:
             raise ParameterError(f"cylinder.rod_diameter must be < bore ({self.bore!r} m), got {self.rod_diameter!r}")
         if self.lower_length * self.area + self.dead_volume_lower <= 0.0:
@@ -125,12 +127,12 @@ class Friction:
 
     Attributes
     ----------
-    force : Coulomb friction force [N]. The default, 100 N, is about 15 % of the gas force on the 80 mm piston
+    force : Coulomb friction force [N]. The pad stand's 100 N is about 15 % of the gas force on the 80 mm piston
         at 100 kPa: published thrust losses of pneumatic cylinders are 10-25 % (about 50-250 N at this bore).
     velocity_scale : Smoothing velocity [m/s]: the friction reaches 76 % of its Coulomb level at this speed.
     """
 
-    force: float = 100.0
+    force: float = 30.0
     velocity_scale: float = 0.01
 
     def __post_init__(self) -> None:
@@ -163,16 +165,16 @@ def contact_law_name(name: str) -> str:
 class Contact:
     """Compressive-only contact between the falling mass and the rod tip (an elastomer pad or a sensor cap).
 
-    ``hysteretic`` (Walton-Braun, the default): loading F = k1·δ, unloading and reloading F = k2·(δ − s) with the
+    ``hysteretic`` (Walton-Braun): loading F = k1·δ, unloading and reloading F = k2·(δ − s) with the
     set s of the current pulse [stiffness = k1 N/m, restitution e = sqrt(k1/k2), 0 < e <= 1]; the force peaks
     exactly at maximum compression and a collision keeps e² of its relative kinetic energy;
-    ``kelvin-voigt``: F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
+    ``kelvin-voigt`` (the default): F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
     ``hunt-crossley``: F = k·δ^1.5·(1 + 1.5·α·δ') [stiffness N/m^1.5, damping = α s/m].
     The force is zero while δ <= 0 and never pulls. Parameters left out take the law's defaults
     (``CONTACT_LAWS``); a parameter of another law is an error.
     """
 
-    law: str = "hysteretic"
+    law: str = "kelvin-voigt"
     # None here means "the law's default"; every law has a stiffness, so it is a float once created
     stiffness: float = None  # type: ignore[assignment]
     damping: float | None = None
@@ -254,7 +256,7 @@ class Valve:
 class Rig:
     """The whole drop stand."""
 
-    name: str = "drop-stand-pad"
+    name: str = "drop-stand"
     cylinder: Cylinder = field(default_factory=Cylinder)
     gas: Gas = field(default_factory=Gas)
     friction: Friction = field(default_factory=Friction)
@@ -270,6 +272,7 @@ class Rig:
         _check("rig.gravity", self.gravity, low=0.0, low_open=False)
         if not isinstance(self.name, str):
             raise ParameterError(f"rig.name must be a string, got {self.name!r}")
+        check_stops(self)
 
     def with_contact(self, law: str) -> Rig:
         """This stand with the default contact of ``law``."""
@@ -353,6 +356,9 @@ def load_toml(path: str | Path) -> Rig:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParameterError(f"rig file {str(path)!r} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ParameterError(f"rig file {str(path)!r} nests arrays or tables too deeply; expected a stand "
+                             "description (sections of numbers)") from None
     return from_dict(data, source=str(path))
 
 
@@ -360,18 +366,21 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``rig`` to ``path`` as TOML."""
     import tomli_w
 
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise ParameterError(f"rig file {str(path)!r} exists; pass overwrite=True to replace it")
-    path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+    from .outputs import check_file, write_failed
+
+    path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
+    try:
+        path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+    except OSError as exc:
+        raise write_failed(path, exc) from None
     return path
 
 
 #: the stand with a nearly elastic Kelvin-Voigt contact: the rod bounces on the mass for the whole stroke
-STIFF_STAND = Rig(name="drop-stand-stiff", contact=Contact(law="kelvin-voigt"), friction=Friction(force=30.0),
-                  cylinder=Cylinder(dead_volume_lower=0.0, dead_volume_upper=0.0))
+STIFF_STAND = Rig(name="drop-stand-stiff")
 #: the stand with a hysteretic elastomer pad: a rebound or two (stage A), then sustained contact (stage B)
-PAD_STAND = Rig(name="drop-stand-pad")
+PAD_STAND = Rig(name="drop-stand-pad", contact=Contact(law="hysteretic"), friction=Friction(force=100.0),
+                cylinder=Cylinder(dead_volume_lower=2e-5, dead_volume_upper=1e-5))
 #: named stands; ``drop-stand`` is the default (today the stiff stand: the robust identification does not yet
 #: use stage B, which the pad stand reaches after one or two rebounds)
 PRESETS: dict[str, Rig] = {
@@ -387,6 +396,8 @@ def get_rig(name_or_path: str | Path | Rig | None = None, *, contact: str | None
         rig = name_or_path
     elif name_or_path is None:
         rig = PRESETS["drop-stand"]
+    elif not isinstance(name_or_path, (str, Path)):
+        raise ParameterError(f"rig must be a Rig, a preset name or a .toml file, got {type(name_or_path).__name__}")
     elif str(name_or_path) in PRESETS:
         rig = PRESETS[str(name_or_path)]
     elif Path(name_or_path).suffix.lower() == ".toml":
@@ -405,8 +416,8 @@ class Scenario:
     pressure_gauge: float = 200e3
 
     def __post_init__(self) -> None:
-        _check("mass", self.mass, low=0.0, unit=" [kg]")
-        _check("velocity", self.velocity, low=0.0, unit=" [m/s]")
+        _check("mass", self.mass, low=MASS_RANGE[0], low_open=False, high=MASS_RANGE[1], unit=" [kg]")
+        _check("velocity", self.velocity, low=0.0, high=VELOCITY_RANGE[1], unit=" [m/s]")
         _check("pressure_gauge", self.pressure_gauge, low=0.0, low_open=False, unit=" [Pa]")
 
     @classmethod

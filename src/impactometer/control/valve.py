@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, shown
 from ..model.forces import orifice_mass_flow
 from ..rig import Rig
 
@@ -33,7 +33,8 @@ def _positive(name: str, value, *, allow_zero: bool = False, allow_inf: bool = F
     if not ok_type or math.isnan(value) or (math.isinf(value) and not allow_inf) \
             or (value < 0 if allow_zero else value <= 0):
         bound = ">= 0" if allow_zero else "> 0"
-        raise ParameterError(f"{name} must be a {'' if allow_inf else 'finite '}number {bound}{unit}, got {value!r}")
+        raise ParameterError(f"{name} must be a {'' if allow_inf else 'finite '}number {bound}{unit}, got "
+                             f"{shown(value)}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -54,7 +55,7 @@ class ValveDrive:
     def __post_init__(self) -> None:
         _positive("valve_drive.time_constant", self.time_constant, unit=" [s]")
         _positive("valve_drive.max_rate", self.max_rate, allow_inf=True, unit=" [m²/s]")
-        if self.route not in ROUTES:
+        if not isinstance(self.route, str) or self.route not in ROUTES:
             raise ParameterError(f"valve_drive.route must be one of {sorted(ROUTES)}, got {self.route!r}")
 
 

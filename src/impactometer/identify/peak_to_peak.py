@@ -17,9 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import IdentificationError, RecordingError
-from ..recording import Recording
+from ..errors import IdentificationError, RecordingError, shown
+from ..recording import START_TIME_LIMIT, Recording
 from .early import solve_early
+from .plausibility import answer_warnings, check_segment
 from .pulses import detection_levels, first_peak, sustained_index
 from .result import Identification
 from .robust import Equations, Kinematics, combine, solve_rows
@@ -31,7 +32,6 @@ from .segment import (  # noqa: F401 - re-exported: the streaming identifier and
     TRIGGER_FLOOR,
     Segment,
     check_channels,
-    check_clipping,
     early_cut,
     early_ready,
     edges,
@@ -56,10 +56,32 @@ MAX_RELATIVE_STD = 0.5
 def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
           contact_phase: bool = False, stage: str = "final") -> Identification:
     """Identify from a prepared segment with the named variant (``contact_phase``, ``stage``: see
-    :func:`solve_robust`)."""
+    :func:`solve_robust`).
+
+    The segment passes :func:`.plausibility.check_segment` first, so the batch and the streaming identification,
+    their early and final answers, refuse the same data; the answer carries the warnings of
+    :func:`.plausibility.answer_warnings`.
+    """
+    check_segment(seg)
     if variant == "robust":
-        return solve_robust(seg, gravity, early, contact_phase=contact_phase, stage=stage)
-    return VARIANT_SOLVERS[variant](seg, gravity, early)
+        result = solve_robust(seg, gravity, early, contact_phase=contact_phase, stage=stage)
+    else:
+        result = VARIANT_SOLVERS[variant](seg, gravity, early)
+    return replace(result, warnings=answer_warnings(seg, result, gravity))
+
+
+def check_options(variant: Any, gravity: Any, start_time: Any, *,
+                  error: type[Exception] = IdentificationError) -> tuple[str, float, float]:
+    """The options the batch and the streaming identification share, checked: variant, gravity [m/s²] within
+    [0, 100], start time [s]; ``error`` naming the option otherwise."""
+    if not isinstance(variant, str) or variant not in VARIANT_SOLVERS:
+        raise error(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {shown(variant)}")
+    for name, value, low, high, unit in (("gravity", gravity, 0.0, 100.0, "m/s²"),
+                                         ("start_time", start_time, -START_TIME_LIMIT, START_TIME_LIMIT, "s")):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not low <= value <= high:
+            raise error(f"{name} must be a number within [{low:g}, {high:g}] [{unit}], got {shown(value)}")
+    return variant, float(gravity), float(start_time)
 
 
 def _need_pulses(seg: Segment, needed: int, what: str) -> None:
@@ -100,6 +122,7 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
                                   f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
+    _check_velocity(velocity, "the paper's eqs. (3)-(5)")
     details: dict[str, Any] = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
     caution = paper_caution(seg)
     if caution:
@@ -107,6 +130,13 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(peak2),
                           t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(peak2),
                           variant="paper", details=details)
+
+
+def _check_velocity(velocity: float, source: str) -> None:
+    """IdentificationError unless an impact velocity is positive (the mass falls onto the rod)."""
+    if not (math.isfinite(velocity) and velocity > 0.0):
+        raise IdentificationError(f"{source} give an impact velocity of {float(velocity):.4g} m/s, not a falling "
+                                  "mass; the pulses found are not contact separations of a falling mass")
 
 
 def second_peak(seg: Segment) -> int | None:
@@ -224,6 +254,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity) or not np.all(np.isfinite(cov)):
         raise IdentificationError(f"the equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses found "
                                   "are not contact separations of a falling mass")
+    _check_velocity(velocity, f"the {stage} equations")
     spread = max(float(np.sqrt(cov[1, 1])) / w, float(np.sqrt(cov[0, 0])) / max(abs(velocity), 1e-12))
     if spread > MAX_RELATIVE_STD:
         raise IdentificationError(f"the {stage} equations do not determine the impact: the standard error is "
@@ -291,14 +322,10 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     The first impact in the data is used: the trigger finds it, up to ``PRE_SAMPLES`` samples before it give the
     offsets and noise of both channels, and it ends after ``QUIET_TIME`` without contact or ``MAX_DURATION``.
     """
-    if variant not in VARIANT_SOLVERS:
-        raise IdentificationError(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {variant!r}")
-    if not (isinstance(gravity, (int, float)) and math.isfinite(gravity) and gravity >= 0):
-        raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {gravity!r}")
+    variant, gravity, start_time = check_options(variant, gravity, start_time)
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
-    check_clipping(seg)
     early = None
     if variant == "robust":
         early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)

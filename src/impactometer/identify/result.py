@@ -28,6 +28,7 @@ class Identification:
     details : Diagnostics: ``stage`` (``early`` or ``final``), ``equations`` (what the answer used: counts of
         onsets, force extrema, of them in stage B, separations and the stage-B samples, the contact-phase fit's
         samples where one was used, and the fitted nuisances), chi-square and degrees of freedom, noise levels.
+    warnings : Sentences on what makes the answer implausible (see :mod:`.plausibility`); empty when nothing does.
     """
 
     mass: float
@@ -43,6 +44,7 @@ class Identification:
     early: Identification | None = None
     onsets: tuple[float, ...] = ()
     details: dict[str, Any] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
 
     @property
     def energy(self) -> float:
@@ -65,7 +67,7 @@ class Identification:
                 "t00_s": num(self.t00), "t01_s": num(self.t01), "t11_s": num(self.t11),
                 "method": self.method, "variant": self.variant,
                 "early": None if self.early is None else self.early.to_dict(),
-                "onsets_s": [float(t) for t in self.onsets],
+                "onsets_s": [float(t) for t in self.onsets], "warnings": list(self.warnings),
                 **({"stage": self.details["stage"]} if self.details.get("stage") else {}),
                 **({"equations": _plain(self.details["equations"])} if self.details.get("equations") else {}),
                 **({"caution": self.details["caution"]} if self.details.get("caution") else {})}

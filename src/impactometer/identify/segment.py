@@ -7,12 +7,12 @@ the pulses are detected and their onsets, separations and the turning points of 
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import IdentificationError
+from ..recording import check_sample_rate
 from . import trigger
 from .onsets import VERTEX_HALF_MAX, onset_index, separation_index, turning_points, vertex
 from .pulses import PulseSpan, detect_pulses, noise_std, sustained_index
@@ -62,9 +62,7 @@ class Segment:
 
 def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.ndarray, float]:
     """Validate the two channels; IdentificationError naming what is wrong."""
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
-            sample_rate) or sample_rate <= 0:
-        raise IdentificationError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
+    sample_rate = check_sample_rate(sample_rate, error=IdentificationError)
     if acceleration is None:
         raise IdentificationError("the piston acceleration channel is missing; peak-to-peak needs contact force "
                                   "and piston acceleration")
@@ -85,19 +83,25 @@ def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.nda
                                   f"and {a.size} samples")
     if f.size < 8:
         raise IdentificationError(f"the record has {f.size} samples; expected at least 8")
-    if np.ptp(a) == 0.0:
-        raise IdentificationError(f"piston_acceleration is constant ({a[0]!r} m/s² throughout); expected a "
-                                  "measured acceleration")
     return f, a, float(sample_rate)
 
 
+#: samples the batch trigger advances at a time: its event buffer stays small whatever the record's length
+TRIGGER_BLOCK = 1 << 16
+
+
 def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
-    """Trigger events (code, sample index) over a whole record."""
+    """Trigger events (code, sample index) of a record, up to the end of its first impact."""
     fstate, istate = trigger.new_state()
-    events = np.zeros((3 * force.size + 2, 2), dtype=np.int64)
-    n = trigger.run_trigger(force, fstate, istate, floor, max(int(QUIET_TIME * sample_rate), 1),
-                            max(int(MAX_DURATION * sample_rate), 1), events)
-    return events[:n]
+    events = np.empty((3 * TRIGGER_BLOCK + 2, 2), dtype=np.int64)
+    quiet, longest = max(int(QUIET_TIME * sample_rate), 1), max(int(MAX_DURATION * sample_rate), 1)
+    found = [np.empty((0, 2), dtype=np.int64)]
+    for start in range(0, force.size, TRIGGER_BLOCK):
+        n = trigger.run_trigger(force[start:start + TRIGGER_BLOCK], fstate, istate, floor, quiet, longest, events)
+        found.append(events[:n].copy())
+        if np.any(events[:n, 0] == trigger.EVENT_CLOSE):  # the first impact is over (a close follows a trigger)
+            break
+    return np.concatenate(found)
 
 
 def quantum(x: np.ndarray) -> float:
@@ -150,35 +154,6 @@ def lag_correlation(x: np.ndarray) -> float:
     y = np.asarray(x, dtype=float) - float(np.mean(x))
     power = float(y @ y)
     return float(y[1:] @ y[:-1]) / power if power > 0 else 0.0
-
-
-def check_clipping(seg: Segment) -> None:
-    """IdentificationError when the force channel is saturated.
-
-    A quantised peak may sit a few samples at one level: about 2·√(2(q + 2σ)/|F''|) samples for a quantum q, noise
-    σ and the curvature F'' ≈ Fmax·(π/T)² of a pulse of T samples. A flat top twice that long, or the maximum
-    reached in two different pulses to the last digit, is a clipped channel.
-    """
-    f = seg.force
-    fmax = float(np.max(f))
-    at_max = np.flatnonzero(f >= fmax - 1e-12 * abs(fmax))
-    k = int(at_max[0])
-    run = int(np.argmax(np.diff(np.r_[at_max, -2]) != 1)) + 1
-    pulse = next((p for p in seg.pulses if p.first <= k and (not p.complete or k < p.end)), None)
-    rails = sum(any(p.first <= i and (not p.complete or i < p.end) for i in at_max) for p in seg.pulses)
-    if pulse is None or fmax <= 0:
-        return
-    length = (f.size if not pulse.complete else pulse.end) - pulse.zero
-    curvature = fmax * (np.pi / max(length, 1)) ** 2
-    near = f[max(k - 2 * run - 8, 0):k + 3 * run + 8]
-    steps = np.diff(np.unique(near))
-    quantum = float(steps.min()) if steps.size else 0.0
-    expected = 2.0 * np.sqrt(2.0 * (quantum + 2.0 * seg.noise_force) / curvature)
-    if rails >= 2 or run >= max(3.0, 2.0 * expected):
-        raise IdentificationError(f"contact_force is saturated: {run} samples sit at its maximum {fmax:.6g} N from "
-                                  f"t = {seg.time_of(k):.6g} s (a peak of that curvature stays about "
-                                  f"{expected:.1f} samples within the resolution); the force channel was "
-                                  "clipped, its range must be raised")
 
 
 def segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, list[int], int]:

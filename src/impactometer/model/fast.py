@@ -56,10 +56,12 @@ def _rms(x, scale):
 
 
 @njit(cache=True, error_model="numpy")
-def initial_step(p, y0, f0, t_end, rtol, atol, max_step, work, f1):
-    """First step size [s], as scipy's ``select_initial_step`` (Hairer, Nørsett & Wanner, Sec. II.4)."""
+def initial_step(p, y0, f0, t_end, rtol, atol, max_step, work, f1, scale):
+    """First step size [s], as scipy's ``select_initial_step`` (Hairer, Nørsett & Wanner, Sec. II.4).
+
+    ``work``, ``f1`` and ``scale`` are scratch arrays of the state's size.
+    """
     n = y0.size
-    scale = np.empty(n)
     for i in range(n):
         scale[i] = atol[i] + abs(y0[i]) * rtol
     d0 = _rms(y0, scale)
@@ -76,6 +78,10 @@ def initial_step(p, y0, f0, t_end, rtol, atol, max_step, work, f1):
     return min(100.0 * h0, h1, t_end, max_step)
 
 
+#: rows of the scratch array :func:`integrate_into` works in (stages, states, interpolant, tolerance scale)
+WORK_ROWS = 14
+
+
 @njit(cache=True, error_model="numpy")
 def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out):
     """Integrate one scenario from t = 0 and write ``channels[channel_index]`` at ``t_out`` into ``out``.
@@ -83,21 +89,29 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
     Returns a status code (0 = success) and the number of accepted steps. ``max_step`` [s] bounds the step size,
     ``max_steps`` the number of accepted steps.
     """
+    return integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out,
+                          np.empty((WORK_ROWS, N)), np.empty(N, dtype=np.int64), np.empty(d.N_CHANNEL))
+
+
+@njit(cache=True, error_model="numpy")
+def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out, work, need, row):
+    """:func:`integrate_one` in caller-provided scratch memory, so that it allocates nothing and compiles for
+    any numba target (the CPU here, a CUDA device in :mod:`.gpu`).
+
+    ``work`` is a (WORK_ROWS, N_STATE) float64 array, ``need`` an (N_STATE,) int64 array and ``row`` an
+    (N_CHANNEL,) float64 array; their contents on entry do not matter.
+    """
     n = N  # compile-time size: the loops are unrolled
-    k1, k2, k3, k4, k5, k6, k7 = (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n),
-                                  np.empty(n), np.empty(n))
-    y = y0.copy()
-    y_new = np.empty(n)
-    ys = np.empty(n)
-    q1, q2, q3 = np.empty(n), np.empty(n), np.empty(n)
-    row = np.empty(d.N_CHANNEL)
+    k1, k2, k3, k4, k5, k6, k7 = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
+    y, y_new, ys, q1, q2, q3 = work[7], work[8], work[9], work[10], work[11], work[12]
+    for i in range(n):
+        y[i] = y0[i]
     full = False
     for j in range(channel_index.size):
         if channel_index[j] >= d.N_STATE:
             full = True
     # only the states the requested channels depend on are interpolated (u1..pU and the contact set for a force or
     # an acceleration)
-    need = np.empty(N, dtype=np.int64)
     m = 0
     for i in range(N):
         used = full and (i <= d.P_UPPER or i == d.CONTACT_SET)
@@ -119,12 +133,12 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
             out[j, i_out] = row[channel_index[j]]
         i_out += 1
     d.rhs(y, p, valve, k1)
-    h_abs = initial_step(p, y, k1, t_end, rtol, atol, max_step, ys, k2)
+    h_abs = initial_step(p, y, k1, t_end, rtol, atol, max_step, ys, k2, work[13])
     steps = 0
     while t < t_end:
         if steps >= max_steps:
             return TOO_MANY_STEPS, steps
-        min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+        min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
         if h_abs > max_step:
             h_abs = max_step
         elif h_abs < min_step:

@@ -13,13 +13,15 @@ from collections import defaultdict
 
 import numpy as np
 
-from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 
 NAME = "absorption"
 REQUIRES = ("impactometer.control.study",)
 #: default values per grid axis (8 impacts at the corners of the ranges; ``--grid 5`` gives the paper's 125)
 GRID = 2
 DEFAULTS = {"noise": 0.02, "identification": "robust"}
+SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
+            "identification": Setting("choice", choices=("robust", "paper", "oracle"))}
 
 
 def _cases(options: StudyOptions) -> list[Row]:
@@ -85,4 +87,5 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Adaptive absorption: closed, constant, realtime (identified and oracle)",
                        figure="Fig. 10b", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=_plot, chunk_size=1, requires=REQUIRES, defaults=DEFAULTS))
+                       plot=_plot, chunk_size=1, requires=REQUIRES, defaults=DEFAULTS,
+                       settings=SETTINGS))

@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..plotting import _pyplot
+from ..plotting import _pyplot, figure_legend
 from .tables import Row, group_stats, pick
 
 #: colour per compared method
@@ -38,7 +38,7 @@ def plot_peak_force(rows: Sequence[Row]):
     ax[0].plot([0, top], [0, top], "k--", lw=0.8, label="equal")
     ax[0].set(xlabel="closed form peak force [kN]", ylabel="first-pulse peak force [kN]", xlim=(0, top),
               ylim=(0, top))
-    ax[0].legend(fontsize=8)
+    figure_legend(fig, ax[0])
     fig.colorbar(sc, ax=ax[0], label="M1 [kg]")
     pressure = np.array([r["pressure_gauge"] for r in rows], dtype=float) / 1e3
     sc2 = ax[1].scatter(mass, (simulated / closed - 1) * 100, s=14, c=pressure, cmap="plasma")
@@ -76,7 +76,7 @@ def plot_case_bars(rows: Sequence[Row]):
             ax.set_xticks(x, labels, fontsize=6)
             ax.set_ylabel(f"{what} error [%]")
             ax.set_title(f"{what} identification, p0 = {p / 1e3:g} kPa")
-        row_axes[0].legend(fontsize=8)
+    figure_legend(fig, axes[0][0])
     return fig
 
 
@@ -105,7 +105,7 @@ def plot_mean_error_vs(rows: Sequence[Row], parameters: Sequence[tuple[str, str,
             if log_x:
                 ax.set_xscale("log")
             ax.grid(alpha=0.3, which="both")
-    axes[0][0].legend(fontsize=7)
+    figure_legend(fig, axes[0][0])
     fig.suptitle(title)
     return fig
 
@@ -127,7 +127,7 @@ def plot_noise(rows: Sequence[Row]):
             ax.set_yscale("log")
             ax.grid(alpha=0.3, which="both")
             ax.set(xlabel=f"noise on {target} [% of RMS]", ylabel=f"mean |{error.split('_')[0]} error| [%]")
-    axes[0][0].legend(fontsize=8)
+    figure_legend(fig, axes[0][0])
     fig.suptitle("Identification error vs Gaussian noise (mean over the grid)")
     return fig
 
@@ -160,7 +160,7 @@ def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = T
         if log_x:
             ax.set_xscale("log")
         ax.grid(alpha=0.3, which="both")
-    axes[0][-1].legend(fontsize=7)
+    figure_legend(fig, axes[0][-1])
     fig.suptitle(title)
     return fig
 
@@ -185,6 +185,6 @@ def plot_strategy_distributions(rows: Sequence[Row]):
     bound = np.array([np.nan if r.get("efficiency_max") is None else float(r["efficiency_max"]) for r in rows])
     if np.isfinite(bound).any():
         axes[0].axhline(np.nanmedian(bound), color="k", ls="--", lw=0.8, label="median bound η_max")
-        axes[0].legend(fontsize=8)
+        figure_legend(fig, axes[0])
     fig.suptitle("Absorber strategies over the impact grid")
     return fig
