@@ -74,7 +74,17 @@ def test_ctrl_c_exits_130_and_keeps_finished_chunks(tmp_path):
     import sys
     import time
 
-    command = [sys.executable, "-c", "from impactometer.cli import main; main()", "study", "peak-force", "--out",
+    # every chunk takes at least 20 ms, so the interrupt lands mid-run however fast the machine is
+    slow_chunks = ("import time\n"
+                   "import impactometer.studies.runner as runner\n"
+                   "evaluate = runner.evaluate_chunk\n"
+                   "def slow(*args, **kwargs):\n"
+                   "    time.sleep(0.02)\n"
+                   "    return evaluate(*args, **kwargs)\n"
+                   "runner.evaluate_chunk = slow\n"
+                   "from impactometer.cli import main\n"
+                   "main()\n")
+    command = [sys.executable, "-c", slow_chunks, "study", "peak-force", "--out",
                str(tmp_path), "--workers", "1", "--grid", "7", "--set", "peak-force.chunk_size=1"]
     proc = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.monotonic() + 60
