@@ -139,14 +139,14 @@ def actuator_step(opening, command, dt, drive):
 
 
 @njit(cache=True, error_model="numpy")
-def predict(p, ctrl, drive, e, history, newest, delay, dt):
+def predict(p, ctrl, drive, e, v, history, newest, delay, dt):
     """State after the dead time as the controller predicts it: (pL, pU, u2, opening).
 
     The opening follows the controller's model of the actuator through the commands already sent (``history``,
     newest at index ``newest``, ``delay`` samples of dead time); the chambers follow their balances with the
-    piston moving at its estimated velocity.
+    piston moving at its estimated mean velocity ``v`` [m/s].
     """
-    p_lower, p_upper, x, v = e[est.P_LOWER_F], e[est.P_UPPER_F], e[est.X_HAT], e[est.V_SLOW]
+    p_lower, p_upper, x = e[est.P_LOWER_F], e[est.P_UPPER_F], e[est.X_HAT]
     opening = e[est.OPENING_MODEL]
     if delay <= 0:
         return p_lower, p_upper, x, opening
@@ -186,7 +186,8 @@ def command_of(t, dt, p, ctrl, drive, e, history, newest, delay):
     strategy = int(ctrl[s.STRATEGY])
     mass = e[est.MASS]
     e[est.TARGET] = math.nan
-    velocity, x, v2 = e[est.VELOCITY], e[est.X_HAT], e[est.V_SLOW]
+    velocity, x = e[est.VELOCITY], e[est.X_HAT]
+    v2 = velocity if e[est.STAGE_B] != 0.0 else e[est.V_SLOW]  # the mean motion of the piston
     if strategy == s.CLOSED or t < ctrl[s.T_START] or e[est.LATCHED] != 0.0 or not mass > 0.0 \
             or not math.isfinite(velocity):
         return 0.0
@@ -207,7 +208,7 @@ def command_of(t, dt, p, ctrl, drive, e, history, newest, delay):
         command = needed_opening(p, ctrl, drive, fp_target, p_lower, p_upper, v2, x)
         return bounce_gate(ctrl, command, velocity - v2)
     # predictive and level: the law on the state predicted over the dead time, with the lag compensated
-    p_lower, p_upper, x, opening = predict(p, ctrl, drive, e, history, newest, delay, dt)
+    p_lower, p_upper, x, opening = predict(p, ctrl, drive, e, v2, history, newest, delay, dt)
     need = needed_opening(p, ctrl, drive, fp_target, p_lower, p_upper, v2, x)
     decay = math.exp(-ctrl[s.TAU_CONTROL] / drive[TIME_CONSTANT])
     return max(0.0, min(1.0, (need - opening * decay) / (1.0 - decay)))

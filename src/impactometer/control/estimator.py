@@ -7,19 +7,20 @@ Sensors (with noise): contact force Fc, piston acceleration a2, chamber pressure
   rod displacement (a second-order complementary filter of bandwidth ``observer_bandwidth``, critically damped):
   no drift, and far less noise than a differentiated displacement.
 - Contact: on above 5 σ of the force sensor for 3 samples, off below 2 σ for 3 samples (the levels of the
-  identification's pulse detector). Sustained contact (stage B) is a contact that has lasted 1.5 × the first
-  contact pulse (4 ms until the first pulse has ended): the collision that starts it is over and the two bodies
-  move together.
+  identification's pulse detector). Sustained contact (stage B) is a contact after the first that has lasted 1.5 ×
+  the first contact pulse: the collision that starts it is over and the two bodies move together.
 - Mass refinement: the bodies share one acceleration at the instants they have the same velocity, so
   M1·(g − a2) = Fc integrates exactly between them; the estimate is the ratio of the sums, Σ Fc / Σ (g − a2), over
   windows between such instants (:func:`_regress`), with the standard error sqrt(n·s²)/Σ (g − a2) from the residual
   variance s². It is combined with the mass known at the control start by inverse-variance weighting (that one's
   standard error never taken below 25 % of the value: the early answer rests on two contact pulses, and on a stand
   that reaches stage B early its error is often larger than stated).
-- Mass velocity: once mass and piston move together (a sustained contact, or a contact that has held a whole
-  window), the observer's piston velocity, low-passed (5 ms: the mean motion, without the oscillation of the mass
-  on the contact element); before, the momentum balance of the mass, v1 = V0 + g·t − ∫Fc dt / M1, with the
-  latest M1.
+- Mass velocity: before mass and piston move together, the momentum balance of the mass,
+  v1 = V0 + g·t − ∫Fc dt / M1, with the latest M1. Once they do (a sustained contact, or a contact that has held a
+  whole window), it starts from the observer's piston velocity (mostly at a window end, an instant of equal
+  velocities) and follows the momentum balance dv1/dt = g − Fc/M1, pulled towards the observer's velocity with a
+  5 Hz bandwidth: no drift, and nothing of the oscillation of the mass on the contact element (above 100 Hz),
+  which the valve must not feed. The piston's mean velocity before that is the observer's, low-passed over 5 ms.
 """
 
 from __future__ import annotations
@@ -46,10 +47,10 @@ N_ESTIMATOR = 24 + 6 * N_SUMS
 #: time constant of the slow piston velocity [s]: the mean motion of mass and piston, without the oscillation of the
 #: mass on the contact element (above 100 Hz on the built-in stands) that a valve must not feed
 SLOW_VELOCITY_TIME = 5e-3
-#: sustained contact: the current contact has lasted this multiple of the first pulse (DEFAULT_SUSTAIN before the
-#: first pulse has ended) [-], [s]
+#: bandwidth of the correction of the mass velocity (momentum balance) towards the observer's in stage B [rad/s]
+VELOCITY_CORRECTION = 2.0 * math.pi * 5.0
+#: sustained contact: a contact after the first one that has lasted this multiple of the first pulse [-]
 SUSTAIN_FACTOR = 1.5
-DEFAULT_SUSTAIN = 4e-3
 #: samples of sustained contact before the stage-B mass estimate is used
 MIN_SAMPLES = 25
 #: a window end is placed at least this often in sustained contact without force extrema [s]
@@ -108,15 +109,19 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
             e[ABOVE] = 0.0
             if math.isnan(e[FIRST_PULSE]):
                 e[FIRST_PULSE] = t - (HOLD - 1) * dt - e[CONTACT_START]
-    sustain = DEFAULT_SUSTAIN if math.isnan(e[FIRST_PULSE]) else SUSTAIN_FACTOR * e[FIRST_PULSE]
-    e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and t - e[CONTACT_START] >= sustain else 0.0
+    e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and t - e[CONTACT_START] >= SUSTAIN_FACTOR * e[FIRST_PULSE] else 0.0
     if ctrl[s.REFINE_MASS] != 0.0:
         _regress(e, t, force, gravity - acceleration, DETECT_SIGMAS * sigma)
-    if e[SUSTAINED] != 0.0 or (e[IN_CONTACT] != 0.0 and e[HAS_FIRST] != 0.0 and e[LAST + 5] > e[FIRST + 5]):
+    if e[STAGE_B] == 0.0 and (e[SUSTAINED] != 0.0 or (e[IN_CONTACT] != 0.0 and e[HAS_FIRST] != 0.0
+                                                      and e[LAST + 5] > e[FIRST + 5])):
         e[STAGE_B] = 1.0  # sustained, or a contact that has held a whole window: the bodies move together
     _combine(e, ctrl)
-    if e[STAGE_B] != 0.0:
-        e[VELOCITY] = e[V_SLOW]
+    if e[STAGE_B] != 0.0:  # momentum balance of the mass, pulled slowly towards the observer's velocity
+        if e[STAGE_B] == 1.0:  # onset: mostly at a window end, where both bodies have the piston's velocity
+            e[VELOCITY] = e[V_HAT]
+            e[STAGE_B] = 2.0
+        deceleration = force / e[MASS] if e[MASS] > 0.0 else 0.0
+        e[VELOCITY] += (gravity - deceleration) * dt + VELOCITY_CORRECTION * dt * (e[V_HAT] - e[VELOCITY])
     elif e[MASS] > 0.0:
         e[VELOCITY] = ctrl[s.VELOCITY_HAT] + gravity * t - e[IMPULSE] / e[MASS]
     else:

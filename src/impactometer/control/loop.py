@@ -220,7 +220,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         bound = EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
     noise_matrix, sigma = sensor_noise(closed, noise, seed)
     context = ControlContext(rig=rig, absorber=absorber, mass=found.usable_mass, velocity=found.usable_velocity,
-                             mass_std=found.mass_std if math.isfinite(found.usable_mass) else math.inf,
+                             mass_std=found.mass_std if math.isfinite(found.usable_mass)
+                             and not math.isnan(found.mass_std) else math.inf,
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
                              sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),
                              charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]))

@@ -111,9 +111,9 @@ def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.
         return none
     start = max(pulse.start, control_start)
     i0 = int(np.searchsorted(t, start - 1e-12))
-    remaining = usable_stroke - u1[i0]
-    if i0 >= deepest or remaining <= 0.0:
+    if i0 >= deepest or usable_stroke - u1[i0] <= 0.0:
         return dataclasses.replace(none, start=pulse.start)
+    remaining = usable_stroke - u1[i0]
     reference = mass * (max(v1[i0], 0.0) ** 2 / (2.0 * remaining) + g)
     body = cfc_filter(force, 1.0 / (t[1] - t[0]), BODY_CFC) if filtered is None else filtered
     peak = float(body[i0:deepest + 1].max())

@@ -48,12 +48,12 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
     scenario = Scenario(mass=case["mass"], velocity=case["velocity"], pressure_gauge=case["pressure_gauge"])
     noise = float(options.param(NAME, "noise", DEFAULTS["noise"]))
     strategies = list(options.param(NAME, "strategies", DEFAULTS["strategies"]))
-    common = dict(noise=noise, seed=seed, sample_rate=options.sample_rate)
-    found = absorb(scenario, options.rig, strategy=strategies, reference=True, **common,
+    found = absorb(scenario, options.rig, strategy=strategies, reference=True, noise=noise, seed=seed,
+                   sample_rate=options.sample_rate,
                    identification=options.param(NAME, "identification", DEFAULTS["identification"]))
     start = found.control_start if math.isfinite(found.control_start) else None
     oracle = absorb(scenario, options.rig, strategy=ORACLE_OF, identification="oracle", control_start=start,
-                    **common)
+                    noise=noise, seed=seed, sample_rate=options.sample_rate)
     base = {"case": case["case"], "mass_kg": scenario.mass, "velocity_m_s": scenario.velocity,
             "pressure_gauge_Pa": scenario.pressure_gauge, "rig": options.rig.name, "noise": noise, "seed": seed}
     ident = found.identified.to_dict()
@@ -121,10 +121,10 @@ def acceptance(rows: list[Row], strategy: str = "predictive") -> dict[str, Any]:
     deviation = []
     for r in chosen:
         oracle = by_case.get((r["case"], ORACLE))
-        if oracle and r.get("stage_b") and oracle.get("stage_b"):
+        if oracle and r.get("stage_b_force_ratio") and oracle.get("stage_b_force_ratio"):
             deviation.append(abs(r["stage_b_force_ratio"] / oracle["stage_b_force_ratio"] - 1.0))
     gap = [r["stage_b_force_ratio"] / r["achievable_force_ratio"] for r in chosen
-           if r.get("stage_b") and r.get("achievable_force_ratio")]
+           if r.get("stage_b_force_ratio") and r.get("achievable_force_ratio")]
     rebound = [r.get("rebound_m") for r in chosen]
     median = float(np.median(mine)) if mine.size else math.nan
     return {"impacts": len(chosen), "with stage B": int(mine.size), "median R": median,
