@@ -27,9 +27,10 @@ N_DRIVE = 4
 CAPACITY_MARGIN = 1.2
 #: largest number of steps of the controller's prediction over the dead time
 PREDICTION_STEPS = 20
-#: the force target also stops the mass within this time [s]: a mass that stage A has nearly stopped is not let
-#: creep down the stroke at its weight for seconds
+#: the force target also stops the mass within this time [s], with at least this deceleration [m/s²]: a mass that
+#: stage A has nearly stopped is not let creep down the stroke at its weight for seconds
 STOP_TIME = 0.4
+MIN_DECELERATION = 0.5
 
 
 @njit(cache=True, error_model="numpy")
@@ -63,15 +64,15 @@ def must_close(p, ctrl, mass, velocity, piston_velocity, piston_displacement, p_
 @njit(cache=True, error_model="numpy")
 def force_target(p, ctrl, mass, velocity, displacement):
     """Contact force [N] that stops the mass within the remaining usable stroke: F* = M1·(v²/(2·s_rem) + g)
-    (M1·g once the mass moves up), with a deceleration of at least v/STOP_TIME, at most ``max_force``; the
-    ``level`` strategy's fixed level instead."""
+    (M1·g once the mass moves up), with a deceleration of at least v/STOP_TIME and MIN_DECELERATION, at most
+    ``max_force``; the ``level`` strategy's fixed level instead."""
     if ctrl[s.STRATEGY] == s.LEVEL:
         return ctrl[s.FORCE_LEVEL]
     remaining = ctrl[s.U_END] - displacement
     if velocity > 0.0:
         if remaining <= 0.0:
             return ctrl[s.F_MAX]
-        deceleration = max(velocity * velocity / (2.0 * remaining), velocity / STOP_TIME)
+        deceleration = max(velocity * velocity / (2.0 * remaining), velocity / STOP_TIME, MIN_DECELERATION)
         return min(mass * (deceleration + p[d.GRAVITY]), ctrl[s.F_MAX])
     return min(mass * p[d.GRAVITY], ctrl[s.F_MAX])
 

@@ -12,7 +12,10 @@ Stage B and the force ratio (from the truth channels of the simulation):
   force F_ref = M1·(v1(t_s)²/(2·s_rem) + g): the lowest constant force on the mass that stops it within s_rem;
 - the stage-B force ratio R = peak of the CFC 60 filtered contact force over [t_s, deepest point] / F_ref (ideal 1;
   CFC 60 is the SAE J211 class for whole-body loads), and the stage-B efficiency η_B = W_B / (that peak × s_rem),
-  W_B = M1·(v1(t_s)² − v1(deepest)²)/2 + M1·g·(u1(deepest) − u1(t_s)) the energy absorbed meanwhile.
+  W_B = M1·(v1(t_s)² − v1(deepest)²)/2 + M1·g·(u1(deepest) − u1(t_s)) the energy absorbed meanwhile;
+- when the bodies part after the control start and meet again, stage B starts at the new contact and R leaves out
+  the force before it; ``stage_b_force_ratio_first`` is R with t_B at the first sustained contact instead
+  (supplementary: how much of R such a parting hides).
 
 Supplementary (the earlier headline): the control starts at ``control_start``; the absorption ends at the mass's
 deepest point after it (stopped when its velocity there is below 1 % of V0); η = W / (F_peak · Δu1) with W the work
@@ -23,7 +26,6 @@ relative motion of mass and piston at the control start, μ·(v1 − v2)²/2 wit
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import asdict, dataclass
 
@@ -53,6 +55,7 @@ class AbsorptionMetrics:
     stage_b_peak_force: float
     stage_b_force_ratio: float
     stage_b_efficiency: float
+    stage_b_force_ratio_first: float
     peak_force_stage_a: float
     peak_force_controlled: float
     peak_force_controlled_cfc60: float
@@ -85,13 +88,19 @@ class AbsorptionMetrics:
 
 @dataclass(frozen=True, kw_only=True)
 class StageB:
-    """Stage B of one run as the metric sees it (NaN / -1 where there is none)."""
+    """Stage B of one run as the metric sees it (NaN where there is none).
+
+    ``first_force_ratio`` is R with t_B at the first sustained contact instead (the paper's onset of stage B): the
+    two differ when the bodies part after the control start and meet again (the force before the new contact is
+    then left out of R).
+    """
 
     start: float
     reference_force: float
     peak_force: float
     force_ratio: float
     efficiency: float
+    first_force_ratio: float = math.nan
 
 
 def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.ndarray | None = None) -> StageB:
@@ -106,20 +115,28 @@ def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.
     held = [i for i, p in enumerate(pulses) if p.start <= t[deepest] <= p.end]
     if not held or held[0] == 0:
         return none
-    pulse, first = pulses[held[0]], pulses[0]
-    if t[deepest] - pulse.start <= SUSTAINED_FACTOR * (first.end - first.start):
+    first = pulses[0].end - pulses[0].start
+    pulse = pulses[held[0]]
+    if t[deepest] - pulse.start <= SUSTAINED_FACTOR * first:
         return none
-    start = max(pulse.start, control_start)
-    i0 = int(np.searchsorted(t, start - 1e-12))
-    if i0 >= deepest or usable_stroke - u1[i0] <= 0.0:
-        return dataclasses.replace(none, start=pulse.start)
-    remaining = usable_stroke - u1[i0]
-    reference = mass * (max(v1[i0], 0.0) ** 2 / (2.0 * remaining) + g)
     body = cfc_filter(force, 1.0 / (t[1] - t[0]), BODY_CFC) if filtered is None else filtered
-    peak = float(body[i0:deepest + 1].max())
-    work = 0.5 * mass * (v1[i0] ** 2 - v1[deepest] ** 2) + mass * g * (u1[deepest] - u1[i0])
-    return StageB(start=float(pulse.start), reference_force=float(reference), peak_force=peak,
-                  force_ratio=float(peak / reference), efficiency=float(work / (peak * remaining)))
+
+    def judged(onset: float) -> tuple[float, float, float, float]:
+        """F_ref, peak, R and η_B from t_s = max(onset, control start) to the deepest point (NaN if none)."""
+        i0 = int(np.searchsorted(t, max(onset, control_start) - 1e-12))
+        remaining = usable_stroke - u1[i0] if i0 < deepest else 0.0
+        if remaining <= 0.0:
+            return math.nan, math.nan, math.nan, math.nan
+        reference = mass * (max(v1[i0], 0.0) ** 2 / (2.0 * remaining) + g)
+        peak = float(body[i0:deepest + 1].max())
+        work = 0.5 * mass * (v1[i0] ** 2 - v1[deepest] ** 2) + mass * g * (u1[deepest] - u1[i0])
+        return float(reference), peak, float(peak / reference), float(work / (peak * remaining))
+
+    reference, peak, ratio, efficiency = judged(pulse.start)
+    onset = next(p.start for p in pulses[1:held[0] + 1]
+                 if min(p.end, t[deepest]) - p.start > SUSTAINED_FACTOR * first)
+    return StageB(start=float(pulse.start), reference_force=reference, peak_force=peak, force_ratio=ratio,
+                  efficiency=efficiency, first_force_ratio=judged(onset)[2])
 
 
 def absorption_metrics(result, control_start: float, usable_stroke: float) -> AbsorptionMetrics:
@@ -154,7 +171,8 @@ def absorption_metrics(result, control_start: float, usable_stroke: float) -> Ab
     return AbsorptionMetrics(
         control_start=float(control_start), stage_b=math.isfinite(b.start), stage_b_start=b.start,
         reference_force=b.reference_force, stage_b_peak_force=b.peak_force, stage_b_force_ratio=b.force_ratio,
-        stage_b_efficiency=b.efficiency, peak_force_stage_a=float(max(stage_a)) if stage_a else math.nan,
+        stage_b_efficiency=b.efficiency, stage_b_force_ratio_first=b.first_force_ratio,
+        peak_force_stage_a=float(max(stage_a)) if stage_a else math.nan,
         peak_force_controlled=peak, peak_force_controlled_cfc60=peak_body,
         max_deceleration=float(force[i0:].max() / mass - g), energy_absorbed=float(work), bounce_energy=bounce,
         stroke_controlled=stroke, stroke_used=float(result.u1.max() - result.u1[0]),

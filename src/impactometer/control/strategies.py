@@ -96,6 +96,8 @@ def plan_predictive(context: ControlContext) -> ControlSettings:
 #: time constant of the gas-force loop of a valve without lag, and of the pressure filters of the controllers [s]
 REALTIME_TAU_CONTROL = 2e-3
 REALTIME_TAU_FILTER = 5e-4
+#: shortest time constant of the predictive gas-force loop [s] (twice the pressure filters')
+PREDICTIVE_TAU_FLOOR = 1e-3
 
 
 def realtime_tau_control(drive) -> float:
@@ -105,9 +107,9 @@ def realtime_tau_control(drive) -> float:
 
 
 def predictive_tau_control(drive) -> float:
-    """Time constant of the predictive gas-force loop [s]: 2 ms plus the valve's lag (its dead time is predicted
-    and its lag compensated, so the loop need not wait for them)."""
-    return REALTIME_TAU_CONTROL + drive.time_constant
+    """Time constant of the predictive gas-force loop [s]: the valve's own lag, at least ``PREDICTIVE_TAU_FLOOR``
+    (the dead time is predicted and the lag compensated, so the loop need not wait for them)."""
+    return max(drive.time_constant, PREDICTIVE_TAU_FLOOR)
 #: relative velocity v1 − v2 [m/s] above which the bounce gate lets the force law open the valve
 BOUNCE_THRESHOLD = 0.0
 #: sample rate of the model runs of the constant-opening optimisation [Hz]

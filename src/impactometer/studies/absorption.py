@@ -31,8 +31,8 @@ ORACLE = f"{ORACLE_OF} (oracle)"
 REFERENCE = "achievable reference"
 #: the metrics kept per row (keys of ``AbsorptionMetrics.to_dict()``)
 METRICS = ("control_start_s", "stage_b", "stage_b_start_s", "reference_force_N", "stage_b_peak_force_N",
-           "stage_b_force_ratio", "stage_b_efficiency", "bottomed_out", "rebound_m", "time_to_stop_s",
-           "peak_force_stage_a_N", "stroke_used_m", "efficiency", "peak_force_controlled_N")
+           "stage_b_force_ratio", "stage_b_efficiency", "stage_b_force_ratio_first", "bottomed_out", "rebound_m",
+           "time_to_stop_s", "peak_force_stage_a_N", "stroke_used_m", "efficiency", "peak_force_controlled_N")
 #: acceptance targets of the absorber (the issue's): median and 90th percentile of R, improvement over the closed
 #: valve, rebound limit [m] and the share of cases below it, identified vs oracle R
 TARGETS = {"median": 1.3, "p90": 1.6, "improvement": 2.0, "rebound": 5e-3, "rebound_share": 0.95,
@@ -80,6 +80,11 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
     return rows
 
 
+def _median(rows: list[Row], column: str) -> float:
+    values = finite_values([r for r in rows if r.get("stage_b")], column)
+    return float(np.median(values)) if values.size else math.nan
+
+
 def _num(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
@@ -108,6 +113,7 @@ def _aggregate(rows: list[Row]) -> list[Row]:
                     "median R": float(np.median(ratio)) if ratio.size else math.nan,
                     "90th pct R": float(np.percentile(ratio, 90)) if ratio.size else math.nan,
                     "median η_B": float(np.median(efficiency)) if efficiency.size else math.nan,
+                    "median R, t_B at the first sustained contact": _median(chosen, "stage_b_force_ratio_first"),
                     "bottomed out": sum(bool(r.get("bottomed_out")) for r in chosen),
                     "rebound < 5 mm": int(np.sum(rebound < TARGETS["rebound"])) if strategy != REFERENCE else None})
     return out
