@@ -104,9 +104,9 @@ def _num(x: float) -> float | None:
 
 
 def default_duration(scenario: Scenario, usable_stroke: float) -> float:
-    """Simulated time long enough for the slowest strategy to stop the mass [s]: 0.15 s + 4·usable stroke / V0,
-    within [0.3, 1.2] s."""
-    return float(min(1.2, max(0.3, 0.15 + 4.0 * usable_stroke / scenario.velocity)))
+    """Simulated time long enough for the slowest strategy to stop the mass [s]: 0.15 s + 2.5·usable stroke / V0,
+    within [0.3, 1.0] s (the force strategies stop it within the usable stroke and ``controller.STOP_TIME``)."""
+    return float(min(1.0, max(0.3, 0.15 + 2.5 * usable_stroke / scenario.velocity)))
 
 
 def sensor_noise(closed_result, noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -239,9 +239,11 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         runs[name] = StrategyRun(strategy=name, result=result, controller=history,
                                  metrics=absorption_metrics(result, start, usable), valve_opening_constant=opening)
     achievable = None
-    if reference:
-        closed_b = absorption_metrics(closed, start, usable)
-        achievable = achievable_reference(scenario, rig, absorber, start, reference_force=closed_b.reference_force,
+    if reference and math.isfinite(start) and start < closed.time[-1]:
+        i0 = int(np.searchsorted(closed.time, start))  # F_ref of the closed-valve state at the control start
+        level = scenario.mass * (max(float(closed.v1[i0]), 0.0) ** 2 / (2.0 * max(usable - float(closed.u1[i0]),
+                                                                                   1e-3)) + rig.gravity)
+        achievable = achievable_reference(scenario, rig, absorber, start, reference_force=level,
                                           charge_pressure=float(closed.pressure_lower[0]), duration=duration,
                                           sample_rate=sample_rate)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,

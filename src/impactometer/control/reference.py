@@ -6,7 +6,7 @@ the contact force is above the level) and then holds the contact force at a cons
 (true M1, noise-free sensors: the ``level`` strategy of the controller, its lag and dead time compensated) and no
 supervisor. Among the levels whose run stops the mass within the usable stroke without touching the bottom stop,
 the one with the lowest R is the reference. The levels are searched on a grid around the F_ref of the closed-valve
-run, then refined by golden section around the best one.
+state at the control start, then refined by golden section around the best one.
 """
 
 from __future__ import annotations
@@ -25,9 +25,11 @@ from .strategies import predictive_tau_control
 from .valve import Absorber
 
 #: levels of the first scan, as multiples of the closed-valve run's F_ref
-SCAN = (0.7, 0.85, 1.0, 1.15, 1.3, 1.6, 2.0, 3.0, 5.0)
+SCAN = (0.8, 1.0, 1.2, 1.5, 2.0, 3.0)
 #: golden-section refinements after the scan
-REFINEMENTS = 4
+REFINEMENTS = 3
+#: a program's run ends this long after the mass's deepest point [s] (R, the stroke and bottoming are known then)
+TAIL = 0.02
 #: overshoot of the usable stroke tolerated by the search [m] (the contact's compression at the end of the stroke)
 STROKE_TOLERANCE = 1e-3
 
@@ -46,7 +48,7 @@ class AchievableReference:
 
 def _outcome(scenario, rig, absorber, settings, duration, sample_rate):
     result, _ = simulate_controlled(scenario, rig, control=settings, drive=absorber.drive, duration=duration,
-                                    sample_rate=sample_rate)
+                                    sample_rate=sample_rate, stop_after=TAIL)
     usable = absorber.usable_stroke(rig)
     feasible = (float(result.u1.max()) <= usable + STROKE_TOLERANCE and not np.any(result.bottom_stop_force > 0.0)
                 and "ended_at_bottom" not in result.extra)
@@ -57,8 +59,8 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
                          reference_force: float, charge_pressure: float, duration: float,
                          sample_rate: float = 50e3) -> AchievableReference:
     """Search the level program (see the module notes) from ``control_start`` [s]; ``reference_force`` [N] (F_ref
-    of the closed-valve run, or any force of its scale) centres the scan, ``charge_pressure`` [Pa] is the lower
-    chamber's pressure at first contact."""
+    of the closed-valve state at the control start, or any force of its scale) centres the scan,
+    ``charge_pressure`` [Pa] is the lower chamber's pressure at first contact."""
     nothing = AchievableReference(level=math.nan, force_ratio=math.nan, efficiency=math.nan, stroke_used=math.nan,
                                   runs=0)
     if not (math.isfinite(control_start) and math.isfinite(reference_force) and reference_force > 0.0):

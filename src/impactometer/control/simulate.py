@@ -25,6 +25,7 @@ from ..model.simulate import absolute_tolerance, sample_times, simulation_result
 from ..rig import Rig, Scenario, get_rig
 from . import controller as ctl
 from . import estimator as est
+from .settings import T_START as STARTS
 from .settings import ControlSettings
 from .valve import ValveDrive
 
@@ -47,12 +48,13 @@ def _advance(y, p, u, interval, h, rtol, atol, k):
 
 
 @njit(cache=True, error_model="numpy")
-def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
+def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra, stop_after):
     """Closed-loop simulation sampled at ``sample_rate`` [Hz] for ``out.shape[1]`` samples.
 
     ``noise`` (N_SENSOR, n) is added to the sensors the controller reads; ``out`` (N_CHANNEL, n) receives the
-    model channels and ``extra`` (len(HISTORIES), n) the controller's histories. Returns a status code of the
-    stepper and the index of the last sample written.
+    model channels and ``extra`` (len(HISTORIES), n) the controller's histories. The run ends early, ``stop_after``
+    [s] after the mass, in contact, turned back up (its deepest point) once the control has started (``inf``:
+    never). Returns a status code of the stepper and the index of the last sample written.
     """
     n = out.shape[1]
     dt = 1.0 / sample_rate
@@ -73,9 +75,14 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
     e = est.initial(y0, ctrl)
     row = np.empty(d.N_CHANNEL)
     h = dt
+    turned = math.inf
     for j in range(n):
         t = j * dt
+        if t > turned + stop_after:
+            return stepper.OK, j - 1
         d.channels(y, p, row)
+        if turned == math.inf and t > ctrl[STARTS] and y[d.V1] < 0.0 and row[SENSOR_INDEX[0]] > 0.0:
+            turned = t  # the mass, in contact, turns back up: its deepest point
         for i in range(d.N_CHANNEL):
             out[i, j] = row[i]
         est.update(e, t, dt, row[SENSOR_INDEX[0]] + noise[0, j], row[SENSOR_INDEX[1]] + noise[1, j],
@@ -110,7 +117,7 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra):
 
 def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, control: ControlSettings | None = None,
                         drive: ValveDrive | None = None, duration: float = 0.3, sample_rate: float = 50e3,
-                        sensor_noise: np.ndarray | None = None, rtol: float = 1e-7):
+                        sensor_noise: np.ndarray | None = None, rtol: float = 1e-7, stop_after: float = math.inf):
     """Simulate one drop test with valve Z driven by a controller.
 
     Parameters
@@ -131,6 +138,9 @@ def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, con
         ``SENSOR_CHANNELS`` [N, m/s², Pa, Pa, m].
     rtol : float
         Relative tolerance of the integrator.
+    stop_after : float
+        End the run this long after the mass's deepest point once the control has started [s] (``inf``: at
+        ``duration``); the histories are then shorter.
 
     Returns
     -------
@@ -160,9 +170,13 @@ def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, con
     atol = np.append(absolute_tolerance(rtol), rtol * 1e-3)  # the opening: a fraction of the open valve
     chans = np.empty((d.N_CHANNEL, t.size))
     extra = np.empty((len(HISTORIES), t.size))
+    if isinstance(stop_after, bool) or not isinstance(stop_after, (int, float)) or not stop_after >= 0.0:
+        raise ParameterError(f"stop_after must be a time >= 0 [s] or inf, got {stop_after!r}")
     status, last = run_loop(p, y0, control.packed(), ctl.drive_vector(drive), noise, float(sample_rate), rtol, atol,
-                            chans, extra)
+                            chans, extra, float(stop_after))
     note = {}
+    if status == stepper.OK and last < t.size - 1:
+        t, chans, extra = t[:last + 1], chans[:, :last + 1], extra[:, :last + 1]
     if status != stepper.OK:
         if chans[d.CHANNELS.index("u2"), last] < BOTTOM_FRACTION * rig.cylinder.stroke:
             raise SimulationError(f"controlled simulation failed ({stepper.STATUS_TEXT[status]}) at "
