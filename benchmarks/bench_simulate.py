@@ -1,6 +1,8 @@
 """Speed of the compiled batch integrator against scipy ``solve_ivp``, and its agreement with the reference.
 
 Run: ``python benchmarks/bench_simulate.py`` (add ``--skip-agreement`` to leave out the 125-case grid check).
+``python benchmarks/bench_simulate.py --device gpu`` instead compares the GPU batch with the CPU batch (needs a CUDA
+GPU and the extra ``impactometer[gpu]``): scenarios/s of each, their ratio, and their agreement on the 125 cases.
 
 In one process it
 1. simulates a batch of drop tests (50 ms, 50 kHz, contact force + piston acceleration) with the fast integrator;
@@ -154,13 +156,73 @@ def agreement():
               f"{a.pulse_count_mismatches} |")
 
 
+def gpu_versus_cpu(n_gpu, n_cpu, agree=True, repeat=3):
+    """Scenarios/s of the GPU and the CPU batch on the same kind of scenarios, their ratio and their agreement.
+
+    Histories come back a block at a time (``simulate_blocks``) and each block is dropped, so 10^6 scenarios need
+    one block's memory.
+    """
+    from numba import cuda
+
+    from impactometer.model.simulate import compare_devices, simulate_blocks
+
+    rig = get_rig()
+    mass, velocity, pressure = scenarios(max(n_gpu, n_cpu), seed=3)
+    options = {"duration": DURATION, "sample_rate": SAMPLE_RATE}
+    rates = {}
+    for device, n in (("gpu", n_gpu), ("cpu", n_cpu)):
+        simulate_batch(mass[:2], velocity[:2], pressure[:2], rig, device=device, **options)  # compile
+        best = np.inf
+        for _ in range(repeat):
+            start = time.perf_counter()
+            steps = sum(float(block.steps.sum()) for _, block in
+                        simulate_blocks(mass[:n], velocity[:n], pressure[:n], rig, device=device, **options))
+            best = min(best, time.perf_counter() - start)
+        rates[device] = (n, best, n / best, steps / n)
+    name = getattr(cuda.get_current_device(), "name", "CUDA simulator")
+    name = name.decode() if isinstance(name, bytes) else name
+    print(f"\n## GPU vs CPU batch: {DURATION * 1e3:g} ms at {SAMPLE_RATE / 1e3:g} kHz, contact force + piston "
+          f"acceleration (float64 histories copied back), rtol {INTEGRATORS['fast']:g}; GPU: {name}; CPU: "
+          f"{numba.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f}")
+    print("| device | scenarios | wall [s] | scenarios/s | mean accepted steps |")
+    print("|---|---:|---:|---:|---:|")
+    for device, (n, wall, rate, steps) in rates.items():
+        print(f"| {device} | {n} | {wall:.3f} | {rate:,.0f} | {steps:.0f} |")
+    print(f"\nGPU / CPU throughput: {rates['gpu'][2] / rates['cpu'][2]:,.1f}")
+    if not agree:
+        return
+    grid = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0],
+                       [20e3, 115e3, 210e3, 305e3, 400e3], indexing="ij")
+    print("\n## GPU vs CPU batch, 125 scenarios, 50 ms at 200 kHz")
+    print("| contact law | pulses compared | max rel. diff. peak force | max rel. diff. impulse | "
+          "max diff. pulse-peak time [µs] | pulse-count mismatches |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for law in ("kelvin-voigt", "hunt-crossley", "hysteretic"):
+        a = compare_devices(*grid, get_rig(contact=law), duration=0.05, sample_rate=200e3)
+        print(f"| {law} | {a.pulses} | {a.peak_force:.1e} | {a.impulse:.1e} | {a.peak_time * 1e6:.3f} | "
+              f"{a.pulse_count_mismatches} |")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--device", choices=("cpu", "gpu"), default="cpu",
+                        help="gpu: compare the GPU batch with the CPU batch instead")
+    parser.add_argument("--gpu-scenarios", type=int, default=1_000_000)
     parser.add_argument("--fast-scenarios", type=int, default=2000)
     parser.add_argument("--scipy-scenarios", type=int, default=20)
     parser.add_argument("--throughput-scenarios", type=int, default=10_000)
     parser.add_argument("--skip-agreement", action="store_true")
     args = parser.parse_args()
+    if args.device == "gpu":
+        from impactometer.errors import DeviceError
+        from impactometer.model.gpu import resolve_device
+
+        try:
+            resolve_device("gpu")
+        except DeviceError as exc:
+            raise SystemExit(f"--device gpu: {exc}") from None
+        gpu_versus_cpu(args.gpu_scenarios, args.fast_scenarios, agree=not args.skip_agreement)
+        return
     for rtol in (INTEGRATORS["fast"], 1e-8):
         speed(args.fast_scenarios, args.scipy_scenarios, rtol)
     print(f"\n## Throughput and memory (rtol {INTEGRATORS['fast']:g}, contact force + piston acceleration)")

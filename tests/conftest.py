@@ -11,6 +11,10 @@ from hypothesis import settings
 from impactometer.rig import get_rig
 
 matplotlib.use("Agg")
+# property tests draw the same examples on every run (CI); HYPOTHESIS_PROFILE=explore draws new ones
+settings.register_profile("ci", derandomize=True)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 # "ci" (the default): the same examples on every run, so a property test cannot fail on one run and pass on the next;
 # "dev" (HYPOTHESIS_PROFILE=dev): hypothesis' own defaults, fresh random examples each run

@@ -70,7 +70,7 @@ def test_simulate_refuses_to_overwrite_without_force(tmp_path, capsys):
 @pytest.mark.parametrize("args, message", [
     (["--pressure", "200kPaa"], "--pressure: unknown pressure unit 'kPaa'"),
     (["--mass", "heavy"], "--mass must be a number with an optional mass unit"),
-    (["--mass", "-3kg"], "mass must be > 0"),
+    (["--mass", "-3kg"], "mass must be >= 0.1"),
     (["--height", "nan"], "--height must be a finite number"),
     (["--pressure", "500kPa"], "pressure_gauge must be <= the rated 400000 Pa"),
     (["--pressure", "-1kPa"], "pressure_gauge must be >= 0"),
@@ -113,4 +113,4 @@ def test_demo_replaces_its_folder_only_with_force(tmp_path, capsys):
 def test_error_line_keeps_bracketed_units(capsys):
     status, text = run(["simulate", "--mass", "0kg"], capsys)
     assert status == 2
-    assert "mass must be > 0 [kg], got 0.0" in text
+    assert "mass must be >= 0.1 [kg], got 0.0" in text

@@ -46,7 +46,7 @@ def test_closed_valve_rhs_is_the_model_rhs_exactly():
             expected = np.empty(d.N_STATE)
             d.rhs(y, p, 0.0, expected)
             got = np.empty(actuated.N_STATE)
-            actuated.rhs(np.append(y, 0.0), p, u, got)
+            actuated.derivatives(np.append(y, 0.0), p, u, got)
             assert np.array_equal(got[:d.N_STATE], expected)
             assert got[actuated.OPENING] == 0.0
 

@@ -55,7 +55,7 @@ def test_writing_refuses_to_overwrite_unless_asked(tmp_path, ext):
 
 def test_csv_sidecar_is_protected_too(tmp_path):
     (tmp_path / "r.json").write_text("{}")
-    with pytest.raises(RecordingError, match=r"r\.json: exists"):
+    with pytest.raises(RecordingError, match=r"r\.json' exists"):
         write_recording(_rec(), tmp_path / "r.csv")
     assert not (tmp_path / "r.csv").exists()
 
@@ -89,17 +89,26 @@ def test_unknown_extension_missing_file_and_bad_options(tmp_path):
     assert set(FORMATS.values()) == {"csv", "hdf5", "tdms", "mat"}
 
 
-def test_calibration_set_with_manifest_overriding_metadata(tmp_path):
+def test_calibration_set_with_a_manifest_completing_metadata(tmp_path):
     write_recording(_rec(5.0), tmp_path / "a.csv")
     write_recording(_rec(6.0), tmp_path / "b.h5")
     write_recording(_rec(), tmp_path / "c.tdms")
     (tmp_path / "manifest.csv").write_text("file,mass_kg,velocity_m_s,pressure_gauge_Pa\n"
-                                           "b.h5,60.5,3.5,150000\nc.tdms,7,1.25,\n")
+                                           "b.h5,6.02,2,150000\nc.tdms,7,1.25,\n")
     recs = read_calibration_set(tmp_path)
     assert [r.source.rsplit("/", 1)[-1] for r in recs] == ["a.csv", "b.h5", "c.tdms"]
-    assert [r.truth("mass_kg") for r in recs] == [5.0, 60.5, 7.0]
-    assert [r.truth("velocity_m_s") for r in recs] == [2.0, 3.5, 1.25]
+    assert [r.truth("mass_kg") for r in recs] == [5.0, 6.02, 7.0]  # a manifest may round what a file states
+    assert [r.truth("velocity_m_s") for r in recs] == [2.0, 2.0, 1.25]
     assert recs[1].truth("pressure_gauge_Pa") == 150000.0 and recs[2].truth("pressure_gauge_Pa") is None
+
+
+def test_manifest_contradicting_a_file_is_refused(tmp_path):
+    """A manifest with its mass and velocity columns swapped would otherwise override every file silently."""
+    write_recording(_rec(30.0), tmp_path / "a.h5")
+    (tmp_path / "manifest.csv").write_text("file,mass_kg,velocity_m_s\na.h5,2,3\n")
+    with pytest.raises(RecordingError, match=r"a.h5: the truth mass_kg is stated twice, differently: the file's "
+                                             r"mass_kg gives 30 kg, the manifest's mass_kg gives 2 kg"):
+        read_calibration_set(tmp_path)
 
 
 def test_explicit_manifest_outside_the_folder(tmp_path):
@@ -114,8 +123,11 @@ def test_explicit_manifest_outside_the_folder(tmp_path):
 
 @pytest.mark.parametrize("manifest, match", [
     ("file,mass_kg\na.csv,3\n", r"lacks column\(s\) \['velocity_m_s'\]"),
-    ("file,mass_kg,velocity_m_s\na.csv,heavy,2\n", "line 2: mass_kg must be a number, got 'heavy'"),
-    ("file,mass_kg,velocity_m_s\na.csv,-3,2\n", "mass_kg must be a finite number >= 0"),
+    ("file,mass_kg,velocity_m_s\na.csv,heavy,2\n", "line 2: metadata mass_kg must be a number with an optional "
+                                                   "mass unit"),
+    ("file,mass_kg,velocity_m_s\na.csv,-3,2\n", r"metadata mass_kg must be within \[0, 10000\] kg"),
+    ("file,mass_kg,velocity_m_s\na.csv,30,nan\n", "metadata velocity_m_s must be a finite number"),
+    ("file,mass_kg,velocity_m_s\na.csv,2,30\n", r"metadata velocity_m_s must be within \[0, 15.3\d*\] m/s"),
     ("file,mass_kg,velocity_m_s\nz.csv,3,2\n", r"file\(s\) \['z.csv'\] not found"),
     ("file,mass_kg,velocity_m_s\na.csv,3,2\na.csv,3,2\n", "distinct non-empty name"),
     ("file,mass_kg,velocity_m_s\n", "manifest has no rows"),

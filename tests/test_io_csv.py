@@ -120,7 +120,9 @@ def test_bad_csv_raises_recording_error_naming_the_file(tmp_path, text, match):
     ("{not json", "sidecar must be valid JSON"),
     ("[1, 2]", "sidecar must hold a JSON object"),
     ('{"sample_rate": "fast"}', "sidecar sample_rate must be a number"),
-    ('{"sample_rate": -5}', "must be a finite number > 0"),
+    ('{"sample_rate": -5}', r"must be a number within \[1, 1e\+08\] Hz"),
+    ('{"sample_rate": 1e300}', r"must be a number within \[1, 1e\+08\] Hz"),
+    ('{"mass_kg": "heavy", "sample_rate": 1000}', "metadata mass_kg must be a number with an optional mass unit"),
 ])
 def test_bad_sidecar_raises_recording_error(tmp_path, sidecar, match):
     path = _csv(tmp_path, "force [N]\n1\n2\n", "run.csv")

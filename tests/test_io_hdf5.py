@@ -57,7 +57,7 @@ def test_time_dataset_gives_the_time_base(tmp_path):
 @pytest.mark.parametrize("make, kwargs, match", [
     (lambda p: _daq_file(p), dict(group="nope"), r"group 'nope' does not exist; groups found: \['daq'\]"),
     (lambda p: _daq_file(p, attrs={}), {}, "no time column and no sample rate"),
-    (lambda p: _daq_file(p, attrs={"dt": 0.0}), {}, r"dt must be a finite number > 0 \[s\]"),
+    (lambda p: _daq_file(p, attrs={"dt": 0.0}), {}, r"dt must be a sample period within \[1e-08, 1\] s, got 0.0"),
     (lambda p: _daq_file(p, attrs={"fs": "fast"}), {}, "fs must be a number"),
     (lambda p: _daq_file(p, attrs={"fs": 1e4, "metadata": "{oops"}), {}, "attribute 'metadata' must be valid JSON"),
     (lambda p: h5py.File(p, "w").close(), {}, "no channel datasets in the root"),

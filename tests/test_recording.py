@@ -36,11 +36,16 @@ def test_from_a_regular_time_vector():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(sample_rate=0.0), "sample_rate must be a finite number > 0"),
-    (dict(sample_rate=-5.0), "sample_rate must be a finite number > 0"),
-    (dict(sample_rate=float("inf")), "sample_rate must be a finite number > 0"),
-    (dict(sample_rate=True), "sample_rate must be a finite number > 0"),
-    (dict(start_time=float("nan")), "start_time must be a finite number"),
+    (dict(sample_rate=0.0), r"sample_rate must be a number within \[1, 1e\+08\] Hz, got 0.0"),
+    (dict(sample_rate=-5.0), "sample_rate must be a number within"),
+    (dict(sample_rate=float("inf")), "sample_rate must be a number within"),
+    (dict(sample_rate=True), "sample_rate must be a number within"),
+    (dict(sample_rate=1e12), "sample_rate must be a number within"),
+    (dict(sample_rate=np.float64(1e-3)), r"within \[1, 1e\+08\] Hz, got 0.001$"),
+    (dict(start_time=float("nan")), "start_time must be a number within"),
+    (dict(metadata={"mass_kg": "heavy"}), "metadata mass_kg must be a number with an optional mass unit"),
+    (dict(metadata={"velocity_m_s": [1, 2]}), r"metadata velocity_m_s must be a number, got \[1, 2\]"),
+    (dict(metadata={"pressure_gauge_Pa": -1.0}), r"metadata pressure_gauge_Pa must be within \[0, 1e\+08\] Pa"),
     (dict(channels={}), "non-empty mapping"),
     (dict(channels={"contact_force": [1.0, np.inf, 2.0]}), r"non-finite sample \(inf\) at index 1"),
     (dict(channels={"contact_force": [1.0, 2.0], "piston_acceleration": [1.0]}), "equal lengths"),

@@ -14,8 +14,9 @@ from impactometer.identify.response_map import (
     identify_recording,
     save_map,
 )
-from impactometer.rig import get_rig
+from impactometer.rig import get_rig, to_dict
 from impactometer.sensors import record_batch
+from impactometer.stands import fingerprint
 
 RIG = get_rig()
 MASSES = np.linspace(10.0, 50.0, 8)
@@ -92,7 +93,8 @@ def test_identify_recording_accepts_a_path(tmp_path, noisy_map):
 
 @pytest.mark.parametrize("change, message", [
     (dict(metadata={"pressure_gauge_Pa": 300e3}), "made for a charge pressure of 200 kPa, the measurement is at 300"),
-    (dict(metadata={"rig": "other-stand"}), "recorded on stand 'other-stand'"),
+    (dict(metadata={"rig_fingerprint": fingerprint(RIG.replace(**{"cylinder.piston_mass": 8.0}))}),
+     "recorded on a stand labelled 'drop-stand' with other parameters"),
     (dict(metadata={"contact_law": "hunt-crossley"}), "contact law 'hunt-crossley', the map was made with"),
     (dict(sample_rate=25e3), "sampled at 25000 Hz, the map was built from signals at 50000 Hz"),
 ])
@@ -122,9 +124,21 @@ def test_bad_calibration_sets_are_refused():
         build_map_from_recordings([dataclasses.replace(recordings[0], sample_rate=25e3)] + recordings[1:])
     with pytest.raises(ResponseMapError, match="at least 6 recordings"):
         build_map_from_recordings(recordings[:4])
-    with pytest.raises(ResponseMapError, match="different stands"):
+    other = fingerprint(RIG.replace(**{"friction.force": 10.0}))
+    with pytest.raises(ResponseMapError, match="stands with different parameters"):
         build_map_from_recordings([dataclasses.replace(recordings[0], metadata={**recordings[0].metadata,
-                                                                                "rig": "x"})] + recordings[1:])
+                                                                                "rig_fingerprint": other})]
+                                  + recordings[1:])
+    with pytest.raises(ResponseMapError, match="with other parameters .* pass the stand they were recorded on"):
+        build_map_from_recordings(recordings, rig=RIG.replace(**{"friction.force": 10.0}))
+
+
+def test_a_stand_is_known_by_its_parameters_not_its_name(noisy_map):
+    _, _, (recording,) = held_back(1, 0.0, seed=11)
+    relabelled = dataclasses.replace(recording, metadata={**recording.metadata, "rig": "another label"})
+    assert identify_recording(relabelled, noisy_map).mass == identify_recording(recording, noisy_map).mass
+    assert fingerprint(RIG) == fingerprint(RIG.replace(name="x")) == fingerprint(to_dict(RIG))
+    assert fingerprint(RIG) != fingerprint(RIG.replace(**{"cylinder.piston_mass": 4.5}))
 
 
 def test_simulated_map_identifies_recordings_through_the_sensor_chain():

@@ -61,10 +61,47 @@ def _edit(path, change):
     (lambda h5: h5.attrs.__setitem__("feature_params", json.dumps({"window": -3})), "window must be a number"),
     (lambda h5: h5.attrs.__setitem__("rig", json.dumps({"cylinder": {"bore": "wide"}})),
      "stand description is invalid"),
+    (lambda h5: h5.attrs.__setitem__("schema_version", "abc"), "'schema_version' must be a finite number, got abc"),
+    (lambda h5: h5.attrs.__setitem__("schema_version", np.nan), "'schema_version' must be a finite number"),
+    (lambda h5: h5.attrs.__setitem__("schema_version", np.arange(3)), "'schema_version' must be a finite number"),
+    (lambda h5: h5.attrs.__setitem__("sample_rate", "50k"), "'sample_rate' must be a finite number, got 50k"),
+    (lambda h5: h5.attrs.__setitem__("sample_rate", np.ones(2)), "'sample_rate' must be a finite number"),
+    (lambda h5: h5.attrs.__setitem__("sample_rate", 1e300), r"'sample_rate' must be a number within \[1, 1e\+08\]"),
+    (lambda h5: h5.attrs.__setitem__("rig", "[" * 100_000), "attribute 'rig' is not valid JSON"),
+    (lambda h5: (h5.__delitem__("masses"), h5.create_dataset("masses", data=np.array([10.0, 5.0, 20.0]))),
+     "masses must be a non-empty, finite, strictly increasing axis \\[kg\\], got 5 after 10 at index 1 of 3$"),
+    (lambda h5: (h5.__delitem__("masses"), h5.create_dataset("masses", data=np.array([b"a", b"b"]))),
+     "'masses' must be a numeric dataset"),
 ])
 def test_damaged_files_are_refused_with_the_reason(saved, change, message):
     _edit(saved, change)
     with pytest.raises(ResponseMapError, match=message):
+        load_map(saved)
+
+
+def test_a_byte_flipped_file_is_refused_in_one_line(saved):
+    raw = bytearray(saved.read_bytes())
+    original = load_map(saved)
+    outcomes = set()
+    for position in range(0, len(raw), max(1, len(raw) // 97)):  # one flipped byte at a time, across the file
+        flipped = bytearray(raw)
+        flipped[position] ^= 0xFF
+        saved.write_bytes(bytes(flipped))
+        try:
+            loaded = load_map(saved)
+            for name in ("masses", "velocities", "pressures_gauge", "values"):  # a padding byte: nothing changed
+                np.testing.assert_array_equal(getattr(loaded, name), getattr(original, name))
+            assert loaded.rig == original.rig and loaded.feature_params == original.feature_params
+            outcomes.add("read")
+        except ResponseMapError as exc:
+            assert "\n" not in str(exc)
+            outcomes.add("refused")
+    assert "refused" in outcomes
+
+
+def test_an_edit_that_keeps_the_file_valid_breaks_its_checksum(saved):
+    _edit(saved, lambda h5: h5["values"].__setitem__((0, 0, 0, 0), 2.0 * h5["values"][0, 0, 0, 0]))
+    with pytest.raises(ResponseMapError, match="does not match its checksum; the file was damaged or edited"):
         load_map(saved)
 
 

@@ -140,8 +140,11 @@ def test_sections_are_keyword_only_and_typed():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"mass": 0.0, "velocity": 2.0}, r"mass must be > 0 \[kg\], got 0.0"),
-    ({"mass": -3.0, "velocity": 2.0}, "mass must be > 0"),
+    ({"mass": 0.0, "velocity": 2.0}, r"mass must be >= 0.1 \[kg\], got 0.0"),
+    ({"mass": -3.0, "velocity": 2.0}, "mass must be >= 0.1"),
+    ({"mass": 1e-9, "velocity": 2.0}, "mass must be >= 0.1"),
+    ({"mass": 2e4, "velocity": 2.0}, r"mass must be <= 10000 \[kg\]"),
+    ({"mass": 30.0, "velocity": 30.0}, r"velocity must be <= 15.3\d* \[m/s\]"),
     ({"mass": float("nan"), "velocity": 2.0}, r"mass must be a finite number \[kg\], got nan"),
     ({"mass": 30.0, "velocity": 0.0}, r"velocity must be > 0 \[m/s\]"),
     ({"mass": 30.0, "velocity": float("inf")}, "velocity must be a finite number"),

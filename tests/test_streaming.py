@@ -71,14 +71,52 @@ def test_bad_chunks():
 @settings(max_examples=20, deadline=None)
 @given(st.integers(0, 2**31 - 1), st.lists(st.integers(1, 700), min_size=1, max_size=12))
 def test_random_signals_and_chunks(seed, chunks):
-    """Random signals in random chunks: only finite, positive estimates or none -- never an exception."""
+    """Random signals in random chunks: only finite, positive estimates, and at the end of a stream of one impact
+    the batch function's answer or refusal on the same samples -- never another exception."""
     rng = np.random.default_rng(seed)
     ident = StreamingIdentifier(FS)
+    forces, accelerations = [], []
     for size in chunks:
         f = rng.normal(0.0, 10.0, size) + (rng.random(size) < 0.02) * rng.uniform(0, 5e3, size)
-        for est in ident.push(f, rng.normal(0.0, 3.0, size)):
+        a = rng.normal(0.0, 3.0, size)
+        forces.append(f)
+        accelerations.append(a)
+        for est in ident.push(f, a):
             assert np.isfinite(est.mass) and est.mass > 0 and np.isfinite(est.velocity)
-    ident.finish()
+    final = _outcome(ident.finish)
+    if len(ident.outcomes) <= 1:
+        batch = _outcome(lambda: identify_arrays(np.concatenate(forces), np.concatenate(accelerations), FS))
+        if final is None or isinstance(final, IdentificationError):
+            assert isinstance(batch, IdentificationError)
+            assert final is None or str(final) == str(batch)
+        else:
+            assert final == batch
+
+
+def _outcome(call):
+    try:
+        return call()
+    except IdentificationError as exc:
+        return exc
+
+
+@pytest.mark.parametrize("damage, message", [
+    (lambda f, a: (np.minimum(f, 0.3 * f.max()), a), "contact_force is saturated"),
+    (lambda f, a: (f, np.zeros_like(a)), "piston_acceleration is constant"),
+    (lambda f, a: (f, -a), "no positive mass"),
+])
+def test_the_stream_refuses_what_the_batch_function_refuses(damage, message):
+    f, a = damage(*impact(30.0, 2.0, seed=5))
+    with pytest.raises(IdentificationError, match=message):
+        identify_arrays(f, a, FS)
+    ident = StreamingIdentifier(FS)
+    estimates = []
+    for k in range(0, f.size, 64):
+        estimates += ident.push(f[k:k + 64], a[k:k + 64])
+    with pytest.raises(IdentificationError, match=message):
+        ident.finish()
+    assert not ident.completed
+    assert all(e.details.get("onset_rows") == -1 for e in estimates)  # at most an early answer went out
 
 
 def test_streaming_equals_batch_paper_and_contact_phase():

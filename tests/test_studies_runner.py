@@ -104,9 +104,19 @@ def test_atomic_write_replaces_whole_files(tmp_path):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"grid": 1}, "grid must be an integer >= 2"),
-    ({"seeds": 0}, "seeds must be an integer >= 1"),
-    ({"seed": -1}, "seed must be an integer >= 0"),
+    ({"grid": 1}, r"grid must be an integer within \[2, 40\], got 1"),
+    ({"grid": 1000}, r"grid must be an integer within \[2, 40\], got 1000"),
+    ({"seeds": 0}, r"seeds must be an integer within \[1, 100\]"),
+    ({"grid": 40, "seeds": 10}, "grid³ × seeds must be at most 200000 scenarios"),
+    ({"seed": -1}, r"seed must be an integer within \[0, "),
+    ({"params": {"noise.levels": []}}, "--set noise.levels must hold 1 to 100 values, got 0"),
+    ({"params": {"noise.levels": [-1]}}, r"--set noise.levels must lie within \[0, 1\], got -1"),
+    ({"params": {"noise.levels": [float("nan")]}}, "--set noise.levels must be a finite number"),
+    ({"params": {"noise.levels": "abc"}}, "--set noise.levels must be a number with an optional fraction unit"),
+    ({"params": {"peak-force.nope": 1}}, "unknown setting 'peak-force.nope'; study 'peak-force' has"),
+    ({"params": {"sampling.rates": ["1GHz"]}}, r"--set sampling.rates must lie within \[5000, 1e\+06\] Hz"),
+    ({"params": {"map-size.sizes": [2.5]}}, "--set map-size.sizes must be an integer, got 2.5"),
+    ({"params": {"absorption.identification": "response-map"}}, "must be one of"),
     ({"noise": 2.0}, r"noise must be a number within \[0, 1\]"),
     ({"sample_rate": float("nan")}, "sample_rate must be a number"),
     ({"rig": "drop-stand"}, "rig must be a Rig"),
@@ -123,7 +133,7 @@ def test_unknown_study_and_bad_executor_options(tmp_path):
         run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=0)
     with pytest.raises(ParameterError, match="--scheduler must be an address"):
         run_study("peak-force", tmp_path / "s", StudyOptions(**SMALL), scheduler="localhost")
-    with pytest.raises(ParameterError, match="chunk_size must be an integer >= 1"):
+    with pytest.raises(ParameterError, match=r"--set peak-force.chunk_size must lie within \[1, 100000\], got 0"):
         run_study("peak-force", tmp_path / "c", StudyOptions(grid=2, params={"peak-force.chunk_size": 0}))
 
 

@@ -5,6 +5,7 @@ SI units everywhere (kg, m, s, N, Pa absolute unless named ``gauge``); the axis 
 
 from .errors import (
     ControlError,
+    DeviceError,
     IdentificationError,
     ImpactometerError,
     ParameterError,
@@ -17,12 +18,12 @@ from .rig import PRESETS, Contact, Cylinder, Friction, Gas, Rig, Scenario, Stops
 
 __version__ = "0.1.0"
 
-__all__ = ["ControlError", "IdentificationError", "ImpactometerError", "ParameterError", "RecordingError",
-           "ResponseMapError", "SimulationError", "UnitError", "BatchResult", "SimulationResult", "simulate",
-           "simulate_batch", "PRESETS", "Contact", "Cylinder", "Friction", "Gas", "Rig", "Scenario", "Stops",
-           "Valve", "get_rig", "load_toml", "__version__"]
+__all__ = ["ControlError", "DeviceError", "IdentificationError", "ImpactometerError", "ParameterError",
+           "RecordingError", "ResponseMapError", "SimulationError", "UnitError", "BatchResult", "SimulationResult",
+           "simulate", "simulate_batch", "simulate_blocks", "PRESETS", "Contact", "Cylinder", "Friction", "Gas", "Rig",
+           "Scenario", "Stops", "Valve", "get_rig", "load_toml", "__version__"]
 
-_MODEL = ("BatchResult", "SimulationResult", "simulate", "simulate_batch")
+_MODEL = ("BatchResult", "SimulationResult", "simulate", "simulate_batch", "simulate_blocks")
 
 
 def __getattr__(name: str):

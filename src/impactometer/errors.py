@@ -6,6 +6,18 @@ matches its meaning, so callers can catch either ``ImpactometerError`` or, e.g.,
 
 from __future__ import annotations
 
+from typing import Any
+
+
+def shown(value: Any) -> str:
+    """``repr(value)`` for an error message, a numpy scalar shown as the plain number it holds (3.0, not
+    np.float64(3.0)), and cut to 80 characters."""
+    item = getattr(value, "item", None)
+    if callable(item) and getattr(value, "shape", None) == ():
+        value = item()
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
 
 class ImpactometerError(Exception):
     """Base class of every error impactometer raises on purpose."""
@@ -38,3 +50,10 @@ class ResponseMapError(ImpactometerError, ValueError):
 class ControlError(ImpactometerError, RuntimeError):
     """An absorption strategy could not be computed or applied."""
 
+
+class DeviceError(ImpactometerError, RuntimeError):
+    """The requested compute device cannot be used (no GPU, or the optional GPU support is not installed)."""
+
+
+class OutputError(ImpactometerError, OSError):
+    """A result could not be written (disk full, permission denied, ...); nothing half-written is left."""

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import signal
 
-from .errors import ParameterError, RecordingError
+from .errors import ParameterError, RecordingError, shown
 from .recording import Recording
 
 
@@ -75,8 +75,8 @@ def cfc_coefficients(cfc: int, sample_rate: float, *, standard: str = "J211") ->
         ``[a0, a1, a2]`` and ``[1, −b1, −b2]`` of the standard's difference equation.
     """
     klass = channel_class(cfc)
-    if standard not in DESIGN_FACTORS:
-        raise ParameterError(f"standard must be one of {sorted(DESIGN_FACTORS)}, got {standard!r}")
+    if not isinstance(standard, str) or standard not in DESIGN_FACTORS:
+        raise ParameterError(f"standard must be one of {sorted(DESIGN_FACTORS)}, got {shown(standard)}")
     if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float, np.floating)) \
             or not math.isfinite(sample_rate) or sample_rate < MIN_RATE_OVER_FN * klass.f_n:
         raise ParameterError(f"sample_rate must be >= {MIN_RATE_OVER_FN * klass.f_n:g} Hz (6 x f_n) for CFC "

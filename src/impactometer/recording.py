@@ -14,7 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from .errors import RecordingError
+from .errors import RecordingError, UnitError
+from .stands import MASS_RANGE, VELOCITY_RANGE
+from .units import parse_quantity
 
 FORCE = "contact_force"
 ACCELERATION = "piston_acceleration"
@@ -22,6 +24,50 @@ ACCELERATION = "piston_acceleration"
 CHANNEL_UNITS = {FORCE: "N", ACCELERATION: "m/s^2", "u1": "m", "u2": "m", "piston_displacement": "m",
                  "pressure_lower": "Pa", "pressure_upper": "Pa"}
 TRUTH_KEYS = ("mass_kg", "velocity_m_s", "pressure_gauge_Pa")
+#: known-truth key -> SI unit, and (dimension, lowest, highest value) [SI]
+TRUTH_UNITS = {"mass_kg": "kg", "velocity_m_s": "m/s", "pressure_gauge_Pa": "Pa"}
+TRUTH_RANGES = {"mass_kg": ("mass", 0.0, MASS_RANGE[1]), "velocity_m_s": ("velocity", 0.0, VELOCITY_RANGE[1]),
+                "pressure_gauge_Pa": ("pressure", 0.0, 1e8)}
+#: largest magnitude of a sample of any channel (SI units: a force of 1e15 N, a pressure of 1e15 Pa, ...)
+SAMPLE_LIMIT = 1e15
+#: largest magnitude of the time of a recording's first sample [s] (a clock time since 1970 fits)
+START_TIME_LIMIT = 1e10
+#: sample rates a recording may have [Hz], from a slow logger to a fast transient recorder
+SAMPLE_RATE_RANGE = (1.0, 1e8)
+
+
+def check_sample_rate(value: Any, field: str = "sample_rate", *, error: type[Exception] = RecordingError) -> float:
+    """``value`` as a sample rate [Hz] within :data:`SAMPLE_RATE_RANGE`; ``error`` naming ``field`` otherwise."""
+    low, high = SAMPLE_RATE_RANGE
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(value) or not low <= value <= high:
+        shown = float(value) if isinstance(value, (np.integer, np.floating)) else value
+        raise error(f"{field} must be a number within [{low:g}, {high:g}] Hz, got {shown!r}")
+    return float(value)
+
+
+def truth_value(key: str, value: Any, where: str = "") -> float:
+    """A known-truth metadata value (a number, or a text such as ``"30"`` or ``"30 kg"``) in SI units.
+
+    RecordingError naming ``where`` and the key unless it is a finite number within :data:`TRUTH_RANGES`.
+    """
+    dimension, low, high = TRUTH_RANGES[key]
+    shown = value.item() if isinstance(value, np.generic) else value
+    if isinstance(shown, bool) or not isinstance(shown, (int, float, str)):
+        raise RecordingError(f"{where}metadata {key} must be a number, got {_short(shown)}")
+    try:
+        number = parse_quantity(shown, dimension, field=f"metadata {key}")
+    except UnitError as exc:
+        raise RecordingError(f"{where}{exc}") from None
+    if not low <= number <= high:
+        raise RecordingError(f"{where}metadata {key} must be within [{low:g}, {high:g}] {TRUTH_UNITS[key]}, got "
+                             f"{_short(shown)}")
+    return number
+
+
+def _short(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np.ndarray:
@@ -41,6 +87,10 @@ def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np
     if bad.size:
         raise RecordingError(f"{source}: channel {name!r} has a non-finite sample ({float(arr[bad[0]])!r}) at "
                              f"index {int(bad[0])}; expected finite numbers")
+    if arr.size and max(float(arr.max()), -float(arr.min())) > SAMPLE_LIMIT:
+        i = int(np.argmax(np.abs(arr) > SAMPLE_LIMIT))
+        raise RecordingError(f"{source}: channel {name!r} has a sample of {float(arr[i]):.3g} at index {i}; expected "
+                             f"magnitudes up to {SAMPLE_LIMIT:g} (SI units)")
     return arr
 
 
@@ -65,11 +115,13 @@ class Recording:
 
     def __post_init__(self) -> None:
         where = f"{self.source}: "
-        if isinstance(self.sample_rate, bool) or not isinstance(self.sample_rate, (int, float)) \
-                or not math.isfinite(self.sample_rate) or self.sample_rate <= 0:
-            raise RecordingError(f"{where}sample_rate must be a finite number > 0 [Hz], got {self.sample_rate!r}")
-        if not isinstance(self.start_time, (int, float)) or not math.isfinite(self.start_time):
-            raise RecordingError(f"{where}start_time must be a finite number [s], got {self.start_time!r}")
+        object.__setattr__(self, "sample_rate", check_sample_rate(self.sample_rate, f"{where}sample_rate"))
+        if isinstance(self.start_time, bool) or not isinstance(self.start_time, (int, float, np.integer, np.floating)) \
+                or not abs(self.start_time) <= START_TIME_LIMIT:
+            shown = float(self.start_time) if isinstance(self.start_time, np.generic) else self.start_time
+            raise RecordingError(f"{where}start_time must be a number within ±{START_TIME_LIMIT:g} [s], got "
+                                 f"{shown!r}")
+        object.__setattr__(self, "start_time", float(self.start_time))
         if not isinstance(self.channels, dict) or not self.channels:
             raise RecordingError(f"{where}channels must be a non-empty mapping of name -> samples")
         length = None
@@ -84,6 +136,9 @@ class Recording:
         object.__setattr__(self, "channels", clean)
         if not isinstance(self.metadata, dict):
             raise RecordingError(f"{where}metadata must be a mapping, got {type(self.metadata).__name__}")
+        truth = {k: truth_value(k, v, where) for k, v in self.metadata.items() if k in TRUTH_KEYS and v is not None}
+        if truth:
+            object.__setattr__(self, "metadata", {**self.metadata, **truth})
 
     def __len__(self) -> int:
         return next(iter(self.channels.values())).size
@@ -141,11 +196,12 @@ class Recording:
         from .io.channels import time_base
 
         rate, start = time_base(time, None, source)
-        if np.size(time) != len(next(iter(channels.values()), [])):
+        recording = cls(sample_rate=rate, channels=channels, start_time=start, metadata=dict(metadata or {}),
+                        source=source)
+        if np.size(time) != len(recording):
             raise RecordingError(f"{source}: time has {np.size(time)} samples but the channels have "
-                                 f"{len(next(iter(channels.values()), []))}; expected equal lengths")
-        return cls(sample_rate=rate, channels=channels, start_time=start, metadata=dict(metadata or {}),
-                   source=source)
+                                 f"{len(recording)}; expected equal lengths")
+        return recording
 
     @classmethod
     def read(cls, path, **options: Any) -> Recording:
@@ -224,6 +280,16 @@ SUSTAINED_FACTOR = 4.0
 MIN_OFFSET_SAMPLES = 10
 
 
+def _samples_before_contact(recording: Recording) -> int:
+    """Number of samples at t < 0 (the pre-trigger), without forming the time array."""
+    n = int(np.clip(np.ceil(-recording.start_time * recording.sample_rate), 0, len(recording)))
+    while n > 0 and recording.start_time + (n - 1) / recording.sample_rate >= 0:
+        n -= 1
+    while n < len(recording) and recording.start_time + n / recording.sample_rate < 0:
+        n += 1
+    return n
+
+
 def inspect_recording(recording: Recording) -> Inspection:
     """Duration, rate, channels with ranges and noise, peak force, contact pulses and stage B of ``recording``.
 
@@ -240,19 +306,24 @@ def inspect_recording(recording: Recording) -> Inspection:
     peak = peak_time = None
     offset = 0.0
     if FORCE in recording.channels:
-        t, f = recording.time, recording.contact_force
-        before = f[t < 0]
+        f = recording.contact_force
+        dt = 1.0 / recording.sample_rate
+
+        def t(i: int) -> float:  # as Recording.time gives it, without the array
+            return recording.start_time + i / recording.sample_rate
+
+        before = f[:_samples_before_contact(recording)]
         offset = float(np.median(before)) if before.size >= MIN_OFFSET_SAMPLES else 0.0
         f = f - offset
         k = int(np.argmax(f))
-        peak, peak_time = float(f[k]), float(t[k])
+        peak, peak_time = float(f[k]), t(k)
         for span in detect_pulses(f, channels[FORCE].noise):
             stop = span.end if span.complete else f.size - 1
             first = pulses[0].end - pulses[0].start if pulses else None
-            sustained = not span.complete or (first is not None and t[stop] - t[span.zero] > SUSTAINED_FACTOR * first)
-            pulses.append(Pulse(start=float(t[span.zero]), peak_time=float(t[span.peak]), end=float(t[stop]),
+            sustained = not span.complete or (first is not None and t(stop) - t(span.zero) > SUSTAINED_FACTOR * first)
+            pulses.append(Pulse(start=t(span.zero), peak_time=t(span.peak), end=t(stop),
                                 peak_force=float(f[span.peak]),
-                                impulse=float(np.trapezoid(f[span.zero:stop + 1], t[span.zero:stop + 1])),
+                                impulse=float(np.trapezoid(f[span.zero:stop + 1], dx=dt)),
                                 sustained=bool(sustained)))
             if sustained:
                 break

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ParameterError
+from .stands import CYLINDER_LIMITS, MASS_RANGE, VELOCITY_RANGE, check_stops
 
 ATMOSPHERIC_PRESSURE = 101325.0  # [Pa]
 STANDARD_GRAVITY = 9.81  # [m/s²], the value of the reference model
@@ -29,7 +30,8 @@ def _check(name: str, value: Any, *, low: float | None = None, high: float | Non
            low_open: bool = True, unit: str = "") -> None:
     """Raise ParameterError unless ``value`` is a finite real within the bounds."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
-        raise ParameterError(f"{name} must be a finite number{unit}, got {value!r}")
+        shown = float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else value
+        raise ParameterError(f"{name} must be a finite number{unit}, got {shown!r}")
     value = float(value)  # numpy scalars print as plain numbers below
     if low is not None and (value <= low if low_open else value < low):
         raise ParameterError(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {value!r}")
@@ -65,10 +67,9 @@ class Cylinder:
     rated_pressure_gauge: float = 400e3
 
     def __post_init__(self) -> None:
-        for name in ("piston_mass", "bore", "rod_diameter", "stroke", "rated_pressure_gauge"):
-            _check(f"cylinder.{name}", getattr(self, name), low=0.0)
-        for name in ("lower_length", "upper_length", "dead_volume_lower", "dead_volume_upper"):
-            _check(f"cylinder.{name}", getattr(self, name), low=0.0, low_open=False)
+        for name, high in CYLINDER_LIMITS.items():
+            _check(f"cylinder.{name}", getattr(self, name), low=0.0, high=high, low_open=not name.endswith(
+                ("_length", "_lower", "_upper")))
         if self.rod_diameter >= self.bore:
             raise ParameterError(f"cylinder.rod_diameter must be < bore ({self.bore!r} m), got {self.rod_diameter!r}")
         if self.lower_length * self.area + self.dead_volume_lower <= 0.0:
@@ -301,6 +302,7 @@ class Rig:
         _check("rig.gravity", self.gravity, low=0.0, low_open=False)
         if not isinstance(self.name, str):
             raise ParameterError(f"rig.name must be a string, got {self.name!r}")
+        check_stops(self)
 
     def with_contact(self, law: str) -> Rig:
         """This stand with the default contact of ``law``."""
@@ -390,6 +392,9 @@ def load_toml(path: str | Path) -> Rig:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParameterError(f"rig file {str(path)!r} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ParameterError(f"rig file {str(path)!r} nests arrays or tables too deeply; expected a stand "
+                             "description (sections of numbers)") from None
     return from_dict(data, source=str(path))
 
 
@@ -397,10 +402,13 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``rig`` to ``path`` as TOML."""
     import tomli_w
 
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise ParameterError(f"rig file {str(path)!r} exists; pass overwrite=True to replace it")
-    path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+    from .outputs import check_file, write_failed
+
+    path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
+    try:
+        path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+    except OSError as exc:
+        raise write_failed(path, exc) from None
     return path
 
 
@@ -429,6 +437,8 @@ def get_rig(name_or_path: str | Path | Rig | None = None, *, contact: str | None
         rig = name_or_path
     elif name_or_path is None:
         rig = PRESETS["drop-stand"]
+    elif not isinstance(name_or_path, (str, Path)):
+        raise ParameterError(f"rig must be a Rig, a preset name or a .toml file, got {type(name_or_path).__name__}")
     elif str(name_or_path) in PRESETS:
         rig = PRESETS[str(name_or_path)]
     elif Path(name_or_path).suffix.lower() == ".toml":
@@ -447,8 +457,8 @@ class Scenario:
     pressure_gauge: float = 200e3
 
     def __post_init__(self) -> None:
-        _check("mass", self.mass, low=0.0, unit=" [kg]")
-        _check("velocity", self.velocity, low=0.0, unit=" [m/s]")
+        _check("mass", self.mass, low=MASS_RANGE[0], low_open=False, high=MASS_RANGE[1], unit=" [kg]")
+        _check("velocity", self.velocity, low=0.0, high=VELOCITY_RANGE[1], unit=" [m/s]")
         _check("pressure_gauge", self.pressure_gauge, low=0.0, low_open=False, unit=" [Pa]")
 
     @classmethod

@@ -28,11 +28,12 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from .errors import ParameterError
+from .errors import ParameterError, shown
 from .model import simulate_batch
 from .model.dynamics import CHANNELS as MODEL_CHANNELS
-from .recording import ACCELERATION, FORCE, Recording
+from .recording import ACCELERATION, FORCE, Recording, check_sample_rate
 from .rig import Rig, Scenario, get_rig
+from .stands import fingerprint
 
 #: model channel -> recording channel name
 MODEL_TO_RECORDING = {"contact_force": FORCE, "a2": ACCELERATION, "u2": "piston_displacement"}
@@ -47,6 +48,8 @@ CUTOFF_FRACTION = 0.4
 #: length of the causal FIR in output sample periods (delay = half of it)
 CAUSAL_PERIODS = 16
 MIN_SAMPLE_RATE, MAX_SAMPLE_RATE = 5e3, 1e6
+#: most samples per channel of a simulated recording
+MAX_SAMPLES = 5e7
 
 
 def _zero_phase(x: np.ndarray, factor: int) -> np.ndarray:
@@ -84,13 +87,13 @@ def _check_rate(sample_rate: float, field: str = "sample_rate") -> float:
     if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(sample_rate) \
             or not MIN_SAMPLE_RATE <= sample_rate <= MAX_SAMPLE_RATE:
         raise ParameterError(f"{field} must be within [{MIN_SAMPLE_RATE:g}, {MAX_SAMPLE_RATE:g}] Hz, "
-                             f"got {sample_rate!r}")
+                             f"got {shown(sample_rate)}")
     return float(sample_rate)
 
 
 def _check_nonnegative(value: Any, field: str, unit: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise ParameterError(f"{field} must be a finite number >= 0 {unit}, got {value!r}")
+        raise ParameterError(f"{field} must be a finite number >= 0 {unit}, got {shown(value)}")
     return float(value)
 
 
@@ -177,12 +180,23 @@ def _degrade(channels: dict[str, np.ndarray], factor: int, first: int, *, design
     return out
 
 
+def _check_seed(seed: Any, field: str = "seed") -> Any:
+    """A seed numpy accepts: None, an integer >= 0, a SeedSequence or a Generator; ParameterError otherwise."""
+    if seed is None or isinstance(seed, (np.random.SeedSequence, np.random.Generator, np.random.BitGenerator)):
+        return seed
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        shown = int(seed) if isinstance(seed, np.integer) else seed
+        raise ParameterError(f"{field} must be None or an integer >= 0, got {shown!r}")
+    return int(seed)
+
+
 def _rngs(n: int, seed, seeds) -> tuple[list[np.random.Generator], list[Any]]:
     if seeds is not None:
-        seeds = list(seeds)
+        seeds = [_check_seed(s, f"seeds[{i}]") for i, s in enumerate(seeds)]
         if len(seeds) != n:
             raise ParameterError(f"seeds must have one entry per scenario ({n}), got {len(seeds)}")
         return [np.random.default_rng(s) for s in seeds], seeds
+    seed = _check_seed(seed)
     if seed is None:
         return [np.random.default_rng() for _ in range(n)], [None] * n
     if n == 1:
@@ -197,6 +211,22 @@ def _model_channel(name: str) -> str:
         raise ParameterError(f"extra_channels: unknown channel {name!r}; expected any of "
                              f"{sorted(set(MODEL_CHANNELS) | set(RECORDING_TO_MODEL))}")
     return model
+
+
+def _fingerprints(rig: Rig, overrides, scenarios, n: int) -> list[str]:
+    """Fingerprint of the stand of each of ``n`` scenarios (``overrides`` change it per scenario)."""
+    if not overrides:
+        return [fingerprint(rig)] * n
+    values = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (*scenarios, *overrides.values())))
+    rows = np.column_stack([np.atleast_1d(v).ravel() for v in values[3:]])
+    cache: dict[tuple, str] = {}
+    out = []
+    for row in rows:
+        key = tuple(row.tolist())
+        if key not in cache:
+            cache[key] = fingerprint(rig.replace(**dict(zip(overrides, key, strict=True))))
+        out.append(cache[key])
+    return out
 
 
 def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, sample_rate: float = 50e3,
@@ -239,14 +269,18 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
     Returns
     -------
     list of Recording
-        One per scenario, with truth metadata ``mass_kg``, ``velocity_m_s``, ``pressure_gauge_Pa``.
+        One per scenario, with truth metadata ``mass_kg``, ``velocity_m_s``, ``pressure_gauge_Pa``, the stand's
+        name (``rig``, a label) and the fingerprint of its parameters (``rig_fingerprint``).
     """
     rig = get_rig(rig)
     sample_rate = _check_rate(sample_rate)
     duration = _check_nonnegative(duration, "duration", "[s]")
     pre_trigger = _check_nonnegative(pre_trigger, "pre_trigger", "[s]")
     if duration <= 0:
-        raise ParameterError(f"duration must be > 0 [s], got {duration!r}")
+        raise ParameterError(f"duration must be > 0 [s], got {shown(duration)}")
+    if (duration + pre_trigger) * sample_rate > MAX_SAMPLES:
+        raise ParameterError(f"duration + pre_trigger must give at most {MAX_SAMPLES:g} samples at "
+                             f"{sample_rate:g} Hz, got {duration:g} s + {pre_trigger:g} s")
     design = _design(anti_alias)
     extras = [str(name) for name in extra_channels]
     model_channels = ["contact_force", "a2"] + [_model_channel(name) for name in extras]
@@ -274,12 +308,14 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
     outputs = _degrade(internal, factor, pad, design=design, levels=levels, rngs=rngs, adc_bits=adc_bits,
                        adc_range=adc_range, gravity_offset=rig.gravity if include_gravity else None,
                        trigger=n_pre)
+    prints = _fingerprints(rig, overrides, (mass, velocity, pressure_gauge), n)
     recordings = []
     for i, chans in enumerate(outputs):
         chans = {name: x[:n_pre + n_out] for name, x in chans.items()}
         metadata = {"mass_kg": float(batch.mass[i]), "velocity_m_s": float(batch.velocity[i]),
                     "pressure_gauge_Pa": float(batch.pressure_gauge[i]), "contact_law": rig.contact.law,
-                    "rig": rig.name, "noise": {k: v for k, v in levels.items() if v > 0}, "seed": used_seeds[i],
+                    "rig": rig.name, "rig_fingerprint": prints[i],
+                    "noise": {k: v for k, v in levels.items() if v > 0}, "seed": used_seeds[i],
                     "anti_alias": design, "anti_alias_delay_s": anti_alias_delay(design, sample_rate),
                     "adc_bits": adc_bits, "acceleration_includes_gravity": bool(include_gravity)}
         recordings.append(Recording(sample_rate=sample_rate, channels=chans, start_time=-n_pre / sample_rate,
@@ -295,7 +331,7 @@ def record(scenario: Scenario, rig: Rig | None = None, *, sample_rate: float = 5
     if not isinstance(scenario, Scenario):
         raise ParameterError(f"scenario must be a Scenario, got {scenario!r}")
     return record_batch(scenario.mass, scenario.velocity, scenario.pressure_gauge, rig, sample_rate=sample_rate,
-                        duration=duration, noise=noise, seeds=[seed], pre_trigger=pre_trigger,
+                        duration=duration, noise=noise, seeds=[_check_seed(seed)], pre_trigger=pre_trigger,
                         anti_alias=anti_alias, adc_bits=adc_bits, adc_range=adc_range,
                         include_gravity=include_gravity, extra_channels=extra_channels)[0]
 
@@ -337,12 +373,12 @@ def apply_sensors(data: Recording | Mapping[str, Any], *, input_rate: float | No
         base = Recording(sample_rate=input_rate, channels=dict(data), start_time=start_time, source="memory")
     else:
         raise ParameterError(f"data must be a Recording or a mapping of channel arrays, got {type(data).__name__}")
-    out_rate = base.sample_rate if sample_rate is None else sample_rate
-    ratio = base.sample_rate / out_rate if out_rate > 0 else math.inf
+    out_rate = base.sample_rate if sample_rate is None else check_sample_rate(sample_rate, error=ParameterError)
+    ratio = base.sample_rate / out_rate
     factor = int(round(ratio))
     if not math.isfinite(ratio) or factor < 1 or abs(ratio - factor) > 1e-9 * ratio:
         raise ParameterError(f"sample_rate must divide the input rate {base.sample_rate:g} Hz by an integer, "
-                             f"got {sample_rate!r}")
+                             f"got {shown(sample_rate)}")
     design = _design(anti_alias)
     names = list(base.channels)
     levels = noise_levels(noise, names)
@@ -350,7 +386,7 @@ def apply_sensors(data: Recording | Mapping[str, Any], *, input_rate: float | No
     first_t = base.start_time
     trigger = max(0, int(math.ceil(-first_t * out_rate - 1e-9)))
     outputs = _degrade({k: v[None, :] for k, v in base.channels.items()}, factor, 0, design=design, levels=levels,
-                       rngs=[np.random.default_rng(seed)], adc_bits=adc_bits, adc_range=adc_range,
+                       rngs=[np.random.default_rng(_check_seed(seed))], adc_bits=adc_bits, adc_range=adc_range,
                        gravity_offset=g if include_gravity else None, trigger=trigger)
     meta = dict(base.metadata)
     meta.update({"noise": {k: v for k, v in levels.items() if v > 0}, "seed": seed})

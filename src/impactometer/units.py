@@ -1,6 +1,8 @@
 """Parsing of quantities with unit suffixes (``"200kPa"``, ``"30kg"``, ``"0.3m"``, ``"50kHz"``, ``"2%"``).
 
-Used only at the edges (CLI, files): everything inside the package is SI.
+Used only at the edges (CLI, files): everything inside the package is SI. Symbols are read as written where case
+tells two units apart (``mHz`` is milli-, ``MHz`` mega-hertz; ``mPa`` and ``MPa``); elsewhere case does not matter
+(``khz``, ``KPA``, ``KN``), and a spelling that could be either of two units (``mhz``) is refused.
 """
 
 from __future__ import annotations
@@ -10,24 +12,54 @@ import re
 
 from .errors import UnitError
 
-#: unit symbol -> (dimension, factor to SI)
-UNITS: dict[str, tuple[str, float]] = {
-    "kg": ("mass", 1.0), "g_mass": ("mass", 1e-3), "t": ("mass", 1e3), "lb": ("mass", 0.45359237),
-    "m": ("length", 1.0), "cm": ("length", 1e-2), "mm": ("length", 1e-3), "km": ("length", 1e3),
-    "m/s": ("velocity", 1.0), "km/h": ("velocity", 1 / 3.6), "mm/s": ("velocity", 1e-3),
-    "pa": ("pressure", 1.0), "kpa": ("pressure", 1e3), "mpa": ("pressure", 1e6), "bar": ("pressure", 1e5),
-    "mbar": ("pressure", 1e2), "psi": ("pressure", 6894.757293168),
-    "s": ("time", 1.0), "ms": ("time", 1e-3), "us": ("time", 1e-6), "µs": ("time", 1e-6),
-    "hz": ("frequency", 1.0), "khz": ("frequency", 1e3), "mhz": ("frequency", 1e6),
-    "n": ("force", 1.0), "kn": ("force", 1e3),
-    "m/s2": ("acceleration", 1.0), "m/s^2": ("acceleration", 1.0), "m/s²": ("acceleration", 1.0),
-    "g": ("acceleration", 9.80665),
-    "%": ("fraction", 1e-2),
-    "n/m": ("stiffness", 1.0), "kn/m": ("stiffness", 1e3), "kn/mm": ("stiffness", 1e6),
-    "m2": ("area", 1.0), "mm2": ("area", 1e-6), "mm^2": ("area", 1e-6), "cm2": ("area", 1e-4),
+#: dimension -> unit symbol (as written) -> factor to SI
+UNITS: dict[str, dict[str, float]] = {
+    "mass": {"kg": 1.0, "g": 1e-3, "t": 1e3, "lb": 0.45359237},
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "km": 1e3},
+    "velocity": {"m/s": 1.0, "km/h": 1 / 3.6, "mm/s": 1e-3},
+    "pressure": {"Pa": 1.0, "mPa": 1e-3, "kPa": 1e3, "MPa": 1e6, "bar": 1e5, "mbar": 1e2, "psi": 6894.757293168},
+    "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6},
+    "frequency": {"Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "MHz": 1e6, "GHz": 1e9},
+    "force": {"N": 1.0, "kN": 1e3},
+    "acceleration": {"m/s2": 1.0, "m/s^2": 1.0, "m/s²": 1.0, "g": 9.80665},
+    "fraction": {"%": 1e-2},
+    "stiffness": {"N/m": 1.0, "kN/m": 1e3, "kN/mm": 1e6},
+    "area": {"m2": 1.0, "mm2": 1e-6, "mm^2": 1e-6, "cm2": 1e-4},
 }
 
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf|nan)\s*(.*?)\s*$", re.IGNORECASE)
+
+
+def find_unit(symbol: str, dimension: str | None = None, *, field: str = "unit",
+              extra: dict[str, dict[str, float]] | None = None) -> tuple[str, float] | None:
+    """(dimension, factor to SI) of a unit ``symbol``, or None when it is unknown.
+
+    The symbol is taken as written first; otherwise its case is ignored, unless that makes it match two units of
+    different size (``mhz``: milli or mega?), which raises UnitError. Without ``dimension`` every dimension is
+    searched, ``g`` meaning standard gravity. ``extra`` adds units (same layout as :data:`UNITS`).
+    """
+    key = symbol.strip().replace("\u03bc", "\u00b5")  # Greek mu (as upper/lower-casing makes it) -> micro sign
+    tables = dict(UNITS)
+    for name, units in (extra or {}).items():
+        tables[name] = {**tables.get(name, {}), **units}
+    if dimension is not None:
+        tables = {dimension: tables.get(dimension, {})}
+    else:
+        tables["mass"] = {k: v for k, v in tables["mass"].items() if k != "g"}
+    exact = [(name, units[key]) for name, units in tables.items() if key in units]
+    if exact:
+        return exact[0]
+    folded = {(name, unit, factor) for name, units in tables.items() for unit, factor in units.items()
+              if _fold(unit) == _fold(key)}
+    if len({(name, factor) for name, _, factor in folded}) > 1:
+        spelled = " or ".join(sorted(unit for _, unit, _ in folded))
+        raise UnitError(f"{field}: unit {symbol!r} is ambiguous; write {spelled} (case tells milli- from "
+                        "mega-)")
+    return next(((name, factor) for name, _, factor in folded), None)
+
+
+def _fold(symbol: str) -> str:
+    return symbol.lower().replace("\u03bc", "\u00b5")  # upper-casing µ gives Greek capital mu, lower-casing that mu
 
 
 def parse_quantity(text: str | float | int, dimension: str, *, field: str = "value") -> float:
@@ -48,11 +80,13 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
     float
         The value in SI units (fractions as plain numbers, ``2%`` -> 0.02).
     """
+    if not isinstance(dimension, str) or (dimension not in UNITS and dimension != "number"):
+        raise UnitError(f"dimension must be one of {sorted(UNITS)} or 'number', got {dimension!r}")
     if isinstance(text, bool):
         raise UnitError(f"{field} must be a number with an optional {dimension} unit, got {text!r}")
     if isinstance(text, (int, float)):
         if not math.isfinite(text):
-            raise UnitError(f"{field} must be a finite number, got {text!r}")
+            raise UnitError(f"{field} must be a finite number, got {float(text)!r}")
         return float(text)
     if not isinstance(text, str):
         raise UnitError(f"{field} must be a number with an optional {dimension} unit, got {text!r}")
@@ -66,14 +100,14 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
         raise UnitError(f"{field} must be a finite number with an optional {dimension} unit, got {text!r}")
     if not unit:
         return value
-    key = unit.lower().replace("\u03bc", "\u00b5")  # Greek mu (as upper/lower-casing makes it) -> micro sign
-    if dimension == "mass" and key == "g":
-        key = "g_mass"
-    if key not in UNITS or UNITS[key][0] != dimension:
-        valid = sorted(u for u, (d, _) in UNITS.items() if d == dimension)
+    known = find_unit(unit, dimension, field=field)
+    if known is None:
         raise UnitError(f"{field}: unknown {dimension} unit {unit!r} in {text!r}; expected one of "
-                        f"{', '.join(u.replace('g_mass', 'g') for u in valid)}")
-    return value * UNITS[key][1]
+                        f"{', '.join(UNITS.get(dimension, {}))}")
+    result = value * known[1]
+    if not math.isfinite(result):
+        raise UnitError(f"{field} must be a finite number, got {text!r} ({value:g} {unit} overflows)")
+    return result
 
 
 def _example(dimension: str) -> str:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import sys
 
 from rich.markup import escape
@@ -11,10 +12,13 @@ from . import control, demo, identify, recordings, response_map, simulate, studi
 from .app import app, console
 
 __all__ = ["app", "main"]
+_NUMPY_SCALAR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool)\w*\(([^()]*)\)")
 
 
 def _fail(message: str, code: int) -> None:
-    console.print(f"[bold red]error:[/] {escape(message)}", highlight=False, soft_wrap=True)
+    line = " ".join(message.split())  # one line, whatever the message holds
+    line = _NUMPY_SCALAR.sub(r"\1", line)  # np.float64(3.0) -> 3.0, wherever a message kept a numpy repr
+    console.print(f"[bold red]error:[/] {escape(line)}", highlight=False, soft_wrap=True)
     sys.exit(code)
 
 
@@ -29,6 +33,11 @@ def main(argv: list[str] | None = None) -> None:
         _fail(str(exc), 2)
     except KeyboardInterrupt:
         _fail("interrupted", 130)
+    except OSError as exc:  # reading or writing a file failed where no check could foresee it (disk full, ...)
+        from ..outputs import write_failed
+
+        target = exc.filename if exc.filename is not None else "a file"
+        _fail(str(write_failed(target, exc)).replace("cannot write", "cannot read or write", 1), 2)
     except Exception as exc:
         # click's exceptions (typer may bundle its own copy of click, so match by interface, not by class)
         name = type(exc).__name__

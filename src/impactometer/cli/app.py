@@ -9,7 +9,7 @@ import typer
 import typer.core
 from rich.console import Console
 
-from ..errors import ParameterError
+from ..outputs import check_file
 from ..units import parse_quantity
 
 
@@ -67,13 +67,22 @@ def quantity(text: str | None, dimension: str, field: str) -> float | None:
     return None if text is None else parse_quantity(text, dimension, field=field)
 
 
-def output_path(path: Path | None, force: bool, *, field: str = "--out") -> Path | None:
-    """Refuse to overwrite an existing file unless ``--force``."""
-    if path is not None and path.exists() and not force:
-        raise ParameterError(f"{field}: {str(path)!r} exists; pass --force to overwrite it")
-    if path is not None and not path.parent.exists():
-        raise ParameterError(f"{field}: folder {str(path.parent)!r} does not exist")
-    return path
+def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: str | None = None) -> Path | None:
+    """Check an output file before any work: a file name (with an extension of its ``kind``: ``figure`` or
+    ``recording``), in a writable folder, not replacing an existing file unless ``--force``."""
+    if path is None:
+        return None
+    if kind == "figure":
+        from ..outputs import figure_formats
+
+        extensions = figure_formats()
+    elif kind == "recording":
+        from ..io import FORMATS
+
+        extensions = list(FORMATS)
+    else:
+        extensions = None
+    return check_file(path, field, overwrite=force, extensions=extensions)
 
 
 def announce_compilation() -> None:

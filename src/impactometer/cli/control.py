@@ -97,7 +97,7 @@ def absorb(
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
                                          default_height="0.3m")
     names = strategy_names(strategy)
-    output_path(plot, force, field="--plot")
+    output_path(plot, force, field="--plot", kind="figure")
     if response_map is not None and identify != "response-map":
         raise ParameterError(f"--response-map is only used with --identify response-map, got --identify {identify}")
     if response_map is not None and not response_map.is_file():
@@ -112,6 +112,8 @@ def absorb(
         for note in result.notes:
             console.print(f"[yellow]note:[/yellow] {escape(note)}")
     if plot is not None:
-        result.plot().savefig(plot, dpi=120)
+        from ..outputs import save_figure
+
+        save_figure(result.plot(), plot)
         if not as_json:
             console.print(f"figure written to {plot}")

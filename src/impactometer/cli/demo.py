@@ -29,22 +29,26 @@ def demo(
 ) -> None:
     """Built-in impact (30 kg from 0.2 m onto the stand at 200 kPa): simulate, identify, absorb, draw."""
     from ..model import simulate as run_simulation
+    from ..outputs import check_file, check_folder, save_figure
     from ..rig import Scenario, get_rig
 
     if out.exists() and not (force and out.is_dir()):
         raise ParameterError(f"--out: {str(out)!r} exists; pass --force to replace the demo's figures in it, or "
                              "choose another folder with --out DIR" if out.is_dir() else
                              f"--out: {str(out)!r} is a file; expected a folder for the demo's figures")
+    check_folder(out, "--out")
     out.mkdir(parents=True, exist_ok=True)
     stand = get_rig()
     scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3, gravity=stand.gravity)
     impact_png, absorb_png = out / "impact.png", out / "absorb.png"
+    for figure in (impact_png, absorb_png):
+        check_file(figure, "--out", overwrite=True)
     announce_compilation()
 
     result = run_simulation(scenario, stand, duration=0.1, sample_rate=SAMPLE_RATE)
     table, pulses = summary_table(result, "1. simulation: 30 kg from 0.2 m onto the drop stand at 200 kPa")
     console.print(table)
-    result.plot(pulses=pulses).savefig(impact_png, dpi=120)
+    save_figure(result.plot(pulses=pulses), impact_png)
     console.print(f"figure written to {impact_png}\n")
 
     console.print(identification_table(scenario, stand))
@@ -57,7 +61,7 @@ def demo(
                             "..."):
             absorbed = run_absorb(scenario, get_rig(ABSORPTION_RIG), strategy="all", noise=NOISE, seed=0)
         console.print(metrics_table(absorbed))
-        absorbed.plot().savefig(absorb_png, dpi=120)
+        save_figure(absorbed.plot(), absorb_png)
         console.print(f"figure written to {absorb_png}")
 
 

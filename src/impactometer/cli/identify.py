@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
@@ -47,6 +48,8 @@ def _table(result: dict, title: str) -> Table:
             table.add_row(key[:-2], f"{result[key] * 1e3:.3f} ms")
     if result.get("caution"):
         table.add_row("caution", result["caution"])
+    for warning in result.get("warnings") or ():
+        table.add_row("warning", escape(warning))
     return table
 
 
@@ -68,7 +71,9 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     """Identify the impacting mass and velocity of the first impact in FILE."""
     if method not in METHODS:
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
-    output_path(plot, force, field="--plot")
+    if plot is not None and method != "peak-to-peak":
+        raise ParameterError("--plot is available for --method peak-to-peak")
+    output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
     result: Identification | MapIdentification
     if method == "response-map":
@@ -89,9 +94,9 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
-        if method != "peak-to-peak":
-            raise ParameterError("--plot is available for --method peak-to-peak")
-        result.plot(rec).savefig(plot, dpi=120)  # type: ignore[union-attr]  # peak-to-peak result: map refused above
+        from ..outputs import save_figure
+
+        save_figure(result.plot(rec), plot)  # type: ignore[union-attr]  # peak-to-peak: a map was refused above
         if not as_json:
             console.print(f"figure written to {plot}")
 
@@ -115,6 +120,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
     ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
                                 contact_phase=contact_phase)
     t_wall = clock.perf_counter()
+    concluded = 0
     for k in range(0, f.size, chunk):
         if realtime:
             lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
@@ -122,14 +128,26 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
                 clock.sleep(lag)
         for est in ident.push(f[k:k + chunk], a[k:k + chunk]):
             _print_estimate(est, as_json)
+        for outcome in ident.outcomes[concluded:]:  # an impact refused at its end, as identify refuses it
+            if isinstance(outcome, IdentificationError):
+                _print_refusal(outcome, rec.start_time + min(k + chunk, f.size) / rec.sample_rate, as_json)
+        concluded = len(ident.outcomes)
     shown = len(ident.estimates)
-    final = ident.finish()
+    final = ident.finish()  # raises the refusal of the last impact
     for est in ident.estimates[shown:]:  # the answer the end of the input completes
         _print_estimate(est, as_json)
     if final is None:
         raise IdentificationError("no estimate: the stream holds no impact with enough contact pulses")
     if not as_json:
         console.print(_table(final.to_dict(), f"{file.name}: final answer of the stream ({variant})"))
+
+
+def _print_refusal(error: IdentificationError, at: float, as_json: bool) -> None:
+    if as_json:
+        typer.echo(json.dumps({"kind": "refused", "available_at_s": at, "error": str(error)}))
+    else:
+        console.print(f"t = {at * 1e3:9.3f} ms  refused  {' '.join(str(error).split())}", highlight=False,
+                      markup=False, soft_wrap=True)
 
 
 def _print_estimate(est, as_json: bool) -> None:
@@ -145,3 +163,5 @@ def _print_estimate(est, as_json: bool) -> None:
                   f"M1 = {with_uncertainty(est.mass, est.mass_std, 'kg')}  "
                   f"V0 = {with_uncertainty(est.velocity, est.velocity_std, 'm/s')}  E = {est.energy:.1f} J",
                   highlight=False, soft_wrap=True)
+    for warning in est.warnings:
+        console.print(f"{'':15s}warning: {warning}", highlight=False, markup=False, soft_wrap=True)

@@ -84,7 +84,7 @@ def record(
     from ..sensors import record as make_recording
 
     format_of(out)
-    output_path(out, force)
+    output_path(out, force, kind="recording")
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
                                          default_height="0.2m")
     level = _fraction(noise, "--noise", force)
@@ -140,7 +140,7 @@ def inspect(
     """Print what FILE holds: duration, rate, channels and units, peak force, contact pulses, stage B, noise."""
     from ..recording import inspect_recording
 
-    output_path(plot, force, field="--plot")
+    output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
     result = inspect_recording(rec)
     if as_json:
@@ -149,5 +149,7 @@ def inspect(
         for table in _inspection_tables(rec, result):
             console.print(table)
     if plot is not None:
-        rec.plot(inspection=result).savefig(plot, dpi=120)
+        from ..outputs import save_figure
+
+        save_figure(rec.plot(inspection=result), plot)
         console.print(f"figure written to {plot}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import sys
 from pathlib import Path
 from typing import Annotated
 
@@ -75,14 +76,20 @@ def build(
     manifest: Annotated[Path | None, typer.Option("--manifest", help="Manifest CSV of the calibration "
                                                                         "set.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing map file.")] = False,
+    device: Annotated[str, typer.Option("--device", help="Where the simulations run: cpu, gpu (extra "
+                                                         "impactometer[gpu]) or auto (the GPU when usable).")] = "cpu",
 ) -> None:
     """Build a response map by simulation (or from calibration recordings) and save it (HDF5)."""
     import numpy as np
 
     from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
+    from ..identify.response_map_build import MAX_SIMULATED
     from ..rig import get_rig
 
     output_path(out, force)
+    if from_recordings is not None and device != "cpu":
+        raise ParameterError(f"--device applies to maps built by simulation, got --device {device!r} with "
+                             "--from-recordings")
     n_m, n_v = parse_grid(grid)
     params = {} if window is None else {"window": quantity(window, "time", "--window")}
     if window is not None and features not in ("max-impulse", "impulse-profile"):
@@ -109,10 +116,13 @@ def build(
         if pressures[-1] > stand.cylinder.rated_pressure_gauge:
             raise ParameterError(f"--pressure: {pressures[-1]:g} Pa exceeds the rated "
                                  f"{stand.cylinder.rated_pressure_gauge:g} Pa of {stand.name!r}")
+        if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
+            print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
+                  "pressure(s)) ...", file=sys.stderr, flush=True)
         rmap = build_map_simulated(stand, pressures if len(pressures) > 1 else pressures[0], masses=masses,
                                    velocities=velocities, features=features, feature_params=params,
                                    sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
-                                   progress=console.is_terminal)
+                                   progress=console.is_terminal, device=device)
     if refine_to is not None:
         rmap = refine(rmap, parse_grid(refine_to, "--refine"))
     save_map(rmap, out, overwrite=force)

@@ -42,6 +42,18 @@ def stand_and_scenario(mass: str, height: str | None, velocity: str | None, pres
     return stand, scenario
 
 
+#: step budget of the reference integrator from the command line: a fixed part and a part per simulated second
+#: (a drop test needs about 2000 steps per 0.1 s; beyond the budget the stand or scenario is too stiff to simulate
+#: in reasonable time, and the command fails in seconds instead of running for hours)
+REFERENCE_STEPS = (20_000, 100_000)
+
+
+def reference_steps(duration: float) -> int:
+    """Step budget of ``simulate --integrator reference`` for ``duration`` [s]."""
+    fixed, per_second = REFERENCE_STEPS
+    return int(fixed + per_second * min(max(duration, 0.0), 1e3))
+
+
 def summary_table(result, title: str) -> tuple[Table, list]:
     """Rich table of the headline numbers of a simulation."""
     from ..identify.pulses import contact_pulses, stage_b_start
@@ -86,19 +98,25 @@ def simulate(
     """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""
     from ..model import simulate as run_simulation
     from ..model.io import save_simulation
+    from ..outputs import save_figure, write_failed
 
     announce_compilation()
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)
     output_path(out, force)
-    output_path(plot, force, field="--plot")
-    result = run_simulation(scenario, stand, duration=quantity(duration, "time", "--duration"),
-                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), integrator=integrator)
+    output_path(plot, force, field="--plot", kind="figure")
+    length = quantity(duration, "time", "--duration")
+    budget = {"max_steps": reference_steps(length)} if integrator == "reference" else {}
+    result = run_simulation(scenario, stand, duration=length, integrator=integrator,
+                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), **budget)
     table, pulses = summary_table(result, f"{scenario.mass:g} kg at {scenario.velocity:.3f} m/s, "
                                           f"p0 = {scenario.pressure_gauge / 1e3:g} kPa ({stand.contact.law})")
     console.print(table)
     if out is not None:
-        save_simulation(result, out, overwrite=force)
+        try:
+            save_simulation(result, out, overwrite=force)
+        except OSError as exc:
+            raise write_failed(out, exc) from None
         console.print(f"histories written to {out}")
     if plot is not None:
-        result.plot(pulses=pulses).savefig(plot, dpi=120)
+        save_figure(result.plot(pulses=pulses), plot)
         console.print(f"figure written to {plot}")

@@ -13,7 +13,6 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from ..errors import ParameterError
-from ..units import parse_quantity
 from .app import app, console, quantity
 
 
@@ -50,17 +49,6 @@ def _with_units(key: str, value):
     return [f"{v / scale:g}{unit}" for v in value]
 
 
-def _in_si(key: str, value):
-    """A ``--set`` value with unit strings (``["20kPa", "100kPa"]``) in SI; other values as given."""
-    name = key.rpartition(".")[2]
-    if name not in SETTING_UNITS:
-        return value
-    dimension = SETTING_UNITS[name][0]
-    if isinstance(value, list):
-        return [parse_quantity(v, dimension, field=f"--set {key}") if isinstance(v, str) else v for v in value]
-    return parse_quantity(value, dimension, field=f"--set {key}") if isinstance(value, str) else value
-
-
 def _parse_params(items: list[str] | None) -> dict:
     params = {}
     for item in items or []:
@@ -68,9 +56,9 @@ def _parse_params(items: list[str] | None) -> dict:
         if not sep or "." not in key:
             raise ParameterError(f"--set must look like STUDY.SETTING=VALUE (value in JSON), got {item!r}")
         try:
-            params[key] = _in_si(key, json.loads(value))
-        except ValueError:
-            params[key] = _in_si(key, value)
+            params[key] = json.loads(value)
+        except (ValueError, RecursionError):
+            params[key] = value  # a bare word or a quantity with a unit ("20kPa"), checked by the study
     return params
 
 
@@ -102,6 +90,9 @@ def study(
         "--set", help="Study setting STUDY.SETTING=JSON, e.g. noise.levels=[0,0.05] (repeatable).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Discard runs with other options; overwrite files.")]
     = False,
+    device: Annotated[str, typer.Option(
+        "--device", help="Where batches of simulations run: cpu, gpu (extra impactometer[gpu]) or auto (the GPU when "
+                         "usable); local workers inherit it, Dask workers read IMPACTOMETER_DEVICE.")] = "cpu",
 ) -> None:
     """Run a study of the paper (or all of them): tables (CSV), figures (PNG) and DIR/index.html."""
     from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
@@ -111,6 +102,11 @@ def study(
         return
     if out is None:
         raise ParameterError("--out is required: the folder for the tables, figures and index.html")
+    from ..outputs import check_folder
+    from ..studies.runner import check_backend
+
+    check_folder(out, "--out")
+    check_backend(workers, scheduler)
     if name == "report":
         from ..studies.report import markdown, write_report
 
@@ -118,6 +114,9 @@ def study(
         console.print(markdown(out), highlight=False, markup=False, soft_wrap=True)
         console.print(f"report written to {path}")
         return
+    from ..model.gpu import resolve_device, use_device
+
+    device = resolve_device(device)  # a bad or unusable device fails before any study starts
     load_studies()
     if name == "all":
         names = available_studies()
@@ -145,8 +144,9 @@ def study(
             bar.update(tasks[study_name], completed=done, total=total)
 
         try:
-            runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
-                               progress=progress)
+            with use_device(device):
+                runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
+                                   progress=progress)
         except KeyboardInterrupt:
             console.print(f"interrupted: the finished chunks are kept in {out}; rerun the same command to resume")
             raise typer.Abort() from None

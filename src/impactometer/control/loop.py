@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, shown
 from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
@@ -124,16 +124,16 @@ def _check(scenario, noise, seed, identification, absorber, control_start) -> No
     if not isinstance(scenario, Scenario):
         raise ParameterError(f"scenario must be a Scenario, got {scenario!r}")
     if isinstance(noise, bool) or not isinstance(noise, (int, float)) or not 0.0 <= noise <= 1.0:
-        raise ParameterError(f"noise must be a fraction within [0, 1] of each channel's RMS, got {noise!r}")
+        raise ParameterError(f"noise must be a fraction within [0, 1] of each channel's RMS, got {shown(noise)}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ParameterError(f"seed must be an integer >= 0, got {seed!r}")
-    if identification not in IDENTIFICATIONS:
-        raise ParameterError(f"identification must be one of {list(IDENTIFICATIONS)}, got {identification!r}")
+        raise ParameterError(f"seed must be an integer >= 0, got {shown(seed)}")
+    if not isinstance(identification, str) or identification not in IDENTIFICATIONS:
+        raise ParameterError(f"identification must be one of {list(IDENTIFICATIONS)}, got {shown(identification)}")
     if not isinstance(absorber, Absorber):
         raise ParameterError(f"absorber must be an Absorber, got {absorber!r}")
     if control_start is not None and (isinstance(control_start, bool) or not isinstance(control_start, (int, float))
                                       or not math.isfinite(control_start) or control_start < 0):
-        raise ParameterError(f"control_start must be a finite time >= 0 [s] or None, got {control_start!r}")
+        raise ParameterError(f"control_start must be a finite time >= 0 [s] or None, got {shown(control_start)}")
 
 
 def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | list[str] = "all",

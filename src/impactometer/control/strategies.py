@@ -183,6 +183,9 @@ def get_strategy(name: str) -> Callable[[ControlContext], ControlSettings]:
 
 def strategy_names(selection: str | list[str] | tuple[str, ...]) -> list[str]:
     """Strategy names of ``selection`` (``"all"``, one name, or a list), validated, in registry order."""
+    if not isinstance(selection, (str, list, tuple)):
+        raise ParameterError(f"strategy selection must be 'all', a strategy name or a list of them, got "
+                             f"{type(selection).__name__}")
     names = list(ALL) if selection == "all" else [selection] if isinstance(selection, str) else list(selection)
     for name in names:
         get_strategy(name)

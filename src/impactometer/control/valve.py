@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, shown
 from ..model import dynamics as d
 from ..model.actuated import ROUTES
 from ..model.forces import ISO_REFERENCE_DENSITY, ISO_REFERENCE_TEMPERATURE
@@ -36,7 +36,8 @@ def _positive(name: str, value, *, allow_zero: bool = False, allow_inf: bool = F
     if not ok_type or math.isnan(value) or (math.isinf(value) and not allow_inf) \
             or (value < 0 if allow_zero else value <= 0):
         bound = ">= 0" if allow_zero else "> 0"
-        raise ParameterError(f"{name} must be a {'' if allow_inf else 'finite '}number {bound}{unit}, got {value!r}")
+        raise ParameterError(f"{name} must be a {'' if allow_inf else 'finite '}number {bound}{unit}, got "
+                             f"{shown(value)}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -63,8 +64,8 @@ class ValveDrive:
         _positive("valve_drive.time_constant", self.time_constant, unit=" [s]")
         _positive("valve_drive.max_rate", self.max_rate, allow_inf=True, unit=" [1/s]")
         if self.dead_time > MAX_DEAD_TIME:
-            raise ParameterError(f"valve_drive.dead_time must be <= {MAX_DEAD_TIME:g} s, got {self.dead_time!r}")
-        if self.route not in ROUTES:
+            raise ParameterError(f"valve_drive.dead_time must be <= {MAX_DEAD_TIME:g} s, got {shown(self.dead_time)}")
+        if not isinstance(self.route, str) or self.route not in ROUTES:
             raise ParameterError(f"valve_drive.route must be one of {sorted(ROUTES)}, got {self.route!r}")
 
     @property
@@ -73,7 +74,7 @@ class ValveDrive:
         rate limit, from the step response of the lag and the limit together."""
         if math.isinf(self.max_rate):
             return self.time_constant * math.log(9.0)
-        dt = self.time_constant * 1e-3
+        dt = min(self.time_constant, 1.0 / self.max_rate) * 1e-3
         x, t, t10 = 0.0, 0.0, math.nan
         while x < 0.9:
             x += min(self.max_rate * dt, (1.0 - x) * (1.0 - math.exp(-dt / self.time_constant)))

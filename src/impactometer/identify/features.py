@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ..errors import ParameterError, ResponseMapError
+from ..errors import ParameterError, ResponseMapError, shown
 
 #: every extractor takes ``time`` ((samples,) array: sample instants [s], t = 0 at first contact) and ``forces``
 #: ((n, samples) or (samples,) array: contact force [N])
@@ -72,7 +72,7 @@ class FeatureSet:
             if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
                     or not math.isfinite(value) or not low <= value <= high:
                 raise ParameterError(f"feature set {self.name!r}: {key} must be a number within [{low:g}, {high:g}]"
-                                     f", got {value!r}")
+                                     f", got {shown(value)}")
             out[key] = float(value)
         return out
 
@@ -293,8 +293,8 @@ FEATURE_SETS: dict[str, FeatureSet] = {
 
 def get_feature_set(name: str) -> FeatureSet:
     """The registered feature set ``name``; the error lists the valid names."""
-    if name not in FEATURE_SETS:
-        raise ParameterError(f"features must be one of {sorted(FEATURE_SETS)}, got {name!r}")
+    if not isinstance(name, str) or name not in FEATURE_SETS:
+        raise ParameterError(f"features must be one of {sorted(FEATURE_SETS)}, got {shown(name)}")
     return FEATURE_SETS[name]
 
 

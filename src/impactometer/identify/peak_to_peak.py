@@ -13,11 +13,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import IdentificationError, RecordingError
-from ..recording import Recording
+from ..errors import IdentificationError, RecordingError, shown
+from ..recording import START_TIME_LIMIT, Recording, check_sample_rate
 from . import trigger
 from .early import solve_early
 from .onsets import onset_index
+from .plausibility import answer_warnings, check_segment
 from .pulses import PulseSpan, detect_pulses, detection_levels, first_peak, noise_std
 from .result import Identification
 from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
@@ -60,9 +61,7 @@ class Segment:
 
 def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.ndarray, float]:
     """Validate the two channels; IdentificationError naming what is wrong."""
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
-            sample_rate) or sample_rate <= 0:
-        raise IdentificationError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
+    sample_rate = check_sample_rate(sample_rate, error=IdentificationError)
     if acceleration is None:
         raise IdentificationError("the piston acceleration channel is missing; peak-to-peak needs contact force "
                                   "and piston acceleration")
@@ -83,19 +82,39 @@ def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.nda
                                   f"and {a.size} samples")
     if f.size < 8:
         raise IdentificationError(f"the record has {f.size} samples; expected at least 8")
-    if np.ptp(a) == 0.0:
-        raise IdentificationError(f"piston_acceleration is constant ({a[0]!r} m/s² throughout); expected a "
-                                  "measured acceleration")
     return f, a, float(sample_rate)
 
 
+#: samples the batch trigger advances at a time: its event buffer stays small whatever the record's length
+TRIGGER_BLOCK = 1 << 16
+
+
+def check_options(variant: Any, gravity: Any, start_time: Any, *,
+                  error: type[Exception] = IdentificationError) -> tuple[str, float, float]:
+    """The options the batch and the streaming identification share, checked: variant, gravity [m/s²] within
+    [0, 100], start time [s]; ``error`` naming the option otherwise."""
+    if not isinstance(variant, str) or variant not in VARIANT_SOLVERS:
+        raise error(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {shown(variant)}")
+    for name, value, low, high, unit in (("gravity", gravity, 0.0, 100.0, "m/s²"),
+                                         ("start_time", start_time, -START_TIME_LIMIT, START_TIME_LIMIT, "s")):
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                or not low <= value <= high:
+            raise error(f"{name} must be a number within [{low:g}, {high:g}] [{unit}], got {shown(value)}")
+    return variant, float(gravity), float(start_time)
+
+
 def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
-    """Trigger events (code, sample index) over a whole record."""
+    """Trigger events (code, sample index) of a record, up to the end of its first impact."""
     fstate, istate = trigger.new_state()
-    events = np.zeros((3 * force.size + 2, 2), dtype=np.int64)
-    n = trigger.run_trigger(force, fstate, istate, floor, max(int(QUIET_TIME * sample_rate), 1),
-                            max(int(MAX_DURATION * sample_rate), 1), events)
-    return events[:n]
+    events = np.empty((3 * TRIGGER_BLOCK + 2, 2), dtype=np.int64)
+    quiet, longest = max(int(QUIET_TIME * sample_rate), 1), max(int(MAX_DURATION * sample_rate), 1)
+    found = [np.empty((0, 2), dtype=np.int64)]
+    for start in range(0, force.size, TRIGGER_BLOCK):
+        n = trigger.run_trigger(force[start:start + TRIGGER_BLOCK], fstate, istate, floor, quiet, longest, events)
+        found.append(events[:n].copy())
+        if np.any(events[:n, 0] == trigger.EVENT_CLOSE):  # the first impact is over (a close follows a trigger)
+            break
+    return np.concatenate(found)
 
 
 def quantum(x: np.ndarray) -> float:
@@ -130,41 +149,20 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses, {} if cache is None else cache)
 
 
-def check_clipping(seg: Segment) -> None:
-    """IdentificationError when the force channel is saturated.
-
-    A quantised peak may sit a few samples at one level: about 2·√(2(q + 2σ)/|F''|) samples for a quantum q, noise
-    σ and the curvature F'' ≈ Fmax·(π/T)² of a pulse of T samples. A flat top twice that long, or the maximum
-    reached in two different pulses to the last digit, is a clipped channel.
-    """
-    f = seg.force
-    fmax = float(np.max(f))
-    at_max = np.flatnonzero(f >= fmax - 1e-12 * abs(fmax))
-    k = int(at_max[0])
-    run = int(np.argmax(np.diff(np.r_[at_max, -2]) != 1)) + 1
-    pulse = next((p for p in seg.pulses if p.first <= k and (not p.complete or k < p.end)), None)
-    rails = sum(any(p.first <= i and (not p.complete or i < p.end) for i in at_max) for p in seg.pulses)
-    if pulse is None or fmax <= 0:
-        return
-    length = (f.size if not pulse.complete else pulse.end) - pulse.zero
-    curvature = fmax * (np.pi / max(length, 1)) ** 2
-    near = f[max(k - 2 * run - 8, 0):k + 3 * run + 8]
-    steps = np.diff(np.unique(near))
-    quantum = float(steps.min()) if steps.size else 0.0
-    expected = 2.0 * np.sqrt(2.0 * (quantum + 2.0 * seg.noise_force) / curvature)
-    if rails >= 2 or run >= max(3.0, 2.0 * expected):
-        raise IdentificationError(f"contact_force is saturated: {run} samples sit at its maximum {fmax:.6g} N from "
-                                  f"t = {seg.time_of(k):.6g} s (a peak of that curvature stays about "
-                                  f"{expected:.1f} samples within the resolution); the force channel was "
-                                  "clipped, its range must be raised")
-
-
 def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
           contact_phase: bool = False) -> Identification:
-    """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`)."""
+    """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`).
+
+    The segment passes :func:`.plausibility.check_segment` first, so the batch and the streaming identification,
+    their early and final answers, refuse the same data; the answer carries the warnings of
+    :func:`.plausibility.answer_warnings`.
+    """
+    check_segment(seg)
     if variant == "robust":
-        return solve_robust(seg, gravity, early, contact_phase=contact_phase)
-    return VARIANT_SOLVERS[variant](seg, gravity, early)
+        result = solve_robust(seg, gravity, early, contact_phase=contact_phase)
+    else:
+        result = VARIANT_SOLVERS[variant](seg, gravity, early)
+    return replace(result, warnings=answer_warnings(seg, result, gravity))
 
 
 def _need_pulses(seg: Segment, needed: int, what: str) -> None:
@@ -203,6 +201,7 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
                                   f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
+    _check_velocity(velocity, "the paper's eqs. (3)-(5)")
     details: dict[str, Any] = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
     caution = paper_caution(seg)
     if caution:
@@ -210,6 +209,13 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(peak2),
                           t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(peak2),
                           variant="paper", details=details)
+
+
+def _check_velocity(velocity: float, source: str) -> None:
+    """IdentificationError unless an impact velocity is positive (the mass falls onto the rod)."""
+    if not (math.isfinite(velocity) and velocity > 0.0):
+        raise IdentificationError(f"{source} give an impact velocity of {float(velocity):.4g} m/s, not a falling "
+                                  "mass; the pulses found are not contact separations of a falling mass")
 
 
 def second_peak(seg: Segment) -> int | None:
@@ -287,6 +293,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity):
         raise IdentificationError(f"the onset equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses "
                                   "found are not contact separations of a falling mass")
+    _check_velocity(velocity, "the onset equations")
     mass = 1.0 / w
     return Identification(mass=mass, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
                           velocity_std=float(np.sqrt(cov[0, 0])), early=early,
@@ -385,14 +392,10 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     The first impact in the data is used: the trigger finds it, up to ``PRE_SAMPLES`` samples before it give the
     offsets and noise of both channels, and it ends after ``QUIET_TIME`` without contact or ``MAX_DURATION``.
     """
-    if variant not in VARIANT_SOLVERS:
-        raise IdentificationError(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {variant!r}")
-    if not (isinstance(gravity, (int, float)) and math.isfinite(gravity) and gravity >= 0):
-        raise IdentificationError(f"gravity must be a finite number >= 0 [m/s²], got {gravity!r}")
+    variant, gravity, start_time = check_options(variant, gravity, start_time)
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = _segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
-    check_clipping(seg)
     early = None
     if variant == "robust":
         early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)

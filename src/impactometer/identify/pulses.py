@@ -87,11 +87,22 @@ def noise_std(signal: np.ndarray) -> float:
     Median absolute second difference scaled for Gaussian noise (second differences of white noise have
     variance 6σ²); insensitive to the smooth signal and to a few jumps.
     """
-    x = np.asarray(signal, dtype=float)
+    try:
+        x = np.asarray(signal, dtype=float)
+    except (TypeError, ValueError):
+        raise IdentificationError("signal must be an array of numbers") from None
+    if x.ndim > 1:
+        raise IdentificationError(f"signal must be 1-D, got shape {x.shape}")
     if x.size < 3:
         return 0.0
-    d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
-    return float(np.median(np.abs(d2)) / (0.6744897501960817 * np.sqrt(6.0)))
+    d2 = np.add(x[2:], x[:-2])  # one work array the size of the signal, whatever its length
+    d2 -= x[1:-1]
+    d2 -= x[1:-1]
+    np.abs(d2, out=d2)
+    middle = (d2.size - 1) // 2  # the median, by partitioning in place
+    d2.partition((middle, d2.size // 2))
+    median = 0.5 * (d2[middle] + d2[d2.size // 2])
+    return float(median / (0.6744897501960817 * np.sqrt(6.0)))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -19,10 +19,18 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, ResponseMapError
-from ..recording import Recording
+from ..errors import ParameterError, ResponseMapError, shown
+from ..recording import Recording, inspect_recording
+from ..stands import check_recorded_on
 from .features import FEATURE_SETS, extract_features, recording_signal
-from .response_map_build import PRESSURE_TOLERANCE, ResponseMap, build_map_from_recordings, build_map_simulated, refine
+from .plausibility import check_answer
+from .response_map_build import (
+    PRESSURE_TOLERANCE,
+    ResponseMap,
+    build_map_from_recordings,
+    build_map_simulated,
+    refine,
+)
 from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
 from .response_map_store import load_map, save_map
 
@@ -51,6 +59,7 @@ class MapIdentification:
     pressure_gauge : Charge pressure the map was read at [Pa gauge].
     extrapolated : The answer lies outside the map (only with ``allow_extrapolation``).
     mass_std, velocity_std : Standard uncertainties [kg], [m/s]; None (not estimated).
+    warnings : Sentences on what makes the answer implausible (see :mod:`.plausibility`).
     """
 
     mass: float
@@ -64,12 +73,13 @@ class MapIdentification:
     extrapolated: bool = False
     mass_std: float | None = None
     velocity_std: float | None = None
+    warnings: tuple[str, ...] = ()
 
     @classmethod
     def _make(cls, **values: Any) -> MapIdentification:
         """Build without the dataclass ``__init__`` (each frozen-field assignment costs more than the search)."""
         obj = cls.__new__(cls)
-        obj.__dict__.update(mass_std=None, velocity_std=None, **values)
+        obj.__dict__.update(mass_std=None, velocity_std=None, warnings=(), **values)
         return obj
 
     @property
@@ -84,7 +94,7 @@ class MapIdentification:
                 "method": "response-map", "search": self.search, "residual": self.residual,
                 "features": dict(self.features), "feature_set": self.feature_set,
                 "pressure_gauge_Pa": self.pressure_gauge, "extrapolated": self.extrapolated,
-                "mass_std_kg": self.mass_std, "velocity_std_m_s": self.velocity_std}
+                "mass_std_kg": self.mass_std, "velocity_std_m_s": self.velocity_std, "warnings": list(self.warnings)}
 
 
 def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapolation: bool) -> float:
@@ -94,9 +104,10 @@ def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapo
             raise ResponseMapError(f"the map has a pressure axis ({axis[0] / 1e3:g}-{axis[-1] / 1e3:g} kPa); give "
                                    "the measured charge pressure (metadata pressure_gauge_Pa)")
         return float(axis[0])
+    if isinstance(pressure_gauge, bool) or not isinstance(pressure_gauge, (int, float)) \
+            or not math.isfinite(pressure_gauge):
+        raise ParameterError(f"pressure_gauge must be a finite number [Pa], got {shown(pressure_gauge)}")
     p = float(pressure_gauge)
-    if not math.isfinite(p):
-        raise ParameterError(f"pressure_gauge must be a finite number [Pa], got {pressure_gauge!r}")
     lo, hi = axis[0], axis[-1]
     tol = max(PRESSURE_TOLERANCE[0], PRESSURE_TOLERANCE[1] * hi)
     if lo - tol <= p <= hi + tol:
@@ -142,8 +153,8 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
     map's edges, and an answer found out there is refused (or, with ``allow_extrapolation``, returned with a
     warning).
     """
-    if search not in SEARCHES:
-        raise ParameterError(f"search must be one of {list(SEARCHES)}, got {search!r}")
+    if not isinstance(search, str) or search not in SEARCHES:
+        raise ParameterError(f"search must be one of {list(SEARCHES)}, got {shown(search)}")
     if not isinstance(rmap, ResponseMap):
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
     labels = rmap.labels
@@ -165,15 +176,25 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         mass, velocity, residual, _, _ = brute_search(rmap, y, p)  # python floats, like fast_search
     if available_at is None:
         available_at = rmap.feature_params.get("window", math.nan)
-    return MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
-                                   search=search, features=dict(zip(labels, y.tolist(), strict=False)),
-                                   feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
+    elif isinstance(available_at, bool) or not isinstance(available_at, (int, float)) or math.isinf(available_at):
+        raise ParameterError(f"available_at must be a time [s] or None, got {shown(available_at)}")
+    found = MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
+                                    search=search, features=dict(zip(labels, y.tolist(), strict=False)),
+                                    feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
+    ranges = check_answer(mass, velocity)
+    if ranges:
+        object.__setattr__(found, "warnings", ranges)
+    return found
 
 
 def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:
     measured = ", ".join(f"{k} = {v:.4g}" for k, v in zip(rmap.labels, y, strict=False))
     span = (f"mass {rmap.masses[0]:g}-{rmap.masses[-1]:g} kg, velocity {rmap.velocities[0]:.3g}-"
             f"{rmap.velocities[-1]:.3g} m/s")
+    if not math.isfinite(residual):  # no answer to give, even by extrapolation
+        raise ResponseMapError(f"features ({measured}) fit nowhere in or near the map ({span}): eq. (7) overflows, "
+                               "a feature is many orders of magnitude off the map's; expected a map of the same "
+                               "stand, contact law and feature parameters as the measurement")
     if residual > MISFIT_RESIDUAL:
         text = (f"features ({measured}) fit nowhere in or near the map ({span}): the best eq. (7) residual is "
                 f"{residual:.2g} > {MISFIT_RESIDUAL:g}, at {mass:.3g} kg and {velocity:.3g} m/s")
@@ -194,22 +215,21 @@ def check_recording(recording: Recording, rmap: ResponseMap) -> None:
         raise ResponseMapError(f"{where}sampled at {recording.sample_rate:g} Hz, the map was built from signals at "
                                f"{rmap.sample_rate:g} Hz; expected the same sample rate (build the map with "
                                f"--sample-rate {recording.sample_rate:g}Hz)")
-    stand = recording.metadata.get("rig")
-    if isinstance(stand, str) and stand != rmap.rig.get("name"):
-        raise ResponseMapError(f"{where}recorded on stand {stand!r}, the map describes stand "
-                               f"{rmap.rig.get('name')!r}; expected a map of the same stand (map build --rig)")
     law = recording.metadata.get("contact_law")
     map_law = rmap.rig.get("contact", {}).get("law")
     if isinstance(law, str) and law != map_law:
         raise ResponseMapError(f"{where}contact law {law!r}, the map was made with {map_law!r}; expected a map "
                                "of the same contact")
+    check_recorded_on(recording, rmap.rig, error=ResponseMapError,
+                      hint="expected a map of the same stand (map build --rig FILE)")
 
 
 def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Path, *, search: str = "fast",
                        allow_extrapolation: bool = False) -> MapIdentification:
     """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
 
-    The recording must have the map's sample rate, stand and contact law (when its metadata names them); its
+    The recording must have the map's sample rate, contact law and stand (when its metadata states them: the
+    stand by the fingerprint of its parameters, see :func:`impactometer.stands.fingerprint`); its
     charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis), and the
     delay of its anti-alias filter (``anti_alias_delay_s``) is taken out of its time base.
     """
@@ -220,5 +240,19 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
     time, force = recording_signal(recording)
     values, available = extract_features(time, force, rmap.feature_set, rmap.feature_params)
     delay = recording.time[0] - time[0]  # the filter delay: the features are complete that much later
-    return identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
-                             allow_extrapolation=allow_extrapolation, available_at=available + delay)
+    found = identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
+                              allow_extrapolation=allow_extrapolation, available_at=available + delay)
+    object.__setattr__(found, "warnings", force_plausibility(recording, found.mass, found.velocity, rmap.stand.gravity))
+    return found
+
+
+def force_plausibility(recording: Recording, mass: float, velocity: float, gravity: float) -> tuple[str, ...]:
+    """What makes an answer implausible for the recording's contact force (:func:`.plausibility.check_answer`;
+    the pulses and the offset are those :func:`~impactometer.recording.inspect_recording` finds)."""
+    found = inspect_recording(recording)
+    force = recording.contact_force - found.force_offset
+    index = [(p.start - recording.start_time) * recording.sample_rate for p in found.pulses]
+    ends = [round((p.end - recording.start_time) * recording.sample_rate) for p in found.pulses if not p.sustained]
+    return check_answer(mass, velocity, force=force, sample_rate=recording.sample_rate,
+                        onset=index[0] if index else 0.0, pulse_ends=ends, gravity=gravity,
+                        noise_force=found.channels["contact_force"].noise)

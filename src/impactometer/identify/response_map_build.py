@@ -6,9 +6,8 @@ and refined by interpolation (tensor-product cubic spline, not-a-knot) to any N�
 
 from __future__ import annotations
 
-import math
 import time as _time
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -17,13 +16,17 @@ from scipy.interpolate import CubicSpline, RBFInterpolator
 
 from .. import __version__
 from ..errors import ParameterError, ResponseMapError
-from ..recording import Recording
-from ..rig import Rig, from_dict, get_rig, to_dict
+from ..recording import Recording, check_sample_rate
+from ..rig import PRESETS, Rig, from_dict, get_rig, to_dict
+from ..stands import STAND_KEY, check_recorded_on
 from .features import extract_batch, extract_features, get_feature_set, recording_signal
 
 SCHEMA_VERSION = 1
 #: largest map (number of stored feature values) refine or build will create: 800 MB in float64
 MAX_VALUES = 100_000_000
+#: most impacts a map build simulates (a 500×500 grid; about a thousand a second on two cores): larger maps come
+#: from interpolating a simulated one (:func:`refine`)
+MAX_SIMULATED = 250_000
 #: two charge pressures closer than max(absolute, relative·p) are the same [Pa], [-]
 PRESSURE_TOLERANCE = (1e3, 0.01)
 
@@ -32,10 +35,19 @@ def _axis(values, name: str, unit: str) -> np.ndarray:
     try:
         arr = np.asarray(values, dtype=float).ravel()
     except (TypeError, ValueError):
-        arr = np.array([np.nan])
-    if arr.size < 1 or not np.all(np.isfinite(arr)) or np.any(np.diff(arr) <= 0):
         raise ResponseMapError(f"{name} must be a non-empty, finite, strictly increasing axis {unit}, got "
-                               f"{str(values)[:80]}")
+                               f"{type(values).__name__} that does not hold numbers") from None
+    expected = f"{name} must be a non-empty, finite, strictly increasing axis {unit}"
+    if arr.size < 1:
+        raise ResponseMapError(f"{expected}, got no values")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ResponseMapError(f"{expected}, got {float(arr[bad[0]])!r} at index {int(bad[0])} of {arr.size}")
+    steps = np.flatnonzero(np.diff(arr) <= 0)
+    if steps.size:
+        i = int(steps[0])
+        raise ResponseMapError(f"{expected}, got {float(arr[i + 1]):g} after {float(arr[i]):g} at index {i + 1} of "
+                               f"{arr.size}")
     return arr
 
 
@@ -89,9 +101,7 @@ class ResponseMap:
                                    f"{values[f, p, i, j]!r} at mass {self.masses[i]:g} kg, velocity "
                                    f"{self.velocities[j]:g} m/s, pressure {self.pressures_gauge[p]:g} Pa")
         set_(self, "values", values)
-        if not isinstance(self.sample_rate, (int, float)) or not math.isfinite(self.sample_rate) \
-                or self.sample_rate <= 0:
-            raise ResponseMapError(f"sample_rate must be a finite number > 0 [Hz], got {self.sample_rate!r}")
+        set_(self, "sample_rate", check_sample_rate(self.sample_rate, error=ResponseMapError))
         try:
             from_dict(self.rig, source="map rig")
         except ParameterError as exc:
@@ -181,6 +191,10 @@ def refine(rmap: ResponseMap, n: int | tuple[int, int]) -> ResponseMap:
                        rig=rmap.rig, provenance={**rmap.provenance, "refinements": history})
 
 
+#: scenarios per simulated batch of a map: enough to keep the CPU cores busy, or to fill a GPU
+CPU_CHUNK, GPU_CHUNK = 2000, 65536
+
+
 def _default_duration(features: str, params: Mapping[str, float], sample_rate: float) -> float:
     if "window" in params:
         return params["window"] + 2.0 / sample_rate
@@ -192,7 +206,8 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
                         features: str = "max-impulse",
                         feature_params: Mapping[str, float] | None = None, sample_rate: float = 50e3,
                         duration: float | None = None, refine_to: int | tuple[int, int] | None = None,
-                        progress: bool = False, chunk_size: int = 2000) -> ResponseMap:
+                        progress: bool = False, chunk_size: int | None = None,
+                        device: str | None = None) -> ResponseMap:
     """Response map by simulation of every grid node with the fast simulator (in parallel).
 
     Parameters
@@ -215,8 +230,10 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         Interpolate the simulated grid to this size afterwards (see :func:`refine`).
     progress : bool
         Show a rich progress bar.
-    chunk_size : int
-        Scenarios simulated per parallel batch.
+    chunk_size : int, optional
+        Scenarios simulated per parallel batch (default 2000 on the CPU, 65536 on a GPU).
+    device : {"cpu", "gpu", "auto"}, optional
+        Where the batches run (see :func:`impactometer.model.simulate_batch`).
 
     Returns
     -------
@@ -229,12 +246,19 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     velocities = _axis(velocities, "velocities", "[m/s]")
     pressures = _axis(np.atleast_1d(pressure_gauge), "pressure_gauge", "[Pa gauge]")
     _check_size(fs.size, pressures.size, masses.size, velocities.size)
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(sample_rate) \
-            or sample_rate <= 0:
-        raise ParameterError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
+    count = pressures.size * masses.size * velocities.size
+    if count > MAX_SIMULATED:
+        raise ParameterError(f"a {masses.size}×{velocities.size} grid at {pressures.size} pressure(s) needs {count} "
+                             f"simulations, above the limit of {MAX_SIMULATED}; simulate a smaller grid and "
+                             f"interpolate it (refine_to=, map build --refine {masses.size}x{velocities.size})")
+    sample_rate = check_sample_rate(sample_rate, error=ParameterError)
     duration = _default_duration(features, params, sample_rate) if duration is None else float(duration)
     from ..model import simulate_batch
+    from ..model.gpu import resolve_device
 
+    device = resolve_device(device)
+    if chunk_size is None:
+        chunk_size = GPU_CHUNK if device == "gpu" else CPU_CHUNK
     grid_p, grid_m, grid_v = (a.ravel() for a in np.meshgrid(pressures, masses, velocities, indexing="ij"))
     values = np.empty((grid_m.size, fs.size))
     from rich.progress import Progress
@@ -244,7 +268,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         for start in range(0, grid_m.size, max(1, int(chunk_size))):
             part = slice(start, start + max(1, int(chunk_size)))
             batch = simulate_batch(grid_m[part], grid_v[part], grid_p[part], rig, duration=duration,
-                                   sample_rate=sample_rate, channels=("contact_force",))
+                                   sample_rate=sample_rate, channels=("contact_force",), device=device)
             values[part], _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
             bar.advance(task, part.stop - part.start)
     bad = np.flatnonzero(~np.all(np.isfinite(values) & (values > 0), axis=1))
@@ -258,7 +282,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     rmap = ResponseMap(masses=masses, velocities=velocities, pressures_gauge=pressures, values=cube,
                        feature_set=features, feature_params=params, sample_rate=float(sample_rate),
                        rig=to_dict(rig), provenance=_provenance("simulation", base_grid=[masses.size, velocities.size],
-                                                                duration_s=duration, integrator="fast"))
+                                                                duration_s=duration, integrator="fast", device=device))
     return rmap if refine_to is None else refine(rmap, refine_to)
 
 
@@ -323,7 +347,8 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
         Size of the map (masses × velocities).
     features, feature_params : see :func:`build_map_simulated`.
     rig : Rig or str, optional
-        The stand (default: the preset named in the recordings' ``rig`` metadata, else ``drop-stand``).
+        The stand (default: the preset named in the recordings' ``rig`` metadata, else ``drop-stand``); where the
+        recordings state the fingerprint of their stand's parameters, it must be this stand's.
     pressure_gauge : float, optional
         Charge pressure [Pa gauge] of recordings that do not state it.
     mass_range, velocity_range : (float, float), optional
@@ -331,7 +356,12 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
     source : str
         Where the recordings came from (kept in the provenance).
     """
+    if isinstance(recordings, (str, bytes, Recording)) or not isinstance(recordings, Iterable):
+        raise ResponseMapError(f"recordings must be a sequence of Recording, got {type(recordings).__name__}")
     recs = list(recordings)
+    if any(not isinstance(r, Recording) for r in recs):
+        raise ResponseMapError(f"recordings must be a sequence of Recording, got one of "
+                               f"{type(next(r for r in recs if not isinstance(r, Recording))).__name__}")
     if len(recs) < 6:
         raise ResponseMapError(f"a map from recordings needs at least 6 recordings, got {len(recs)}")
     rates = sorted({float(r.sample_rate) for r in recs})
@@ -347,10 +377,17 @@ def build_map_from_recordings(recordings: Sequence[Recording], *, grid: int | tu
             raise ResponseMapError(f"{r.source}: metadata {missing} missing; expected the known truth of every "
                                    "calibration recording (metadata or manifest)")
         truth[i] = row
-    names = {str(r.metadata.get("rig")) for r in recs if r.metadata.get("rig") is not None}
-    if len(names) > 1:
-        raise ResponseMapError(f"recordings come from different stands {sorted(names)}; expected one stand")
-    stand = get_rig(rig if rig is not None else (names.pop() if names else None))
+    prints = {str(r.metadata[STAND_KEY]) for r in recs if r.metadata.get(STAND_KEY) is not None}
+    if len(prints) > 1:
+        raise ResponseMapError(f"recordings come from stands with different parameters (fingerprints "
+                               f"{sorted(prints)}); expected one stand")
+    names = sorted({str(r.metadata["rig"]) for r in recs if isinstance(r.metadata.get("rig"), str)})
+    if rig is None and len(names) == 1 and names[0] in PRESETS:
+        rig = names[0]
+    stand = get_rig(rig)
+    for r in recs[:1] if prints else ():
+        check_recorded_on(r, to_dict(stand), error=ResponseMapError,
+                          hint="pass the stand they were recorded on (rig=, map build --rig FILE)")
     fs = get_feature_set(features)
     params = fs.params(feature_params)
     y = np.array([extract_features(*recording_signal(r), features, params)[0] for r in recs])

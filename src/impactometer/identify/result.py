@@ -26,6 +26,7 @@ class Identification:
     early : The early answer (from the data up to the second pulse), or None.
     onsets : Contact onsets used [s] (robust variant).
     details : Diagnostics (number of rows, reduced chi-square, noise levels, ...).
+    warnings : Sentences on what makes the answer implausible (see :mod:`.plausibility`); empty when nothing does.
     """
 
     mass: float
@@ -41,6 +42,7 @@ class Identification:
     early: Identification | None = None
     onsets: tuple[float, ...] = ()
     details: dict[str, Any] = field(default_factory=dict)
+    warnings: tuple[str, ...] = ()
 
     @property
     def energy(self) -> float:
@@ -63,7 +65,7 @@ class Identification:
                 "t00_s": num(self.t00), "t01_s": num(self.t01), "t11_s": num(self.t11),
                 "method": self.method, "variant": self.variant,
                 "early": None if self.early is None else self.early.to_dict(),
-                "onsets_s": [float(t) for t in self.onsets],
+                "onsets_s": [float(t) for t in self.onsets], "warnings": list(self.warnings),
                 **({"caution": self.details["caution"]} if self.details.get("caution") else {})}
 
     def plot(self, recording, ax=None):

@@ -8,12 +8,14 @@ duration) the identifier re-arms for the next one.
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
 from numba import njit
 
-from ..errors import IdentificationError, ParameterError
+from ..errors import IdentificationError, ParameterError, shown
+from ..recording import check_sample_rate
 from . import peak_to_peak as p2p
 from . import trigger
 from .result import Identification
@@ -54,19 +56,20 @@ class StreamingIdentifier:
     Notes
     -----
     ``push`` returns the new estimates (each an :class:`Identification` whose ``available_at`` is the time of the
-    last sample it used); ``estimates`` keeps those of the current impact and ``completed`` the final answer of
-    every closed impact. The final answer of an impact equals the batch function's on the same samples.
+    last sample it used); ``estimates`` keeps those of the current impact, ``completed`` the final answer of
+    every closed impact that has one, and ``outcomes`` the final answer or the refusal of every closed impact.
+    Every estimate passes the checks of the batch function (:func:`~.plausibility.check_segment`), and the final
+    answer of an impact (or its refusal) equals the batch function's on the same samples.
     """
 
     def __init__(self, sample_rate: float, *, variant: str = "robust", gravity: float = p2p.GRAVITY,
                  start_time: float = 0.0, floor: float = p2p.TRIGGER_FLOOR, contact_phase: bool = False):
-        if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(
-                sample_rate) or sample_rate <= 0:
-            raise ParameterError(f"sample_rate must be a finite number > 0 [Hz], got {sample_rate!r}")
-        if variant not in p2p.VARIANT_SOLVERS:
-            raise ParameterError(f"variant must be one of {sorted(p2p.VARIANT_SOLVERS)}, got {variant!r}")
-        self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, float(gravity)
-        self.start_time, self.floor = float(start_time), float(floor)
+        sample_rate = check_sample_rate(sample_rate, error=ParameterError)
+        variant, gravity, start_time = p2p.check_options(variant, gravity, start_time, error=ParameterError)
+        if isinstance(floor, bool) or not isinstance(floor, (int, float)) or not 0.0 <= floor < math.inf:
+            raise ParameterError(f"floor must be a finite number >= 0 [N], got {shown(floor)}")
+        self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, gravity
+        self.start_time, self.floor = start_time, float(floor)
         self.contact_phase = bool(contact_phase)
         self.quiet = max(int(p2p.QUIET_TIME * sample_rate), 1)
         self.max_samples = max(int(p2p.MAX_DURATION * sample_rate), 1)
@@ -85,6 +88,7 @@ class StreamingIdentifier:
         self._last_close = -1
         self.estimates: list[Identification] = []
         self.completed: list[Identification] = []
+        self.outcomes: list[Identification | IdentificationError] = []
 
     @property
     def armed(self) -> bool:
@@ -93,8 +97,11 @@ class StreamingIdentifier:
 
     def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
         """Feed samples (any number, down to one); return the estimates that became available."""
-        f = np.asarray(force_chunk, dtype=np.float64)
-        a = np.asarray(acceleration_chunk, dtype=np.float64)
+        try:
+            f = np.asarray(force_chunk, dtype=np.float64)
+            a = np.asarray(acceleration_chunk, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise IdentificationError("force and acceleration chunks must hold numbers") from None
         if f.ndim == 0:
             f, a = f.reshape(1), a.reshape(-1)
         if f.ndim != 1 or f.shape != a.shape:
@@ -141,54 +148,80 @@ class StreamingIdentifier:
             return []
         if self._start is None:
             return []
-        result = self._solve(index + 1, final=code != trigger.EVENT_PAST_PEAK)
         if code == trigger.EVENT_CLOSE:
-            self._close(index)
-        return result
+            return self._conclude(index + 1, index)
+        return self._solve(index + 1, final=code != trigger.EVENT_PAST_PEAK)
+
+    def _early_step(self, seg: p2p.Segment) -> list[Identification]:
+        """The early answer, once, as soon as the segment allows it (as the batch function finds it)."""
+        if self.variant != "robust" or self._early_done or not p2p.early_ready(seg):
+            return []
+        self._early_done = True
+        self._early = p2p.early_answer(seg, self.gravity)
+        return [] if self._early is None else [self._early]
 
     def _solve(self, stop: int, final: bool = True) -> list[Identification]:
         seg = self._segment(stop)
-        complete = sum(p.complete for p in seg.pulses)
-        new = []
-        try:
-            if self.variant == "robust" and not self._early_done and p2p.early_ready(seg):
-                self._early_done = True
-                self._early = p2p.early_answer(seg, self.gravity)
-                if self._early is not None:
-                    new.append(self._early)
-            needed = 3 if self.variant == "robust" else 2
-            if final and complete >= needed:
-                p2p.check_clipping(seg)
+        new = self._early_step(seg)
+        needed = 3 if self.variant == "robust" else 2
+        if final and sum(p.complete for p in seg.pulses) >= needed:
+            with contextlib.suppress(IdentificationError):  # no answer yet: the impact's end decides (_conclude)
                 new.append(p2p.solve(seg, self.variant, self.gravity, early=self._early,
                                      contact_phase=self.contact_phase))
-        except IdentificationError:
-            return []
+        return self._record(new)
+
+    def _record(self, new: list[Identification]) -> list[Identification]:
         new = [r for r in new if not self.estimates or r != self.estimates[-1]]
         self.estimates.extend(new)
         return new
 
-    def _close(self, index: int) -> None:
-        if self.estimates:
-            self.completed.append(self.estimates[-1])
+    def _conclude(self, stop: int, close: int) -> list[Identification]:
+        """End of the impact: its final answer exactly as the batch function gives it on these samples, or the
+        refusal the batch function would raise (kept in ``outcomes``)."""
+        seg = self._segment(stop)
+        new = self._early_step(seg)
+        try:
+            final = p2p.solve(seg, self.variant, self.gravity, early=self._early, contact_phase=self.contact_phase)
+        except IdentificationError as exc:
+            self.outcomes.append(exc)
+        else:
+            self.outcomes.append(final)
+            self.completed.append(final)
+            new.append(final)
         self._start = None
-        self._last_close = index
+        self._last_close = close
+        return self._record(new)
 
     def finish(self) -> Identification | None:
-        """End of the stream: the final answer of the running impact (as the batch function gives it), or None."""
+        """End of the stream: the final answer of the last impact (the running one, else the last closed one), as
+        the batch function gives it on its samples; None when the stream held no impact.
+
+        Raises
+        ------
+        IdentificationError
+            The refusal the batch function gives for that impact (saturated force, dead accelerometer, no
+            positive mass, too few contact pulses, ...).
+        """
         if self._start is not None:
-            self._solve(self.seen)
-            self._close(self.seen - 1)
-            return self.completed[-1] if self.completed else None
-        return self.completed[-1] if self.completed else None
+            self._conclude(self.seen, self.seen - 1)
+        if not self.outcomes:
+            return None
+        last = self.outcomes[-1]
+        if isinstance(last, IdentificationError):
+            raise last
+        return last
 
 
 def stream_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64, **options) -> list[Identification]:
-    """Replay arrays through a :class:`StreamingIdentifier` in chunks; every estimate in order of availability."""
+    """Replay arrays through a :class:`StreamingIdentifier` in chunks; every estimate in order of availability,
+    the final answer that the end of the data completes included."""
     if not isinstance(chunk, int) or chunk < 1:
         raise ParameterError(f"chunk must be an integer >= 1 [samples], got {chunk!r}")
     ident = StreamingIdentifier(sample_rate, **options)
     out = []
     for k in range(0, len(force), chunk):
         out.extend(ident.push(force[k:k + chunk], acceleration[k:k + chunk]))
-    ident.finish()
-    return out
+    shown = len(ident.estimates)
+    with contextlib.suppress(IdentificationError):  # a refused last impact adds no final answer
+        ident.finish()
+    return out + ident.estimates[shown:]

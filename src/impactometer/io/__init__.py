@@ -9,16 +9,16 @@ from __future__ import annotations
 
 import csv as _csv
 import dataclasses
-import math
 import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from ..errors import ImpactometerError, RecordingError
-from ..recording import TRUTH_KEYS, Recording
+from ..outputs import as_path, check_file, write_failed
+from ..recording import TRUTH_KEYS, Recording, truth_value
 from . import csv, hdf5, mat, tdms
-from .channels import RawData, assemble
+from .channels import RawData, assemble, merge_metadata
 
 #: file extension -> format name
 FORMATS = {".csv": "csv", ".txt": "csv", ".tsv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5",
@@ -33,11 +33,13 @@ WRITERS: dict[str, Callable[[Recording, Path], None]] = {
 #: formats whose files have groups
 GROUPED = ("hdf5", "tdms")
 MANIFEST_NAME = "manifest.csv"
+#: a manifest may round the truth a file states by this much (relative)
+MANIFEST_TOLERANCE = 0.01
 
 
 def format_of(path: str | Path) -> str:
     """Format name of ``path`` from its extension; the error lists the known extensions."""
-    suffix = Path(path).suffix.lower()
+    suffix = as_path(path, error=RecordingError).suffix.lower()
     if suffix not in FORMATS:
         raise RecordingError(f"{path}: unknown extension {suffix or '(none)'!r}; expected one of "
                              f"{', '.join(sorted(FORMATS))}")
@@ -46,7 +48,7 @@ def format_of(path: str | Path) -> str:
 
 def read_raw(path: str | Path, *, group: str | None = None) -> RawData:
     """What the file at ``path`` holds, before channel selection (see :func:`read_recording`)."""
-    path = Path(path)
+    path = as_path(path, error=RecordingError)
     fmt = format_of(path)
     if not path.is_file():
         raise RecordingError(f"{path}: no such file")
@@ -113,14 +115,11 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
     """
     if not isinstance(recording, Recording):
         raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
-    path = Path(path)
+    path = as_path(path, error=RecordingError)
     fmt = format_of(path)
-    if not path.parent.is_dir():
-        raise RecordingError(f"{path}: folder {str(path.parent)!r} does not exist")
     targets = _targets(path, fmt)
     for target in targets:
-        if target.exists() and not overwrite:
-            raise RecordingError(f"{target}: exists; pass overwrite=True (--force) to replace it")
+        check_file(target, overwrite=overwrite, flag="overwrite=True (--force)", error=RecordingError)
     temporary = [t.with_name(f".{t.stem}.partial-{os.getpid()}{t.suffix}") for t in targets]
     try:
         WRITERS[fmt](recording, temporary[0])
@@ -133,6 +132,8 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
             tmp.unlink(missing_ok=True)
         if isinstance(exc, ImpactometerError):
             raise
+        if isinstance(exc, OSError):
+            raise write_failed(path, exc) from None
         raise RecordingError(f"{path}: cannot write {fmt} file ({type(exc).__name__}: {exc})") from None
     return path
 
@@ -156,31 +157,24 @@ def _manifest(path: Path) -> dict[str, dict[str, float]]:
         name = row["file"]
         if not name or name in out:
             raise RecordingError(f"{path}: line {i}: file must be a distinct non-empty name, got {name!r}")
-        values = {}
-        for key in TRUTH_KEYS:
-            if row.get(key, "") == "":
-                continue
-            try:
-                values[key] = float(row[key])
-            except ValueError:
-                raise RecordingError(f"{path}: line {i}: {key} must be a number, got {row[key]!r}") from None
-            if not math.isfinite(values[key]) or values[key] < 0:
-                raise RecordingError(f"{path}: line {i}: {key} must be a finite number >= 0, got {row[key]!r}")
-        out[name] = values
+        out[name] = {key: truth_value(key, row[key], f"{path}: line {i}: ") for key in TRUTH_KEYS
+                     if row.get(key, "") != ""}
     return out
 
 
 def read_calibration_set(folder: str | Path, manifest: str | Path | None = None,
                          **read_options: Any) -> list[Recording]:
-    """All recordings in ``folder`` (sorted by name), the manifest's truth overriding each file's metadata.
+    """All recordings in ``folder`` (sorted by name), the manifest's truth completing each file's metadata.
 
     The manifest (default ``folder/manifest.csv`` when present) has columns ``file,mass_kg,velocity_m_s`` and
-    optionally ``pressure_gauge_Pa``; ``read_options`` go to :func:`read_recording`.
+    optionally ``pressure_gauge_Pa``; ``read_options`` go to :func:`read_recording`. Where a file states a truth
+    too, the two must agree within :data:`MANIFEST_TOLERANCE` (a manifest with swapped columns is refused).
     """
-    folder = Path(folder)
+    folder = as_path(folder, "folder", error=RecordingError)
     if not folder.is_dir():
         raise RecordingError(f"{folder}: not a folder; expected a folder of recordings")
-    manifest_path = Path(manifest) if manifest is not None else folder / MANIFEST_NAME
+    manifest_path = as_path(manifest, "manifest", error=RecordingError) if manifest is not None \
+        else folder / MANIFEST_NAME
     if manifest is not None and not manifest_path.is_file():
         raise RecordingError(f"{manifest_path}: manifest does not exist")
     truth = _manifest(manifest_path) if manifest_path.is_file() else {}
@@ -194,8 +188,10 @@ def read_calibration_set(folder: str | Path, manifest: str | Path | None = None,
     recordings = []
     for path in files:
         recording = read_recording(path, **read_options)
-        if path.name in truth:
-            recording = dataclasses.replace(recording, metadata=recording.metadata | truth[path.name])
+        if path.name in truth:  # the manifest completes the file's metadata; where both state a truth, they agree
+            metadata = merge_metadata([("the file's", recording.metadata), ("the manifest's", truth[path.name])],
+                                      str(path), tolerance=MANIFEST_TOLERANCE)
+            recording = dataclasses.replace(recording, metadata=metadata)
         recordings.append(recording)
     return recordings
 

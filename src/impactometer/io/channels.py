@@ -10,27 +10,38 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..errors import RecordingError
-from ..recording import ACCELERATION, CHANNEL_UNITS, FORCE, Recording, samples
-from ..units import UNITS
+from ..errors import RecordingError, UnitError
+from ..recording import (
+    ACCELERATION,
+    CHANNEL_UNITS,
+    FORCE,
+    SAMPLE_RATE_RANGE,
+    START_TIME_LIMIT,
+    TRUTH_KEYS,
+    TRUTH_UNITS,
+    Recording,
+    check_sample_rate,
+    samples,
+    truth_value,
+)
+from ..units import UNITS, find_unit
 
 #: standard channel -> case-insensitive name fragments that identify it (pvlib VARIABLE_MAP in spirit)
 CHANNEL_PATTERNS = {FORCE: ("force", "fc"), ACCELERATION: ("acc", "a2")}
 #: names of a time column (case-insensitive, unit stripped)
 TIME_NAMES = ("time", "t", "zeit", "temps", "timestamp", "x_time")
-#: unit spellings found in lab files -> key of :data:`impactometer.units.UNITS`
-UNIT_ALIASES = {"m/s**2": "m/s^2", "m s^-2": "m/s^2", "m s-2": "m/s^2", "m/s/s": "m/s^2", "ms^-2": "m/s^2",
-                "gn": "g", "g0": "g", "sec": "s", "seconds": "s", "msec": "ms", "newton": "n", "newtons": "n",
-                "kilonewton": "kn", "μs": "us", "pascal": "pa", "mm/s^2": "mm/s^2", "lbf": "lbf"}
-#: units not in impactometer.units.UNITS, (dimension, factor to SI)
-EXTRA_UNITS = {"mm/s^2": ("acceleration", 1e-3), "lbf": ("force", 4.4482216152605), "kgf": ("force", 9.80665),
-               "pa": ("pressure", 1.0)}
+#: unit spellings found in lab files (lower case, spaces removed) -> symbol of :data:`impactometer.units.UNITS`
+UNIT_ALIASES = {"m/s**2": "m/s^2", "ms^-2": "m/s^2", "ms-2": "m/s^2", "m/s/s": "m/s^2", "gn": "g", "g0": "g",
+                "sec": "s", "seconds": "s", "msec": "ms", "newton": "N", "newtons": "N", "kilonewton": "kN",
+                "pascal": "Pa"}
+#: units of lab files not in impactometer.units.UNITS (same layout: dimension -> symbol -> factor to SI)
+EXTRA_UNITS = {"acceleration": {"mm/s^2": 1e-3}, "force": {"lbf": 4.4482216152605, "kgf": 9.80665}}
 #: the dimension each standard channel must have
 CHANNEL_DIMENSIONS = {FORCE: "force", ACCELERATION: "acceleration"}
 #: SI unit of each dimension a channel may have
@@ -39,6 +50,8 @@ SI_UNITS = {"force": "N", "acceleration": "m/s^2", "pressure": "Pa", "length": "
 STANDARD_GRAVITY = 9.80665
 #: a time column is regular when no sample is further than this fraction of a period from the fitted grid
 TIME_JITTER = 0.05
+#: samples of a time column checked at a time
+TIME_BLOCK = 1 << 20
 
 _UNIT_IN_NAME = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
@@ -76,19 +89,22 @@ def split_unit(name: str) -> tuple[str, str | None]:
 def unit_factor(unit: str | None, *, dimension: str | None, field: str, source: str) -> tuple[str, float] | None:
     """(dimension, factor to SI) of ``unit``; None for no unit, or for an unknown unit when ``dimension`` is None.
 
-    With ``dimension`` given, a unit of another dimension or an unknown unit raises a RecordingError.
+    With ``dimension`` given, a unit of another dimension, an unknown or an ambiguous unit raises a RecordingError.
     """
     if unit is None or not unit.strip():
         return None
-    key = unit.strip().lower()
-    key = UNIT_ALIASES.get(key, UNIT_ALIASES.get(key.replace(" ", ""), key.replace(" ", "")))
-    known = EXTRA_UNITS.get(key) or UNITS.get(key)
-    if known is not None and known[0] not in SI_UNITS:
-        known = None
-    if known is None or (dimension is not None and known[0] != dimension):
+    bare = unit.strip().replace(" ", "")
+    bare = UNIT_ALIASES.get(bare.lower(), bare)
+    try:
+        known = find_unit(bare, dimension, field=f"channel {field!r}", extra=EXTRA_UNITS)
+    except UnitError as exc:
         if dimension is None:
             return None
-        valid = sorted({u for u, (d, _) in (UNITS | EXTRA_UNITS).items() if d == dimension})
+        raise RecordingError(f"{source}: {exc}") from None
+    if known is not None and known[0] not in SI_UNITS:
+        known = None
+    if known is None and dimension is not None:
+        valid = list(UNITS.get(dimension, {})) + list(EXTRA_UNITS.get(dimension, {}))
         raise RecordingError(f"{source}: channel {field!r} has unit {unit!r}; expected a {dimension} unit "
                              f"({', '.join(valid)})")
     return known
@@ -122,21 +138,27 @@ def pick_channel(names: list[str], standard: str, explicit: str | None, *, optio
 def time_base(time: np.ndarray, unit: str | None, source: str) -> tuple[float, float]:
     """(sample rate [Hz], start time [s]) of a time column; refuses non-monotonic or irregular time."""
     known = unit_factor(unit, dimension="time", field="time", source=source)
-    t = samples(time, "time", source, squeeze=True) * (1.0 if known is None else known[1])
+    t = samples(time, "time", source, squeeze=True)
+    scale = 1.0 if known is None else known[1]
     if t.size < 2:
         raise RecordingError(f"{source}: time must have at least 2 samples, got {t.size}")
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        i = int(np.flatnonzero(steps <= 0)[0])
-        raise RecordingError(f"{source}: time must increase strictly; sample {i + 1} ({t[i + 1]!r} s) does not "
-                             f"follow sample {i} ({t[i]!r} s)")
-    period = (t[-1] - t[0]) / (t.size - 1)
-    deviation = np.abs(t - (t[0] + period * np.arange(t.size)))
-    if deviation.max() > TIME_JITTER * period:
-        i = int(np.argmax(deviation))
-        raise RecordingError(f"{source}: time must be regularly sampled; sample {i} is {deviation[i]:.3g} s off "
-                             f"the grid of period {period:.6g} s (tolerance {TIME_JITTER:g} period)")
-    return 1.0 / period, float(t[0])
+    for start in range(0, t.size, TIME_BLOCK):  # a block at a time: no temporaries the size of the column
+        steps = np.diff(t[start:start + TIME_BLOCK + 1])
+        if np.any(steps <= 0):
+            i = start + int(np.flatnonzero(steps <= 0)[0])
+            raise RecordingError(f"{source}: time must increase strictly; sample {i + 1} ({float(t[i + 1]) * scale!r} "
+                                 f"s) does not follow sample {i} ({float(t[i]) * scale!r} s)")
+    first, period = float(t[0]) * scale, float(t[-1] - t[0]) * scale / (t.size - 1)
+    check_sample_rate(1.0 / period if period > 0 else math.inf, f"{source}: the sample rate of the time column")
+    for start in range(0, t.size, TIME_BLOCK):
+        block = t[start:start + TIME_BLOCK] * scale
+        deviation = np.abs(block - (first + period * np.arange(start, start + block.size)))
+        if deviation.max() > TIME_JITTER * period:
+            i = int(np.argmax(deviation))
+            raise RecordingError(f"{source}: time must be regularly sampled; sample {start + i} is "
+                                 f"{deviation[i]:.3g} s off the grid of period {period:.6g} s (tolerance "
+                                 f"{TIME_JITTER:g} period)")
+    return 1.0 / period, first
 
 
 def plain(value: Any) -> Any:
@@ -166,6 +188,8 @@ def metadata_from_json(text: Any, source: str, field: str) -> dict[str, Any]:
         data = json.loads(text)
     except (TypeError, ValueError) as exc:
         raise RecordingError(f"{source}: {field} must be valid JSON ({exc})") from None
+    except RecursionError:
+        raise RecordingError(f"{source}: {field} nests too deeply; expected a JSON object of metadata") from None
     if not isinstance(data, dict):
         raise RecordingError(f"{source}: {field} must hold a JSON object, got {type(data).__name__}")
     return data
@@ -180,36 +204,86 @@ START_KEYS = ("start_time", "t0", "wf_start_offset")
 def _scalar(value: Any, source: str, field: str) -> float:
     arr = np.asarray(value)
     if arr.size != 1 or arr.dtype.kind not in "iuf":
-        raise RecordingError(f"{source}: {field} must be a number, got {plain(value)!r}")
+        text = repr(plain(value))
+        text = text if len(text) <= 60 else text[:57] + "..."
+        raise RecordingError(f"{source}: {field} must be a number, got {text}")
     number = float(arr.reshape(-1)[0])
     if not math.isfinite(number):
         raise RecordingError(f"{source}: {field} must be finite, got {number!r}")
     return number
 
 
-def time_attributes(attrs: Mapping[str, Any], source: str) -> tuple[float | None, float | None, dict[str, Any]]:
-    """(sample rate [Hz], start time [s], remaining attributes) from file attributes or properties."""
-    rate = start = None
-    rest = {}
-    for key, value in attrs.items():
-        low = str(key).lower()
-        if low in RATE_KEYS:
-            rate = _check_rate(_scalar(value, source, key), source, key)
-        elif low in PERIOD_KEYS:
-            period = _check_rate(_scalar(value, source, key), source, key, unit="[s]")
-            rate = float(f"{1.0 / period:.12g}")  # 1/(1/fs) is not always fs in floating point
-        elif low in START_KEYS:
-            start = _scalar(value, source, key)
-        else:
-            rest[str(key)] = plain(value)
-    return rate, start, rest
+def one_value(statements: list[tuple[str, float]], source: str, what: str, unit: str, tolerance: float) -> float | None:
+    """The value every statement ``(where, value)`` of one quantity gives; RecordingError when two disagree."""
+    for where, value in statements[1:]:
+        first_where, first = statements[0]
+        if abs(value - first) > tolerance * max(abs(first), abs(value)) + (1e-12 if unit == "s" else 0.0):
+            raise RecordingError(f"{source}: the {what} is stated twice, differently: {first_where} gives "
+                                 f"{first:g} {unit}, {where} gives {value:g} {unit}; expected one value")
+    return statements[0][1] if statements else None
 
 
-def _check_rate(value: Any, source: str, field: str, *, unit: str = "[Hz]") -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)) or not math.isfinite(value) \
-            or value <= 0:
-        raise RecordingError(f"{source}: {field} must be a finite number > 0 {unit}, got {value!r}")
-    return float(value)
+Levels = Mapping[str, Any] | Sequence[tuple[str, Mapping[str, Any]]]
+
+
+def _levels(levels: Levels) -> list[tuple[str, Mapping[str, Any]]]:
+    return [("", levels)] if isinstance(levels, Mapping) else list(levels)
+
+
+def time_attributes(levels: Levels, source: str) -> tuple[float | None, float | None, dict[str, Any]]:
+    """(sample rate [Hz], start time [s], remaining attributes) from file attributes or properties.
+
+    ``levels`` is one mapping or a sequence of (label, mapping) pairs (file, group): a rate (or period) and a start
+    time stated more than once must agree, and so must a known truth; other attributes of a later level replace
+    those of an earlier one.
+    """
+    rates: list[tuple[str, float]] = []
+    starts: list[tuple[str, float]] = []
+    rests: list[tuple[str, dict[str, Any]]] = []
+    for label, level in _levels(levels):
+        rest: dict[str, Any] = {}
+        rests.append((label, rest))
+        for key, value in level.items():
+            low = str(key).lower()
+            where = f"{label} {key}".strip()
+            if low in RATE_KEYS:
+                rates.append((where, check_sample_rate(_scalar(value, source, where), f"{source}: {where}")))
+            elif low in PERIOD_KEYS:
+                period = _scalar(value, source, where)
+                low_rate, high_rate = SAMPLE_RATE_RANGE
+                if not 1.0 / high_rate <= period <= 1.0 / low_rate:
+                    raise RecordingError(f"{source}: {where} must be a sample period within [{1.0 / high_rate:g}, "
+                                         f"{1.0 / low_rate:g}] s, got {period!r}")
+                rates.append((where, float(f"{1.0 / period:.12g}")))  # 1/(1/fs) is not always fs in floating point
+            elif low in START_KEYS:
+                start = _scalar(value, source, where)
+                if abs(start) > START_TIME_LIMIT:
+                    raise RecordingError(f"{source}: {where} must be a time within ±{START_TIME_LIMIT:g} s, got "
+                                         f"{start!r}")
+                starts.append((where, start))
+            else:
+                rest[str(key)] = plain(value)
+    return (one_value(rates, source, "sample rate", "Hz", 1e-6), one_value(starts, source, "start time", "s", 1e-9),
+            merge_metadata(rests, source))
+
+
+def merge_metadata(parts: Levels, source: str, *, tolerance: float = 1e-6) -> dict[str, Any]:
+    """Metadata stated in several places: (label, mapping) pairs (file attributes, a JSON object, a manifest).
+
+    A known truth (``mass_kg``, ...) stated in two places must agree within ``tolerance`` (relative); other keys of
+    a later part replace those of an earlier one.
+    """
+    merged: dict[str, Any] = {}
+    seen: dict[str, list[tuple[str, float]]] = {}
+    for label, part in _levels(parts):
+        for key, value in part.items():
+            if key in TRUTH_KEYS and value is not None:
+                where = f"{label} {key}".strip()
+                seen.setdefault(key, []).append((where, truth_value(key, value, f"{source}: {where}: ")))
+            merged[key] = value
+    for key, statements in seen.items():
+        one_value(statements, source, f"truth {key}", TRUTH_UNITS[key], tolerance)
+    return merged
 
 
 def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_channel: str | None = None,
@@ -244,6 +318,9 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
         if target in channels:
             raise RecordingError(f"{source}: two columns give channel {target!r}; rename one or pick channels "
                                  f"with force_channel / acceleration_channel")
+        if getattr(values, "dtype", None) is not None and values.dtype.kind == "b" and target in CHANNEL_DIMENSIONS:
+            raise RecordingError(f"{source}: channel {name!r} holds logical (true/false) values; expected the "
+                                 f"{target} as numbers")
         arr = samples(values, name, source, squeeze=True)
         known = unit_factor(unit, dimension=CHANNEL_DIMENSIONS.get(target), field=name, source=source)
         if known is not None:
@@ -267,7 +344,7 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
 
     rate, start = raw.sample_rate, raw.start_time
     if rate is not None:
-        rate = _check_rate(rate, source, "sample rate stated in the file")
+        rate = check_sample_rate(rate, f"{source}: sample rate stated in the file")
     if raw_time is not None:
         time_rate, time_start = time_base(raw_time[0], raw_time[1], source)
         if rate is not None and abs(time_rate - rate) > 1e-3 * rate:
@@ -277,7 +354,7 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
             raise RecordingError(f"{source}: time has {np.size(raw_time[0])} samples but the channels have "
                                  f"{next(iter(channels.values())).size}; expected equal lengths")
     if sample_rate is not None:
-        given = _check_rate(sample_rate, source, "sample_rate")
+        given = check_sample_rate(sample_rate, f"{source}: sample_rate")
         if raw_time is not None and rate is not None and abs(given - rate) > 1e-3 * given:
             raise RecordingError(f"{source}: sample_rate={given:g} Hz disagrees with the time column "
                                  f"({rate:g} Hz)")

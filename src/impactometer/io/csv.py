@@ -4,7 +4,8 @@ Read: comma, semicolon or tab separated (decimal commas are accepted when the se
 starting with ``#`` are skipped; units in brackets or parentheses (``Force [kN]``, ``Acceleration (g)``) are
 converted; a ``time`` column or a sample rate (sidecar ``sample_rate`` or the ``sample_rate`` option) gives the
 time base. The sidecar is a JSON object of metadata; its keys ``sample_rate`` [Hz], ``start_time`` [s] and
-``channel_units`` are read as such.
+``channel_units`` are read as such. The rows are parsed a chunk at a time into float64 columns, so memory stays
+near the size of those columns whatever the size of the file.
 
 Write: ``time [s]`` then one column per channel with its SI unit, 17 significant digits, and the sidecar.
 """
@@ -40,16 +41,26 @@ def _sidecar(path: Path) -> tuple[dict, Path | None]:
     return {}, None
 
 
-def _text(path: Path) -> str:
-    data = path.read_bytes()
-    if b"\x00" in data:
+#: bytes of rows parsed at a time: memory stays near the float64 columns whatever the file's size
+CHUNK_BYTES = 4 << 20
+#: bytes looked at to choose the text encoding
+ENCODING_PROBE = 1 << 16
+
+
+def _encoding(path: Path) -> str:
+    """The encoding the file's first bytes decode with (UTF-8, else Windows-1252, else Latin-1)."""
+    with open(path, "rb") as handle:
+        head = handle.read(ENCODING_PROBE)
+    if b"\x00" in head:
         raise RecordingError(f"{path}: not a text file (holds NUL bytes); expected CSV text")
+    head = head[:head.rfind(b"\n") + 1] or head  # whole lines only: a multi-byte character may be cut at the end
     for encoding in ("utf-8-sig", "cp1252"):
         try:
-            return data.decode(encoding)
+            head.decode(encoding)
         except UnicodeDecodeError:
             continue
-    return data.decode("latin-1")
+        return encoding
+    return "latin-1"
 
 
 def _is_number(cell: str) -> bool:
@@ -60,43 +71,108 @@ def _is_number(cell: str) -> bool:
     return True
 
 
-def _table(path: Path) -> tuple[list[str], np.ndarray]:
-    lines = [line for line in _text(path).splitlines() if line.strip() and not line.lstrip().startswith("#")]
-    if not lines:
-        raise RecordingError(f"{path}: file is empty; expected a header row of channel names and numeric rows")
-    separator = next((s for s in SEPARATORS if s in lines[0]), ",")
-    rows = list(_csv.reader(lines, delimiter=separator))
-    header = [cell.strip() for cell in rows[0]]
+def _lines(path: Path, encoding: str):
+    """Non-blank lines of the file that are not comments: the first alone, then the rest in chunks of about
+    :data:`CHUNK_BYTES`."""
+    with open(path, "rb") as handle:
+        rest = b""
+        header = True
+        while True:
+            block = handle.read(CHUNK_BYTES)
+            if b"\x00" in block:
+                raise RecordingError(f"{path}: not a text file (holds NUL bytes); expected CSV text")
+            data = rest + block
+            if block:  # more may follow: the last, maybe partial, line waits for the next block
+                cut = data.rfind(b"\n") + 1
+                data, rest = data[:cut], data[cut:]
+                if not data:
+                    continue  # a line longer than a block: read on
+            lines = _decoded(data, encoding)
+            if header and lines:
+                yield [lines[0].lstrip("\ufeff")]
+                lines, header = lines[1:], False
+            if lines:
+                yield lines
+            if not block:
+                return
+
+
+def _decoded(data: bytes, encoding: str) -> list[str]:
+    try:
+        text = data.decode(encoding)
+    except UnicodeDecodeError:
+        text = data.decode("latin-1")
+    lines = text.splitlines()
+    if "#" in text or any(not line.strip() for line in lines):
+        lines = [line for line in lines if line.strip() and not line.lstrip().startswith("#")]
+    return lines
+
+
+def _header(line: str, path: Path) -> tuple[list[str], str]:
+    separator = next((s for s in SEPARATORS if s in line), ",")
+    cells = next(_csv.reader([line], delimiter=separator))
+    header = [cell.strip() for cell in cells]
     while header and not header[-1]:
         header.pop()
     if not header or all(_is_number(cell) for cell in header):
         raise RecordingError(f"{path}: the first row must be a header of channel names (e.g. 'time [s]', "
-                             f"'Force [kN]'), got {rows[0][:6]}")
+                             f"'Force [kN]'), got {cells[:6]}")
     if any(not cell for cell in header) or len(set(header)) != len(header):
         raise RecordingError(f"{path}: header cells must be non-empty and distinct, got {header}")
-    body = rows[1:]
-    if not body:
-        raise RecordingError(f"{path}: no data rows below the header {header}")
-    decimal_comma = separator != "," and any("," in cell for cell in body[0])
+    return header, separator
+
+
+def _rows(lines: list[str], first_row: int, header: list[str], separator: str, decimal_comma: bool,
+          path: Path) -> np.ndarray:
+    """Data rows as a (rows, columns) float array: numpy's parser, else row by row naming the bad cell."""
+    text = [line.replace(",", ".") for line in lines] if decimal_comma else lines
+    try:
+        values = np.loadtxt(text, delimiter=separator, dtype=float, ndmin=2, quotechar='"', comments=None)
+        if values.shape[1] == len(header):
+            return values
+    except ValueError:
+        pass
     cells = []
-    for i, row in enumerate(body):
+    for i, row in enumerate(_csv.reader(lines, delimiter=separator)):
         row = [cell.strip() for cell in row]
         while len(row) > len(header) and not row[-1]:
             row.pop()
         if len(row) != len(header):
-            raise RecordingError(f"{path}: data row {i + 1} has {len(row)} cells; expected {len(header)} as in "
-                                 f"the header {header}")
+            raise RecordingError(f"{path}: data row {first_row + i} has {len(row)} cells; expected {len(header)} as "
+                                 f"in the header {header}")
+        for j, cell in enumerate(row):
+            if not _is_number(cell):
+                raise RecordingError(f"{path}: data row {first_row + i}, column {header[j]!r} holds {cell[:40]!r}; "
+                                     "expected a number")
         cells.append([cell.replace(",", ".") for cell in row] if decimal_comma else row)
-    try:
-        values = np.array(cells, dtype=float)
-    except ValueError:
-        for i, row in enumerate(cells):
-            for j, cell in enumerate(row):
-                if not _is_number(cell):
-                    raise RecordingError(f"{path}: data row {i + 1}, column {header[j]!r} holds {cell!r}; "
-                                         f"expected a number") from None
-        raise RecordingError(f"{path}: data rows must hold numbers") from None
-    return header, values
+    return np.array(cells, dtype=float).reshape(-1, len(header))
+
+
+def _table(path: Path) -> tuple[list[str], list[np.ndarray]]:
+    """Header and one float64 array per column, parsed chunk by chunk into arrays sized from the file."""
+    chunks = _lines(path, _encoding(path))
+    first = next(chunks, None)
+    if not first:
+        raise RecordingError(f"{path}: file is empty; expected a header row of channel names and numeric rows")
+    header, separator = _header(first[0], path)
+    columns: list[np.ndarray] = []
+    rows = 0
+    decimal_comma = None
+    for lines in chunks:
+        if decimal_comma is None:
+            decimal_comma = separator != "," and "," in lines[0]
+        values = _rows(lines, rows + 1, header, separator, decimal_comma, path)
+        if not columns:  # size the columns from the bytes per row of the first chunk
+            per_row = max(sum(len(line) + 1 for line in lines) / len(lines), 1.0)
+            columns = [np.empty(int(path.stat().st_size / per_row * 1.05) + len(lines)) for _ in header]
+        if rows + len(values) > columns[0].size:
+            columns = [np.resize(c, int((rows + len(values)) * 1.5)) for c in columns]
+        for j, column in enumerate(columns):
+            column[rows:rows + len(values)] = values[:, j]
+        rows += len(values)
+    if not rows:
+        raise RecordingError(f"{path}: no data rows below the header {header}")
+    return header, [c[:rows] if c.size <= 1.1 * rows else c[:rows].copy() for c in columns]
 
 
 def read(path: Path) -> RawData:
@@ -108,7 +184,7 @@ def read(path: Path) -> RawData:
     for field, value in (("sample_rate", rate), ("start_time", start)):
         if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
             raise RecordingError(f"{where}: sidecar {field} must be a number, got {value!r}")
-    columns: dict[str, tuple[np.ndarray, str | None]] = {name: (values[:, j], None) for j, name in enumerate(header)}
+    columns: dict[str, tuple[np.ndarray, str | None]] = {name: (values[j], None) for j, name in enumerate(header)}
     return RawData(columns=columns, source=str(path), sample_rate=rate, start_time=start, metadata=metadata)
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..recording import Recording
-from .channels import RawData, metadata_from_json, metadata_to_json, time_attributes
+from .channels import RawData, merge_metadata, metadata_from_json, metadata_to_json, time_attributes
 
 UNIT_ATTRIBUTES = ("unit", "units", "unit_string")
 FORMAT_NAME = "impactometer-recording"
@@ -28,6 +28,13 @@ def _datasets(group: h5py.Group) -> dict[str, h5py.Dataset]:
     return {name: item for name, item in group.items()
             if isinstance(item, h5py.Dataset) and item.dtype.kind in "iuf" and item.size > 1
             and sum(s > 1 for s in item.shape) == 1}
+
+
+def _samples(dataset: h5py.Dataset) -> np.ndarray:
+    """A numeric dataset's samples, converted by HDF5 straight into a float64 array (no copy in the file's type)."""
+    out = np.empty(dataset.shape, dtype=np.float64)
+    dataset.read_direct(out)
+    return out.reshape(-1)
 
 
 def _unit(dataset: h5py.Dataset) -> str | None:
@@ -63,16 +70,17 @@ def read(path: Path, *, group: str | None = None) -> RawData:
         datasets = _datasets(node)
         if not datasets:
             raise RecordingError(f"{source}: no numeric 1-D datasets in group {node.name!r}")
-        columns = {name: (np.asarray(ds[()]), _unit(ds)) for name, ds in datasets.items()}
-        attrs = dict(handle.attrs)
+        columns = {name: (_samples(ds), _unit(ds)) for name, ds in datasets.items()}
+        levels = [("file attribute", dict(handle.attrs))]
         if node is not handle:
-            attrs.update(node.attrs)
-    rate, start, rest = time_attributes(attrs, source)
+            levels.append((f"group {node.name!r} attribute", dict(node.attrs)))
+    rate, start, rest = time_attributes(levels, source)
     metadata = {}
     if "metadata" in rest:
         metadata = metadata_from_json(rest.pop("metadata"), source, "attribute 'metadata'")
     rest = {k: v for k, v in rest.items() if k not in ("format", "version")}
-    return RawData(columns=columns, source=source, sample_rate=rate, start_time=start, metadata=rest | metadata)
+    return RawData(columns=columns, source=source, sample_rate=rate, start_time=start,
+                   metadata=merge_metadata([("attribute", rest), ("attribute 'metadata'", metadata)], source))
 
 
 def write(recording: Recording, path: Path) -> None:

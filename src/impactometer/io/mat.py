@@ -21,7 +21,7 @@ import scipy.io
 
 from ..errors import RecordingError
 from ..recording import Recording
-from .channels import RawData, metadata_from_json, metadata_to_json, plain, time_attributes
+from .channels import RawData, merge_metadata, metadata_from_json, metadata_to_json, plain, time_attributes
 
 #: MATLAB char arrays in v7.3 files are stored as uint16 with this attribute
 _MATLAB_CLASS = "MATLAB_class"
@@ -62,6 +62,7 @@ def read(path: Path) -> RawData:
     columns: dict[str, tuple[np.ndarray, str | None]] = {}
     scalars: dict[str, Any] = {}
     metadata: dict[str, Any] = {}
+    texts: dict[str, Any] = {}
     units = flat.pop("units", {})
     if not isinstance(units, dict):
         units = {}
@@ -70,7 +71,7 @@ def read(path: Path) -> RawData:
             if name == "metadata_json":
                 metadata.update(metadata_from_json(value, source, "variable 'metadata_json'"))
             else:
-                metadata[name] = value
+                texts[name] = value
             continue
         arr = np.asarray(value)
         if arr.dtype.kind not in "iufb" or arr.size == 0:
@@ -82,7 +83,9 @@ def read(path: Path) -> RawData:
             columns[name] = (arr.reshape(-1).astype(float), str(unit) if isinstance(unit, str) and unit else None)
     rate, start, rest = time_attributes(scalars, source)
     return RawData(columns=columns, source=source, sample_rate=rate, start_time=start,
-                   metadata={k: plain(v) for k, v in rest.items()} | metadata)
+                   metadata=merge_metadata([("variable", {k: plain(v) for k, v in rest.items()}),
+                                                   ("variable", texts), ("variable 'metadata_json'", metadata)],
+                                                  source))
 
 
 def _variable(name: str) -> str:

@@ -18,7 +18,15 @@ from nptdms import ChannelObject, GroupObject, RootObject, TdmsFile, TdmsWriter
 
 from ..errors import RecordingError
 from ..recording import FORCE, Recording
-from .channels import RawData, metadata_from_json, metadata_to_json, pick_channel, time_attributes
+from .channels import (
+    RawData,
+    merge_metadata,
+    metadata_from_json,
+    metadata_to_json,
+    one_value,
+    pick_channel,
+    time_attributes,
+)
 
 GROUP = "Recording"
 METADATA_PROPERTY = "impactometer_metadata"
@@ -45,16 +53,40 @@ def _group(tdms: TdmsFile, group: str | None, source: str):
     raise RecordingError(f"{source}: no group holds a force channel; pass group (groups found: {names})")
 
 
+#: samples of a channel read at a time (into its float64 array)
+READ_BLOCK = 1 << 20
+
+
+def _samples(channel) -> np.ndarray | None:
+    """A numeric channel's samples as float64, read a block at a time; None for other channels."""
+    dtype = getattr(channel, "dtype", None)
+    size = len(channel)
+    if dtype is None or np.dtype(dtype).kind not in "iuf" or size == 0:
+        return None
+    out = np.empty(size)
+    for start in range(0, size, READ_BLOCK):
+        block = np.asarray(channel[start:start + READ_BLOCK])
+        if block.dtype.kind not in "iuf":
+            return None
+        out[start:start + block.size] = block
+    return out
+
+
 def read(path: Path, *, group: str | None = None) -> RawData:
-    """What a TDMS file holds (read-only)."""
+    """What a TDMS file holds (read-only); channel data is read in blocks, straight into float64 arrays."""
     source = str(path)
-    tdms = TdmsFile.read(path)
+    # the file is opened here, not by npTDMS, so that it is closed also when a damaged header stops npTDMS
+    with open(path, "rb") as handle, TdmsFile.open(handle) as tdms:
+        return _read(tdms, group, source)
+
+
+def _read(tdms, group: str | None, source: str) -> RawData:
     node = _group(tdms, group, source)
     columns = {}
     rates, starts = set(), set()
     for channel in node.channels():
-        data = channel[:]
-        if not isinstance(data, np.ndarray) or data.dtype.kind not in "iuf" or data.size == 0:
+        data = _samples(channel)
+        if data is None:
             continue
         props = dict(channel.properties)
         unit = props.get("unit_string")
@@ -71,13 +103,21 @@ def read(path: Path, *, group: str | None = None) -> RawData:
     if len(rates) > 1 or len(starts) > 1:
         raise RecordingError(f"{source}: channels of group {node.name!r} have different wf_increment or "
                              f"wf_start_offset ({sorted(rates)} Hz, {sorted(starts)} s); expected one time base")
-    properties = {k: v for k, v in tdms.properties.items() if k != "name"} | dict(node.properties)
+    levels = [("file property", {k: v for k, v in tdms.properties.items() if k != "name"}),
+              (f"group {node.name!r} property", dict(node.properties))]
     metadata = {}
-    if METADATA_PROPERTY in properties:
-        metadata = metadata_from_json(properties.pop(METADATA_PROPERTY), source, METADATA_PROPERTY)
-    rate, start, rest = time_attributes(properties, source)
-    return RawData(columns=columns, source=source, sample_rate=next(iter(rates), rate),
-                   start_time=next(iter(starts), start), metadata=rest | metadata)
+    for _, level in levels:
+        if METADATA_PROPERTY in level:
+            metadata = metadata_from_json(level.pop(METADATA_PROPERTY), source, METADATA_PROPERTY)
+    rate, start, rest = time_attributes(levels, source)
+    stated = [(f"wf_increment of the channels of group {node.name!r}", r) for r in rates]
+    rate = one_value(stated + ([("a file or group property", rate)] if rate is not None else []), source,
+                "sample rate", "Hz", 1e-6)
+    begun = [(f"wf_start_offset of the channels of group {node.name!r}", t) for t in starts]
+    start = one_value(begun + ([("a file or group property", start)] if start is not None else []), source,
+                 "start time", "s", 1e-9)
+    return RawData(columns=columns, source=source, sample_rate=rate, start_time=start,
+                   metadata=merge_metadata([("property", rest), (METADATA_PROPERTY, metadata)], source))
 
 
 def write(recording: Recording, path: Path, *, group: str = GROUP) -> None:

@@ -26,8 +26,10 @@ ROUTES = {"upper": TO_UPPER, "atmosphere": TO_ATMOSPHERE}
 
 
 @njit(cache=True, error_model="numpy")
-def rhs(y, p, u, dy):
-    """Time derivative of the actuated state ``y`` (model state + opening) for the inputs ``u``."""
+def derivatives(y, p, u, dy):
+    """Time derivative of the actuated state ``y`` (model state + opening) for the inputs ``u`` (not named ``rhs``:
+    the GPU build (:mod:`.gpu`) rebinds compiled functions by name, and ``d.rhs`` inside a function named ``rhs``
+    would name the function itself)."""
     opening = min(max(y[OPENING], 0.0), 1.0)
     area = opening * p[d.VALVE_MAX_AREA]
     if u[ROUTE] == TO_UPPER:

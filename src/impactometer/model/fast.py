@@ -17,6 +17,10 @@ OK = stepper.OK
 STATUS_TEXT = stepper.STATUS_TEXT
 N = d.N_STATE  # loops over a compile-time state size
 _P = stepper.DENSE  # a module-level constant: the compiler folds its entries
+#: rows of the scratch array of :func:`integrate_into`: the step's work rows (stages, new state, stage state, the
+#: last also the interpolated state), then the state, the interpolant's coefficients and the tolerance scale
+STATE, Q1, Q2, Q3, SCALE = range(stepper.WORK_ROWS, stepper.WORK_ROWS + 5)
+WORK_ROWS = stepper.WORK_ROWS + 5
 
 
 @njit(cache=True, error_model="numpy")
@@ -26,20 +30,29 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
     Returns a status code (0 = success) and the number of accepted steps. ``max_step`` [s] bounds the step size,
     ``max_steps`` the number of accepted steps.
     """
+    return integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out,
+                          np.empty((WORK_ROWS, N)), np.empty(N, dtype=np.int64), np.empty(d.N_CHANNEL))
+
+
+@njit(cache=True, error_model="numpy")
+def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out, work, need, row):
+    """:func:`integrate_one` in caller-provided scratch memory, so that it allocates nothing and compiles for
+    any numba target (the CPU here, a CUDA device in :mod:`.gpu`).
+
+    ``work`` is a (WORK_ROWS, N_STATE) float64 array, ``need`` an (N_STATE,) int64 array and ``row`` an
+    (N_CHANNEL,) float64 array; their contents on entry do not matter.
+    """
     n = N  # compile-time size: the loops are unrolled
-    k = np.empty((stepper.WORK_ROWS, n))  # stages, new state, stage state
-    y = y0.copy()
-    ys = np.empty(n)
-    q1, q2, q3 = np.empty(n), np.empty(n), np.empty(n)
-    row = np.empty(d.N_CHANNEL)
-    no_input = np.empty(0)
+    k = work  # its first stepper.WORK_ROWS rows are the step's work array
+    y, ys, q1, q2, q3 = work[STATE], work[stepper.STAGE_STATE], work[Q1], work[Q2], work[Q3]
+    for i in range(n):
+        y[i] = y0[i]
     full = False
     for j in range(channel_index.size):
         if channel_index[j] >= d.N_STATE:
             full = True
     # only the states the requested channels depend on are interpolated (u1..pU and the contact set for a force or
     # an acceleration)
-    need = np.empty(N, dtype=np.int64)
     m = 0
     for i in range(N):
         used = full and (i <= d.P_UPPER or i == d.CONTACT_SET)
@@ -59,17 +72,19 @@ def integrate_one(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps, 
         for j in range(channel_index.size):
             out[j, i_out] = row[channel_index[j]]
         i_out += 1
-    stepper.evaluate(stepper.PLAIN, y, p, no_input, k[0])
-    h_abs = stepper.initial_step(stepper.PLAIN, p, no_input, y, k[0], t_end, rtol, atol, max_step, ys, k[1])
+    stepper.evaluate(stepper.PLAIN, y, p, row, k[0])  # the plain system has no inputs: any array will do
+    h_abs = stepper.initial_step(stepper.PLAIN, p, row, y, k[0], t_end, rtol, atol, max_step, ys, k[1],
+                                 work[SCALE])
     steps = 0
     while t < t_end:
         if steps >= max_steps:
             return stepper.TOO_MANY_STEPS, steps
-        status, t_new, h_abs = stepper.step(stepper.PLAIN, y, t, t_end, h_abs, p, no_input, rtol, atol, max_step, k)
+        status, t_new, h_abs = stepper.step(stepper.PLAIN, y, t, t_end, h_abs, p, row, rtol, atol, max_step, k)
         if status != OK:
             return status, steps
         h = t_new - t
-        # samples inside (t, t_new]: continuous extension y(t + θh) = y + h·θ·(Q0 + θ·(Q1 + θ·(Q2 + θ·Q3)))
+        # samples inside (t, t_new]: continuous extension y(t + θh) = y + h·θ·(Q0 + θ·(Q1 + θ·(Q2 + θ·Q3))), the
+        # stage state's row reused for the interpolated state
         if i_out < t_out.size and t_out[i_out] <= t_new:
             for j in range(m):
                 i = need[j]

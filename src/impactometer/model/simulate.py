@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import numbers
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
@@ -11,7 +12,7 @@ from numba import njit
 from ..errors import ParameterError, SimulationError
 from ..rig import Rig, Scenario, get_rig
 from . import dynamics as d
-from . import fast, reference
+from . import fast, gpu, reference
 from .result import BatchResult, SimulationResult
 from .setup import initial_state, initial_states, pack, pack_batch
 
@@ -156,8 +157,9 @@ def simulation_result(t, chans, p, y0, rig, scenario, integrator) -> SimulationR
 def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, overrides=None,
                    duration: float = 0.05, sample_rate: float = 50e3,
                    channels: Sequence[str] = DEFAULT_BATCH_CHANNELS, rtol: float | None = None,
-                   dtype=np.float64, max_step: float = MAX_STEP, max_steps: int = MAX_STEPS) -> BatchResult:
-    """Simulate a batch of scenarios in parallel with the compiled integrator.
+                   dtype=np.float64, max_step: float = MAX_STEP, max_steps: int = MAX_STEPS,
+                   device: str | None = None) -> BatchResult:
+    """Simulate a batch of scenarios in parallel with the compiled integrator, on the CPU cores or a GPU.
 
     Parameters
     ----------
@@ -177,6 +179,10 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
         Storage type of the histories (float32 halves the memory).
     max_step, max_steps : float, int
         Largest step [s] and budget of steps per scenario.
+    device : {"cpu", "gpu", "auto"}, optional
+        Where to integrate: the CPU cores, a CUDA GPU (extra ``impactometer[gpu]``), or the GPU when one is usable
+        and the CPU otherwise. Default: the environment variable ``IMPACTOMETER_DEVICE``, else ``"cpu"``. Both run
+        the same model and integrator source, so the answers agree to the integration tolerance.
 
     Returns
     -------
@@ -186,35 +192,109 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
     ------
     ParameterError
         For invalid scenarios (the message names the first bad row), overrides or options.
+    DeviceError
+        For ``device="gpu"`` without a usable GPU or without the GPU extra.
     SimulationError
         When any scenario fails (no partial result is returned).
+
+    See Also
+    --------
+    simulate_blocks : the same, a block of scenarios at a time, for batches too large for memory.
     """
+    plan = _plan(mass, velocity, pressure_gauge, rig, overrides, duration, sample_rate, channels, rtol, dtype,
+                 max_step, max_steps, device)
+    return _run(plan, slice(0, plan.params.shape[0]))
+
+
+def simulate_blocks(mass, velocity, pressure_gauge, rig: Rig | None = None, *, overrides=None,
+                    duration: float = 0.05, sample_rate: float = 50e3,
+                    channels: Sequence[str] = DEFAULT_BATCH_CHANNELS, rtol: float | None = None,
+                    dtype=np.float64, max_step: float = MAX_STEP, max_steps: int = MAX_STEPS,
+                    device: str | None = None, block_size: int | None = None) -> Iterator[tuple[slice, BatchResult]]:
+    """Simulate a batch a block of scenarios at a time: yields ``(rows, BatchResult)`` with ``rows`` the slice of
+    the (flattened, broadcast) scenarios the block holds.
+
+    Only one block of histories is in memory at a time (reduce each block, e.g. to response-map features, before
+    asking for the next), so 10^7 scenarios need no more memory than one block plus the packed parameters
+    (~300 bytes per scenario). The arguments are those of :func:`simulate_batch`; every argument is checked before
+    the first block is simulated.
+
+    Parameters
+    ----------
+    block_size : int, optional
+        Scenarios per block (default: as many as fit in 256 MiB of histories on the CPU, 2 GiB on a GPU).
+    """
+    plan = _plan(mass, velocity, pressure_gauge, rig, overrides, duration, sample_rate, channels, rtol, dtype,
+                 max_step, max_steps, device)
+    n = plan.params.shape[0]
+    if block_size is None:
+        per_scenario = plan.index.size * plan.time.size * plan.dtype.itemsize
+        budget = gpu.BLOCK_BYTES if plan.device == "gpu" else _CHUNK_BYTES * 4
+        block_size = max(1, budget // per_scenario)
+    elif isinstance(block_size, bool) or not isinstance(block_size, (int, np.integer)) or block_size < 1:
+        raise ParameterError(f"block_size must be an integer >= 1 (scenarios), got {block_size!r}")
+    for start in range(0, n, int(block_size)):
+        rows = slice(start, min(n, start + int(block_size)))
+        yield rows, _run(plan, rows)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """A checked batch: stand, sample times, parameter rows, initial states and integrator options."""
+
+    rig: Rig
+    time: np.ndarray
+    params: np.ndarray
+    y0: np.ndarray
+    channels: tuple[str, ...]
+    index: np.ndarray
+    rtol: float
+    dtype: np.dtype
+    max_step: float
+    max_steps: int
+    device: str
+
+
+def _plan(mass, velocity, pressure_gauge, rig, overrides, duration, sample_rate, channels, rtol, dtype, max_step,
+          max_steps, device) -> _Plan:
     rig = get_rig(rig)
     rtol = _check_integrator("fast", rtol, max_step, max_steps)
+    device = gpu.resolve_device(device)
     channels = (channels,) if isinstance(channels, str) else tuple(channels)
     unknown = [c for c in channels if c not in d.CHANNELS]
     if unknown or not channels:
         raise ParameterError(f"channels must be a non-empty subset of {list(d.CHANNELS)}, got {list(channels)}")
     t = sample_times(duration, sample_rate)
-    params = pack_batch(rig, mass, velocity, pressure_gauge, overrides)
-    y0 = initial_states(params)
-    index = np.array([d.CHANNELS.index(c) for c in channels], dtype=np.int64)
     dtype = np.dtype(np.float64 if dtype is None else dtype)
     if dtype not in (np.float32, np.float64):
         raise ParameterError(f"dtype must be float32 or float64, got {dtype}")
-    out = np.empty((params.shape[0], index.size, t.size), dtype=dtype)
+    params = pack_batch(rig, mass, velocity, pressure_gauge, overrides)
+    index = np.array([d.CHANNELS.index(c) for c in channels], dtype=np.int64)
+    return _Plan(rig=rig, time=t, params=params, y0=initial_states(params), channels=channels, index=index,
+                 rtol=rtol, dtype=dtype, max_step=float(max_step), max_steps=int(max_steps), device=device)
+
+
+def _run(plan: _Plan, rows: slice) -> BatchResult:
+    """Integrate the scenarios ``rows`` of ``plan``."""
+    params, y0, t, index = plan.params[rows], plan.y0[rows], plan.time, plan.index
+    atol = absolute_tolerance(plan.rtol)
+    out = np.empty((params.shape[0], index.size, t.size), dtype=plan.dtype)
     status = np.zeros(params.shape[0], dtype=np.int64)
     steps = np.zeros(params.shape[0], dtype=np.int64)
-    # the kernel writes float64; narrower output goes through one float64 buffer, a chunk of scenarios at a time
-    chunk = params.shape[0] if dtype == np.float64 else max(1, _CHUNK_BYTES // (8 * index.size * t.size))
-    buffer = None if dtype == np.float64 else np.empty((min(chunk, params.shape[0]), index.size, t.size))
-    for start in range(0, params.shape[0], chunk):
-        rows = slice(start, start + chunk)
-        target = out[rows] if buffer is None else buffer[:out[rows].shape[0]]
-        fast.integrate_batch(params[rows], y0[rows], t, index, rtol, absolute_tolerance(rtol), float(max_step),
-                             int(max_steps), target, status[rows], steps[rows])
-        if buffer is not None:
-            out[rows] = target
+    if plan.device == "gpu":  # the device writes the storage type itself, a memory-bounded block at a time
+        gpu.integrate_batch(params, y0, t, index, plan.rtol, atol, plan.max_step, plan.max_steps, out, status,
+                            steps)
+    else:
+        # the kernel writes float64; narrower output goes through one float64 buffer, a chunk of scenarios at a time
+        chunk = params.shape[0] if plan.dtype == np.float64 else max(1, _CHUNK_BYTES // (8 * index.size * t.size))
+        buffer = None if plan.dtype == np.float64 else np.empty((min(chunk, params.shape[0]), index.size, t.size))
+        for start in range(0, params.shape[0], chunk):
+            part = slice(start, start + chunk)
+            target = out[part] if buffer is None else buffer[:out[part].shape[0]]
+            fast.integrate_batch(params[part], y0[part], t, index, plan.rtol, atol, plan.max_step, plan.max_steps,
+                                 target, status[part], steps[part])
+            if buffer is not None:
+                out[part] = target
     bad = np.flatnonzero(status != fast.OK)
     if bad.size:
         i = int(bad[0])
@@ -222,9 +302,9 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
                               f"scenario(s), first: mass={float(params[i, d.MASS])!r} kg, "
                               f"velocity={float(params[i, d.VELOCITY])!r} m/s, "
                               f"pressure_gauge={float(params[i, d.PRESSURE_GAUGE])!r} Pa")
-    return BatchResult(time=t, data={c: out[:, j, :] for j, c in enumerate(channels)},
+    return BatchResult(time=t, data={c: out[:, j, :] for j, c in enumerate(plan.channels)},
                        mass=params[:, d.MASS].copy(), velocity=params[:, d.VELOCITY].copy(),
-                       pressure_gauge=params[:, d.PRESSURE_GAUGE].copy(), params=params, steps=steps, rig=rig)
+                       pressure_gauge=params[:, d.PRESSURE_GAUGE].copy(), params=params, steps=steps, rig=plan.rig)
 
 
 def compare_integrators(mass, velocity, pressure_gauge, rig: Rig | None = None, *, duration: float = 0.05,
@@ -243,3 +323,15 @@ def compare_integrators(mass, velocity, pressure_gauge, rig: Rig | None = None, 
         states = reference.integrate(p, y0, batch.time, rtol=ref_rtol, atol=absolute_tolerance(ref_rtol))
         reference_force[i] = reference.channels_of(states, p)[d.CHANNELS.index("contact_force")]
     return reference.agreement(batch["contact_force"], reference_force, batch.time)
+
+
+def compare_devices(mass, velocity, pressure_gauge, rig: Rig | None = None, *, device: str = "gpu",
+                    duration: float = 0.05, sample_rate: float = 200e3,
+                    rtol: float | None = None) -> reference.Agreement:
+    """Agreement of the batch on ``device`` with the CPU batch on a set of scenarios (contact force histories).
+
+    Both are sampled at the same instants; see :func:`.reference.agreement` for the measures (relative to the CPU).
+    """
+    cpu, other = (simulate_batch(mass, velocity, pressure_gauge, rig, duration=duration, sample_rate=sample_rate,
+                                 channels=("contact_force",), rtol=rtol, device=name) for name in ("cpu", device))
+    return reference.agreement(other["contact_force"], cpu["contact_force"], cpu.time)

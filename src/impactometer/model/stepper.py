@@ -6,7 +6,7 @@ right after a rejection) and the same initial step selection, so that a given ``
 accuracy everywhere. Two systems share it (``system`` argument):
 
 - ``PLAIN``: the drop-stand model (:func:`.dynamics.rhs`) with the constant valve opening of its parameters;
-- ``ACTUATED``: the model plus valve Z's actuator (:func:`.actuated.rhs`), whose opening is one more state and whose
+- ``ACTUATED``: the model plus valve Z's actuator (:func:`.actuated.derivatives`), whose opening is one more state and whose
   command is held in the input vector ``u`` (a zero-order hold between controller samples).
 
 :func:`plain.integrate_one <.fast.integrate_one>` samples a whole record through the method's continuous extension;
@@ -66,7 +66,7 @@ def evaluate(system, y, p, u, dy):
     if system == PLAIN:
         d.rhs(y, p, p[d.VALVE_AREA], dy)
     else:
-        actuated.rhs(y, p, u, dy)
+        actuated.derivatives(y, p, u, dy)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -80,10 +80,13 @@ def rms(x, scale):
 
 
 @njit(cache=True, error_model="numpy")
-def initial_step(system, p, u, y0, f0, t_end, rtol, atol, max_step, work, f1):
-    """First step size [s], as scipy's ``select_initial_step`` (Hairer, Nørsett & Wanner, Sec. II.4)."""
+def initial_step(system, p, u, y0, f0, t_end, rtol, atol, max_step, work, f1, scale):
+    """First step size [s], as scipy's ``select_initial_step`` (Hairer, Nørsett & Wanner, Sec. II.4).
+
+    ``work``, ``f1`` and ``scale`` are scratch arrays of the state's size (nothing is allocated, so that the step
+    compiles for any numba target).
+    """
     n = y0.size
-    scale = np.empty(n)
     for i in range(n):
         scale[i] = atol[i] + abs(y0[i]) * rtol
     d0 = rms(y0, scale)
@@ -157,7 +160,7 @@ def step(system, y, t, t_end, h_abs, p, u, rtol, atol, max_step, k):
     success ``k`` holds the step's stages and the new state (row NEW_STATE) and ``h_abs`` is the next step size
     proposed by the controller; :func:`accept` then moves the new state into ``y``.
     """
-    min_step = 10.0 * abs(np.nextafter(t, np.inf) - t)
+    min_step = 10.0 * abs(math.nextafter(t, math.inf) - t)
     if h_abs > max_step:
         h_abs = max_step
     elif h_abs < min_step:

@@ -16,8 +16,9 @@ from typing import Any
 import numpy as np
 
 from ..control import absorb
+from ..control.strategies import ALL as ALL_STRATEGIES
 from ..rig import ABSORPTION_RIG, Scenario
-from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 from .tables import finite_values
 
 NAME = "absorption"
@@ -25,6 +26,9 @@ NAME = "absorption"
 GRID = 2
 DEFAULTS = {"noise": 0.02, "identification": "robust", "strategies": ["closed", "constant", "realtime",
                                                                        "predictive"]}
+SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
+            "identification": Setting("choice", choices=("robust", "paper", "oracle")),
+            "strategies": Setting("choices", choices=ALL_STRATEGIES)}
 #: the strategy run with the oracle, and the labels of the extra rows
 ORACLE_OF = "predictive"
 ORACLE = f"{ORACLE_OF} (oracle)"
@@ -174,4 +178,4 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Adaptive absorption judged on stage B: strategies, oracle, achievable R",
                        figure="Fig. 10b", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=_plot, chunk_size=1, defaults=DEFAULTS, rig=ABSORPTION_RIG))
+                       plot=_plot, chunk_size=1, defaults=DEFAULTS, settings=SETTINGS, rig=ABSORPTION_RIG))

@@ -21,13 +21,107 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, shown
 from ..rig import Rig, get_rig, to_dict
 
 Row = dict[str, Any]
 
 #: the paper's scenario ranges: M1 [kg], V0 [m/s], p0 [Pa gauge]
 PAPER_RANGES = MappingProxyType({"mass": (10.0, 50.0), "velocity": (1.0, 3.0), "pressure_gauge": (20e3, 400e3)})
+#: largest values per grid axis, noise realisations per case, and grid scenarios times realisations
+MAX_GRID, MAX_SEEDS, MAX_SCENARIOS = 40, 100, 200_000
+#: longest list a study setting may hold
+MAX_SETTING_VALUES = 100
+
+
+@dataclass(frozen=True)
+class Setting:
+    """Type and range of a study setting (``--set STUDY.NAME=VALUE``).
+
+    ``kind`` is ``number``, ``numbers`` (a list; one number is taken as a list of one), ``integer``,
+    ``integers``, ``choice`` or ``choices``; numbers lie within [``low``, ``high``] (``low`` excluded when
+    ``low_open``) and may carry a unit of ``dimension`` (``"20kPa"``), converted to SI.
+    """
+
+    kind: str
+    low: float | None = None
+    high: float | None = None
+    dimension: str | None = None
+    choices: tuple[str, ...] = ()
+    low_open: bool = False
+
+    def check(self, key: str, value: Any) -> Any:
+        """``value`` checked and converted (SI, plain Python types); ParameterError naming ``key`` otherwise."""
+        many = self.kind in ("numbers", "integers", "choices")
+        values = value if isinstance(value, list) else [value]
+        if not many and isinstance(value, list):
+            raise ParameterError(f"--set {key} must be one {self.kind}, got a list {_short(value)}")
+        if not values or len(values) > MAX_SETTING_VALUES:
+            raise ParameterError(f"--set {key} must hold 1 to {MAX_SETTING_VALUES} values, got {len(values)}")
+        out = [self._one(key, v) for v in values]
+        return out if many else out[0]
+
+    def _one(self, key: str, value: Any) -> Any:
+        if self.kind in ("choice", "choices"):
+            if value not in self.choices:
+                raise ParameterError(f"--set {key} must be one of {list(self.choices)}, got {_short(value)}")
+            return value
+        integer = self.kind in ("integer", "integers")
+        if integer and (isinstance(value, bool) or not isinstance(value, int)):
+            raise ParameterError(f"--set {key} must be an integer, got {_short(value)}")
+        if isinstance(value, (dict, list, type(None))) or (isinstance(value, str) and (self.dimension is None
+                                                                                      or len(value) > 40)):
+            raise ParameterError(f"--set {key} must be a number{_unit_hint(self.dimension)}, got {_short(value)}")
+        from ..units import parse_quantity
+
+        number = parse_quantity(value, self.dimension or "number", field=f"--set {key}")
+        below = self.low is not None and (number <= self.low if self.low_open else number < self.low)
+        if below or (self.high is not None and number > self.high):
+            bounds = f"{'(' if self.low_open else '['}{self.low:g}, {self.high:g}]"
+            unit = _SI.get(self.dimension or "", "")
+            raise ParameterError(f"--set {key} must lie within {bounds}{' ' + unit if unit else ''}, got "
+                                 f"{_short(value)}")
+        return int(number) if integer else number
+
+
+_SI = {"pressure": "Pa", "velocity": "m/s", "frequency": "Hz", "time": "s"}
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value) if isinstance(value, (list, dict, str, int, float, bool, type(None))) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _unit_hint(dimension: str | None) -> str:
+    return f" (with an optional {dimension} unit)" if dimension else ""
+
+
+#: the setting every study has: cases per persisted chunk
+CHUNK_SIZE = Setting("integer", 1, 100_000)
+
+
+def check_params(params: Mapping[str, Any]) -> dict[str, Any]:
+    """Study settings ``{"STUDY.SETTING": value}`` checked against each study's settings and converted (SI).
+
+    An unknown study or setting is an error, and so is a value of the wrong type or out of range.
+    """
+    if not params:
+        return {}
+    from . import load_studies
+
+    load_studies()
+    out = {}
+    for key, value in params.items():
+        study_name, dot, name = str(key).partition(".")
+        if not isinstance(key, str) or not dot or not name:
+            raise ParameterError(f"--set must look like STUDY.SETTING=VALUE, got {_short(key)}")
+        study = get_study(study_name)
+        spec = CHUNK_SIZE if name == "chunk_size" else study.settings.get(name)
+        if spec is None:
+            known = ", ".join(f"{study_name}.{s}" for s in [*study.settings, "chunk_size"])
+            raise ParameterError(f"--set: unknown setting {key!r}; study {study_name!r} has {known}")
+        out[key] = spec.check(key, value)
+    return out
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,20 +162,24 @@ class StudyOptions:
             raise ParameterError(f"rig_is_default must be True or False, got {self.rig_is_default!r}")
         if not isinstance(self.rig, Rig):
             raise ParameterError(f"rig must be a Rig, got {self.rig!r}")
-        for name, least in (("seed", 0), ("grid", 2), ("seeds", 1)):
+        for name, least, most in (("seed", 0, 2**63 - 1), ("grid", 2, MAX_GRID), ("seeds", 1, MAX_SEEDS)):
             value = getattr(self, name)
             if name == "grid" and value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-                raise ParameterError(f"{name} must be an integer >= {least}, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not least <= value <= most:
+                raise ParameterError(f"{name} must be an integer within [{least}, {most}], got {shown(value)}")
+        if (self.grid or 5) ** 3 * self.seeds > MAX_SCENARIOS:
+            raise ParameterError(f"grid³ × seeds must be at most {MAX_SCENARIOS} scenarios, got "
+                                 f"{self.grid or 5}³ × {self.seeds} = {(self.grid or 5) ** 3 * self.seeds}")
         for name, low, high in (("noise", 0.0, 1.0), ("sample_rate", 1e3, 1e7), ("duration", 1e-3, 1.0),
                                 ("pre_trigger", 0.0, 0.1)):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                     or not low <= value <= high:
-                raise ParameterError(f"{name} must be a number within [{low:g}, {high:g}], got {value!r}")
+                raise ParameterError(f"{name} must be a number within [{low:g}, {high:g}], got {shown(value)}")
         if not isinstance(self.params, Mapping):
             raise ParameterError(f"params must be a mapping of setting -> value, got {self.params!r}")
+        object.__setattr__(self, "params", check_params(self.params))
 
     def param(self, study: str, name: str, default: Any) -> Any:
         """Study setting ``study.name`` from ``params``, else ``default``."""
@@ -95,8 +193,11 @@ class StudyOptions:
                 "params": {k: self.params[k] for k in sorted(self.params)}}
 
     def key(self, study: str) -> str:
-        """Fingerprint of these options for ``study`` (persisted chunks are valid only under the same key)."""
-        text = json.dumps({"study": study, **self.to_dict()}, sort_keys=True, default=repr)
+        """Fingerprint of these options for ``study`` (persisted chunks are valid only under the same key); the
+        settings of other studies do not enter it."""
+        data = self.to_dict()
+        data["params"] = {k: v for k, v in data["params"].items() if k.partition(".")[0] == study}
+        text = json.dumps({"study": study, **data}, sort_keys=True, default=repr)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
@@ -117,6 +218,7 @@ class Study:
     chunk_size : Cases per persisted chunk.
     requires : Modules the study needs; while one is missing the study is listed as unavailable.
     defaults : Study-specific settings and their defaults (override through ``StudyOptions.params``).
+    settings : The type and range of each setting in ``defaults`` (:class:`Setting`).
     rig : Name of the stand the study runs on when the options carry the default one (None: the options' stand).
     """
 
@@ -131,7 +233,13 @@ class Study:
     chunk_size: int = 25
     requires: tuple[str, ...] = ()
     defaults: Mapping[str, Any] = field(default_factory=dict)
+    settings: Mapping[str, Setting] = field(default_factory=dict)
     rig: str | None = None
+
+    def __post_init__(self) -> None:
+        unchecked = sorted(set(self.defaults) - set(self.settings))
+        if unchecked:
+            raise ParameterError(f"study {self.name!r}: settings {unchecked} have no type and range")
 
     def missing(self) -> list[str]:
         """Required modules that cannot be imported here."""
@@ -166,8 +274,8 @@ def register(study: Study) -> Study:
 
 def get_study(name: str) -> Study:
     """The registered study ``name``; an unknown name raises with the list of valid names."""
-    if name not in STUDIES:
-        raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {name!r}")
+    if not isinstance(name, str) or name not in STUDIES:
+        raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {shown(name)}")
     return STUDIES[name]
 
 

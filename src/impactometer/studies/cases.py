@@ -11,11 +11,14 @@ from functools import partial
 
 import numpy as np
 
-from .base import PAPER_RANGES, Row, Study, StudyOptions, grid_size, register
+from ..rig import VELOCITY_RANGE
+from .base import PAPER_RANGES, Row, Setting, Study, StudyOptions, grid_size, register
 from .identification import REQUIRES, by_method, evaluate_noisy, max_abs, pct, per_method, seeded_grid, with_failures
 
 NAME = "cases"
 DEFAULTS = {"pressures": [20e3, 100e3], "velocities": [1.0, 2.0, 3.0]}
+SETTINGS = {"pressures": Setting("numbers", 0.0, 1e8, "pressure"),
+            "velocities": Setting("numbers", 0.0, VELOCITY_RANGE[1], "velocity", low_open=True)}
 
 
 def _cases(options: StudyOptions) -> list[Row]:
@@ -49,4 +52,4 @@ STUDY = register(Study(name=NAME, title="Per-case mass and velocity error at cho
                        figure="Figs. 3-4", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
                        aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=5,
                        requires=REQUIRES,
-                       defaults=DEFAULTS))
+                       defaults=DEFAULTS, settings=SETTINGS))

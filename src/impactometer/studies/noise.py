@@ -7,7 +7,7 @@ and the realisation only. The paper finds force noise more harmful than accelera
 
 from __future__ import annotations
 
-from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 from .identification import (
     REQUIRES,
     by_method,
@@ -25,6 +25,7 @@ NAME = "noise"
 #: default values per grid axis (the paper's 125 scenarios)
 GRID = 5
 DEFAULTS = {"levels": [0.0, 0.02, 0.05, 0.1]}
+SETTINGS = {"levels": Setting("numbers", 0.0, 1.0, "fraction")}
 #: which channels get the noise
 TARGETS = {"force": ("contact_force",), "acceleration": ("piston_acceleration",),
            "both": ("contact_force", "piston_acceleration")}
@@ -76,4 +77,5 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Identification error vs Gaussian noise on force, acceleration, both",
                        figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate,
-                       summary=with_failures(_summary), plot=_plot, chunk_size=2, requires=REQUIRES, defaults=DEFAULTS))
+                       summary=with_failures(_summary), plot=_plot, chunk_size=2, requires=REQUIRES, defaults=DEFAULTS,
+                       settings=SETTINGS))

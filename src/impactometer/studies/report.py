@@ -152,7 +152,8 @@ def write_report(out: str | Path, *, force: bool = False) -> Path:
     out = Path(out)
     if not out.is_dir():
         raise ParameterError(f"--out: {str(out)!r} is not a folder of study runs")
-    return store.atomic_write(check_target(out, force=force), render(collect(out)))
+    with store.locked(out):
+        return store.atomic_write(check_target(out, force=force), render(collect(out)))
 
 
 def markdown(out: str | Path) -> str:

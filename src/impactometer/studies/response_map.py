@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .base import Row, Study, StudyOptions, register
+from ..identify.features import FEATURE_SETS
+from ..identify.response_map_search import SEARCHES
+from .base import Row, Setting, Study, StudyOptions, register
 from .tables import pick
 
 REQUIRES = ("impactometer.identify.response_map_study",)
@@ -18,8 +20,15 @@ MAP_SIZE = "map-size"
 WINDOW = "window"
 MAP_DEFAULTS = {"sizes": [10, 25, 50, 100, 250, 500, 1000, 2000, 2500, 3000], "grid125_sizes": [10, 50],
                 "features": ["peaks", "max-impulse"], "searches": ["brute", "fast"], "n_random": 10}
-WINDOW_DEFAULTS = {"windows": [round(0.002 * k, 3) for k in range(1, 16)], "sizes": [50], "searches": ["brute", "fast"],
-                   "n_random": 10}
+WINDOW_DEFAULTS = {"windows": [round(0.002 * k, 3) for k in range(1, 16)], "sizes": [50],
+                   "searches": ["brute", "fast"], "n_random": 10}
+_SIZES = Setting("integers", 2, 3000)
+_SEARCHES = Setting("choices", choices=tuple(SEARCHES))
+_N_RANDOM = Setting("integer", 1, 10_000)
+MAP_SETTINGS = {"sizes": _SIZES, "grid125_sizes": _SIZES, "features": Setting("choices", choices=tuple(FEATURE_SETS)),
+                "searches": _SEARCHES, "n_random": _N_RANDOM}
+WINDOW_SETTINGS = {"windows": Setting("numbers", 0.0, 0.1, "time", low_open=True), "sizes": _SIZES,
+                   "searches": _SEARCHES, "n_random": _N_RANDOM}
 
 
 def _setting(options: StudyOptions, study: str, defaults: dict, name: str):
@@ -144,8 +153,9 @@ def _window_plot(rows: list[Row], options: StudyOptions):
 STUDY_MAP = register(Study(name=MAP_SIZE, title="Response map: error and time per identification vs database size",
                            figure="Fig. 8", cases=_map_cases, evaluate=_map_evaluate, aggregate=_map_aggregate,
                            summary=_map_summary, plot=_map_plot, chunk_size=1, requires=REQUIRES,
-                           defaults=MAP_DEFAULTS))
+                           defaults=MAP_DEFAULTS, settings=MAP_SETTINGS))
 STUDY_WINDOW = register(Study(name=WINDOW, title="Response map: error vs integration window T (max-impulse)",
                               figure="Fig. 9", cases=_window_cases, evaluate=_window_evaluate,
                               aggregate=_window_aggregate, summary=_window_summary, plot=_window_plot,
-                              chunk_size=3, requires=REQUIRES, defaults=WINDOW_DEFAULTS))
+                              chunk_size=3, requires=REQUIRES, defaults=WINDOW_DEFAULTS,
+                              settings=WINDOW_SETTINGS))

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImpactometerError, ParameterError, SimulationError
+from ..outputs import check_folder
 from . import store
 from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases, options_for
 from .tables import to_csv
@@ -154,19 +155,33 @@ class _Dask:
         self.client.close()
 
 
-def backend(workers: int | None = None, scheduler: str | None = None):
-    """The executor for ``workers`` local processes (default: all cores) or a Dask ``scheduler`` address."""
+#: address schemes of a Dask scheduler reachable from another process
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def check_backend(workers: int | None = None, scheduler: str | None = None) -> None:
+    """ParameterError unless ``workers`` (an integer >= 1) or ``scheduler`` (``tcp://HOST:PORT``) is well formed;
+    nothing is started or contacted."""
     if scheduler is not None:
         if workers is not None:
             raise ParameterError(f"give either --workers or --scheduler, got workers={workers!r} and "
                                  f"scheduler={scheduler!r}")
-        if not isinstance(scheduler, str) or "://" not in scheduler:
-            raise ParameterError(f"--scheduler must be an address like tcp://HOST:PORT, got {scheduler!r}")
+        scheme, _, rest = scheduler.partition("://") if isinstance(scheduler, str) else ("", "", "")
+        host, _, port = rest.rpartition(":")
+        if scheme not in SCHEDULER_SCHEMES or not host or not port.isdigit() or not 0 < int(port) < 65536:
+            raise ParameterError(f"--scheduler must be an address like tcp://HOST:PORT (scheme "
+                                 f"{', '.join(SCHEDULER_SCHEMES)}), got {scheduler!r}")
+    elif workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ParameterError(f"--workers must be an integer >= 1, got {workers!r}")
+
+
+def backend(workers: int | None = None, scheduler: str | None = None):
+    """The executor for ``workers`` local processes (default: all cores) or a Dask ``scheduler`` address."""
+    check_backend(workers, scheduler)
+    if scheduler is not None:
         return _Dask(scheduler)
     if workers is None:
         workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ParameterError(f"--workers must be an integer >= 1, got {workers!r}")
     return _Serial() if workers == 1 else _Pool(workers)
 
 
@@ -210,14 +225,19 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
         raise ParameterError(f"options must be StudyOptions, got {options!r}")
     options = options_for(study, options)
     start = time.perf_counter()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_folder(out, "--out")
+    with store.locked(out):
+        return _run_locked(name, study, out, options, start, workers=workers, scheduler=scheduler, force=force,
+                           progress=progress, executor=executor)
+
+
+def _run_locked(name, study, out: Path, options: StudyOptions, start: float, *, workers, scheduler, force,
+                progress, executor) -> StudyRun:
+    """:func:`run_study` in ``out``, whose lock the caller holds."""
     key = options.key(name)
     folder = store.prepare_folder(out, name, key, options.to_dict(), force=force)
     cases = indexed_cases(study, options)
-    size = options.param(name, "chunk_size", study.chunk_size)
-    if isinstance(size, bool) or not isinstance(size, int) or size < 1:
-        raise ParameterError(f"{name}.chunk_size must be an integer >= 1, got {size!r}")
+    size = options.param(name, "chunk_size", study.chunk_size)  # checked with the options
     chunks = [cases[i:i + size] for i in range(0, len(cases), size)]
     results: dict[int, tuple[list[Row], float]] = {}
     for index, chunk in enumerate(chunks):
@@ -266,20 +286,22 @@ def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | N
     names = list(names)
     for name in names:
         get_study(name)
-    if report:
-        from .report import check_target
+    check_folder(out, "--out")
+    with store.locked(Path(out)):
+        if report:
+            from .report import check_target
 
-        check_target(out, force=force)
-    executor = backend(workers, scheduler)
-    try:
-        runs = [run_study(name, out, options, force=force, progress=progress, executor=executor)
-                for name in names]
-    finally:
-        executor.close()
-    if report:
-        from .report import write_report
+            check_target(out, force=force)
+        executor = backend(workers, scheduler)
+        try:
+            runs = [run_study(name, out, options, force=force, progress=progress, executor=executor)
+                    for name in names]
+        finally:
+            executor.close()
+        if report:
+            from .report import write_report
 
-        write_report(out, force=force)
+            write_report(out, force=force)
     return runs
 
 

@@ -6,7 +6,8 @@ above 30-40 kHz with outliers near 20 %, and recommends 50 kHz or more.
 
 from __future__ import annotations
 
-from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from ..sensors import MAX_SAMPLE_RATE, MIN_SAMPLE_RATE
+from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 from .identification import (
     REQUIRES,
     by_method,
@@ -25,6 +26,8 @@ NAME = "sampling"
 #: default values per grid axis (the paper's 125 scenarios)
 GRID = 5
 DEFAULTS = {"rates": [5e3, 10e3, 20e3, 30e3, 40e3, 50e3, 100e3, 200e3], "noise": 0.0}
+SETTINGS = {"rates": Setting("numbers", MIN_SAMPLE_RATE, MAX_SAMPLE_RATE, "frequency"),
+            "noise": Setting("number", 0.0, 1.0, "fraction")}
 
 
 def _cases(options: StudyOptions) -> list[Row]:
@@ -84,4 +87,4 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Mean and maximum error vs sampling frequency", figure="Fig. 7",
                        cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=with_failures(_summary),
-                       plot=_plot, chunk_size=7, requires=REQUIRES, defaults=DEFAULTS))
+                       plot=_plot, chunk_size=7, requires=REQUIRES, defaults=DEFAULTS, settings=SETTINGS))

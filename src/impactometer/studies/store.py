@@ -7,6 +7,7 @@ Layout of ``DIR``::
     DIR/<study>/manifest.json   the options the chunks belong to (their key)
     DIR/<study>/chunk-00003.json  finished chunks (rows + compute time)
     DIR/<study>/result.json     aggregate table, summary and timings, read by the report
+    DIR/.impactometer.lock      held by the run writing into DIR (a second run is refused)
 
 Every file is written to a temporary name in the same folder, flushed, synced and renamed with ``os.replace``:
 a killed run leaves either the previous file or the new one, never a half-written file under the final name.
@@ -18,15 +19,83 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from ..errors import ParameterError
+from ..outputs import write_failed
 
 MANIFEST = "manifest.json"
 RESULT = "result.json"
 SCHEMA = 1
+#: lock file of a study folder: held (an OS file lock) by the run writing into the folder
+LOCK = ".impactometer.lock"
+_held: dict[Path, int] = {}  # study folders this process holds -> nesting depth
+
+
+@contextmanager
+def locked(out: Path) -> Iterator[Path]:
+    """Hold the lock of study folder ``out`` (created if missing) while the block runs.
+
+    Two runs never write into one folder at once: a second run, in this or another process, is refused with a
+    ParameterError naming the process that holds the folder. The lock is the operating system's (flock), so a
+    killed run leaves nothing to clean up. Nested use in the same process (a run writing its report) is allowed.
+    """
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    key = out.resolve()
+    if key in _held:
+        _held[key] += 1
+        try:
+            yield out
+        finally:
+            _held[key] -= 1
+        return
+    try:
+        handle = open(out / LOCK, "a+", encoding="utf-8")  # noqa: SIM115 - held open for the whole run
+    except OSError as exc:
+        raise write_failed(out / LOCK, exc) from None
+    try:
+        if not _try_lock(handle):
+            handle.seek(0)
+            holder = handle.read().strip() or "another process"
+            raise ParameterError(f"--out: {str(out)!r} is being written by another study run ({holder}); wait "
+                                 "for it to finish or choose another --out")
+        handle.seek(0)
+        handle.truncate()
+        handle.write(f"process {os.getpid()}")
+        handle.flush()
+        _held[key] = 1
+        try:
+            yield out
+        finally:
+            del _held[key]
+    finally:
+        handle.close()  # releases the lock
+
+
+def _try_lock(handle) -> bool:
+    """Take an exclusive lock on an open file without waiting; False when another holds it."""
+    if sys.platform == "win32":  # pragma: no cover - Windows
+        import msvcrt
+
+        try:
+            handle.seek(0)
+            msvcrt.locking(handle.fileno(), msvcrt.LK_NBLCK, 1)
+        except OSError:
+            return False
+        return True
+    import fcntl
+
+    try:
+        fcntl.flock(handle.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False
+    return True
 
 
 def atomic_write(path: Path, data: str | bytes) -> Path:
@@ -34,7 +103,10 @@ def atomic_write(path: Path, data: str | bytes) -> Path:
     path = Path(path)
     mode = "wb" if isinstance(data, bytes) else "w"
     options: dict[str, Any] = {} if mode == "wb" else {"encoding": "utf-8"}
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise write_failed(path, exc) from None
     try:
         with os.fdopen(fd, mode, **options) as handle:
             handle.write(data)
@@ -42,8 +114,10 @@ def atomic_write(path: Path, data: str | bytes) -> Path:
             os.fsync(handle.fileno())
         os.chmod(tmp, 0o644)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         Path(tmp).unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise write_failed(path, exc) from None
         raise
     return path
 

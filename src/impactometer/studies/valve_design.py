@@ -16,7 +16,7 @@ import numpy as np
 from ..control import Absorber, ValveDrive, absorb
 from ..control.valve import iso6358_valve
 from ..rig import ABSORPTION_RIG, Scenario
-from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 from .tables import finite_values
 
 NAME = "valve-design"
@@ -24,6 +24,10 @@ NAME = "valve-design"
 GRID = 3
 DEFAULTS = {"areas_mm2": [25, 50, 100, 200, 400], "response_times_ms": [1, 2, 3, 5, 10], "dead_time_ms": 0.5,
             "noise": 0.02, "strategy": "predictive"}
+SETTINGS = {"areas_mm2": Setting("numbers", 0.0, 1e4, low_open=True), "response_times_ms": Setting("numbers", 0.0, 1e3,
+                                                                                                  low_open=True),
+            "dead_time_ms": Setting("number", 0.0, 50.0), "noise": Setting("number", 0.0, 1.0, "fraction"),
+            "strategy": Setting("choice", choices=("realtime", "predictive"))}
 #: the stage-B force ratio the designer asks for (median over the impacts)
 TARGET = 1.1
 
@@ -111,4 +115,4 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Valve design: stage-B force ratio over valve size and response time",
                        figure="", cases=_cases, evaluate=_evaluate, aggregate=_valves, summary=_summary,
-                       plot=_plot, chunk_size=5, defaults=DEFAULTS, rig=ABSORPTION_RIG))
+                       plot=_plot, chunk_size=5, defaults=DEFAULTS, settings=SETTINGS, rig=ABSORPTION_RIG))

@@ -1,0 +1,116 @@
+"""Output targets: checked before any work starts, and write failures reported in one line.
+
+Every command and writer that saves something checks its target first -- a file name (not a folder), in an existing,
+writable folder, with a supported extension, not replacing an existing file unless asked -- so that a bad target
+costs nothing, and turns an ``OSError`` while writing (disk full, permissions changed meanwhile) into an
+:class:`~impactometer.errors.OutputError` naming the target.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import OutputError, ParameterError
+
+
+def as_path(value: Any, field: str = "path", *, error: type[Exception] = ParameterError) -> Path:
+    """``value`` (a str or an os.PathLike) as a Path; ``error`` naming ``field`` for anything else."""
+    if isinstance(value, Path):
+        return value
+    if isinstance(value, str) or (isinstance(value, os.PathLike) and isinstance(os.fspath(value), str)):
+        if "\x00" in str(value):
+            raise error(f"{field} must be a file name without NUL characters, got {str(value)[:60]!r}")
+        return Path(value)
+    raise error(f"{field} must be a file name (str or path), got {type(value).__name__}")
+
+
+def figure_formats() -> list[str]:
+    """File extensions matplotlib can save figures as (``.png``, ``.pdf``, ``.svg`` ...)."""
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    return sorted(f".{ext}" for ext in FigureCanvasBase.get_supported_filetypes())
+
+
+def _writable(folder: Path) -> bool:
+    return os.access(folder, os.W_OK | os.X_OK)
+
+
+def check_file(path: str | Path, field: str | None = None, *, overwrite: bool = False,
+               extensions: Iterable[str] | None = None, flag: str = "--force",
+               error: type[Exception] = ParameterError) -> Path:
+    """``path`` as a file target: not a folder, in an existing writable folder, with one of ``extensions``
+    (case-insensitive) and, unless ``overwrite``, not an existing file; ``error`` naming ``field`` otherwise.
+
+    ``flag`` is what the message tells the caller to pass to replace an existing file.
+    """
+    path = as_path(path, field or "path", error=error)
+    if not isinstance(overwrite, (bool, np.bool_)):
+        raise error(f"overwrite must be True or False, got {type(overwrite).__name__}")
+    prefix = f"{field}: " if field else ""
+    if path.is_dir():
+        raise error(f"{prefix}{str(path)!r} is a folder; expected a file name")
+    if extensions is not None:
+        allowed = sorted({e.lower() for e in extensions})
+        found = f"extension {path.suffix!r}" if path.suffix else "no extension"
+        if path.suffix.lower() not in allowed:
+            raise error(f"{prefix}{str(path)!r} has {found}; expected one of {', '.join(allowed)}")
+    if path.exists() and not overwrite:
+        raise error(f"{prefix}{str(path)!r} exists; pass {flag} to overwrite it")
+    folder = path.parent
+    if not folder.exists():
+        raise error(f"{prefix}folder {str(folder)!r} does not exist")
+    if not folder.is_dir():
+        raise error(f"{prefix}{str(folder)!r} is not a folder")
+    if not _writable(folder) or (path.exists() and not os.access(path, os.W_OK)):
+        raise error(f"{prefix}cannot write {str(path)!r} (permission denied); expected a writable folder")
+    return path
+
+
+def check_folder(path: str | Path, field: str) -> Path:
+    """``path`` as an output folder: an existing writable folder, or one that can be created (its nearest existing
+    parent a writable folder). ParameterError naming ``field`` otherwise."""
+    path = Path(path)
+    if path.exists():
+        if not path.is_dir():
+            raise ParameterError(f"{field}: {str(path)!r} exists and is not a folder; expected a folder")
+        if not _writable(path):
+            raise ParameterError(f"{field}: cannot write into {str(path)!r} (permission denied); expected a "
+                                 "writable folder")
+        return path
+    parent = path.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise ParameterError(f"{field}: cannot create {str(path)!r}: {str(parent)!r} is not a folder")
+    if not _writable(parent):
+        raise ParameterError(f"{field}: cannot create {str(path)!r} in {str(parent)!r} (permission denied); "
+                             "expected a writable folder")
+    return path
+
+
+def write_failed(path: str | Path, exc: OSError) -> OutputError:
+    """The one-line error for an ``OSError`` raised while writing ``path``."""
+    reason = exc.strerror or " ".join(str(exc).split()) or type(exc).__name__
+    return OutputError(f"cannot write {str(path)!r}: {reason}")
+
+
+def save_figure(fig, path: str | Path, *, dpi: int = 120) -> Path:
+    """Save a matplotlib figure (format from the extension) next to ``path`` and rename it into place; close it."""
+    from .plotting import _pyplot
+
+    path = Path(path)
+    temporary = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
+    try:
+        fig.savefig(temporary, dpi=dpi)
+        os.replace(temporary, path)
+    except OSError as exc:
+        temporary.unlink(missing_ok=True)
+        raise write_failed(path, exc) from None
+    finally:
+        _pyplot().close(fig)
+    return path

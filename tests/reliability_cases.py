@@ -1,0 +1,394 @@
+"""The cases of the reliability corpus: damaged recordings, stands, maps, options and output targets, built from one
+simulated impact (see :mod:`reliability_corpus` for how a run is judged)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+import numpy as np
+import scipy.io
+
+from impactometer.cli import main
+from impactometer.io import write_recording
+from impactometer.recording import Recording
+from impactometer.rig import Scenario
+from impactometer.sensors import record
+from reliability_corpus import FS, Case, write_csv, write_h5, write_tdms
+
+
+class Corpus:
+    """The cases, built in ``folder`` from one simulated impact (30 kg at 1.98 m/s, 50 kHz, 1 % noise)."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3)
+        self.rec = record(scenario, sample_rate=FS, duration=0.1, noise=0.01, seed=1, pre_trigger=0.05)
+        self.truth = (self.rec.truth("mass_kg"), self.rec.truth("velocity_m_s"))
+        self.f, self.a = self.rec.contact_force, self.rec.piston_acceleration
+        self.base = write_recording(self.rec, self.folder / "base.h5", overwrite=True)
+        self.map = self.folder / "map.h5"
+        if not self.map.exists():
+            main(["map", "build", "--out", str(self.map), "--grid", "8x8"])
+
+    def path(self, name: str) -> Path:
+        return self.folder / name
+
+    def recording(self, name: str, force, acceleration, **metadata) -> Path:
+        rec = Recording(sample_rate=FS, channels={"contact_force": force, "piston_acceleration": acceleration},
+                        start_time=self.rec.start_time, metadata={**self.rec.metadata, **metadata})
+        return write_recording(rec, self.path(name), overwrite=True)
+
+    def cases(self) -> list[Case]:
+        out: list[Case] = []
+        for build in (self.stream_vs_identify, self.another_stand, self.duplicated, self.outputs, self.settings,
+                      self.rates, self.maps, self.truth_metadata, self.implausible, self.smaller, self.stands,
+                      self.csv_structure, self.contents, self.options):
+            out += build()
+        return out
+
+    # 1 --------------------------------------------------------------------------------------------------------
+    def stream_vs_identify(self) -> list[Case]:
+        t, f, a = self.rec.time, self.f, self.a
+        square = np.sign(np.sin(2 * np.pi * 60 * t))
+        rng = np.random.default_rng(2)
+        damaged = {"clipped force": (np.minimum(f, 0.3 * f.max()), a), "reversed acceleration": (f, -a),
+                   "square-wave acceleration": (f, 50.0 * square), "zero acceleration": (f, 0 * a),
+                   "square-wave force": (3e3 * (square > 0), a),
+                   "force spike": (f + 1e6 * (np.arange(f.size) == 4000), a),
+                   "force offset": (f + 5e3, a), "intact": (f, a), "acceleration ×1000": (f, 1e3 * a),
+                   "force and acceleration swapped": (a, f),
+                   "noise only": (rng.normal(0, 20, f.size), rng.normal(0, 5, a.size))}
+        out = []
+        for i, (label, (force, acceleration)) in enumerate(damaged.items()):
+            path = self.recording(f"stream{i}.h5", force, acceleration)
+            expect = "answer" if label in ("intact", "force offset") else "either"
+            out.append(Case("stream vs identify", f"identify: {label}", ["identify", str(path), "--json"], expect,
+                            self.truth))
+            out.append(Case("stream vs identify", f"stream: {label}", ["stream", str(path), "--json"], expect,
+                            self.truth, same_as=f"identify: {label}"))
+        return out
+
+    # 2 --------------------------------------------------------------------------------------------------------
+    def another_stand(self) -> list[Case]:
+        stands = {"heavier piston": "[cylinder]\npiston_mass = 8.0\n", "more friction": "[friction]\nforce = 80.0\n",
+                  "softer contact": "[contact]\nstiffness = 1e6\n", "same stand, other name": 'name = "lab-B"\n'}
+        out = []
+        for i, (label, toml) in enumerate(stands.items()):
+            stand = self.path(f"stand{i}.toml")
+            stand.write_text(toml)
+            path = self.path(f"stand{i}.h5")
+            main(["record", "--out", str(path), "--rig", str(stand), "--noise", "1%", "--seed", "1", "--force"])
+            out.append(Case("map of another stand", label, ["identify", str(path), "--method", "response-map",
+                                                              "--map", str(self.map), "--json"],
+                            "answer" if "same stand" in label else "refuse", self.truth))
+        return out
+
+    # 3 --------------------------------------------------------------------------------------------------------
+    def duplicated(self) -> list[Case]:
+        ch = {"contact_force": self.f, "piston_acceleration": self.a}
+        files = {
+            "HDF5 fs and sample_rate": write_h5(self.path("dup0.h5"), ch, {"fs": 50000, "sample_rate": 10000}),
+            "HDF5 root and group rate": write_h5(self.path("dup1.h5"), ch, {"fs": 50000}, group="g",
+                                                 group_attrs={"fs": 10000}),
+            "HDF5 dt and fs": write_h5(self.path("dup2.h5"), ch, {"fs": 50000, "dt": 1e-4}),
+            "HDF5 start_time and t0": write_h5(self.path("dup3.h5"), ch, {"fs": 5e4, "start_time": -0.05, "t0": 0.0}),
+            "HDF5 truth in attribute and JSON": write_h5(self.path("dup4.h5"), ch, {
+                "fs": 5e4, "mass_kg": 3.0, "metadata": json.dumps({"mass_kg": 30.0})}),
+            "TDMS channel and group rate": write_tdms(self.path("dup5.tdms"), ch, channel_props={"wf_increment": 2e-5},
+                                                      group_props={"sample_rate": 1e4}),
+            "CSV time column and sidecar rate": write_csv(self.path("dup6.csv"), {
+                "time [s]": self.rec.time, "force [N]": self.f, "acc [m/s^2]": self.a}, sidecar={"sample_rate": 1e4}),
+        }
+        variables = {"force": self.f, "acc": self.a, "fs": 5e4, "dt": 1e-4}
+        scipy.io.savemat(self.path("dup7.mat"), variables)
+        files["MAT fs and dt"] = self.path("dup7.mat")
+        return [Case("duplicated statements", f"{command}: {label}", [command, str(path)])
+                for label, path in files.items() for command in ("identify", "inspect")]
+
+    # 5 --------------------------------------------------------------------------------------------------------
+    def outputs(self) -> list[Case]:
+        folder = self.path("targets")
+        folder.mkdir(exist_ok=True)
+        existing = folder / "kept.png"
+        if not existing.exists():
+            existing.write_bytes(b"a figure worth keeping")
+        kept_csv = folder / "kept.csv"
+        if not kept_csv.exists():
+            kept_csv.write_text("time,force\n0,1\n")
+        plain_file = folder / "a-file"
+        plain_file.write_text("not a folder")
+        base = str(self.base)
+        cases = {
+            "figure extension .xyz": ["identify", base, "--plot", str(folder / "fig.xyz")],
+            "figure without extension": ["inspect", base, "--plot", str(folder / "fig")],
+            "figure target is a folder, --force": ["identify", base, "--plot", str(folder), "--force"],
+            "recording target is a folder, --force": ["record", "--out", str(folder), "--force"],
+            "recording with unknown extension": ["record", "--out", str(folder / "x.xlsx")],
+            "existing figure without --force": ["inspect", base, "--plot", str(existing)],
+            "existing recording without --force": ["record", "--out", str(kept_csv)],
+            "folder that does not exist": ["simulate", "--out", str(folder / "none" / "x.h5")],
+            "study --out names a file": ["study", "peak-force", "--out", str(plain_file), "--grid", "2"],
+            "demo --out names a file": ["demo", "--out", str(plain_file), "--no-absorb"],
+            "map --out is a folder": ["map", "build", "--out", str(folder), "--grid", "3", "--force"],
+            "identify --plot with a response map": ["identify", base, "--method", "response-map", "--map",
+                                                    str(self.map), "--plot", str(folder / "f.png")],
+        }
+        return [Case("output targets", label, argv, protect=(existing, kept_csv, plain_file))
+                for label, argv in cases.items()]
+
+    # 6 --------------------------------------------------------------------------------------------------------
+    def settings(self) -> list[Case]:
+        out_dir = str(self.path("study"))
+        sets = ["noise.levels=[]", "noise.levels=[-1]", "noise.levels=[NaN]", 'noise.levels="abc"', "noise.levels=abc",
+                "peak-force.nope=1", "nope.levels=1", "noise=1", "noise.levels=[1e999]", "sampling.rates=[1e9]",
+                "map-size.sizes=[2.5]", "map-size.features=[\"fft\"]", "absorption.identification=\"x\"",
+                "noise.levels=" + "[" * 3000, "cases.velocities=[30]", "noise.chunk_size=0", "window.windows=[-1]"]
+        cases = [Case("study settings", f"--set {s[:40]}", ["study", "noise", "--out", out_dir, "--set", s])
+                 for s in sets]
+        for option, value in (("--grid", "1000"), ("--grid", "1"), ("--grid", "-3"), ("--seeds", "0"),
+                              ("--seeds", "100000"), ("--seed", "-1"), ("--noise", "200%"), ("--sample-rate", "1GHz"),
+                              ("--duration", "1e9s"), ("--pre-trigger", "-1ms"), ("--workers", "0")):
+            cases.append(Case("study settings", f"{option} {value}", ["study", "noise", "--out", out_dir, option,
+                                                                        value]))
+        return cases
+
+    # 7 --------------------------------------------------------------------------------------------------------
+    def rates(self) -> list[Case]:
+        bare = write_csv(self.path("bare.csv"), {"force [N]": self.f, "acc [m/s^2]": self.a})
+        out = [Case("sample rates", f"--sample-rate {rate}", ["identify", str(bare), "--sample-rate", rate, "--json"],
+                    "either", self.truth)
+               for rate in ("1mHz", "1e308", "1e20", "1THz", "0", "-1", "nan", "fast", "1GHz", "1e-300", "1mhz",
+                            "50kHz")]
+        # a rate within range but not the file's: the answer is right for the data as stated (time runs 20 times
+        # faster, V0 comes out 20 times smaller); nothing in the signals tells
+        out.append(Case("sample rates", "--sample-rate 1MHz", ["identify", str(bare), "--sample-rate", "1MHz",
+                                                               "--json"], "answer"))
+        ch = {"contact_force": self.f, "piston_acceleration": self.a}
+        files = {"HDF5 fs = 1e300": write_h5(self.path("rate0.h5"), ch, {"fs": 1e300}),
+                 "HDF5 fs = 1e19": write_h5(self.path("rate1.h5"), ch, {"fs": 1e19}),
+                 "HDF5 fs = 1 GHz": write_h5(self.path("rate2.h5"), ch, {"fs": 1e9}),
+                 "HDF5 fs = '50k'": write_h5(self.path("rate3.h5"), ch, {"fs": "50k"}),
+                 "HDF5 fs = NaN": write_h5(self.path("rate4.h5"), ch, {"fs": np.nan}),
+                 "TDMS wf_increment = 1e-300": write_tdms(self.path("rate5.tdms"), ch,
+                                                          channel_props={"wf_increment": 1e-300}),
+                 "CSV time spacing 1e-300": write_csv(self.path("rate6.csv"), {
+                     "time [s]": np.arange(self.f.size) * 1e-300, "force [N]": self.f, "acc [m/s^2]": self.a})}
+        scipy.io.savemat(self.path("rate7.mat"), {"force": self.f, "acc": self.a, "fs": 1e300})
+        files["MAT fs = 1e300"] = self.path("rate7.mat")
+        out += [Case("sample rates", label, ["identify", str(path), "--json"], "either", self.truth)
+                for label, path in files.items()]
+        out.append(Case("sample rates", "stream, HDF5 fs = 1e19", ["stream", str(files["HDF5 fs = 1e19"])]))
+        out.append(Case("sample rates", "simulate --sample-rate 1THz", ["simulate", "--sample-rate", "1THz"]))
+        out.append(Case("sample rates", "record --sample-rate 1mHz", ["record", "--out", str(self.path("r.csv")),
+                                                                      "--sample-rate", "1mHz", "--force"]))
+        return out
+
+    # 8 --------------------------------------------------------------------------------------------------------
+    def maps(self) -> list[Case]:
+        edits = {"schema_version 'abc'": ("schema_version", "abc"), "schema_version NaN": ("schema_version", np.nan),
+                 "schema_version array": ("schema_version", np.arange(3)), "schema_version 2": ("schema_version", 2),
+                 "sample_rate '50k'": ("sample_rate", "50k"), "sample_rate array": ("sample_rate", np.ones(3)),
+                 "sample_rate 1e300": ("sample_rate", 1e300), "sample_rate 25 kHz": ("sample_rate", 25e3),
+                 "feature_set 'fft'": ("feature_set", "fft"), "rig JSON too deep": ("rig", "[" * 100000),
+                 "rig of another stand": ("rig", None),
+                 "feature_params window -1": ("feature_params", '{"window": -1}'),
+                 "provenance not JSON": ("provenance", "{"), "values doubled": ("values", None)}
+        out = []
+        for i, (label, (key, value)) in enumerate(edits.items()):
+            path = self.path(f"map{i}.h5")
+            path.write_bytes(self.map.read_bytes())
+            with h5py.File(path, "r+") as h5:
+                if key == "values":
+                    h5["values"][...] = 2.0 * h5["values"][()]
+                elif key == "rig":
+                    stand = json.loads(h5.attrs["rig"])
+                    stand["cylinder"]["piston_mass"] = 8.0
+                    h5.attrs["rig"] = json.dumps(stand) if value is None else value
+                else:
+                    h5.attrs[key] = value
+            out += self._map_commands(label, path)
+        raw = self.map.read_bytes()
+        for k, position in enumerate(range(64, len(raw), max(1, len(raw) // 12))):
+            path = self.path(f"flip{k}.h5")
+            flipped = bytearray(raw)
+            flipped[position] ^= 0xFF
+            path.write_bytes(bytes(flipped))
+            out += self._map_commands(f"byte {position} flipped", path, expect="either")
+        cut = self.path("cut.h5")
+        cut.write_bytes(raw[:len(raw) // 2])
+        out += self._map_commands("truncated to half", cut)
+        return out
+
+    def _map_commands(self, label: str, path: Path, expect: str = "refuse") -> list[Case]:
+        return [Case("map files", f"map info: {label}", ["map", "info", str(path)], expect),
+                Case("map files", f"identify: {label}", ["identify", str(self.base), "--method", "response-map",
+                                                         "--map", str(path), "--json"], expect, self.truth)]
+
+    # 9 --------------------------------------------------------------------------------------------------------
+    def truth_metadata(self) -> list[Case]:
+        values = {"text": "heavy", "NaN text": "NaN", "array": [1, 2], "negative": -5.0, "huge": 1e300, "boolean": True,
+                  "object": {"kg": 3}}
+        out = []
+        for i, (label, value) in enumerate(values.items()):
+            path = write_csv(self.path(f"truth{i}.csv"), {"time [s]": self.rec.time, "force [N]": self.f,
+                                                          "acc [m/s^2]": self.a}, sidecar={"mass_kg": value})
+            out.append(Case("truth metadata", f"sidecar mass_kg {label}", ["inspect", str(path)]))
+        ch = {"contact_force": self.f, "piston_acceleration": self.a}
+        out.append(Case("truth metadata", "HDF5 attribute mass_kg 'heavy'", ["inspect", str(write_h5(
+            self.path("truth_a.h5"), ch, {"fs": 5e4, "mass_kg": "heavy"}))]))
+        out.append(Case("truth metadata", "HDF5 JSON velocity_m_s 'fast'", ["inspect", str(write_h5(
+            self.path("truth_b.h5"), ch, {"fs": 5e4, "metadata": json.dumps({"velocity_m_s": "fast"})}))]))
+        scipy.io.savemat(self.path("truth_c.mat"), {"force": self.f, "acc": self.a, "fs": 5e4, "mass_kg": "heavy"})
+        out.append(Case("truth metadata", "MAT variable mass_kg 'heavy'", ["inspect", str(self.path("truth_c.mat"))]))
+        out.append(Case("truth metadata", "TDMS property pressure_gauge_Pa 'high'", ["inspect", str(write_tdms(
+            self.path("truth_d.tdms"), ch, channel_props={"wf_increment": 2e-5},
+            root_props={"pressure_gauge_Pa": "high"}))]))
+        out.append(Case("truth metadata", "sidecar mass_kg '30 kg' (a unit)", ["inspect", str(write_csv(
+            self.path("truth_e.csv"), {"time [s]": self.rec.time, "force [N]": self.f}, sidecar={"mass_kg": "30 kg"}))],
+            "answer"))
+        return out
+
+    # 10 -------------------------------------------------------------------------------------------------------
+    def implausible(self) -> list[Case]:
+        f, a = self.f, self.a
+        signals = {"acceleration ÷1000": (f, a / 1e3), "acceleration in g read as m/s²": (f, a / 9.80665),
+                   "force in kN read as N": (f / 1e3, a), "force in N read as kN": (f * 1e3, a),
+                   "acceleration ×9.81": (f, a * 9.80665)}
+        out = [Case("implausible answers", label, ["identify", str(self.recording(f"unit{i}.h5", force, acc)),
+                                                   "--json"], "either", self.truth)
+               for i, (label, (force, acc)) in enumerate(signals.items())]
+        out.append(Case("implausible answers", "channels named the other way round",
+                        ["identify", str(self.base), "--force-channel", "piston_acceleration",
+                         "--acceleration-channel", "contact_force", "--json"], "either", self.truth))
+        scipy.io.savemat(self.path("logical.mat"), {"force": f > 0.3 * f.max(), "acc": a, "fs": 5e4})
+        out.append(Case("implausible answers", "MAT logical force channel",
+                        ["identify", str(self.path("logical.mat")), "--json"], "either", self.truth))
+        calibration = self.path("calibration")
+        calibration.mkdir(exist_ok=True)
+        rows = ["file,mass_kg,velocity_m_s"]
+        for k, (mass, height) in enumerate((m, h) for m in (10.0, 30.0, 50.0) for h in (0.1, 0.2, 0.4)):
+            name = f"c{k}.h5"
+            rec = record(Scenario.from_height(mass=mass, height=height, pressure_gauge=200e3), sample_rate=FS,
+                         duration=0.05, noise=0.005, seed=k)
+            write_recording(rec, calibration / name, overwrite=True)
+            rows.append(f"{name},{rec.truth('velocity_m_s'):.4f},{mass}")  # the columns swapped
+        (calibration / "manifest.csv").write_text("\n".join(rows) + "\n")
+        out.append(Case("implausible answers", "manifest with mass and velocity swapped",
+                        ["map", "build", "--from-recordings", str(calibration), "--grid", "6",
+                         "--out", str(self.path("cal.h5")), "--force"]))
+        return out
+
+    # 11 -------------------------------------------------------------------------------------------------------
+    def smaller(self) -> list[Case]:
+        deep = self.path("deep.toml")
+        deep.write_text("x = " + "[" * 3000 + "]" * 3000 + "\n")
+        stiff = self.path("stiff.toml")
+        stiff.write_text("[contact]\nstiffness = 1e300\n")
+        bore = self.path("bore.toml")
+        bore.write_text("[cylinder]\nbore = 100.0\n")
+        return [Case("smaller breaks", "record --seed -1", ["record", "--out", str(self.path("s.csv")), "--seed",
+                                                            "-1"]),
+                Case("smaller breaks", "stand TOML nested 3000 deep", ["simulate", "--rig", str(deep)]),
+                Case("smaller breaks", "reference integrator, mass 1e-9 kg", ["simulate", "--integrator", "reference",
+                                                                             "--mass", "1e-9kg"]),
+                Case("smaller breaks", "reference integrator, stiffness 1e300", ["simulate", "--integrator",
+                                                                                "reference", "--rig", str(stiff)],
+                     slow=True),
+                Case("smaller breaks", "map build --grid 3000x3000", ["map", "build", "--out", str(self.path("big.h5")),
+                                                                      "--grid", "3000x3000"]),
+                Case("smaller breaks", "study --scheduler inproc://x", ["study", "peak-force", "--out",
+                                                                        str(self.path("dask")), "--scheduler",
+                                                                        "inproc://x"]),
+                Case("smaller breaks", "stand TOML bore = 100.0", ["simulate", "--rig", str(bore)]),
+                Case("smaller breaks", "stream --chunk 0", ["stream", str(self.base), "--chunk", "0"])]
+
+    # own: stand files, CSV structure, command options -----------------------------------------------------------
+    def stands(self) -> list[Case]:
+        texts = {"unknown key": "[cylinder]\nwidth = 3\n", "text value": '[cylinder]\nbore = "wide"\n',
+                 "NaN": "[cylinder]\nbore = nan\n", "negative": "[cylinder]\nstroke = -0.1\n",
+                 "rod wider than bore": "[cylinder]\nrod_diameter = 0.1\n", "law 'glue'": '[contact]\nlaw = "glue"\n',
+                 "not TOML": "[[[", "binary": "\x00\x01\x02", "section not a table": "cylinder = 3\n",
+                 "gamma 7": "[gas]\ngamma = 7.0\n", "infinite stiffness": "[stops]\nstiffness = inf\n"}
+        out = []
+        for i, (label, text) in enumerate(texts.items()):
+            path = self.path(f"bad{i}.toml")
+            path.write_text(text)
+            out.append(Case("stand files", label, ["simulate", "--rig", str(path)]))
+        return out
+
+    def csv_structure(self) -> list[Case]:
+        rng = np.random.default_rng(5)
+        texts = {"empty": "", "header only": "time [s],force [N]\n", "random bytes": rng.bytes(2000),
+                 "NUL bytes": b"time,force\n0,1\x00\n", "ragged rows": "time,force,acc\n0,1,2\n1e-5,2\n",
+                 "text cell": "time,force,acc\n0,1,2\n1e-5,two,3\n", "numeric header": "1,2\n3,4\n",
+                 "duplicate header": "force,force\n1,2\n", "one row": "time,force,acc\n0,1,2\n"}
+        out = []
+        for i, (label, text) in enumerate(texts.items()):
+            path = self.path(f"struct{i}.csv")
+            path.write_bytes(text if isinstance(text, bytes) else text.encode())
+            out.append(Case("CSV structure", label, ["identify", str(path)]))
+        semi = write_csv(self.path("semicolon.csv"), {"Zeit [s]": self.rec.time, "Force [kN]": self.f / 1e3,
+                                                      "Acc [m/s^2]": self.a}, separator=";", fmt="%.9f")
+        semi.write_text(semi.read_text().replace(".", ","))
+        out.append(Case("CSV structure", "semicolons and decimal commas", ["identify", str(semi), "--json"], "answer",
+                        self.truth))
+        return out
+
+    def contents(self) -> list[Case]:
+        f, a, t = self.f, self.a, self.rec.time
+        nan = f.copy()
+        nan[3000] = np.nan
+        files = {
+            "channels of different lengths": (write_h5(self.path("len.h5"), {"force": f, "acc": a[:-100]},
+                                                       {"fs": 5e4}), "refuse"),
+            "force of 1e300 N": (write_h5(self.path("huge.h5"), {"force": f * 1e296, "acc": a}, {"fs": 5e4}), "either"),
+            "NaN in the force": (write_h5(self.path("nan.h5"), {"force": nan, "acc": a}, {"fs": 5e4}), "refuse"),
+            "int16 ADC counts": (write_h5(self.path("int16.h5"), {"force": np.round(f).astype(np.int16),
+                                                                  "acc": np.round(a).astype(np.int16)},
+                                          {"fs": 5e4, "start_time": -0.05}), "either"),
+            "float32 channels": (write_h5(self.path("f32.h5"), {"force": f.astype(np.float32),
+                                                                "acc": a.astype(np.float32)},
+                                          {"fs": 5e4, "start_time": -0.05}), "answer"),
+            "start time 1.7e9 s (a clock)": (write_h5(self.path("clock.h5"), {"force": f, "acc": a},
+                                                      {"fs": 5e4, "start_time": 1.7e9}), "answer"),
+            "time column in ms": (write_csv(self.path("ms.csv"), {"t [ms]": t * 1e3, "force [N]": f,
+                                                                  "acc [m/s^2]": a}), "answer"),
+            "8 samples": (write_h5(self.path("short.h5"), {"force": f[2500:2508], "acc": a[2500:2508]},
+                                   {"fs": 5e4}), "refuse"),
+            "constant force": (write_h5(self.path("flat.h5"), {"force": 0 * f + 3.0, "acc": a}, {"fs": 5e4}),
+                               "refuse"),
+            "force in tension (sign flipped)": (write_h5(self.path("tension.h5"), {"force": -f, "acc": a}, {"fs": 5e4}),
+                                                "refuse"),
+            "no acceleration channel": (write_h5(self.path("noacc.h5"), {"force": f, "other": a}, {"fs": 5e4}),
+                                        "refuse"),
+            "force unit 'furlong'": (self._unit_file("furlong"), "refuse"),
+        }
+        out = [Case("recording content", label, ["identify", str(path), "--json"], expect,
+                    self.truth if expect != "refuse" else None) for label, (path, expect) in files.items()]
+        out += [Case("recording content", f"inspect: {label}", ["inspect", str(path)], "either")
+                for label, (path, _) in files.items()]
+        return out
+
+    def _unit_file(self, unit: str) -> Path:
+        path = write_h5(self.path(f"unit-{unit}.h5"), {"force": self.f, "acc": self.a}, {"fs": 5e4})
+        with h5py.File(path, "r+") as h5:
+            h5["force"].attrs["unit"] = unit
+        return path
+
+    def options(self) -> list[Case]:
+        base = str(self.base)
+        cases = {"--mass heavy": ["simulate", "--mass", "heavy"],
+                 "--velocity 1e308": ["simulate", "--velocity", "1e308"],
+                 "--height -1m": ["simulate", "--height", "-1m"], "--duration 1e9s": ["simulate", "--duration", "1e9s"],
+                 "--velocity 30m/s": ["simulate", "--velocity", "30m/s"], "--cfc 7": ["identify", base, "--cfc", "7"],
+                 "--variant x": ["identify", base, "--variant", "x"], "--search x": ["identify", base, "--method",
+                                                                                    "response-map", "--map",
+                                                                                    str(self.map), "--search", "x"],
+                 "--group on CSV": ["identify", str(self.path("bare.csv")), "--group", "g"],
+                 "--noise 0.9 (a fraction)": ["record", "--out", str(self.path("n.csv")), "--noise", "0.9"],
+                 "--adc-bits 64": ["record", "--out", str(self.path("n.csv")), "--adc-bits", "64", "--force"],
+                 "--extra nope": ["record", "--out", str(self.path("n.csv")), "--extra", "nope", "--force"]}
+        return [Case("command options", label, argv) for label, argv in cases.items()]
