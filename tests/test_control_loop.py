@@ -81,14 +81,20 @@ def test_untrusted_identification_waits_for_the_stage_b_mass(monkeypatch):
     assert not m.bottomed_out and m.stroke_used > 0.15
 
 
-def test_identification_failure_leaves_the_valve_closed(monkeypatch):
+def test_without_an_identification_the_force_strategies_wait_for_stage_b(monkeypatch):
     failed = Identified(method="robust", mass=math.nan, velocity=math.nan, available_at=math.inf,
                         error="fewer pulses than needed")
     monkeypatch.setattr(control_loop, "identify_impact", lambda *a, **k: failed)
-    result = absorb(SCENARIO, strategy=["closed", "predictive"], noise=0.02, duration=0.1)
+    result = absorb(SCENARIO, strategy=["closed", "constant", "predictive"], noise=0.02)
     assert any("identification failed" in note for note in result.notes)
-    assert np.array_equal(result.runs["predictive"].result.u1, result.runs["closed"].result.u1)
-    assert result.to_dict()["strategies"]["predictive"]["control_start_s"] is None
+    assert np.array_equal(result.runs["constant"].result.u1, result.runs["closed"].result.u1)  # kept closed
+    data = result.to_dict()["strategies"]
+    assert data["closed"]["control_start_s"] is None and data["closed"]["stage_b_force_ratio"] is not None
+    history, m = result.runs["predictive"].controller, result.metrics["predictive"]
+    first = result.runs["predictive"].result.time[np.argmax(np.isfinite(history["estimated_mass"]))]
+    assert m.control_start == pytest.approx(first, abs=1e-3) and 0.0 < m.control_start < 0.06
+    assert history["estimated_mass"][-1] == pytest.approx(SCENARIO.mass, rel=0.05)
+    assert not m.bottomed_out and m.stage_b_force_ratio < result.metrics["closed"].stage_b_force_ratio
 
 
 def test_over_capacity_is_reported():

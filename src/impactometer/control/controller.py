@@ -31,6 +31,9 @@ PREDICTION_STEPS = 20
 #: stage A has nearly stopped is not let creep down the stroke at its weight for seconds
 STOP_TIME = 0.4
 MIN_DECELERATION = 0.5
+#: in stage B the force strategies close the valve for good once the mass is this slow [m/s]: the closed gas
+#: spring takes the rest (a few millijoules), so the mass comes to rest instead of creeping on the smoothed friction
+REST_VELOCITY = 0.02
 
 
 @njit(cache=True, error_model="numpy")
@@ -201,6 +204,9 @@ def command_of(t, dt, p, ctrl, drive, e, history, newest, delay):
             e[est.LATCHED] = 1.0
             return 0.0
         return ctrl[s.OPENING]
+    if strategy != s.LEVEL and e[est.STAGE_B] != 0.0 and velocity < REST_VELOCITY:
+        e[est.LATCHED] = 1.0
+        return 0.0
     target = force_target(p, ctrl, mass, velocity, x)
     e[est.TARGET] = target
     fp_target = target * (mass + p[d.PISTON_MASS]) / mass - friction_force(velocity, p[d.FRICTION],

@@ -37,13 +37,18 @@ from . import settings as s
 # slots of the estimator state
 (IMPULSE, FORCE_PREV, P_LOWER_F, P_UPPER_F, X_HAT, V_HAT, ABOVE, BELOW, IN_CONTACT, CONTACT_START, FIRST_PULSE,
  MASS, MASS_STD, VELOCITY, SUSTAINED, LATCHED, OPENING_MODEL, TARGET, V_SLOW, STAGE_B, LOOKING, EXTREME,
- LAST_COMMIT, HAS_FIRST) = range(24)
+ LAST_COMMIT, HAS_FIRST, COUNT, EXTREME_AT) = range(26)
 #: blocks of the sums of the stage-B regression (Σ Fc, Σ (g − a2), Σ Fc², Σ (g − a2)², Σ Fc·(g − a2), n): running
-#: within the current contact, at its running maximum and minimum of the force, at the first and the last window
-#: end of the current contact, and banked from earlier contacts
+#: within the current contact, at the first and the last window end of the current contact, and banked from
+#: earlier contacts; then rings of the last RING samples' force and running sums
 N_SUMS = 6
-RUNNING, AT_MAX, AT_MIN, FIRST, LAST, BANK = (24 + N_SUMS * i for i in range(6))
-N_ESTIMATOR = 24 + 6 * N_SUMS
+RING = 64
+RUNNING, FIRST, LAST, BANK = (26 + N_SUMS * i for i in range(4))
+FORCE_RING = 26 + 4 * N_SUMS
+SUMS_RING = FORCE_RING + RING
+N_ESTIMATOR = SUMS_RING + RING * N_SUMS
+#: half width of the parabola fitted around a force extremum to time it [samples]
+VERTEX_HALF_WIDTH = 16
 #: time constant of the slow piston velocity [s]: the mean motion of mass and piston, without the oscillation of the
 #: mass on the contact element (above 100 Hz on the built-in stands) that a valve must not feed
 SLOW_VELOCITY_TIME = 5e-3
@@ -128,20 +133,48 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
         e[VELOCITY] = ctrl[s.VELOCITY_HAT] + gravity * t
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _copy(e, to, source):
+@njit(cache=True, error_model="numpy")
+def _commit(e, t, source):
+    """Make the sums at slot ``source`` the last window end of the current contact (and its first, if none)."""
+    if e[HAS_FIRST] == 0.0:
+        for i in range(N_SUMS):
+            e[FIRST + i] = e[source + i]
+        e[HAS_FIRST] = 1.0
     for i in range(N_SUMS):
-        e[to + i] = e[source + i]
+        e[LAST + i] = e[source + i]
+    e[LAST_COMMIT] = t
 
 
 @njit(cache=True, error_model="numpy")
-def _commit(e, t, source):
-    """Make the sums at ``source`` the last window end of the current contact (and its first, if none yet)."""
-    if e[HAS_FIRST] == 0.0:
-        _copy(e, FIRST, source)
-        e[HAS_FIRST] = 1.0
-    _copy(e, LAST, source)
-    e[LAST_COMMIT] = t
+def _vertex(e, at, count):
+    """Sample count of the force extremum found near ``at``: the vertex of the least-squares parabola through the
+    force samples within VERTEX_HALF_WIDTH of it (those still in the ring), rounded and kept within them. Noise
+    moves the largest sample by several samples along a flat top; the vertex, far less."""
+    low = max(at - VERTEX_HALF_WIDTH, count - RING + 1, 1.0)
+    high = min(at + VERTEX_HALF_WIDTH, count)
+    s0 = s1 = s2 = s3 = s4 = f0 = f1 = f2 = 0.0
+    k = low
+    while k <= high:
+        x = k - at
+        f = e[FORCE_RING + int(k) % RING]
+        s0 += 1.0
+        s1 += x
+        s2 += x * x
+        s3 += x * x * x
+        s4 += x * x * x * x
+        f0 += f
+        f1 += f * x
+        f2 += f * x * x
+        k += 1.0
+    # normal equations of f ≈ a + b·x + c·x², solved by Cramer's rule for b and c
+    det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2)
+    if s0 < 5.0 or det == 0.0:
+        return at
+    b = (s0 * (f1 * s4 - s3 * f2) - f0 * (s1 * s4 - s3 * s2) + s2 * (s1 * f2 - f1 * s2)) / det
+    c = (s0 * (s2 * f2 - f1 * s3) - s1 * (s1 * f2 - f1 * s2) + f0 * (s1 * s3 - s2 * s2)) / det
+    if c == 0.0:
+        return at
+    return min(max(at + round(-b / (2.0 * c)), low), high)
 
 
 @njit(cache=True, error_model="numpy")
@@ -151,9 +184,9 @@ def _regress(e, t, force, shared, drop):
     M1·∫(g − a2) dt = ∫Fc dt holds exactly only between instants where mass and piston have the same velocity (the
     paper's eq. 4): in contact the mass oscillates on the contact element, and a window cut elsewhere carries the
     relative velocity at its ends. Its extremes of compression are the extremes of the contact force, so the window
-    ends are the force's extrema within one contact (confirmed once it has moved ``drop`` [N] away from them), and,
-    in a sustained contact without oscillation, an end every ``COMMIT_TIME``. A contact that ends banks its
-    windows; a collision (one maximum) gives none.
+    ends are the force's extrema within one contact (confirmed once it has moved ``drop`` [N] away from them, timed
+    by :func:`_vertex`), and, in a sustained contact without oscillation, an end every ``COMMIT_TIME``. A contact
+    that ends banks its windows; a collision (one maximum) gives none.
     """
     if e[IN_CONTACT] == 0.0:
         for i in range(N_SUMS):  # the contact ended (or none yet): bank its windows, start afresh
@@ -162,6 +195,7 @@ def _regress(e, t, force, shared, drop):
             e[RUNNING + i] = 0.0
         e[HAS_FIRST] = 0.0
         e[LOOKING] = 0.0
+        e[COUNT] = 0.0
         return
     e[RUNNING] += force
     e[RUNNING + 1] += shared
@@ -169,30 +203,27 @@ def _regress(e, t, force, shared, drop):
     e[RUNNING + 3] += shared * shared
     e[RUNNING + 4] += force * shared
     e[RUNNING + 5] += 1.0
+    e[COUNT] += 1.0
+    count = e[COUNT]
+    slot = int(count) % RING
+    e[FORCE_RING + slot] = force
+    for i in range(N_SUMS):
+        e[SUMS_RING + slot * N_SUMS + i] = e[RUNNING + i]
     if e[LOOKING] == 0.0:  # first sample of the contact
         e[LOOKING] = 1.0
         e[EXTREME] = force
-        _copy(e, AT_MAX, RUNNING)
+        e[EXTREME_AT] = count
         e[LAST_COMMIT] = t
         return
-    if e[LOOKING] > 0.0:  # looking for a maximum
-        if force > e[EXTREME]:
-            e[EXTREME] = force
-            _copy(e, AT_MAX, RUNNING)
-        elif force < e[EXTREME] - drop:
-            _commit(e, t, AT_MAX)
-            e[LOOKING] = -1.0
-            e[EXTREME] = force
-            _copy(e, AT_MIN, RUNNING)
-    else:
-        if force < e[EXTREME]:
-            e[EXTREME] = force
-            _copy(e, AT_MIN, RUNNING)
-        elif force > e[EXTREME] + drop:
-            _commit(e, t, AT_MIN)
-            e[LOOKING] = 1.0
-            e[EXTREME] = force
-            _copy(e, AT_MAX, RUNNING)
+    if (e[LOOKING] > 0.0 and force > e[EXTREME]) or (e[LOOKING] < 0.0 and force < e[EXTREME]):
+        e[EXTREME] = force
+        e[EXTREME_AT] = count
+    elif abs(force - e[EXTREME]) > drop:  # the extremum is confirmed: a window end at its vertex
+        vertex = _vertex(e, e[EXTREME_AT], count)
+        _commit(e, t, SUMS_RING + (int(vertex) % RING) * N_SUMS)
+        e[LOOKING] = -e[LOOKING]
+        e[EXTREME] = force
+        e[EXTREME_AT] = count
     if e[SUSTAINED] != 0.0 and t - e[LAST_COMMIT] > COMMIT_TIME:
         _commit(e, t, RUNNING)
 

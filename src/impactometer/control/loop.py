@@ -31,6 +31,9 @@ from .valve import Absorber
 
 #: identification methods of the loop
 IDENTIFICATIONS = ("robust", "paper", "oracle", "response-map")
+#: a valve strategy's run ends this long after the mass's deepest point [s]: long enough for the rebound of a mass
+#: resting on the closed gas spring (a period of 0.1-0.3 s) to show
+REBOUND_WINDOW = 0.15
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -73,7 +76,7 @@ class AbsorptionResult:
         """JSON-ready summary: scenario, identification, bound and per-strategy metrics (no histories)."""
         strategies = {}
         for name, run in self.runs.items():
-            strategies[name] = {**run.metrics.to_dict(), "control_start_s": _num(self.control_start)}
+            strategies[name] = run.metrics.to_dict()
             if math.isfinite(run.valve_opening_constant):
                 strategies[name]["valve_opening"] = run.valve_opening_constant
             mass = run.controller.get("estimated_mass")
@@ -99,14 +102,23 @@ class AbsorptionResult:
         return plot_absorption(self, ax=ax)
 
 
+def _acting_from(start: float, history: dict[str, np.ndarray], result) -> float:
+    """The control start of a run [s]: ``start``, or without one (no early answer) the first sample at which the
+    controller knew M1 and v1 from its stage-B estimates (``inf`` if never)."""
+    if math.isfinite(start):
+        return start
+    known = np.isfinite(history["estimated_mass"]) & np.isfinite(history["estimated_velocity"])
+    return float(result.time[np.argmax(known)]) if known.any() else math.inf
+
+
 def _num(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
 
 def default_duration(scenario: Scenario, usable_stroke: float) -> float:
-    """Simulated time long enough for the slowest strategy to stop the mass [s]: 0.15 s + 2.5·usable stroke / V0,
-    within [0.3, 1.0] s (the force strategies stop it within the usable stroke and ``controller.STOP_TIME``)."""
-    return float(min(1.0, max(0.3, 0.15 + 2.5 * usable_stroke / scenario.velocity)))
+    """Simulated time long enough for the slowest strategy to stop the mass [s]: 0.15 s + 4·usable stroke / V0,
+    within [0.3, 1.2] s (the valve strategies' runs end ``REBOUND_WINDOW`` after the mass's deepest point)."""
+    return float(min(1.2, max(0.3, 0.15 + 4.0 * usable_stroke / scenario.velocity)))
 
 
 def sensor_noise(closed_result, noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -202,7 +214,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
             found = dataclasses.replace(found, available_at=float(control_start))
     notes = []
     if found.error is not None:
-        notes.append(f"identification failed ({found.error}); the valve stays closed")
+        notes.append(f"identification failed ({found.error}): the force strategies wait for their stage-B "
+                     f"estimate, the others keep the valve closed")
     elif not math.isfinite(found.usable_mass) or not math.isfinite(found.usable_velocity):
         notes.append(f"identified M1 = {found.mass:.3g} ± {found.mass_std:.2g} kg, V0 = {found.velocity:.3g} ± "
                      f"{found.velocity_std:.2g} m/s not trusted: the controller waits for its stage-B estimate")
@@ -227,17 +240,21 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]))
     runs = {}
     for name in names:
-        control = get_strategy(name)(context) if found.error is None else context.base("closed")
+        if found.error is None:
+            control = get_strategy(name)(context)
+        else:  # no early answer: the force strategies act once their stage-B estimates exist
+            control = get_strategy(name)(dataclasses.replace(context, start=0.0))
+            control = control if control.strategy in ("realtime", "predictive") else context.base("closed")
         if control.strategy == "closed":
             result = closed
             history = {key: np.full_like(closed.time, np.nan) for key in loop.HISTORIES}
         else:
             result, history = loop.simulate_controlled(scenario, rig, control=control, drive=absorber.drive,
                                                        duration=duration, sample_rate=sample_rate,
-                                                       sensor_noise=noise_matrix)
+                                                       sensor_noise=noise_matrix, stop_after=REBOUND_WINDOW)
         opening = control.opening if control.strategy == "constant" else math.nan
-        runs[name] = StrategyRun(strategy=name, result=result, controller=history,
-                                 metrics=absorption_metrics(result, start, usable), valve_opening_constant=opening)
+        runs[name] = StrategyRun(strategy=name, result=result, controller=history, valve_opening_constant=opening,
+                                 metrics=absorption_metrics(result, _acting_from(start, history, result), usable))
     achievable = None
     if reference and math.isfinite(start) and start < closed.time[-1]:
         i0 = int(np.searchsorted(closed.time, start))  # F_ref of the closed-valve state at the control start

@@ -122,8 +122,9 @@ def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.
     body = cfc_filter(force, 1.0 / (t[1] - t[0]), BODY_CFC) if filtered is None else filtered
 
     def judged(onset: float) -> tuple[float, float, float, float]:
-        """F_ref, peak, R and η_B from t_s = max(onset, control start) to the deepest point (NaN if none)."""
-        i0 = int(np.searchsorted(t, max(onset, control_start) - 1e-12))
+        """F_ref, peak, R and η_B from t_s = max(onset, control start) to the deepest point (NaN if none); a
+        control that never started leaves t_s = onset."""
+        i0 = int(np.searchsorted(t, max(onset, control_start if math.isfinite(control_start) else onset) - 1e-12))
         remaining = usable_stroke - u1[i0] if i0 < deepest else 0.0
         if remaining <= 0.0:
             return math.nan, math.nan, math.nan, math.nan

@@ -6,7 +6,7 @@ right after a rejection) and the same initial step selection, so that a given ``
 accuracy everywhere. Two systems share it (``system`` argument):
 
 - ``PLAIN``: the drop-stand model (:func:`.dynamics.rhs`) with the constant valve opening of its parameters;
-- ``ACTUATED``: the model plus valve Z's actuator (:func:`.actuated.derivatives`), whose opening is one more state and whose
+- ``ACTUATED``: the model plus valve Z's actuator (:func:`.actuated.derivatives`), whose opening is one more state and
   command is held in the input vector ``u`` (a zero-order hold between controller samples).
 
 :func:`plain.integrate_one <.fast.integrate_one>` samples a whole record through the method's continuous extension;

@@ -19,7 +19,7 @@ from ..control import absorb
 from ..control.strategies import ALL as ALL_STRATEGIES
 from ..rig import ABSORPTION_RIG, Scenario
 from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
-from .tables import finite_values
+from .tables import finite_values, flag, number
 
 NAME = "absorption"
 #: default values per grid axis (8 impacts at the corners of the ranges; ``--grid 5`` gives the paper's 125)
@@ -85,7 +85,7 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
 
 
 def _median(rows: list[Row], column: str) -> float:
-    values = finite_values([r for r in rows if r.get("stage_b")], column)
+    values = finite_values([r for r in rows if flag(r.get("stage_b"))], column)
     return float(np.median(values)) if values.size else math.nan
 
 
@@ -102,7 +102,8 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
 
 
 def _ratios(rows: list[Row], strategy: str) -> np.ndarray:
-    return finite_values([r for r in rows if r["strategy"] == strategy and r.get("stage_b")], "stage_b_force_ratio")
+    return finite_values([r for r in rows if r["strategy"] == strategy and flag(r.get("stage_b"))],
+                         "stage_b_force_ratio")
 
 
 def _aggregate(rows: list[Row]) -> list[Row]:
@@ -110,15 +111,15 @@ def _aggregate(rows: list[Row]) -> list[Row]:
     for strategy in dict.fromkeys(r["strategy"] for r in rows):
         chosen = [r for r in rows if r["strategy"] == strategy]
         ratio = _ratios(rows, strategy)
-        efficiency = finite_values([r for r in chosen if r.get("stage_b")], "stage_b_efficiency")
-        rebound = np.array([np.inf if r.get("rebound_m") is None else float(r["rebound_m"]) for r in chosen])
+        efficiency = finite_values([r for r in chosen if flag(r.get("stage_b"))], "stage_b_efficiency")
+        rebound = np.array([number(r.get("rebound_m")) for r in chosen])
         out.append({"strategy": strategy, "impacts": len(chosen),
-                    "without stage B": sum(1 for r in chosen if not r.get("stage_b")),
+                    "without stage B": sum(1 for r in chosen if not flag(r.get("stage_b"))),
                     "median R": float(np.median(ratio)) if ratio.size else math.nan,
                     "90th pct R": float(np.percentile(ratio, 90)) if ratio.size else math.nan,
                     "median η_B": float(np.median(efficiency)) if efficiency.size else math.nan,
                     "median R, t_B at the first sustained contact": _median(chosen, "stage_b_force_ratio_first"),
-                    "bottomed out": sum(bool(r.get("bottomed_out")) for r in chosen),
+                    "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
                     "rebound < 5 mm": int(np.sum(rebound < TARGETS["rebound"])) if strategy != REFERENCE else None})
     return out
 
@@ -128,21 +129,22 @@ def acceptance(rows: list[Row], strategy: str = "predictive") -> dict[str, Any]:
     mine, closed = _ratios(rows, strategy), _ratios(rows, "closed")
     chosen = [r for r in rows if r["strategy"] == strategy]
     by_case = {(r["case"], r["strategy"]): r for r in rows}
-    deviation = []
+    deviation, gap = [], []
     for r in chosen:
         oracle = by_case.get((r["case"], ORACLE))
-        if oracle and r.get("stage_b_force_ratio") and oracle.get("stage_b_force_ratio"):
-            deviation.append(abs(r["stage_b_force_ratio"] / oracle["stage_b_force_ratio"] - 1.0))
-    gap = [r["stage_b_force_ratio"] / r["achievable_force_ratio"] for r in chosen
-           if r.get("stage_b_force_ratio") and r.get("achievable_force_ratio")]
-    rebound = [r.get("rebound_m") for r in chosen]
+        ratio = number(r.get("stage_b_force_ratio"))
+        if oracle and math.isfinite(ratio * number(oracle.get("stage_b_force_ratio"))):
+            deviation.append(abs(ratio / number(oracle["stage_b_force_ratio"]) - 1.0))
+        if math.isfinite(ratio * number(r.get("achievable_force_ratio"))):
+            gap.append(ratio / number(r["achievable_force_ratio"]))
+    rebound = [number(r.get("rebound_m")) for r in chosen]
     median = float(np.median(mine)) if mine.size else math.nan
     return {"impacts": len(chosen), "with stage B": int(mine.size), "median R": median,
             "90th pct R": float(np.percentile(mine, 90)) if mine.size else math.nan,
             "closed median R": float(np.median(closed)) if closed.size else math.nan,
             "improvement": float(np.median(closed)) / median if mine.size and closed.size else math.nan,
-            "bottomed out": sum(bool(r.get("bottomed_out")) for r in chosen),
-            "rebound below 5 mm": sum(1 for x in rebound if x is not None and x < TARGETS["rebound"]),
+            "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
+            "rebound below 5 mm": sum(1 for x in rebound if x < TARGETS["rebound"]),
             "within 10 % of the oracle": sum(1 for x in deviation if x <= TARGETS["oracle_deviation"]),
             "compared with the oracle": len(deviation),
             "largest deviation from the oracle": max(deviation) if deviation else math.nan,

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..plotting import _pyplot, figure_legend
-from .tables import Row, group_stats, pick
+from .tables import Row, flag, group_stats, number, pick
 
 #: colour per compared method
 COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "brute": "tab:red",
@@ -175,8 +175,7 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
                              gridspec_kw={"width_ratios": [1.6, 1, 1]})
 
     def ratio(row: Row | None) -> float:
-        value = None if row is None or not row.get("stage_b") else row.get("stage_b_force_ratio")
-        return np.nan if value is None else float(value)
+        return np.nan if row is None or not flag(row.get("stage_b")) else number(row.get("stage_b_force_ratio"))
 
     data = [np.array([ratio(r) for r in rows if r["strategy"] == name]) for name in strategies]
     axes[0].boxplot([d[np.isfinite(d)] if np.isfinite(d).any() else np.array([np.nan]) for d in data])
@@ -193,7 +192,7 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
     by = {(r["case"], r["strategy"]): r for r in rows}
     cases = sorted({r["case"] for r in rows})
     mine = np.array([ratio(by.get((c, strategy))) for c in cases])
-    mass = np.array([by[(c, strategy)]["mass_kg"] if (c, strategy) in by else np.nan for c in cases], float)
+    mass = np.array([number(by[(c, strategy)]["mass_kg"]) if (c, strategy) in by else np.nan for c in cases])
     for ax, other, label in ((axes[1], f"{strategy} (oracle)", f"R, {strategy} with the true M1, V0"),
                              (axes[2], "achievable reference", "achievable R of the valve")):
         theirs = np.array([ratio(by.get((c, other))) for c in cases])
@@ -220,12 +219,12 @@ def plot_valve_design(rows: Sequence[Row]):
     for i, t in enumerate(times):
         for j, a in enumerate(areas):
             chosen = [r for r in rows if r["effective_area_mm2"] == a and r["response_time_ms"] == t]
-            values = np.array([float(r["stage_b_force_ratio"]) for r in chosen
-                               if r.get("stage_b") and r.get("stage_b_force_ratio") is not None])
+            values = np.array([number(r.get("stage_b_force_ratio")) for r in chosen if flag(r.get("stage_b"))])
+            values = values[np.isfinite(values)]
             if values.size:
                 grids["median"][i, j] = np.median(values)
                 grids["p90"][i, j] = np.percentile(values, 90)
-            grids["bottomed"][i, j] = sum(bool(r.get("bottomed_out")) for r in chosen)
+            grids["bottomed"][i, j] = sum(flag(r.get("bottomed_out")) for r in chosen)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), constrained_layout=True)
     for ax, (key, title) in zip(axes, (("median", "median R"), ("p90", "90th percentile R"),
                                        ("bottomed", "runs bottomed out")), strict=True):

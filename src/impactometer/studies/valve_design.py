@@ -17,7 +17,7 @@ from ..control import Absorber, ValveDrive, absorb
 from ..control.valve import iso6358_valve
 from ..rig import ABSORPTION_RIG, Scenario
 from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
-from .tables import finite_values
+from .tables import finite_values, flag
 
 NAME = "valve-design"
 #: impacts: values per axis of the M1 × V0 × p0 grid (27 impacts)
@@ -75,12 +75,12 @@ def _valves(rows: list[Row]) -> list[Row]:
     out = []
     for key in dict.fromkeys((r["effective_area_mm2"], r["response_time_ms"]) for r in rows):
         chosen = [r for r in rows if (r["effective_area_mm2"], r["response_time_ms"]) == key]
-        ratio = finite_values([r for r in chosen if r.get("stage_b")], "stage_b_force_ratio")
+        ratio = finite_values([r for r in chosen if flag(r.get("stage_b"))], "stage_b_force_ratio")
         out.append({"effective area [mm²]": key[0], "response 10-90 % [ms]": key[1], "impacts": len(chosen),
                     "with stage B": int(ratio.size),
                     "median R": float(np.median(ratio)) if ratio.size else math.nan,
                     "90th pct R": float(np.percentile(ratio, 90)) if ratio.size else math.nan,
-                    "bottomed out": sum(bool(r.get("bottomed_out")) for r in chosen)})
+                    "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen)})
     return out
 
 
