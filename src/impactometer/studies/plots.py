@@ -237,8 +237,8 @@ def plot_valve_design(rows: Sequence[Row]):
                             va="center", fontsize=8, color="w" if key != "bottomed" else "k")
         ax.set_xticks(range(len(areas)), [f"{a:g}" for a in areas])
         ax.set_yticks(range(len(times)), [f"{t:g}" for t in times])
-        ax.set(xlabel="effective area of the open valve [mm²] (ISO 6358: C ≈ S/5 dm³/(s·bar))",
-               ylabel="response time 10-90 % [ms]", title=title)
+        ax.set(xlabel="effective area of the open valve [mm²]", ylabel="response time 10-90 % [ms]", title=title)
         fig.colorbar(image, ax=ax)
-    fig.suptitle("Valve design: stage-B force ratio R of the predictive absorber over valve size and speed")
+    fig.suptitle("Valve design: stage-B force ratio R of the predictive absorber over valve size and speed "
+                 "(ISO 6358 valves, C ≈ S/5 dm³/(s·bar))")
     return fig
