@@ -65,7 +65,8 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
                      "velocity_m_s": scenario.velocity, "pressure_gauge_Pa": scenario.pressure_gauge,
                      "effective_area_mm2": case["effective_area_mm2"], "response_time_ms": case["response_time_ms"],
                      "dead_time_ms": dead * 1e3, "sonic_conductance_m3_sPa": rig.valve.sonic_conductance,
-                     "strategy": strategy, "identification": result.identified.method, "stage_b": m.stage_b, "stage_b_force_ratio": _num(m.stage_b_force_ratio),
+                     "strategy": strategy, "identification": result.identified.method, "stage_b": m.stage_b,
+                     "stage_b_force_ratio": _num(m.stage_b_force_ratio),
                      "stage_b_efficiency": _num(m.stage_b_efficiency), "bottomed_out": m.bottomed_out,
                      "rebound_m": _num(m.rebound), "control_start_s": _num(m.control_start)})
     return rows
