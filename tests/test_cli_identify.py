@@ -131,3 +131,20 @@ def test_uncertainty_is_rounded_at_the_first_digit_of_its_error():
     assert with_uncertainty(1.97013, 0.00396, "m/s") == "1.970 ± 0.004 m/s"
     assert with_uncertainty(30.1, 0.2003, "kg") == "30.1 ± 0.2 kg"
     assert with_uncertainty(34.5123, float("nan"), "kg") == "34.51 kg"
+
+
+def test_json_names_the_equations_and_cfc_is_refused(rec_file, capsys):
+    """--json says which equations each answer used; --cfc with the robust variant exits 2 with one line saying
+    why (the filter moves the onsets and colours the noise), and the paper variant still answers."""
+    main(["identify", str(rec_file), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert data["stage"] == "final" and data["early"]["stage"] == "early"
+    assert set(data["equations"]) >= {"onsets", "extrema", "stage_b_extrema", "separations", "stage_b_samples"}
+    for command in ("identify", "stream"):
+        with pytest.raises(SystemExit) as exc:
+            main([command, str(rec_file), "--cfc", "1000"])
+        assert exc.value.code == 2
+        out = capsys.readouterr().out
+        assert "unfiltered" in out and "--cfc" in out and len(out.strip().splitlines()) == 1
+    main(["identify", str(rec_file), "--cfc", "1000", "--variant", "paper", "--json"])
+    assert json.loads(capsys.readouterr().out)["variant"] == "paper"

@@ -43,6 +43,8 @@ def _table(result: dict, title: str) -> Table:
         _row(table, prefix + "energy", sub["energy_J"], sub.get("energy_std_J"), "J")
         if sub.get("available_at_s") is not None:
             table.add_row(prefix + "available at", f"{sub['available_at_s'] * 1e3:.3f} ms")
+        if sub.get("equations"):
+            table.add_row(prefix + "equations", equations_text(sub["equations"]))
     for key in ("t00_s", "t01_s", "t11_s"):
         if result.get(key) is not None:
             table.add_row(key[:-2], f"{result[key] * 1e3:.3f} ms")
@@ -51,6 +53,16 @@ def _table(result: dict, title: str) -> Table:
     for warning in result.get("warnings") or ():
         table.add_row("warning", escape(warning))
     return table
+
+
+def equations_text(used: dict) -> str:
+    """One line naming the equations an answer used."""
+    text = (f"{used.get('onsets', 0)} onsets, {used.get('extrema', 0)} force extrema "
+            f"({used.get('stage_b_extrema', 0)} in stage B over {used.get('stage_b_samples', 0)} samples), "
+            f"{used.get('separations', 0)} separations")
+    if used.get("contact_phase"):
+        text += f", contact phase ({used['contact_phase'].get('samples', 0)} samples)"
+    return text
 
 
 @app.command()
@@ -116,6 +128,9 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
     if chunk < 1:
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
     rec = reader.read(file)
+    from ..identify.peak_to_peak import check_unfiltered
+
+    check_unfiltered(rec, variant)
     f, a = rec.contact_force, rec.piston_acceleration
     ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
                                 contact_phase=contact_phase)
@@ -152,8 +167,7 @@ def _print_refusal(error: IdentificationError, at: float, as_json: bool) -> None
 
 def _print_estimate(est, as_json: bool) -> None:
     d = est.to_dict()
-    kind = "early" if est.early is None and est.variant == "robust" and est.details.get("onset_rows") == -1 \
-        else "estimate"
+    kind = "early" if est.details.get("stage") == "early" else "estimate"
     if as_json:
         d.pop("early", None)
         d["kind"] = kind

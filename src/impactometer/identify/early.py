@@ -11,6 +11,8 @@ force-noise part (sandwich form), inflated by the reduced chi-square when it exc
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 from scipy.optimize import least_squares
 
@@ -29,88 +31,161 @@ def _law(delta, rate, k, c, n, m, dscale):
     return np.where(delta > 0, k * x ** n + c * x ** m * rate, 0.0)
 
 
-def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples):
-    """(V0, w) from the force samples of the first two pulses and the onset of the second.
+#: the law fits the whole pulses when their chi-square exceeds its degrees of freedom ν by at most this many
+#: standard deviations √(2ν) of it [-]
+FIT_SIGMAS = 4.0
+#: the overlap in the gap counts as positive throughout when its least value is this many standard errors above
+#: zero [-]
+DIP_SIGMAS = 2.0
 
-    Returns theta, cov, chi2, dof like :func:`robust.solve_onsets`.
+
+def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, peaks, gap):
+    """(V0, w) from the contact phase of the first two pulses and the onset of the second.
+
+    ``pulses`` are the first two pulses (the second may be running), ``peaks`` the samples of their force peaks
+    and ``gap`` the (first, last) samples between them. A law of the family loads and unloads along one curve;
+    a hysteretic contact does not, but it still loads along one. So the law is fitted to the whole pulses, and
+    where it does not fit them (a chi-square more than ``FIT_SIGMAS`` standard deviations above its degrees of
+    freedom) to their loading parts alone (each onset to its peak). Where the overlap stayed positive throughout
+    the gap (by ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and loaded again, so the second
+    pulse is not a fresh contact) there is no answer: the first pulse alone determines V0 but hardly the mass
+    (theta is NaN).
+
+    Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
+    the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
+    used (``samples``, ``onset_row``, ``branches``).
     """
-    idx = np.concatenate([np.arange(p.first, p.end, dtype=float) for p in pulses])
+    common = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples)
+    whole = _fit(kin, pulses, [p.end for p in pulses], onset1, onset1_std, **common)
+    fits = np.all(np.isfinite(whole[0])) and whole[2] <= whole[3] + FIT_SIGMAS * np.sqrt(2.0 * max(whole[3], 1))
+    chosen = whole if fits else _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole[6],
+                                     **common)
+    gap_index = np.arange(gap[0], gap[1], dtype=float)
+    if gap_index.size and np.all(np.isfinite(chosen[0])):
+        tau, _, _, i_f, _, _, da = kin.at(gap_index)
+        v0, w = chosen[0]
+        delta = v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da
+        k = int(np.argmin(delta))
+        grad = np.array([tau[k], -i_f[k]])
+        if delta[k] > DIP_SIGMAS * np.sqrt(max(float(grad @ chosen[1] @ grad), 0.0)):
+            # the first pulse alone determines V0 but hardly the mass: no answer
+            return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
+                    {"samples": 0, "onset_row": False, "branches": "none"})
+    return (*chosen[:5], {"samples": int(chosen[4][1].size - 1), "onset_row": True,
+                          "branches": "whole" if fits else "loading"})
+
+
+def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, start=None):
+    """The law fit to the samples of ``pulses`` up to ``stops`` and, unless ``onset1`` is None, the second
+    onset's row (see :func:`solve_early`), started from each law of ``LAW_STARTS`` or from ``start`` (the
+    parameters of another fit). Returns (theta, cov, chi2, dof, (weights, taus), info, parameters).
+
+    The first contact t00 is refined by the fit: a shift d0 of the compression (an error ε of t00 shifts δ by
+    −V0·ε at every sample) is a seventh unknown, with the foot fit's standard error of t00 as its prior.
+    """
+    idx = np.concatenate([np.arange(max(p.zero, 0), stop, dtype=float) for p, stop in zip(pulses, stops,
+                                                                                           strict=True)])
+    use_onset = onset1 is not None
+    onset1 = float(idx[-1]) if onset1 is None else onset1
     tau, f, jf, i_f, _, va, da = kin.at(idx)
     g = kin.gravity
-    t1, _, _, if1, _, _, da1 = kin.at(np.array([onset1]))
+    t1, _, jf1, if1, _, va1, da1 = kin.at(np.array([onset1]))
     sigma_f = max(noise_force, 1e-9 * float(np.max(f)))
     fpeak = float(np.max(f))
 
-    def kinematics(v0, w):
-        delta = v0 * tau + g * tau ** 2 / 2 - w * i_f - da
+    def kinematics(v0, w, d0):
+        delta = v0 * tau + g * tau ** 2 / 2 - w * i_f - da + d0
         rate = v0 + g * tau - w * jf - va
         return delta, rate
 
-    # scale of the compression from a rough first guess: V0 from the onset row with a mass of M2-scale
-    sigma_onset = float(np.sqrt(noise_acceleration ** 2 * kin.dt * t1[0] ** 3 / 3.0 + (onset1_std * kin.dt) ** 2))
+    def onset_sigma(v0, w):  # the second onset row: double-integrated noise and its time error
+        if not use_onset:
+            return 1e30
+        closing = max(v0 + g * t1[0] - w * jf1[0] - va1[0], 0.0)
+        white = noise_acceleration ** 2 + (w * noise_force) ** 2
+        return max(float(np.sqrt(white * kin.dt * t1[0] ** 3 / 3.0 + (closing * onset1_std * kin.dt) ** 2)), 1e-15)
 
-    def residuals(x, dscale):
-        v0, w, k, c, n, m = x
-        delta, rate = kinematics(v0, w)
+    def shift_sigma(v0):
+        return max(abs(v0) * kin.onset_std0 * kin.dt, 1e-15)
+
+    def residuals(x, dscale, s1):
+        v0, w, d0, k, c, n, m = x
+        delta, rate = kinematics(v0, w, d0)
         model = _law(delta, rate, k, c, n, m, dscale)
-        onset = (v0 * t1[0] + g * t1[0] ** 2 / 2 - w * if1[0] - da1[0]) / max(sigma_onset, 1e-12)
-        return np.append((f - model) / sigma_f, onset)
+        onset = (v0 * t1[0] + g * t1[0] ** 2 / 2 - w * if1[0] - da1[0] + d0) / s1
+        return np.concatenate([(f - model) / sigma_f, [onset, d0 / shift_sigma(v0)]])
 
-    def jacobian(x, dscale):
-        v0, w, k, c, n, m = x
-        delta, rate = kinematics(v0, w)
+    def jacobian(x, dscale, s1):
+        v0, w, d0, k, c, n, m = x
+        delta, rate = kinematics(v0, w, d0)
         touch = delta > 0
         xs = np.maximum(delta / dscale, 1e-12)
         xn, xm = xs ** n, xs ** m
         log_x = np.log(xs)
         d_delta = np.where(touch, (k * n * xn + c * m * xm * rate) / xs / dscale, 0.0)
         d_rate = np.where(touch, c * xm, 0.0)
-        jac = np.empty((f.size + 1, 6))
-        jac[:-1, 0] = d_delta * tau + d_rate
-        jac[:-1, 1] = -d_delta * i_f - d_rate * jf
-        jac[:-1, 2] = np.where(touch, xn, 0.0)
-        jac[:-1, 3] = np.where(touch, xm * rate, 0.0)
-        jac[:-1, 4] = np.where(touch, k * xn * log_x, 0.0)
-        jac[:-1, 5] = np.where(touch, c * xm * rate * log_x, 0.0)
-        jac[:-1] /= -sigma_f
-        jac[-1] = [t1[0] / max(sigma_onset, 1e-12), -if1[0] / max(sigma_onset, 1e-12), 0.0, 0.0, 0.0, 0.0]
+        jac = np.zeros((f.size + 2, 7))
+        jac[:-2, 0] = d_delta * tau + d_rate
+        jac[:-2, 1] = -d_delta * i_f - d_rate * jf
+        jac[:-2, 2] = d_delta
+        jac[:-2, 3] = np.where(touch, xn, 0.0)
+        jac[:-2, 4] = np.where(touch, xm * rate, 0.0)
+        jac[:-2, 5] = np.where(touch, k * xn * log_x, 0.0)
+        jac[:-2, 6] = np.where(touch, c * xm * rate * log_x, 0.0)
+        jac[:-2] /= -sigma_f
+        jac[-2, :3] = [t1[0] / s1, -if1[0] / s1, 1.0 / s1]
+        jac[-1, 2] = 1.0 / shift_sigma(v0)
         return jac
 
+    lower = [0.0, 0.0, -np.inf, 0.0, -np.inf, N_BOUNDS[0], M_BOUNDS[0]]
+    upper = [np.inf, np.inf, np.inf, np.inf, np.inf, N_BOUNDS[1], M_BOUNDS[1]]
+    if start is None:
+        starts = []
+        for w0 in START_INVERSE_MASSES:
+            v0 = max(float(da1[0] - g * t1[0] ** 2 / 2 + w0 * if1[0]) / max(t1[0], kin.dt), 0.05)
+            delta0, _ = kinematics(v0, w0, 0.0)
+            dscale = max(float(np.max(delta0)), 1e-6)
+            starts += [(np.array([v0, w0, 0.0, fpeak, 0.0 if m0 == 0 else 0.3 * fpeak, n0, m0]), dscale)
+                       for n0, m0 in LAW_STARTS]
+    else:
+        starts = [start]
     best = None
-    for w0 in START_INVERSE_MASSES:
-        v0 = max(float(da1[0] - g * t1[0] ** 2 / 2 + w0 * if1[0]) / max(t1[0], kin.dt), 0.05)
-        delta0, _ = kinematics(v0, w0)
-        dscale = max(float(np.max(delta0)), 1e-6)
-        for n0, m0 in LAW_STARTS:
-            x0 = np.array([v0, w0, fpeak, 0.0 if m0 == 0 else 0.3 * fpeak, n0, m0])
-            lower = [0.0, 0.0, 0.0, -np.inf, N_BOUNDS[0], M_BOUNDS[0]]
-            upper = [np.inf, np.inf, np.inf, np.inf, N_BOUNDS[1], M_BOUNDS[1]]
-            try:
-                fit = least_squares(residuals, x0, jac=jacobian, args=(dscale,), bounds=(lower, upper),
-                                    x_scale="jac", max_nfev=300)
-            except (ValueError, np.linalg.LinAlgError):
-                continue
-            if best is None or fit.cost < best[0].cost:
-                best = (fit, dscale)
-    fit, dscale = best
+    for x, dscale in starts:
+        try:
+            s1 = onset_sigma(x[0], x[1])
+            fit = least_squares(residuals, np.clip(x, lower, upper), jac=jacobian, args=(dscale, s1),
+                                bounds=(lower, upper), x_scale="jac", max_nfev=50)
+        except (ValueError, np.linalg.LinAlgError):
+            continue
+        if best is None or fit.cost < best[0].cost:
+            best = (fit, dscale, s1)
+    if best is not None and abs(onset_sigma(*best[0].x[:2]) / best[2] - 1.0) > 0.1:
+        fit, dscale, _ = best  # the onset row's weight depends on the estimate: once more with the new one
+        s1 = onset_sigma(*fit.x[:2])
+        with contextlib.suppress(ValueError, np.linalg.LinAlgError):
+            best = (least_squares(residuals, fit.x, jac=jacobian, args=(dscale, s1), bounds=(lower, upper),
+                                  x_scale="jac", max_nfev=50), dscale, s1)
+    if best is None:
+        return np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)), None, None
+    fit, dscale, s1 = best
     jac = fit.jac
     chi2 = float(fit.fun @ fit.fun)
-    dof = fit.fun.size - 6
+    dof = fit.fun.size - 7
     try:
         bread = np.linalg.pinv(jac.T @ jac)
     except np.linalg.LinAlgError:
-        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0))
+        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0)), None, None
     cov = bread * max(1.0, chi2 / max(dof, 1))
     # correlated part: the double-integrated acceleration noise and residual offset shift δ at every sample
-    v0, w, k, c, n, m = fit.x
-    delta, rate = kinematics(v0, w)
+    v0, w, d0, k, c, n, m = fit.x
+    delta, rate = kinematics(v0, w, d0)
     eps = 1e-6 * dscale
     slope = (_law(delta + eps, rate, k, c, n, m, dscale) - _law(delta - eps, rate, k, c, n, m, dscale)) / (2 * eps)
-    dr = np.append(-slope / sigma_f, 1.0 / max(sigma_onset, 1e-12))
+    dr = np.append(-slope / sigma_f, 1.0 / s1)
     taus = np.append(tau, t1[0])
-    weights = (bread @ jac.T) * dr[None, :]  # d theta / d(error of δ at each row)
+    weights = (bread @ jac[:-1].T) * dr[None, :]  # d theta / d(error of δ at each row)
     cov = cov + noise_acceleration ** 2 * kernel_form(weights, taus, kin.dt)
     if pre_samples > 0:
         shift = weights @ (taus ** 2 / 2.0)
         cov = cov + noise_acceleration ** 2 / pre_samples * np.outer(shift, shift)
-    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus)
+    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus), None, (fit.x, dscale)

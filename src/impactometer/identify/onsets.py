@@ -1,96 +1,198 @@
-"""Contact onsets located to a fraction of a sample by fitting the foot of each rising force edge."""
+"""Contact onsets and separations located to a fraction of a sample by fitting the foot of a force edge.
+
+A contact that starts at T makes the force rise as F = A·s^p·(1 + q·s), s = t − T > 0, and zero before: p = 0 is a
+jump (viscous damping), 1 a linear and 1.5 a Hertzian foot; q bends the foot further up the edge. The exponent p
+is free (a grid of ``EXPONENTS``), A and q are linear and solved for at every trial T, and T is scanned on a grid
+of a fraction of a sample. A separation is the same fit run backwards in time from the end of a pulse.
+
+How far up the edge the fit reaches follows from the noise: far enough for the edge to rise ``FOOT_SIGMAS``
+noise standard deviations (between ``FOOT_TOP_MIN`` and ``FOOT_TOP_MAX`` of the pulse's peak). The curvature term
+q is used only when the fit reaches beyond ``CURVED_ABOVE`` of the peak (below that the power law alone is exact
+for the common contact laws). The answer is the centre of the set of trial times whose squares lie within one
+scatter of the minimum, and its standard error half the width of that set (at least ``MIN_STD``).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .pulses import PulseSpan
+from .pulses import PulseSpan, detection_levels
 
-#: exponents of the power-law foot F = A·(t - t0)^p tried (1: linear, 1.5: Hertz/Hunt-Crossley)
-FOOT_EXPONENTS = (1.0, 1.25, 1.5, 1.75, 2.0, 2.5)
-#: the foot is fitted up to this fraction of the pulse's peak force
-FOOT_TOP = 0.1
-#: smallest standard error of an onset [samples] (the foot is never exactly a power law)
-MIN_STD = 0.1
-#: onset grid resolution [samples]: a coarse scan over all foot models, then a fine one around the best
+#: exponents p of the foot F = A·s^p·(1 + q·s) tried (0: a jump)
+EXPONENTS = np.arange(0.0, 2.0001, 0.25)
+#: the fit reaches up the edge until it has risen this many noise standard deviations ...
+FOOT_SIGMAS = 25.0
+#: ... but at least and at most these fractions of the pulse's peak force
+FOOT_TOP_MIN, FOOT_TOP_MAX = 0.1, 0.4
+#: the curvature term q is fitted when the fit reaches beyond this fraction of the peak
+CURVED_ABOVE = 0.15
+#: the fit reaches at most this many samples on either side of the first detected sample
+FOOT_SPAN = 64
+#: smallest standard error of an edge time [samples]: an anti-alias filter smooths a jump over about a sample
+MIN_STD = 0.25
+#: scan steps [samples]: coarse over the whole window, then fine around the best
 COARSE_STEP, GRID_STEP = 0.25, 1.0 / 32.0
 
 
-def _fit_sse(t, f, t0_grid, exponent):
-    """Residual sum of squares of the best F = H(t-t0)·model over ``t0_grid`` for one foot family."""
-    s = t[None, :] - t0_grid[:, None]
+def _profile(t: np.ndarray, f: np.ndarray, grid: np.ndarray, curved: bool) -> np.ndarray:
+    """Least squares of the best foot at each trial time of ``grid`` (minimum over the exponents and A, q)."""
+    s = t[None, None, :] - grid[:, None, None]
     on = s > 0.0
-    if exponent is None:  # jump + line: F = J + S·(t - t0) after t0
-        c0 = on.astype(float)
-        c1 = np.where(on, s, 0.0)
-        g00, g01, g11 = (c0 * c0).sum(1), (c0 * c1).sum(1), (c1 * c1).sum(1)
-        r0, r1 = (c0 * f).sum(1), (c1 * f).sum(1)
-        det = g00 * g11 - g01 ** 2
-        det = np.where(det > 1e-12, det, np.inf)
-        jump = (g11 * r0 - g01 * r1) / det
-        slope = (g00 * r1 - g01 * r0) / det
-        bad = jump < 0.0
-        model = jump[:, None] * c0 + slope[:, None] * c1
-        sse = ((f[None, :] - model) ** 2).sum(1)
-        return np.where(bad, np.inf, sse)
-    m = np.where(on, np.abs(s) ** exponent, 0.0)
-    mm = (m * m).sum(1)
-    amp = np.where(mm > 0, (m * f).sum(1) / np.where(mm > 0, mm, 1.0), 0.0)
-    return ((f[None, :] - amp[:, None] * m) ** 2).sum(1)
+    ss = np.where(on, s, 0.0)
+    p = EXPONENTS[None, :, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b1 = np.where(on, np.where(p == 0.0, 1.0, ss ** p), 0.0)
+    ff = float(f @ f)
+    g11, r1 = (b1 * b1).sum(-1), (b1 * f).sum(-1)
+    if not curved:
+        amp = r1 / np.where(g11 > 0, g11, 1.0)
+        return np.where((g11 > 0) & (amp > 0), ff - amp * r1, np.inf).min(1)
+    b2 = b1 * ss
+    g12, g22, r2 = (b1 * b2).sum(-1), (b2 * b2).sum(-1), (b2 * f).sum(-1)
+    det = g11 * g22 - g12 ** 2
+    ok = det > 1e-12 * np.maximum(g11 * g22, 1e-300)
+    det = np.where(ok, det, 1.0)
+    amp = (g22 * r1 - g12 * r2) / det
+    bend = (g11 * r2 - g12 * r1) / det
+    sse = ff - 2.0 * (amp * r1 + bend * r2) + amp * amp * g11 + 2.0 * amp * bend * g12 + bend * bend * g22
+    return np.where(ok & (amp > 0), sse, np.inf).min(1)
 
 
 def onset_index(force: np.ndarray, span: PulseSpan, noise: float, *, earliest: int = 0) -> tuple[float, float]:
     """Sub-sample onset of a pulse and its standard error, both in samples.
 
-    Fits the foot of the rising edge (from two samples before the last zero-consistent sample up to
-    ``FOOT_TOP`` of the peak) with a power law A·(t-t0)^p (p in ``FOOT_EXPONENTS``) and with a jump plus a line
-    (the signature of viscous contact damping), each zero before t0; the family and t0 with the least squares,
-    penalised by 2σ² per extra parameter, win. The onset is the centre of the t0 interval where the squares
-    stay within σ² of the minimum and its standard error half that interval's width, at least the
-    resolution of a jump (1/√12 sample). The search never starts before sample ``earliest`` (the end of the
-    previous pulse).
+    ``span`` gives the last zero-consistent sample before the pulse, its first detected sample and its peak; the
+    search never starts before sample ``earliest`` (the end of the previous pulse).
     """
     f_all = np.asarray(force, dtype=float)
     sigma = max(float(noise), 1e-12)
-    top = max(FOOT_TOP * f_all[span.peak], 10.0 * sigma)
+    peak = float(f_all[span.peak])
+    top = min(max(FOOT_TOP_MIN * peak, FOOT_SIGMAS * sigma), FOOT_TOP_MAX * peak)
     stop = span.first
-    while stop < span.peak and f_all[stop] < top:
+    while stop < min(span.peak, span.first + FOOT_SPAN) and f_all[stop] < top:
         stop += 1
     stop = max(stop + 1, min(span.first + 3, span.peak + 1))
     # samples the edge needs to rise through the detection level: the onset may lie that far before it
     slope = max((f_all[stop - 1] - f_all[span.first]) / max(stop - 1 - span.first, 1), 1e-12)
-    rise = int(min(np.ceil(f_all[span.first] / slope), 64))
-    lo = max(min(span.zero, span.first - 2 * rise) - 2, earliest, 0)
+    rise = int(min(np.ceil(max(f_all[span.first], 0.0) / slope), 64))
+    lo = max(min(span.zero, span.first - max(2 * rise, stop - span.first, 8)) - 2, earliest, 0,
+             span.first - FOOT_SPAN)
     t = np.arange(lo, stop, dtype=float)
     f = f_all[lo:stop]
-    families = [(p, 0) for p in FOOT_EXPONENTS] + [(None, 1)]
-
-    def scan(grid, candidates):
-        best = None
-        for exponent, extra in candidates:
-            sse = _fit_sse(t, f, grid, exponent) + 2.0 * sigma ** 2 * extra
-            k = int(np.argmin(sse))
-            if best is None or sse[k] < best[0][best[1]]:
-                best = (sse, k, exponent, extra)
-        return best
-
-    def interval(grid, sse, k):
-        # the contiguous run around the minimum where the squares stay within one scatter of it
-        scatter2 = max(sigma ** 2, sse[k] / max(t.size - 3, 1))  # the noise, or the misfit of the foot model
-        inside = sse <= sse[k] + scatter2
-        lo_k = hi_k = k
-        while lo_k > 0 and inside[lo_k - 1]:
-            lo_k -= 1
-        while hi_k < grid.size - 1 and inside[hi_k + 1]:
-            hi_k += 1
-        return lo_k, hi_k
-
+    curved = top > CURVED_ABOVE * peak
     coarse = np.arange(lo, span.first + 1e-9, COARSE_STEP)
-    sse, k, exponent, extra = scan(coarse, families)
-    lo_k, hi_k = interval(coarse, sse, k)
-    fine = np.arange(coarse[max(lo_k - 1, 0)], coarse[min(hi_k + 1, coarse.size - 1)] + 1e-9, GRID_STEP)
-    sse, k, _, _ = scan(fine, [(exponent, extra)])
-    lo_k, hi_k = interval(fine, sse, k)
-    onset = 0.5 * (fine[lo_k] + fine[hi_k])
-    std = max(0.5 * (fine[hi_k] - fine[lo_k]), MIN_STD)
-    return float(onset), float(std)
+    k = int(np.argmin(_profile(t, f, coarse, curved)))
+    fine = np.arange(coarse[max(k - 8, 0)], coarse[min(k + 8, coarse.size - 1)] + 1e-9, GRID_STEP)
+    sse = _profile(t, f, fine, curved)
+    k = int(np.argmin(sse))
+    # trial times whose squares stay within one scatter (the noise, or the misfit of the foot model) of the least
+    scatter2 = max(sigma ** 2, sse[k] / max(t.size - 4, 1))
+    inside = np.flatnonzero(sse <= sse[k] + scatter2)
+    first, last = fine[inside[0]], fine[inside[-1]]
+    return float(0.5 * (first + last)), float(max(0.5 * (last - first), MIN_STD))
+
+
+def separation_index(force: np.ndarray, span: PulseSpan, noise: float, *, latest: int | None = None,
+                     force_scale: float | None = None) -> tuple[float, float]:
+    """Sub-sample time where a complete pulse's force returns to zero, and its standard error [samples].
+
+    The onset fit run backwards in time; the search never goes past sample ``latest`` (the start of the next
+    pulse). ``force_scale`` [N] is the largest force, which sets the detection level as in
+    :func:`~impactometer.identify.pulses.detect_pulses`.
+    """
+    f_all = np.asarray(force, dtype=float)
+    n = f_all.size
+    detect, _ = detection_levels(noise, float(np.max(np.abs(f_all))) if force_scale is None else force_scale)
+    above = np.flatnonzero(f_all[span.peak:span.end] > detect)
+    last = span.peak + (int(above[-1]) if above.size else 0)
+    mirrored = PulseSpan(zero=n - 1 - span.end, first=n - 1 - last, peak=n - 1 - span.peak, end=-1)
+    earliest = 0 if latest is None else n - 1 - int(latest)
+    index, std = onset_index(f_all[::-1], mirrored, noise, earliest=earliest)
+    return float(n - 1 - index), std
+
+
+#: a turning point of the force must stand out by this many noise levels of the smoothed force [-]
+TURN_SIGMAS = 5.0
+#: the vertex fit reaches from a turning point until the force has moved this fraction of its swing [-]
+VERTEX_DROP = 0.25
+#: fewest and most samples on each side of a turning point in its vertex fit
+VERTEX_HALF_MIN, VERTEX_HALF_MAX = 3, 128
+
+
+def turning_points(force: np.ndarray, lo: int, hi: int, noise: float, width: int) -> list[tuple[int, int, float]]:
+    """Alternating maxima and minima of the force between samples ``lo`` and ``hi``, starting with a maximum.
+
+    The force is smoothed by a moving average of ``width`` samples; a turning point counts once the smoothed
+    force has moved away from it by ``TURN_SIGMAS`` of its noise (σ/√width). Returns (sample, +1 for a maximum
+    or −1 for a minimum, swing [N] from the previous turning point or from the start).
+    """
+    f = np.asarray(force[lo:hi], dtype=float)
+    width = max(int(width), 1)
+    if f.size < width + 2:
+        return []
+    x = np.convolve(f, np.ones(width) / width, mode="same")
+    threshold = TURN_SIGMAS * max(float(noise), 1e-12) / np.sqrt(width)
+    out: list[tuple[int, int, float]] = []
+    sign, cand, last = 1, 0, float(x[0])
+    half = width // 2
+    for i in range(half, x.size - half):
+        if sign * (x[i] - x[cand]) > 0:
+            cand = i
+        elif sign * (x[cand] - x[i]) > threshold and sign * (x[cand] - last) > threshold:
+            out.append((lo + cand, sign, abs(float(x[cand]) - last)))
+            last, sign, cand = float(x[cand]), -sign, i
+    return out
+
+
+def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float,
+           width: int = 1) -> tuple[float, float, float] | None:
+    """Sub-sample time [samples], its standard error [samples] and the force [N] of a turning point.
+
+    Where the overlap turns, the force of any contact law turns with zero slope, but its curvature may differ
+    on the two sides (a hysteretic contact loads and unloads along different lines: a cusp-like peak). So the
+    samples around ``centre`` -- out to where the force, smoothed over ``width`` samples, has moved
+    ``VERTEX_DROP`` of the ``swing`` on each side -- are fitted with F = F_E + a±·s² + c±·s³, s = t − E, the
+    coefficients on each side of E free; E is scanned like an onset. None where the window leaves the data or
+    the best E is not a maximum (``sign`` = +1) or a minimum (−1) inside the window.
+    """
+    f = np.asarray(force, dtype=float)
+    width = max(int(width), 1)
+    lo_w, hi_w = max(centre - 8 * width - 64, 0), min(centre + 8 * width + 64, f.size)
+    x = np.convolve(f[lo_w:hi_w], np.ones(width) / width, mode="same")
+    c = centre - lo_w
+    level, drop = x[c], VERTEX_DROP * abs(swing)
+    left = right = VERTEX_HALF_MIN
+    while left < VERTEX_HALF_MAX and c - left - 1 >= width // 2 and abs(x[c - left] - level) < drop:
+        left += 1
+    while right < VERTEX_HALF_MAX and c + right + 1 < x.size - width // 2 and abs(x[c + right] - level) < drop:
+        right += 1
+    if centre - left < 0 or centre + right >= f.size or c - left < width // 2 or c + right >= x.size - width // 2:
+        return None
+    t = np.arange(-left, right + 1, dtype=float)
+    y = f[centre - left:centre + right + 1]
+
+    def profile(grid):
+        s = t[None, :] - grid[:, None]
+        before, after = s < 0, s >= 0
+        basis = np.stack([np.ones_like(s), np.where(before, s * s, 0), np.where(after, s * s, 0),
+                          np.where(before, s ** 3, 0), np.where(after, s ** 3, 0)], axis=-1)
+        gram = np.matmul(basis.transpose(0, 2, 1), basis) + 1e-12 * np.eye(5)
+        coef = np.linalg.solve(gram, (basis.transpose(0, 2, 1) @ y)[..., None])[..., 0]
+        return np.sum((y[None, :] - (basis @ coef[..., None])[..., 0]) ** 2, axis=1), coef
+
+    step = max(1.0, float((left + right) // 64))
+    coarse = np.arange(-(left // 2), right // 2 + 1e-9, step)
+    sse, _ = profile(coarse)
+    k = int(np.argmin(sse))
+    fine = np.arange(coarse[max(k - 1, 0)], coarse[min(k + 1, coarse.size - 1)] + 1e-9, GRID_STEP * step)
+    sse, coef = profile(fine)
+    k = int(np.argmin(sse))
+    if not (0 < k < fine.size - 1 or coarse[0] < fine[k] < coarse[-1]) or np.any(sign * coef[k, 1:3] > 0):
+        return None
+    scatter2 = max(float(noise) ** 2, float(sse[k]) / max(t.size - 6, 1))
+    full, _ = profile(coarse)
+    inside = coarse[full <= sse[k] + scatter2]
+    inside_fine = fine[sse <= sse[k] + scatter2]
+    first = min(inside.min(), inside_fine.min()) if inside.size else inside_fine.min()
+    last = max(inside.max(), inside_fine.max()) if inside.size else inside_fine.max()
+    return centre + float(fine[k]), max(0.5 * (last - first), GRID_STEP), float(coef[k, 0])

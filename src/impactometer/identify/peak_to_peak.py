@@ -1,92 +1,73 @@
 """Peak-to-peak identification of the impacting mass M1 and impact velocity V0 (paper section 4).
 
-Two variants: ``paper`` (eqs. (3)-(5) as published) and ``robust`` (default; zero relative displacement at every
-contact onset, generalised least squares with propagated noise, an early and a final answer). Both work on the
-same prepared segment: the first impact found by the trigger, offsets removed with the pre-trigger samples.
+Two variants: ``paper`` (eqs. (3)-(5) as published) and ``robust`` (default). Both work on the same prepared
+segment (:mod:`segment`): the first impact found by the trigger, offsets removed with the pre-trigger samples.
+
+``robust`` gives two answers. The **early** one, as soon as the second pulse is past its peak, fits the contact
+phase of the first two pulses (:mod:`early`: a contact-law family with free parameters). The **final** one, and
+every later update, is contact-law agnostic (:mod:`robust`): one generalised least-squares estimate from every
+onset, every separation and the stage-B samples of the record. Each answer states the equations it used.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import IdentificationError, RecordingError, shown
-from ..recording import START_TIME_LIMIT, Recording, check_sample_rate
-from . import trigger
+from ..recording import START_TIME_LIMIT, Recording
 from .early import solve_early
-from .onsets import onset_index
 from .plausibility import answer_warnings, check_segment
-from .pulses import PulseSpan, detect_pulses, detection_levels, first_peak, noise_std
+from .pulses import detection_levels, first_peak, sustained_index
 from .result import Identification
-from .robust import MIN_ONSET_ROWS, Kinematics, combine, solve_onsets
+from .robust import Equations, Kinematics, combine, solve_rows
+from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
+    MAX_DURATION,
+    PRE_SAMPLES,
+    QUIET_TIME,
+    SUSTAINED_FACTOR,
+    TRIGGER_FLOOR,
+    Segment,
+    check_channels,
+    early_cut,
+    early_ready,
+    edges,
+    extrema,
+    prepare,
+    quantum,
+    segment_bounds,
+    segment_of,
+    segment_onset,
+    segment_separation,
+)
 
 GRAVITY = 9.81
-#: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
-#: offset, double-integrated, is the largest error of the final answer, so keep up to 0.1 s at 50 kHz
-PRE_SAMPLES = 5000
-#: samples next to the trigger left out of the pre-trigger statistics (the foot of the first rise)
-GUARD_SAMPLES = 32
-#: fewest pre-trigger samples for removing offsets
-MIN_PRE_SAMPLES = 32
-#: smallest trigger level [N]: exact (simulated) records have no noise to set one
-TRIGGER_FLOOR = 1e-9
-#: quiet spell that ends an impact [s] (a mass rebounding at 1.5 m/s is airborne for 0.3 s) and longest impact [s]
-QUIET_TIME = 0.3
-MAX_DURATION = 1.0
+#: lag-1 autocorrelation of the pre-trigger noise above which a channel counts as low-pass filtered [-]
+COLOURED_LIMIT = 0.5
+#: the separation lag λ is at most this fraction of the first pulse's duration [-]
+LAG_FRACTION = 0.5
+#: an answer whose standard error exceeds this fraction of itself says nothing and is refused [-]
+MAX_RELATIVE_STD = 0.5
 
 
-@dataclass(frozen=True)
-class Segment:
-    """One impact cut from the data: offset-free channels and what was learnt while preparing them."""
+def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
+          contact_phase: bool = False, stage: str = "final") -> Identification:
+    """Identify from a prepared segment with the named variant (``contact_phase``, ``stage``: see
+    :func:`solve_robust`).
 
-    force: np.ndarray
-    acceleration: np.ndarray
-    sample_rate: float
-    start_time: float
-    noise_force: float
-    noise_acceleration: float
-    pre_samples: int
-    pulses: list[PulseSpan]
-    #: (zero, first, peak, earliest, noise) of a pulse -> its onset and standard error [samples], shared by segments
-    #: cut from the same data with the same start (the early and the final answer, successive streaming estimates)
-    onset_cache: dict = field(default_factory=dict, compare=False)
-
-    def time_of(self, index: float) -> float:
-        """Time [s] of a (fractional) sample index of the segment."""
-        return self.start_time + float(index) / self.sample_rate
-
-
-def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.ndarray, float]:
-    """Validate the two channels; IdentificationError naming what is wrong."""
-    sample_rate = check_sample_rate(sample_rate, error=IdentificationError)
-    if acceleration is None:
-        raise IdentificationError("the piston acceleration channel is missing; peak-to-peak needs contact force "
-                                  "and piston acceleration")
-    try:
-        f = np.asarray(force, dtype=float)
-        a = np.asarray(acceleration, dtype=float)
-    except (TypeError, ValueError):
-        raise IdentificationError("force and acceleration must be arrays of numbers") from None
-    for name, x in (("contact_force", f), ("piston_acceleration", a)):
-        if x.ndim != 1:
-            raise IdentificationError(f"{name} must be a 1-D array, got shape {x.shape}")
-        bad = np.flatnonzero(~np.isfinite(x))
-        if bad.size:
-            raise IdentificationError(f"{name} has a non-finite sample ({x[bad[0]]!r}) at index {int(bad[0])}; "
-                                      "expected finite numbers")
-    if f.size != a.size:
-        raise IdentificationError(f"contact_force and piston_acceleration must have equal lengths, got {f.size} "
-                                  f"and {a.size} samples")
-    if f.size < 8:
-        raise IdentificationError(f"the record has {f.size} samples; expected at least 8")
-    return f, a, float(sample_rate)
-
-
-#: samples the batch trigger advances at a time: its event buffer stays small whatever the record's length
-TRIGGER_BLOCK = 1 << 16
+    The segment passes :func:`.plausibility.check_segment` first, so the batch and the streaming identification,
+    their early and final answers, refuse the same data; the answer carries the warnings of
+    :func:`.plausibility.answer_warnings`.
+    """
+    check_segment(seg)
+    if variant == "robust":
+        result = solve_robust(seg, gravity, early, contact_phase=contact_phase, stage=stage)
+    else:
+        result = VARIANT_SOLVERS[variant](seg, gravity, early)
+    return replace(result, warnings=answer_warnings(seg, result, gravity))
 
 
 def check_options(variant: Any, gravity: Any, start_time: Any, *,
@@ -101,68 +82,6 @@ def check_options(variant: Any, gravity: Any, start_time: Any, *,
                 or not low <= value <= high:
             raise error(f"{name} must be a number within [{low:g}, {high:g}] [{unit}], got {shown(value)}")
     return variant, float(gravity), float(start_time)
-
-
-def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
-    """Trigger events (code, sample index) of a record, up to the end of its first impact."""
-    fstate, istate = trigger.new_state()
-    events = np.empty((3 * TRIGGER_BLOCK + 2, 2), dtype=np.int64)
-    quiet, longest = max(int(QUIET_TIME * sample_rate), 1), max(int(MAX_DURATION * sample_rate), 1)
-    found = [np.empty((0, 2), dtype=np.int64)]
-    for start in range(0, force.size, TRIGGER_BLOCK):
-        n = trigger.run_trigger(force[start:start + TRIGGER_BLOCK], fstate, istate, floor, quiet, longest, events)
-        found.append(events[:n].copy())
-        if np.any(events[:n, 0] == trigger.EVENT_CLOSE):  # the first impact is over (a close follows a trigger)
-            break
-    return np.concatenate(found)
-
-
-def quantum(x: np.ndarray) -> float:
-    """Step of a quantised channel (the smallest difference between its distinct values, when they all lie on
-    a grid of that step), or 0 for continuous values."""
-    values = np.unique(x)
-    if values.size < 3:
-        return 0.0
-    step = float(np.min(np.diff(values)))
-    if step <= 1e-9 * float(values[-1] - values[0]) or not np.allclose(
-            np.round((values - values[0]) / step) * step, values - values[0], rtol=0, atol=1e-3 * step):
-        return 0.0
-    return step
-
-
-def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
-            pre: int, *, cache: dict | None = None) -> Segment:
-    """Offsets and noise from the first ``pre`` samples (less the guard), then the pulses of the impact."""
-    n_pre = pre - GUARD_SAMPLES
-    if n_pre >= MIN_PRE_SAMPLES:
-        f0, a0 = float(np.mean(force[:n_pre])), float(np.mean(acceleration[:n_pre]))
-        sf, sa = float(np.std(force[:n_pre])), float(np.std(acceleration[:n_pre]))
-    else:
-        n_pre, f0, a0 = 0, 0.0, 0.0
-        sf, sa = noise_std(force), noise_std(acceleration)
-    # resolution floor: quantisation noise (step/√12), and rounding of exact (simulated) data
-    sf = max(sf, quantum(force) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(force))))
-    sa = max(sa, quantum(acceleration) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(acceleration))))
-    f = force - f0
-    a = acceleration - a0
-    pulses = detect_pulses(f, sf, start=max(n_pre, 0))  # nothing before the pre-trigger statistics' end
-    return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses, {} if cache is None else cache)
-
-
-def solve(seg: Segment, variant: str, gravity: float, *, early: Identification | None = None,
-          contact_phase: bool = False) -> Identification:
-    """Identify from a prepared segment with the named variant (``contact_phase``: see :func:`solve_robust`).
-
-    The segment passes :func:`.plausibility.check_segment` first, so the batch and the streaming identification,
-    their early and final answers, refuse the same data; the answer carries the warnings of
-    :func:`.plausibility.answer_warnings`.
-    """
-    check_segment(seg)
-    if variant == "robust":
-        result = solve_robust(seg, gravity, early, contact_phase=contact_phase)
-    else:
-        result = VARIANT_SOLVERS[variant](seg, gravity, early)
-    return replace(result, warnings=answer_warnings(seg, result, gravity))
 
 
 def _need_pulses(seg: Segment, needed: int, what: str) -> None:
@@ -186,6 +105,8 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     g·Δt) (eq. 4), V2 = ∫a2 from t00 (eq. 5), V0 = V2(t01) + ∫_{t00}^{t01}Fc/M1 − g·(t01 − t00).
     """
     peak2 = second_peak(seg)
+    if peak2 is None:
+        peak2 = second_peak(seg)
     if peak2 is None:
         _need_pulses(seg, 2, "the paper variant")
         raise IdentificationError("the paper variant needs the second force peak: the second pulse has not yet "
@@ -242,122 +163,131 @@ def paper_caution(seg: Segment) -> str | None:
             "may be far off (the robust variant accounts for the noise)")
 
 
-def segment_onset(seg: Segment, pulse: PulseSpan) -> tuple[float, float]:
-    """Sub-sample onset and its standard error [samples] of a pulse of the segment (cached)."""
-    k = next((i for i, p in enumerate(seg.pulses) if p.first == pulse.first), 0)
-    earliest = seg.pulses[k - 1].end if k > 0 else 0
-    key = (pulse.zero, pulse.first, pulse.peak, earliest, seg.noise_force)
-    if key not in seg.onset_cache:
-        seg.onset_cache[key] = onset_index(seg.force, pulse, seg.noise_force, earliest=earliest)
-    return seg.onset_cache[key]
+
+def check_white_noise(seg: Segment) -> None:
+    """IdentificationError when the pre-trigger noise of a channel is correlated from sample to sample.
+
+    A low-pass filter (CFC, a smoothing DAQ setting) colours the noise and spreads every contact onset ahead of
+    the contact: the robust variant's noise model and onset times would then be wrong and its standard errors far
+    too small, so it refuses rather than answer.
+    """
+    if seg.noise_correlation > COLOURED_LIMIT:
+        raise IdentificationError(
+            f"the channels look low-pass filtered: their pre-trigger noise has a sample-to-sample correlation of "
+            f"{seg.noise_correlation:.2f} (white noise: about 0, limit {COLOURED_LIMIT}); the robust variant needs "
+            "the unfiltered channels (a filter colours the noise and moves the contact onsets ahead of the "
+            "contact) -- identify the record without --cfc, or use --variant paper")
 
 
-def _onsets(seg: Segment, pulses) -> tuple[np.ndarray, np.ndarray]:
-    pairs = [segment_onset(seg, p) for p in pulses]
-    return np.array([p[0] for p in pairs]), np.array([p[1] for p in pairs])
+def equations(seg: Segment) -> tuple[Equations, float, float]:
+    """Every row the segment holds: (equations, t00 and its standard error [samples])."""
+    sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
+    pulses = [p for k, p in enumerate(seg.pulses) if p.complete or k == sustained or (k == 1 and early_ready(seg))]
+    onsets, stds = edges(seg, pulses)
+    gaps = np.array([[max(prev.end, prev.peak), int(o)] for prev, o in zip(seg.pulses, onsets[1:], strict=False)],
+                    dtype=int)
+    complete = [p for p in seg.pulses if p.complete]
+    seps = [segment_separation(seg, p) for p in complete]
+    times, time_std, stage, span = extrema(seg)
+    eqs = Equations(onsets=onsets[1:], onset_std=stds[1:], extrema=times, extremum_std=time_std, stage_b=stage,
+                    separations=np.array([s[0] for s in seps]), separation_std=np.array([s[1] for s in seps]),
+                    peaks=np.array([float(p.peak) for p in complete]), stage_b_samples=span,
+                    gaps=gaps.reshape(-1, 2))
+    return eqs, float(onsets[0]), float(stds[0])
+
+
+def _determined(eqs: Equations, dof: int = 1) -> bool:
+    """Whether the agnostic rows leave ``dof`` degrees of freedom once (V0, w) and the nuisances are fitted
+    (extrema bring one nuisance, separations two; see :func:`~impactometer.identify.robust.solve_rows`)."""
+    n_ext, n_sep = eqs.extrema.size, eqs.separations.size
+    rows = eqs.onsets.size + (n_ext - 1 if n_ext >= 2 else 0) + (n_sep - 2 if n_sep >= 3 else 0)
+    return rows >= 2 + dof
 
 
 def solve_robust(seg: Segment, gravity: float, early: Identification | None = None, *,
-                 contact_phase: bool = False) -> Identification:
-    """Zero relative displacement at every complete pulse's onset; GLS with propagated noise (module notes).
+                 contact_phase: bool = False, stage: str = "final") -> Identification:
+    """The robust variant's answer from a prepared segment.
 
-    With only two separated pulses the contact phase gives the answer (:mod:`early`). With ``contact_phase`` the
-    onset answer is combined with the contact-phase fit of the first two pulses (best linear unbiased, with the
-    shared acceleration noise): on the built-in stand at 5 % noise this lowers the velocity error by a third
-    and leaves the mass error about as it is, at the price of depending on the contact-law family.
+    ``stage="early"``: the contact-phase fit of the first two pulses (:func:`~impactometer.identify.early.
+    solve_early`). ``stage="final"``: the agnostic rows of :func:`~impactometer.identify.robust.solve_rows` --
+    every onset, turning point of the force and separation -- where they leave at least one degree of freedom,
+    else the contact-phase fit. With ``contact_phase`` the agnostic answer is combined with the contact-phase fit
+    (best linear unbiased, with the shared acceleration noise), at the price of depending on the contact-law
+    family.
     """
-    pulses = [p for p in seg.pulses if p.complete]
-    if len(pulses) < 2 and early_ready(seg):  # the second pulse is past its peak: enough for the contact phase
-        pulses = [pulses[0], replace(seg.pulses[1], end=seg.force.size)]
-    _need_pulses(seg, 2 - (len(pulses) >= 2), "the robust variant")
-    onsets, stds = _onsets(seg, pulses)
-    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, onsets[0], gravity, onset_std0=stds[0])
-    common: dict[str, Any] = dict(
-        t00=seg.time_of(onsets[0]), t01=seg.time_of(pulses[0].peak), t11=seg.time_of(pulses[1].peak),
-        variant="robust", onsets=tuple(seg.time_of(o) for o in onsets),
-        available_at=seg.time_of(min(pulses[-1].end, seg.force.size - 1)))
-    noise = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
-                 pre_samples=seg.pre_samples)
-    if len(pulses) - 1 >= MIN_ONSET_ROWS:
-        theta, cov, chi2, dof, sens = solve_onsets(kin, onsets[1:], stds[1:], **noise)
-        rows = len(pulses) - 1
+    check_white_noise(seg)
+    if not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2:
+        _need_pulses(seg, 2, "the robust variant")
+    eqs, t00, std0 = equations(seg)
+    agnostic = stage == "final" and _determined(eqs)
+    if not agnostic and not (seg.pulses[1].complete or early_ready(seg)):
+        _need_pulses(seg, 2, "the robust variant")
+    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity, onset_std0=std0)
+    noise: dict[str, Any] = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
+                                 pre_samples=seg.pre_samples)
+    second = seg.pulses[1]
+    peak2 = second_peak(seg) or second.peak
+    used: dict = {}
+    if agnostic:
+        lag_max = LAG_FRACTION * (seg.pulses[0].end - seg.pulses[0].zero) / seg.sample_rate
+        sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
+        theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
+        used = {**sol.used, **sol.nuisances}
         if contact_phase:
-            contact = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
-            theta, cov = combine((theta, cov, sens), (contact[0], contact[1], contact[4]),
+            contact = _contact_phase(seg, kin, peak2, noise)
+            theta, cov = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
                                  noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples,
                                  dt=kin.dt)
+            used["contact_phase"] = contact[5]
+        last = max([p.end if p.complete else seg.force.size - 1 for p in seg.pulses])
     else:
-        theta, cov, chi2, dof, _ = solve_early(kin, pulses[:2], onsets[1], stds[1], **noise)
-        rows = -1
+        stage = "early" if stage == "early" else "final"
+        theta, cov, chi2, dof, _, info = _contact_phase(seg, kin, peak2, noise)
+        if info["branches"] == "none":
+            raise IdentificationError("the contact phase does not determine the mass here: the second pulse is "
+                                      "not a fresh contact (the overlap stayed positive through the gap before "
+                                      "it), and the first pulse alone fixes the velocity but hardly the mass")
+        used = {"onsets": int(info["onset_row"]), "extrema": 0, "stage_b_extrema": 0, "separations": 0,
+                "stage_b_samples": 0, "contact_phase": info}
+        last = second.end if second.complete else seg.force.size - 1
     velocity, w = float(theta[0]), float(theta[1])
-    if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity):
-        raise IdentificationError(f"the onset equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses "
-                                  "found are not contact separations of a falling mass")
-    _check_velocity(velocity, "the onset equations")
-    mass = 1.0 / w
-    return Identification(mass=mass, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
-                          velocity_std=float(np.sqrt(cov[0, 0])), early=early,
-                          details={"onset_rows": rows, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
-                                   "noise_acceleration_m_s2": seg.noise_acceleration,
-                                   "pre_trigger_samples": seg.pre_samples}, **common)
+    if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity) or not np.all(np.isfinite(cov)):
+        raise IdentificationError(f"the equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses found "
+                                  "are not contact separations of a falling mass")
+    _check_velocity(velocity, f"the {stage} equations")
+    spread = max(float(np.sqrt(cov[1, 1])) / w, float(np.sqrt(cov[0, 0])) / max(abs(velocity), 1e-12))
+    if spread > MAX_RELATIVE_STD:
+        raise IdentificationError(f"the {stage} equations do not determine the impact: the standard error is "
+                                  f"{spread:.0%} of the answer (at most {MAX_RELATIVE_STD:.0%} is an answer); "
+                                  "more of the record is needed")
+    return Identification(
+        mass=1.0 / w, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
+        velocity_std=float(np.sqrt(cov[0, 0])), early=early, t00=seg.time_of(t00),
+        t01=seg.time_of(seg.pulses[0].peak), t11=seg.time_of(second_peak(seg) or second.peak), variant="robust",
+        onsets=tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), available_at=seg.time_of(last),
+        details={"stage": stage, "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
+                 "noise_acceleration_m_s2": seg.noise_acceleration, "pre_trigger_samples": seg.pre_samples})
+
+
+def _contact_phase(seg: Segment, kin: Kinematics, peak2: int, noise: dict):
+    """The contact-phase fit of the first two pulses (:func:`~impactometer.identify.early.solve_early`)."""
+    first, second = seg.pulses[0], seg.pulses[1]
+    onset, onset_std = segment_onset(seg, second)
+    running = second if second.complete else replace(second, end=seg.force.size)
+    return solve_early(kin, [first, running], onset, onset_std, peaks=[first.peak, peak2],
+                       gap=(max(first.end, first.peak), int(onset)), **noise)
 
 
 VARIANT_SOLVERS = {"robust": solve_robust, "paper": solve_paper}
 
 
-def _segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, list[int], int]:
-    """First impact: (start, stop) sample indices of its segment and the pulse-end indices in it."""
-    events = run_trigger(force, sample_rate, floor=TRIGGER_FLOOR)
-    trig = [int(i) for c, i in events if c == trigger.EVENT_TRIGGER]
-    if not trig:
-        raise IdentificationError("no impact found: the contact force never leaves its noise; expected at least "
-                                  "one contact pulse")
-    if trig[0] <= trigger.WARM_SAMPLES:  # fired at the first chance: no quiet history before the impact
-        return 0, _first_close(events, trig[0], force.size), _pulse_ends(events, trig[0], force.size), 0
-    start = max(trig[0] - PRE_SAMPLES, 0)
-    stop = _first_close(events, trig[0], force.size)
-    return start, stop, _pulse_ends(events, trig[0], stop), trig[0] - start
-
-
-def _first_close(events, trig: int, size: int) -> int:
-    closes = [int(i) for c, i in events if c == trigger.EVENT_CLOSE and i > trig]
-    return closes[0] + 1 if closes else size
-
-
-def _pulse_ends(events, trig: int, stop: int) -> list[int]:
-    """Samples after which an answer may have become possible: pulse ends and pulses past their peak."""
-    codes = (trigger.EVENT_PULSE_END, trigger.EVENT_PAST_PEAK)
-    return sorted({int(i) for c, i in events if c in codes and trig < i < stop})
-
-
-def segment_of(force, acceleration, sample_rate, start_time, start, stop, pre, cache=None) -> Segment:
-    """Prepared segment [start, stop) of the arrays."""
-    return prepare(force[start:stop], acceleration[start:stop], sample_rate, start_time + start / sample_rate, pre,
-                   cache=cache)
-
-
-def early_ready(seg: Segment) -> bool:
-    """Whether the segment holds a complete first pulse and a second one past its peak (the early answer)."""
-    p = seg.pulses
-    return len(p) >= 2 and p[0].complete and (
-        p[1].complete or seg.force[-1] < trigger.PAST_PEAK_FRACTION * seg.force[p[1].peak])
-
-
-def early_cut(force, acceleration, sample_rate, start_time, start, ends, pre, cache=None) -> Segment | None:
-    """The segment up to the first event after which the early answer is possible (None if never)."""
-    for end in ends:
-        seg = segment_of(force, acceleration, sample_rate, start_time, start, end + 1, pre, cache)
-        if early_ready(seg):
-            return seg
-    return None
-
-
 def early_answer(cut: Segment | None, gravity: float) -> Identification | None:
-    """The robust answer from the data up to the second pulse, or None when that data allows none."""
+    """The robust variant's early answer from the data up to the second pulse, or None when that data allows
+    none."""
     if cut is None:
         return None
     try:
-        return solve(cut, "robust", gravity)
+        return solve(cut, "robust", gravity, stage="early")
     except IdentificationError:
         return None
 
@@ -394,7 +324,7 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     """
     variant, gravity, start_time = check_options(variant, gravity, start_time)
     f, a, fs = check_channels(force, acceleration, sample_rate)
-    start, stop, ends, pre = _segment_bounds(f, fs)
+    start, stop, ends, pre = segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
     early = None
     if variant == "robust":
@@ -402,11 +332,33 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     return solve(seg, variant, gravity, early=early, contact_phase=contact_phase)
 
 
+def check_unfiltered(recording: Recording, variant: str) -> None:
+    """IdentificationError when the robust variant is asked to identify channels the recording says were
+    CFC-filtered (``metadata['cfc']``, as :func:`~impactometer.filters.filter_recording` notes it).
+
+    A zero-phase low-pass filter spreads each contact onset ahead of the contact and colours the noise: the
+    robust variant's onset times, noise model and standard errors would all be wrong (answers off by several
+    standard errors, or absurd). It identifies the unfiltered channels instead; the paper variant, which reads
+    peaks, accepts filtered ones.
+    """
+    filtered = recording.metadata.get("cfc")
+    if variant != "robust" or not isinstance(filtered, dict):
+        return
+    named = {name: cfc for name, cfc in filtered.items() if name in ("contact_force", "piston_acceleration")}
+    if named:
+        listed = ", ".join(f"{name} (CFC {cfc})" for name, cfc in named.items())
+        raise IdentificationError(f"{recording.source}: {listed} filtered; the robust identification needs the "
+                                  "unfiltered channels (a zero-phase filter moves the contact onsets ahead of the "
+                                  "contact and colours the noise, so its answers and standard errors would be "
+                                  "wrong) -- identify without --cfc, or use --variant paper")
+
+
 def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY,
              contact_phase: bool = False) -> Identification:
     """Identify M1 and V0 from a :class:`~impactometer.recording.Recording` (see :func:`identify_arrays`)."""
     if not isinstance(recording, Recording):
         raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
+    check_unfiltered(recording, variant)
     channels = {}
     for name in ("contact_force", "piston_acceleration"):
         try:

@@ -34,7 +34,6 @@ import numpy as np
 
 from ..errors import IdentificationError, ParameterError, shown
 from ..stands import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
-from .robust import MIN_ONSET_ROWS
 
 #: the recorded impulse (energy) may exceed what the answer allows by this factor before a warning (noise,
 #: offsets, the piston's gas and friction forces)
@@ -98,7 +97,7 @@ def check_clipping(seg) -> None:
 def answer_warnings(seg, result, gravity: float) -> tuple[str, ...]:
     """What makes a peak-to-peak ``result`` implausible for the signals of its segment (:func:`check_answer`)."""
     details = result.details
-    fitted = details.get("onset_rows", 0) >= MIN_ONSET_ROWS  # the onset equations' χ² measures the fit to noise
+    fitted = _agnostic(details)  # the agnostic equations' χ² measures the fit to noise
     chi2 = details["chi2"] / details["dof"] if fitted and details.get("dof") else None
     found = check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
                          onset=(result.t00 - seg.start_time) * seg.sample_rate,
@@ -109,6 +108,13 @@ def answer_warnings(seg, result, gravity: float) -> tuple[str, ...]:
     if chi2 is not None and chi2 > SLIP_CHI2:
         found += _unit_slip(seg, result, gravity, chi2)
     return found
+
+
+def _agnostic(details: dict) -> bool:
+    """Whether an answer came from the agnostic equations (onsets, turning points, separations), whose χ² measures
+    the fit to the noise, rather than from the contact-phase fit."""
+    used = details.get("equations") or {}
+    return details.get("stage") == "final" and "contact_phase" not in used and used.get("onsets", 0) >= 1
 
 
 def _unit_slip(seg, result, gravity: float, chi2: float) -> tuple[str, ...]:
@@ -124,7 +130,7 @@ def _unit_slip(seg, result, gravity: float, chi2: float) -> tuple[str, ...]:
         except IdentificationError:
             continue
         rows = other.details
-        if rows.get("onset_rows", 0) < MIN_ONSET_ROWS or not rows.get("dof"):
+        if not _agnostic(rows) or not rows.get("dof"):
             continue
         better = chi2 / max(rows["chi2"] / rows["dof"], 1.0)
         if better >= SLIP_GAIN and not check_answer(other.mass, other.velocity):

@@ -204,17 +204,28 @@ def first_peak(force: np.ndarray, span: PulseSpan, drop: float) -> int | None:
     return span.first + int(np.argmax(f[:fallen[0]]))
 
 
-def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 4.0) -> int | None:
-    """Sample index where sustained contact (stage B) starts, or None.
+def sustained_index(spans: list[PulseSpan], *, size: int, factor: float = 2.0) -> int | None:
+    """Index in ``spans`` of the pulse where sustained contact (stage B) starts, or None.
 
-    Stage B is the first pulse that lasts longer than ``factor`` times the first pulse or is still running at the
-    end of the data (``size`` samples), provided it is not the first pulse itself.
+    Stage B is the first pulse after the first that lasts longer than ``factor`` times the longest pulse before
+    it, counting a pulse still running at the end of the data (``size`` samples) by how long it has run so far.
+    A bounce lasts as long as the contact's stiffness makes it, whatever the law; sustained contact lasts as long
+    as the gas spring holds the bodies together, many bounces long.
     """
     if len(spans) < 2 or not spans[0].complete:
         return None
-    first = spans[0].end - spans[0].first
-    for span in spans[1:]:
-        length = (size if not span.complete else span.end) - span.first
-        if not span.complete or length > factor * first:
-            return span.zero
+    longest = 0
+    for k, span in enumerate(spans):
+        length = (span.end if span.complete else size) - span.zero
+        if k > 0 and length > factor * longest:
+            return k
+        if not span.complete:
+            return None
+        longest = max(longest, length)
     return None
+
+
+def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 2.0) -> int | None:
+    """Sample index where sustained contact (stage B) starts (see :func:`sustained_index`), or None."""
+    k = sustained_index(spans, size=size, factor=factor)
+    return None if k is None else spans[k].zero

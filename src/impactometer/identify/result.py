@@ -24,8 +24,10 @@ class Identification:
     method : ``"peak-to-peak"``.
     variant : ``"robust"`` or ``"paper"``.
     early : The early answer (from the data up to the second pulse), or None.
-    onsets : Contact onsets used [s] (robust variant).
-    details : Diagnostics (number of rows, reduced chi-square, noise levels, ...).
+    onsets : Contact onsets found [s] (robust variant): t00 and the onset of every later pulse.
+    details : Diagnostics: ``stage`` (``early`` or ``final``), ``equations`` (what the answer used: counts of
+        onsets, force extrema, of them in stage B, separations and the stage-B samples, the contact-phase fit's
+        samples where one was used, and the fitted nuisances), chi-square and degrees of freedom, noise levels.
     warnings : Sentences on what makes the answer implausible (see :mod:`.plausibility`); empty when nothing does.
     """
 
@@ -66,9 +68,29 @@ class Identification:
                 "method": self.method, "variant": self.variant,
                 "early": None if self.early is None else self.early.to_dict(),
                 "onsets_s": [float(t) for t in self.onsets], "warnings": list(self.warnings),
+                **({"stage": self.details["stage"]} if self.details.get("stage") else {}),
+                **({"equations": _plain(self.details["equations"])} if self.details.get("equations") else {}),
                 **({"caution": self.details["caution"]} if self.details.get("caution") else {})}
 
     def plot(self, recording, ax=None):
         """Force and acceleration with the instants used marked (matplotlib imported lazily)."""
         from .plots import plot_identification
         return plot_identification(recording, self, ax=ax)
+
+
+def _plain(value: Any) -> Any:
+    """JSON-ready copy of nested details: numpy numbers as Python numbers, non-finite numbers as None."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (bool, str)) or value is None:
+        return value
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    if not math.isfinite(number):
+        return None
+    return int(number) if isinstance(value, int) or (hasattr(value, "dtype") and value.dtype.kind in "iu") \
+        else number

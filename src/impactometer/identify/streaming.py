@@ -36,6 +36,10 @@ def _store(force, acceleration, ring_force, ring_acceleration, seen):
     return -1
 
 
+#: while the contact is sustained (stage B), the answer is updated this often [s]
+UPDATE_INTERVAL = 0.01
+
+
 class StreamingIdentifier:
     """Identify impacts from an endless stream of contact force [N] and piston acceleration [m/s²] samples.
 
@@ -89,6 +93,9 @@ class StreamingIdentifier:
         self.estimates: list[Identification] = []
         self.completed: list[Identification] = []
         self.outcomes: list[Identification | IdentificationError] = []
+        # stage B: the running pulse's start, the longest pulse so far, the last update [samples]
+        self._inside_since = self._longest = self._last_update = 0
+        self._update_samples = max(int(UPDATE_INTERVAL * sample_rate), 1)
 
     @property
     def armed(self) -> bool:
@@ -119,15 +126,25 @@ class StreamingIdentifier:
         if bad >= 0:
             raise IdentificationError(f"non-finite sample at stream index {self.seen + bad}; expected finite "
                                       "numbers")
+        was_inside = self._start is not None and bool(self._istate[trigger.INSIDE])
         n_ev = trigger.run_trigger(f, self._fstate, self._istate, self.floor, self.quiet, self.max_samples,
                                    self._events)
         self.seen += f.size
-        if n_ev == 0:
-            return []
         out = []
         for code, index in self._events[:n_ev]:
             out.extend(self._event(int(code), int(index)))
+        if self._start is not None and self.variant == "robust":
+            inside = bool(self._istate[trigger.INSIDE])
+            if inside and not was_inside:
+                self._inside_since = self.seen - f.size
+            if inside and self._sustained() and self.seen - self._last_update >= self._update_samples:
+                self._last_update = self.seen
+                out.extend(self._solve(self.seen))
         return out
+
+    def _sustained(self) -> bool:
+        """Whether the running pulse has lasted longer than a bounce could (stage B): time for an update."""
+        return self._longest > 0 and self.seen - self._inside_since > p2p.SUSTAINED_FACTOR * self._longest
 
     def _segment(self, stop: int) -> p2p.Segment:
         assert self._start is not None  # called only while an impact runs
@@ -145,9 +162,12 @@ class StreamingIdentifier:
             self._early, self._early_done = None, False
             self._onsets = {}
             self.estimates = []
+            self._inside_since, self._longest, self._last_update = index, 0, index
             return []
         if self._start is None:
             return []
+        if code == trigger.EVENT_PULSE_END:
+            self._longest = max(self._longest, index - self._inside_since)
         if code == trigger.EVENT_CLOSE:
             return self._conclude(index + 1, index)
         return self._solve(index + 1, final=code != trigger.EVENT_PAST_PEAK)
@@ -163,8 +183,8 @@ class StreamingIdentifier:
     def _solve(self, stop: int, final: bool = True) -> list[Identification]:
         seg = self._segment(stop)
         new = self._early_step(seg)
-        needed = 3 if self.variant == "robust" else 2
-        if final and sum(p.complete for p in seg.pulses) >= needed:
+        # the paper variant needs the second peak; the robust one answers from stage B or a second pulse
+        if final and (sum(p.complete for p in seg.pulses) >= 2 or (self.variant == "robust" and self._sustained())):
             with contextlib.suppress(IdentificationError):  # no answer yet: the impact's end decides (_conclude)
                 new.append(p2p.solve(seg, self.variant, self.gravity, early=self._early,
                                      contact_phase=self.contact_phase))

@@ -35,6 +35,8 @@ PULSE_SIGMAS, RELEASE_SIGMAS = 5.0, 2.0
 _MEAN, _VAR, _SIGMA, _BASE, _PMAX, _FIRST, _PREV1, _PREV2, _D2SUM, _WMAX = range(10)
 # int state: mode, samples seen, index of trigger, samples since trigger, quiet run, inside a pulse, past peak
 _MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE, _PAST = range(7)
+#: index of the int state that is 1 while the force is inside a pulse (read by the streaming identifier)
+INSIDE = _INSIDE
 
 
 def new_state() -> tuple[np.ndarray, np.ndarray]:
