@@ -192,7 +192,8 @@ def command_of(t, dt, p, ctrl, drive, e, history, newest, delay):
     e[est.TARGET] = math.nan
     velocity, x = e[est.VELOCITY], e[est.X_HAT]
     v2 = velocity if e[est.STAGE_B] != 0.0 else e[est.V_SLOW]  # the mean motion of the piston
-    if strategy == s.CLOSED or t < ctrl[s.T_START] or e[est.LATCHED] != 0.0 or not mass > 0.0 \
+    waits = strategy in (s.CONSTANT, s.LEVEL)  # the force strategies act as soon as they know M1 and v1
+    if strategy == s.CLOSED or (waits and t < ctrl[s.T_START]) or e[est.LATCHED] != 0.0 or not mass > 0.0 \
             or not math.isfinite(velocity):
         return 0.0
     p_lower, p_upper = e[est.P_LOWER_F], e[est.P_UPPER_F]

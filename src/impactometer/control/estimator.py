@@ -13,14 +13,18 @@ Sensors (with noise): contact force Fc, piston acceleration a2, chamber pressure
   M1·(g − a2) = Fc integrates exactly between them; the estimate is the ratio of the sums, Σ Fc / Σ (g − a2), over
   windows between such instants (:func:`_regress`), with the standard error sqrt(n·s²)/Σ (g − a2) from the residual
   variance s². It is combined with the mass known at the control start by inverse-variance weighting (that one's
-  standard error never taken below 25 % of the value: the early answer rests on two contact pulses, and on a stand
-  that reaches stage B early its error is often larger than stated).
+  standard error never taken below 25 % of the value: the early answer rests on a few contact pulses, and on a
+  stand that reaches stage B early its error is often larger than stated), and dropped when the two differ by more
+  than 3 combined standard errors (an early answer of 5 kg for a 40 kg mass happens).
+- What the identification answered (M1, V0 and M1's standard error) is known from the control start on; before,
+  only the controller's own stage-B estimates exist.
 - Mass velocity: before mass and piston move together, the momentum balance of the mass,
-  v1 = V0 + g·t − ∫Fc dt / M1, with the latest M1. Once they do (a sustained contact, or a contact that has held a
-  whole window), it starts from the observer's piston velocity (mostly at a window end, an instant of equal
-  velocities) and follows the momentum balance dv1/dt = g − Fc/M1, pulled towards the observer's velocity with a
-  5 Hz bandwidth: no drift, and nothing of the oscillation of the mass on the contact element (above 100 Hz),
-  which the valve must not feed. The piston's mean velocity before that is the observer's, low-passed over 5 ms.
+  v1 = V0 + g·t − ∫Fc dt / M1, with the latest M1 (unknown before the control start). Once they do (a sustained
+  contact, or a contact that has held a whole window), it starts from the observer's piston velocity (mostly at a
+  window end, an instant of equal velocities) and follows the momentum balance dv1/dt = g − Fc/M1, pulled towards
+  the observer's velocity with a 5 Hz bandwidth: no drift, and nothing of the oscillation of the mass on the
+  contact element (above 100 Hz), which the valve must not feed. The piston's mean velocity before that is the
+  observer's, low-passed over 5 ms.
 """
 
 from __future__ import annotations
@@ -62,6 +66,8 @@ MIN_SAMPLES = 25
 COMMIT_TIME = 10e-3
 #: floor of the relative standard error of the mass known at the control start [-]
 PRIOR_FLOOR = 0.25
+#: the prior is dropped when it and the stage-B estimate differ by more than this many combined standard errors
+CONSISTENCY = 3.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -76,9 +82,9 @@ def initial(y0, ctrl):
     e[TARGET] = math.nan
     e[CONTACT_START] = math.nan
     e[FIRST_PULSE] = math.nan
-    e[MASS] = ctrl[s.MASS_HAT]
-    e[MASS_STD] = ctrl[s.MASS_STD]
-    e[VELOCITY] = ctrl[s.VELOCITY_HAT]
+    e[MASS] = math.nan
+    e[MASS_STD] = math.inf
+    e[VELOCITY] = math.nan
     return e
 
 
@@ -120,13 +126,16 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
     if e[STAGE_B] == 0.0 and (e[SUSTAINED] != 0.0 or (e[IN_CONTACT] != 0.0 and e[HAS_FIRST] != 0.0
                                                       and e[LAST + 5] > e[FIRST + 5])):
         e[STAGE_B] = 1.0  # sustained, or a contact that has held a whole window: the bodies move together
-    _combine(e, ctrl)
+    known = t >= ctrl[s.T_START]  # the identification's answer exists from the control start on
+    _combine(e, ctrl, known)
     if e[STAGE_B] != 0.0:  # momentum balance of the mass, pulled slowly towards the observer's velocity
         if e[STAGE_B] == 1.0:  # onset: mostly at a window end, where both bodies have the piston's velocity
             e[VELOCITY] = e[V_HAT]
             e[STAGE_B] = 2.0
         deceleration = force / e[MASS] if e[MASS] > 0.0 else 0.0
         e[VELOCITY] += (gravity - deceleration) * dt + VELOCITY_CORRECTION * dt * (e[V_HAT] - e[VELOCITY])
+    elif not known:
+        e[VELOCITY] = math.nan
     elif e[MASS] > 0.0:
         e[VELOCITY] = ctrl[s.VELOCITY_HAT] + gravity * t - e[IMPULSE] / e[MASS]
     else:
@@ -229,9 +238,9 @@ def _regress(e, t, force, shared, drop):
 
 
 @njit(cache=True, error_model="numpy")
-def _combine(e, ctrl):
-    """Mass estimate [kg] and its standard error from the prior and the stage-B sums."""
-    prior = ctrl[s.MASS_HAT]
+def _combine(e, ctrl, known):
+    """Mass estimate [kg] and its standard error from the prior (once ``known``) and the stage-B sums."""
+    prior = ctrl[s.MASS_HAT] if known else math.nan
     prior_std = max(ctrl[s.MASS_STD], PRIOR_FLOOR * prior) if prior > 0.0 else math.inf
     sums = np.empty(N_SUMS)
     for i in range(N_SUMS):
@@ -244,8 +253,9 @@ def _combine(e, ctrl):
     stage_b = sum_f / sum_a
     variance = max(sum_ff - 2.0 * stage_b * sum_fa + stage_b * stage_b * sum_aa, 0.0) / (n - 1.0)
     stage_b_std = max(math.sqrt(n * variance) / sum_a, 1e-9 * stage_b)
-    if not (prior > 0.0 and math.isfinite(prior_std)):
-        e[MASS] = stage_b
+    if not (prior > 0.0 and math.isfinite(prior_std)) \
+            or abs(prior - stage_b) > CONSISTENCY * math.sqrt(prior_std * prior_std + stage_b_std * stage_b_std):
+        e[MASS] = stage_b  # no prior, or one the stage-B data contradict: the data alone
         e[MASS_STD] = stage_b_std
         return
     w_prior = 1.0 / (prior_std * prior_std)

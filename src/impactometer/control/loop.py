@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError, shown
+from ..identify.pulses import contact_pulses
 from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
@@ -49,7 +50,12 @@ class StrategyRun:
 
 @dataclass(frozen=True, kw_only=True)
 class AbsorptionResult:
-    """The impact absorbed with one or more strategies, the identification they used and the bound η_max."""
+    """The impact absorbed with one or more strategies, the identification they used and the bound η_max.
+
+    ``control_start`` [s] is the instant the absorber took over, the same for every strategy's metrics: the
+    identification's answer, or earlier, when a force strategy knew M1 and v1 from its own stage-B estimates
+    (``inf`` when neither came).
+    """
 
     scenario: Scenario
     rig: Rig
@@ -58,6 +64,7 @@ class AbsorptionResult:
     runs: dict[str, StrategyRun]
     bound: EfficiencyBound
     over_capacity: bool
+    control_start: float = math.inf
     reference: AchievableReference | None = None
     notes: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
@@ -66,11 +73,6 @@ class AbsorptionResult:
     def metrics(self) -> dict[str, AbsorptionMetrics]:
         """Metrics by strategy name."""
         return {name: run.metrics for name, run in self.runs.items()}
-
-    @property
-    def control_start(self) -> float:
-        """Time the strategies took over [s] (``inf`` when the identification failed)."""
-        return self.identified.available_at if self.identified.error is None else math.inf
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary: scenario, identification, bound and per-strategy metrics (no histories)."""
@@ -102,11 +104,8 @@ class AbsorptionResult:
         return plot_absorption(self, ax=ax)
 
 
-def _acting_from(start: float, history: dict[str, np.ndarray], result) -> float:
-    """The control start of a run [s]: ``start``, or without one (no early answer) the first sample at which the
-    controller knew M1 and v1 from its stage-B estimates (``inf`` if never)."""
-    if math.isfinite(start):
-        return start
+def _knew(history: dict[str, np.ndarray], result) -> float:
+    """First sample [s] at which a controller knew both M1 and v1 (``inf`` if never)."""
     known = np.isfinite(history["estimated_mass"]) & np.isfinite(history["estimated_velocity"])
     return float(result.time[np.argmax(known)]) if known.any() else math.inf
 
@@ -176,8 +175,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     duration : float, optional
         Simulated time [s] (default :func:`default_duration`).
     control_start : float, optional
-        Override of the time the control starts [s] (e.g. the oracle started when the identified loop starts).
-        The oracle otherwise starts when the early identification of the noise-free record is available.
+        Override of the time the identification's answer is known [s] (e.g. the oracle started when the
+        identified loop starts). The oracle otherwise knows M1 and V0 from the start of the second contact pulse.
     response_map : ResponseMap or path, optional
         The map for ``identification="response-map"``.
     reference : bool
@@ -200,9 +199,9 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     closed, _ = loop.simulate_controlled(scenario, rig, drive=absorber.drive, duration=duration,
                                          sample_rate=sample_rate)
     if identification == "oracle":
-        if control_start is None:  # when the early identification of the noise-free record is ready
-            ready = identify_impact(scenario, rig, method="robust", noise=0.0, seed=seed, sample_rate=sample_rate)
-            at, error = ready.available_at, ready.error
+        if control_start is None:  # from the start of the second contact pulse (stage B, or the last rebound)
+            pulses = contact_pulses(closed.time, closed.contact_force)
+            at, error = (pulses[1].start, None) if len(pulses) > 1 else (math.inf, "a single contact pulse")
         else:
             at, error = float(control_start), None
         found = Identified(method="oracle", mass=scenario.mass, velocity=scenario.velocity, mass_std=0.0,
@@ -214,8 +213,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
             found = dataclasses.replace(found, available_at=float(control_start))
     notes = []
     if found.error is not None:
-        notes.append(f"identification failed ({found.error}): the force strategies wait for their stage-B "
-                     f"estimate, the others keep the valve closed")
+        notes.append(f"identification failed ({found.error}): the force strategies act on their own stage-B "
+                     f"estimates, the others keep the valve closed")
     elif not math.isfinite(found.usable_mass) or not math.isfinite(found.usable_velocity):
         notes.append(f"identified M1 = {found.mass:.3g} ± {found.mass_std:.2g} kg, V0 = {found.velocity:.3g} ± "
                      f"{found.velocity_std:.2g} m/s not trusted: the controller waits for its stage-B estimate")
@@ -226,11 +225,6 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                      f"({usable:.3f} m), above the rated {absorber.rated_force:.0f} N: the best achievable outcome "
                      f"is shown")
     start = found.available_at if found.error is None else math.inf
-    if math.isfinite(start) and start <= closed.time[-1]:
-        bound = dataclasses.replace(efficiency_bound(closed, start, usable), first_collision_peak=first_collision_peak(
-            scenario, rig, absorber.drive, start, sample_rate=sample_rate))
-    else:
-        bound = EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
     noise_matrix, sigma = sensor_noise(closed, noise, seed)
     context = ControlContext(rig=rig, absorber=absorber, mass=found.usable_mass, velocity=found.usable_velocity,
                              mass_std=found.mass_std if math.isfinite(found.usable_mass)
@@ -238,23 +232,28 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
                              sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),
                              charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]))
-    runs = {}
+    simulated = {}
     for name in names:
-        if found.error is None:
-            control = get_strategy(name)(context)
-        else:  # no early answer: the force strategies act once their stage-B estimates exist
-            control = get_strategy(name)(dataclasses.replace(context, start=0.0))
-            control = control if control.strategy in ("realtime", "predictive") else context.base("closed")
+        control = get_strategy(name)(context)
+        if found.error is not None and control.strategy not in ("realtime", "predictive"):
+            control = context.base("closed")  # no early answer: only the force strategies act, on their own estimates
         if control.strategy == "closed":
-            result = closed
-            history = {key: np.full_like(closed.time, np.nan) for key in loop.HISTORIES}
+            simulated[name] = (control, closed, {key: np.full_like(closed.time, np.nan) for key in loop.HISTORIES})
         else:
-            result, history = loop.simulate_controlled(scenario, rig, control=control, drive=absorber.drive,
-                                                       duration=duration, sample_rate=sample_rate,
-                                                       sensor_noise=noise_matrix, stop_after=REBOUND_WINDOW)
-        opening = control.opening if control.strategy == "constant" else math.nan
-        runs[name] = StrategyRun(strategy=name, result=result, controller=history, valve_opening_constant=opening,
-                                 metrics=absorption_metrics(result, _acting_from(start, history, result), usable))
+            simulated[name] = (control, *loop.simulate_controlled(
+                scenario, rig, control=control, drive=absorber.drive, duration=duration, sample_rate=sample_rate,
+                sensor_noise=noise_matrix, stop_after=REBOUND_WINDOW))
+    start = min([start] + [_knew(history, result) for control, result, history in simulated.values()
+                           if control.strategy in ("realtime", "predictive")])
+    runs = {name: StrategyRun(strategy=name, result=result, controller=history,
+                              metrics=absorption_metrics(result, start, usable),
+                              valve_opening_constant=control.opening if control.strategy == "constant" else math.nan)
+            for name, (control, result, history) in simulated.items()}
+    if math.isfinite(start) and start <= closed.time[-1]:
+        bound = dataclasses.replace(efficiency_bound(closed, start, usable), first_collision_peak=first_collision_peak(
+            scenario, rig, absorber.drive, start, sample_rate=sample_rate))
+    else:
+        bound = EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
     achievable = None
     if reference and math.isfinite(start) and start < closed.time[-1]:
         i0 = int(np.searchsorted(closed.time, start))  # F_ref of the closed-valve state at the control start
@@ -264,5 +263,5 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                                           charge_pressure=float(closed.pressure_lower[0]), duration=duration,
                                           sample_rate=sample_rate)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,
-                            over_capacity=bool(over or bound.over_capacity), reference=achievable,
-                            notes=tuple(notes))
+                            over_capacity=bool(over or bound.over_capacity), control_start=start,
+                            reference=achievable, notes=tuple(notes))

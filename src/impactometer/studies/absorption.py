@@ -55,7 +55,7 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
     found = absorb(scenario, options.rig, strategy=strategies, reference=True, noise=noise, seed=seed,
                    sample_rate=options.sample_rate,
                    identification=options.param(NAME, "identification", DEFAULTS["identification"]))
-    start = found.control_start if math.isfinite(found.control_start) else None
+    start = found.control_start if math.isfinite(found.control_start) else None  # the oracle starts with the loop
     oracle = absorb(scenario, options.rig, strategy=ORACLE_OF, identification="oracle", control_start=start,
                     noise=noise, seed=seed, sample_rate=options.sample_rate)
     base = {"case": case["case"], "mass_kg": scenario.mass, "velocity_m_s": scenario.velocity,
