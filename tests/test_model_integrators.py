@@ -166,7 +166,7 @@ def test_helper_input_is_checked():
 
     with pytest.raises(ParameterError, match="time and force must be 1-D arrays of equal length"):
         pulse_peaks(np.arange(5.0), np.zeros(4))
-    with pytest.raises(ParameterError, match=r"params must have shape \(n, 25\)"):
+    with pytest.raises(ParameterError, match=rf"params must have shape \(n, {d.N_PARAM}\)"):
         initial_states(np.zeros((2, 3)))
     with pytest.raises(ParameterError, match="force histories must have equal shapes"):
         agreement(np.zeros((2, 5)), np.zeros((3, 5)), np.arange(5.0))

@@ -21,11 +21,15 @@ TINY = {
     "map-size": ({"map-size.sizes": [25], "map-size.grid125_sizes": [10], "map-size.features": ["peaks"]},
                  {"size", "mass_error_mean", "velocity_error_mean", "time_per_identification_s"}, "search"),
     "window": ({"window.windows": [0.01]}, {"window_s", "mass_error_mean", "velocity_error_mean"}, "search"),
-    "absorption": ({}, {"strategy", "efficiency", "peak_force_controlled_N"}, "strategy"),
+    "absorption": ({"absorption.strategies": ["closed", "predictive"]},
+                   {"strategy", "stage_b", "stage_b_force_ratio", "stage_b_efficiency", "reference_force_N"},
+                   "strategy"),
+    "valve-design": ({"valve-design.areas_mm2": [100], "valve-design.response_times_ms": [3]},
+                     {"effective_area_mm2", "response_time_ms", "stage_b_force_ratio", "bottomed_out"}, None),
     "peak-force": ({}, {"simulated_peak_force", "recorded_peak_force", "closed_form_peak_force"}, None),
 }
 EXPECTED_METHODS = {"method": {"paper", "robust-early", "robust"}, "search": {"brute", "fast"},
-                    "strategy": {"closed", "constant", "realtime", "realtime (oracle)"}}
+                    "strategy": {"closed", "predictive", "predictive (oracle)", "achievable reference"}}
 
 
 def _ready(name):

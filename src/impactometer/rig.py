@@ -231,25 +231,55 @@ class Stops:
         _check("stops.damping", self.damping, low=0.0, low_open=False)
 
 
+#: flow laws of valve Z and the parameters each one uses besides ``area`` and ``max_area``
+VALVE_LAW_PARAMETERS: dict[str, tuple[str, ...]] = {"orifice": ("discharge_coefficient",),
+                                                     "iso6358": ("sonic_conductance", "critical_ratio")}
+
+
 @dataclass(frozen=True, kw_only=True)
 class Valve:
     """Valve Z between the lower and the upper chamber (closed by default).
+
+    ``orifice``: compressible flow through an orifice of the opening area with discharge coefficient C_d.
+    ``iso6358``: the flow law of pneumatic catalogues (ISO 6358-1), q = C·p_up·ρ0·sqrt(T0/T_up)·φ(p_down/p_up, b),
+    for the fully open valve; a partly open valve has the conductance C·area/max_area.
 
     Attributes
     ----------
     area : Constant opening area [m²] (0 = closed cylinder).
     max_area : Fully open area A_max [m²].
-    discharge_coefficient : C_d [-].
+    law : ``"orifice"`` or ``"iso6358"``.
+    discharge_coefficient : C_d [-] (orifice law).
+    sonic_conductance : C of the fully open valve [m³/(s·Pa)]; 1 dm³/(s·bar) = 1e-8 m³/(s·Pa) (ISO 6358 law).
+    critical_ratio : Critical pressure ratio b [-], within (0, 1) (ISO 6358 law).
     """
 
     area: float = 0.0
     max_area: float = 5e-5
     discharge_coefficient: float = 0.7
+    law: str = "orifice"
+    sonic_conductance: float | None = None
+    critical_ratio: float | None = None
 
     def __post_init__(self) -> None:
-        _check("valve.max_area", self.max_area, low=0.0)
-        _check("valve.area", self.area, low=0.0, low_open=False, high=self.max_area)
+        _check("valve.max_area", self.max_area, low=0.0, unit=" [m²]")
+        _check("valve.area", self.area, low=0.0, low_open=False, high=self.max_area, unit=" [m²]")
         _check("valve.discharge_coefficient", self.discharge_coefficient, low=0.0, high=1.0)
+        if self.law not in VALVE_LAW_PARAMETERS:
+            raise ParameterError(f"valve.law must be one of {sorted(VALVE_LAW_PARAMETERS)}, got {self.law!r}")
+        if self.law == "orifice":
+            for name in ("sonic_conductance", "critical_ratio"):
+                if getattr(self, name) is not None:
+                    raise ParameterError(f"valve.{name} is a parameter of the iso6358 law, not of the orifice law; "
+                                         f"got {getattr(self, name)!r} (set valve.law = 'iso6358' or leave it out)")
+            return
+        for name in ("sonic_conductance", "critical_ratio"):
+            if getattr(self, name) is None:
+                raise ParameterError(f"valve.{name} is required by the iso6358 law, got None")
+        _check("valve.sonic_conductance", self.sonic_conductance, low=0.0, unit=" [m³/(s·Pa)]")
+        _check("valve.critical_ratio", self.critical_ratio, low=0.0, high=1.0, unit=" (expected within (0, 1))")
+        if self.critical_ratio >= 1.0:  # type: ignore[operator]  # set for this law
+            raise ParameterError(f"valve.critical_ratio must be within (0, 1), got {self.critical_ratio!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -282,12 +312,17 @@ class Rig:
         """A copy with dotted-name changes, e.g. ``rig.replace(**{"contact.stiffness": 3e6})``.
 
         Changing ``contact.law`` keeps only the contact parameters given with it; the others take the new law's
-        defaults (the parameters of one law mean nothing to another).
+        defaults (the parameters of one law mean nothing to another). Changing ``valve.law`` likewise drops the
+        ISO 6358 parameters of the old law.
         """
         data = to_dict(self)
-        valid = parameter_names() + ["name", "contact.law"]
+        valid = parameter_names() + ["name", "contact.law", "valve.law"]
         if "contact.law" in changes and contact_law_name(changes["contact.law"]) != self.contact.law:
             data["contact"] = {"law": self.contact.law}
+        if "valve.law" in changes and changes["valve.law"] != self.valve.law:
+            for name in VALVE_LAW_PARAMETERS.get(self.valve.law, ()):
+                if name != "discharge_coefficient":
+                    data["valve"].pop(name, None)
         for key, value in changes.items():
             if key not in valid:
                 raise ParameterError(f"unknown rig parameter {key!r}; expected one of {valid}")
@@ -307,7 +342,8 @@ _SECTIONS: dict[str, type] = {"cylinder": Cylinder, "gas": Gas, "friction": Fric
 def to_dict(rig: Rig) -> dict[str, Any]:
     """Nested plain dictionary of ``rig`` (TOML shape; the contact holds only its law's parameters)."""
     data = dataclasses.asdict(rig)
-    data["contact"] = {k: v for k, v in data["contact"].items() if v is not None}
+    for section in ("contact", "valve"):
+        data[section] = {k: v for k, v in data[section].items() if v is not None}
     return data
 
 
@@ -380,7 +416,8 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
 STIFF_STAND = Rig(name="drop-stand-stiff")
 #: the stand with a hysteretic elastomer pad: a rebound or two (stage A), then sustained contact (stage B)
 PAD_STAND = Rig(name="drop-stand-pad", contact=Contact(law="hysteretic"), friction=Friction(force=100.0),
-                cylinder=Cylinder(dead_volume_lower=2e-5, dead_volume_upper=1e-5))
+                cylinder=Cylinder(dead_volume_lower=2e-5, dead_volume_upper=1e-5),
+                valve=Valve(law="iso6358", sonic_conductance=2e-7, critical_ratio=0.3, max_area=2e-4))
 #: named stands; ``drop-stand`` is the default (today the stiff stand: the robust identification does not yet
 #: use stage B, which the pad stand reaches after one or two rebounds)
 PRESETS: dict[str, Rig] = {
@@ -388,6 +425,10 @@ PRESETS: dict[str, Rig] = {
     "drop-stand-stiff": STIFF_STAND,
     "drop-stand-pad": PAD_STAND,
 }
+
+
+#: the stand of the absorber's commands and studies (``absorb``, ``study absorption``, ``study valve-design``)
+ABSORPTION_RIG = "drop-stand-pad"
 
 
 def get_rig(name_or_path: str | Path | Rig | None = None, *, contact: str | None = None) -> Rig:

@@ -11,12 +11,18 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import ParameterError
+from ..rig import ABSORPTION_RIG
 from .app import app, console, output_path, quantity
-from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, RigOpt, VelocityOpt, stand_and_scenario
+from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, VelocityOpt, stand_and_scenario
 
 #: rows of the metrics table: (label, key of AbsorptionMetrics.to_dict(), format)
 TABLE_ROWS = (
     ("control starts [ms]", "control_start_s", lambda v: f"{v * 1e3:.2f}"),
+    ("stage B starts [ms]", "stage_b_start_s", lambda v: f"{v * 1e3:.2f}"),
+    ("reference force F_ref [N]", "reference_force_N", lambda v: f"{v:.0f}"),
+    ("stage-B force ratio R (ideal 1)", "stage_b_force_ratio", lambda v: f"{v:.2f}"),
+    ("stage-B efficiency η_B", "stage_b_efficiency", lambda v: f"{v:.2f}"),
+    ("M1 estimated at the end [kg]", "estimated_mass_kg", lambda v: f"{v:.2f}"),
     ("peak force, stage A [N]", "peak_force_stage_a_N", lambda v: f"{v:.0f}"),
     ("peak force after control start [N]", "peak_force_controlled_N", lambda v: f"{v:.0f}"),
     ("  same, CFC 60 body load [N]", "peak_force_controlled_cfc60_N", lambda v: f"{v:.0f}"),
@@ -54,6 +60,10 @@ def metrics_table(result) -> Table:
                        ("  with the first-collision peak", "efficiency_first_collision")):
         value = data[key]
         table.add_row(label, *(["—" if value is None else f"{value:.3f}"] * len(data["strategies"])))
+    if result.reference is not None:
+        value = data["achievable_force_ratio"]
+        table.add_row("achievable R of this valve", *(["—" if value is None else f"{value:.2f}"]
+                                                       * len(data["strategies"])))
     return table
 
 
@@ -63,7 +73,8 @@ def absorb(
     height: HeightOpt = None,
     velocity: VelocityOpt = None,
     pressure: PressureOpt = "200kPa",
-    strategy: Annotated[str, typer.Option("--strategy", help="all, closed, constant or realtime.")] = "all",
+    strategy: Annotated[str, typer.Option(
+        "--strategy", help="all, closed, constant, realtime, predictive or auto (the better of the two).")] = "all",
     identify: Annotated[str, typer.Option("--identify", help="robust, paper, oracle or response-map.")] = "robust",
     response_map: Annotated[Path | None,
                             typer.Option("--response-map", help="Map file for --identify response-map.")] = None,
@@ -71,13 +82,16 @@ def absorb(
                      typer.Option("--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the sensor noise.")] = 0,
     contact: ContactOpt = None,
-    rig: RigOpt = None,
+    rig: Annotated[str, typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = ABSORPTION_RIG,
+    reference: Annotated[bool, typer.Option(
+        "--reference", help="Also search the achievable R of this valve (a dozen more simulations).")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as one JSON object.")] = False,
     plot: Annotated[Path | None, typer.Option("--plot", help="PNG figure of the force histories (Fig. 10b).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Overwrite an existing figure.")] = False,
 ) -> None:
-    """Absorb one impact: identify M1 and V0 from noisy sensors, then control valve Z with each strategy."""
-    from ..control.loop import absorb as run_absorb
+    """Absorb one impact: identify M1 and V0 from noisy sensors, then control valve Z with each strategy (on the
+    stand drop-stand-pad unless --rig says otherwise)."""
+    from ..control.loop import absorb as run_absorb  # compiled code: imported when used
     from ..control.strategies import strategy_names
 
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
@@ -89,7 +103,8 @@ def absorb(
     if response_map is not None and not response_map.is_file():
         raise ParameterError(f"--response-map: {str(response_map)!r} does not exist")
     result = run_absorb(scenario, stand, strategy=names, identification=identify,
-                        noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=response_map)
+                        noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=response_map,
+                        reference=reference)
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
     else:

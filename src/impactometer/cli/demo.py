@@ -54,10 +54,12 @@ def demo(
     console.print(identification_table(scenario, stand))
     if absorb:
         from ..control.loop import absorb as run_absorb
+        from ..rig import ABSORPTION_RIG
         from .control import metrics_table
 
-        with console.status("closed loop: identify, then control valve Z with each strategy ..."):
-            absorbed = run_absorb(scenario, stand, strategy="all", noise=NOISE, seed=0)
+        with console.status(f"closed loop on {ABSORPTION_RIG}: identify, then control valve Z with each strategy "
+                            "..."):
+            absorbed = run_absorb(scenario, get_rig(ABSORPTION_RIG), strategy="all", noise=NOISE, seed=0)
         console.print(metrics_table(absorbed))
         save_figure(absorbed.plot(), absorb_png)
         console.print(f"figure written to {absorb_png}")

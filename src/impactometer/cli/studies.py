@@ -83,7 +83,9 @@ def study(
     = "50ms",
     contact: Annotated[str | None, typer.Option(
         "--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")] = None,
-    rig: Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
+    rig: Annotated[str | None, typer.Option(
+        "--rig", help="Stand: a preset name or a TOML file (default: drop-stand; drop-stand-pad for the absorber's "
+                      "studies).")] = None,
     setting: Annotated[list[str] | None, typer.Option(
         "--set", help="Study setting STUDY.SETTING=JSON, e.g. noise.levels=[0,0.05] (repeatable).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Discard runs with other options; overwrite files.")]
@@ -131,7 +133,7 @@ def study(
                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
                            duration=quantity(duration, "time", "--duration"),
                            pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"),
-                           params=_parse_params(setting))
+                           params=_parse_params(setting), rig_is_default=rig is None and contact is None)
     columns = (TextColumn("{task.description:<14}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                TextColumn("ETA"), TimeRemainingColumn())
     start = time.perf_counter()

@@ -6,7 +6,10 @@ identify → control.
 """
 
 from .loop import AbsorptionResult, absorb
+from .settings import ControlSettings
+from .simulate import simulate_controlled
 from .strategies import STRATEGIES, get_strategy
 from .valve import Absorber, ValveDrive, valve_mass_flow
 
-__all__ = ["AbsorptionResult", "Absorber", "STRATEGIES", "ValveDrive", "absorb", "get_strategy", "valve_mass_flow"]
+__all__ = ["AbsorptionResult", "Absorber", "ControlSettings", "STRATEGIES", "ValveDrive", "absorb", "get_strategy",
+           "simulate_controlled", "valve_mass_flow"]

@@ -26,7 +26,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ControlError
+from ..identify.pulses import contact_pulses
 from ..model.forces import pneumatic_force
+from .settings import ControlSettings
+from .simulate import simulate_controlled
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -178,14 +181,10 @@ COLLISION_WINDOW = 0.1
 
 def first_collision_peak(scenario, rig, drive, control_start: float, *, sample_rate: float = 50e3) -> float:
     """Peak contact force [N] of the first collision after ``control_start`` [s] with valve Z fully open from then
-    on (``drive`` a ValveDrive: its lag applies); the largest force within ``COLLISION_WINDOW`` after the control
-    start if no collision begins within it."""
-    from ..identify.pulses import contact_pulses
-    from . import controller as ctl
-    from .simulate import simulate_controlled
-
-    control = ctl.control_vector(strategy=ctl.CONSTANT, start=control_start, area=rig.valve.max_area,
-                                 mass=scenario.mass, velocity=scenario.velocity, close_on_stop=False)
+    on (``drive`` a ValveDrive: its dead time and lag apply); the largest force within ``COLLISION_WINDOW`` after
+    the control start if no collision begins within it."""
+    control = ControlSettings(strategy="constant", start=control_start, opening=1.0, mass=scenario.mass,
+                              velocity=scenario.velocity, close_on_stop=False, supervise=False, refine_mass=False)
     result, _ = simulate_controlled(scenario, rig, control=control, drive=drive,
                                     duration=control_start + COLLISION_WINDOW, sample_rate=sample_rate)
     t, force = result.time, result.contact_force

@@ -1,7 +1,9 @@
-"""The digital controller of valve Z: packed parameters, the real-time force law and the stroke supervisor.
+"""The digital controller of valve Z: the force target, the valve laws and the stroke supervisor.
 
-Compiled functions called by the closed loop of :mod:`impactometer.control.simulate` at every sample; the
-strategies (:mod:`impactometer.control.strategies`) fill the packed parameter vectors.
+Compiled functions called by the closed loop of :mod:`impactometer.control.simulate` at every sample, after the
+estimator (:mod:`impactometer.control.estimator`) has read the sensors. Openings are fractions of the fully open
+valve [-]. The actuator (dead time, first-order lag, rate limit, route) is described to the controller by the
+drive vector (:func:`drive_vector`), as its data sheet describes it to a designer.
 """
 
 from __future__ import annotations
@@ -12,27 +14,26 @@ import numpy as np
 from numba import njit
 
 from ..model import dynamics as d
-from ..model.forces import friction_force, orifice_mass_flow
+from ..model.actuated import ROUTES
+from ..model.forces import friction_force, pneumatic_force
+from . import estimator as est
+from . import settings as s
 
-CLOSED, CONSTANT, REALTIME = 0, 1, 2
-
-# controller parameter indices
-(STRATEGY, T_START, AREA_CONSTANT, MASS_HAT, VELOCITY_HAT, U_END, TAU_CONTROL, TAU_FILTER, P_CHARGE, T_CHARGE,
- CLOSE_ON_STOP, F_MAX, BOUNCE_GATE, BOUNCE_THRESHOLD) = range(14)
-N_CONTROL = 14
-# drive parameter indices
-TIME_CONSTANT, MAX_RATE, MAX_AREA, ROUTE = range(4)
+# drive vector: dead time [s], lag time constant [s], largest opening rate [1/s], discharge route (model.actuated)
+DEAD_TIME, TIME_CONSTANT, MAX_RATE, ROUTE = range(4)
 N_DRIVE = 4
-
-
-@njit(cache=True, error_model="numpy")
-def _pneumatic(p_lower, p_upper, p):
-    return p_lower * p[d.AREA] - p_upper * (p[d.AREA] - p[d.ROD_AREA]) - p[d.ATMOSPHERE] * p[d.ROD_AREA]
-
-
-#: the real-time controller closes the valve when the closed gas spring can absorb less than this multiple of the
-#: energy still to be absorbed within the remaining stroke
+#: the controller closes the valve when the closed gas spring can absorb less than this multiple of the energy
+#: still to be absorbed within the remaining stroke
 CAPACITY_MARGIN = 1.2
+#: largest number of steps of the controller's prediction over the dead time
+PREDICTION_STEPS = 20
+#: the force target also stops the mass within this time [s], with at least this deceleration [m/s²]: a mass that
+#: stage A has nearly stopped is not let creep down the stroke at its weight for seconds
+STOP_TIME = 0.4
+MIN_DECELERATION = 0.5
+#: in stage B the force strategies close the valve for good once the mass is this slow [m/s]: the closed gas
+#: spring takes the rest (a few millijoules), so the mass comes to rest instead of creeping on the smoothed friction
+REST_VELOCITY = 0.02
 
 
 @njit(cache=True, error_model="numpy")
@@ -51,45 +52,48 @@ def closed_capacity(p, p_lower, p_upper, piston_displacement, travel):
 
 
 @njit(cache=True, error_model="numpy")
-def must_close(p, ctrl, velocity, piston_velocity, piston_displacement, p_lower, p_upper):
-    """Supervisor of both valve strategies: True when the closed spring can no longer absorb, with margin, the
+def must_close(p, ctrl, mass, velocity, piston_velocity, piston_displacement, p_lower, p_upper):
+    """Supervisor of the valve strategies: True when the closed spring can no longer absorb, with margin, the
     kinetic energy of both bodies and their weight's work over the remaining usable stroke (it then also carries
     their weight at the end of the stroke, since the gas force grows along it)."""
-    remaining = ctrl[U_END] - piston_displacement
+    remaining = ctrl[s.U_END] - piston_displacement
     if remaining <= 0.0:
         return True
-    mass = ctrl[MASS_HAT]
     needed = 0.5 * (mass * velocity * velocity + p[d.PISTON_MASS] * piston_velocity * piston_velocity) \
         + (mass + p[d.PISTON_MASS]) * p[d.GRAVITY] * remaining
     return closed_capacity(p, p_lower, p_upper, piston_displacement, remaining) < CAPACITY_MARGIN * needed
 
 
 @njit(cache=True, error_model="numpy")
-def realtime_command(p, ctrl, drive, velocity, displacement, p_lower, p_upper, piston_velocity,
-                     piston_displacement, out):
-    """Valve command [m²] of the real-time strategy from the controller's estimates; target force into ``out[0]``.
-
-    ``velocity`` is the mass velocity [m/s], ``displacement`` the position the remaining stroke is measured from
-    [m] (the loop passes the piston displacement: the piston is never behind the mass, so this is conservative).
-    F* = M1·(v²/(2·s_remaining) + g) is the contact force that stops the mass within the remaining usable stroke;
-    in sustained contact it needs the gas force Fp* = F*·(M1 + M2)/M1 − F_friction. The command inverts the
-    chamber pressure balances: the mass flow that makes Fp relax to Fp* with time constant ``TAU_CONTROL``,
-    divided by the orifice flow per unit area at the measured pressures.
-    """
-    mass = ctrl[MASS_HAT]
-    g = p[d.GRAVITY]
-    remaining = ctrl[U_END] - displacement
+def force_target(p, ctrl, mass, velocity, displacement):
+    """Contact force [N] that stops the mass within the remaining usable stroke: F* = M1·(v²/(2·s_rem) + g)
+    (M1·g once the mass moves up), with a deceleration of at least v/STOP_TIME and MIN_DECELERATION, at most
+    ``max_force``; the ``level`` strategy's fixed level instead."""
+    if ctrl[s.STRATEGY] == s.LEVEL:
+        return ctrl[s.FORCE_LEVEL]
+    remaining = ctrl[s.U_END] - displacement
     if velocity > 0.0:
         if remaining <= 0.0:
-            out[0] = ctrl[F_MAX]
-            return 0.0
-        target = mass * (velocity * velocity / (2.0 * remaining) + g)
-    else:
-        target = mass * g
-    target = min(target, ctrl[F_MAX])
-    out[0] = target
-    fp_target = target * (mass + p[d.PISTON_MASS]) / mass - friction_force(velocity, p[d.FRICTION],
-                                                                             p[d.FRICTION_SCALE])
+            return ctrl[s.F_MAX]
+        deceleration = max(velocity * velocity / (2.0 * remaining), velocity / STOP_TIME, MIN_DECELERATION)
+        return min(mass * (deceleration + p[d.GRAVITY]), ctrl[s.F_MAX])
+    return min(mass * p[d.GRAVITY], ctrl[s.F_MAX])
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def lower_temperature(ctrl, p_lower, gamma):
+    """Lower-chamber gas temperature [K] from the isentropic relation (exact for a chamber that only loses gas)."""
+    return ctrl[s.T_CHARGE] * (p_lower / ctrl[s.P_CHARGE]) ** ((gamma - 1.0) / gamma)
+
+
+@njit(cache=True, error_model="numpy")
+def needed_opening(p, ctrl, drive, fp_target, p_lower, p_upper, piston_velocity, piston_displacement):
+    """Opening [-] that makes the gas force Fp relax to ``fp_target`` [N] with the time constant ``tau_control``.
+
+    Inverts the chamber pressure balances: the rate of Fp with the valve closed, γ·v2·(pL·A²/VL + pU·A_ann²/VU),
+    minus (Fp* − Fp)/τ, divided by the change of Fp per unit mass flow out of the lower chamber, is the mass flow
+    needed; divided by the flow of the fully open valve at these pressures, the opening.
+    """
     if p_lower <= p_upper or p_lower <= 0.0:
         return 0.0
     gamma = p[d.GAMMA]
@@ -97,74 +101,132 @@ def realtime_command(p, ctrl, drive, velocity, displacement, p_lower, p_upper, p
     annulus = area - p[d.ROD_AREA]
     vol_lower, vol_upper = d.volumes(piston_displacement, p)
     vol_lower = max(vol_lower, 1e-3 * area * p[d.LOWER_LENGTH])
-    if must_close(p, ctrl, velocity, piston_velocity, piston_displacement, p_lower, p_upper):
-        return 0.0
     p_down = p[d.ATMOSPHERE] if drive[ROUTE] != 0.0 else p_upper
-    # rate of the gas force with the valve closed, and its change per unit mass flow out of the lower chamber
     closed_rate = gamma * piston_velocity * (p_lower * area * area / vol_lower + p_upper * annulus * annulus
                                              / vol_upper)
-    t_lower = ctrl[T_CHARGE] * (p_lower / ctrl[P_CHARGE]) ** ((gamma - 1.0) / gamma)  # isentropic outflow
+    t_lower = lower_temperature(ctrl, p_lower, gamma)
     per_flow = gamma * p[d.GAS_CONSTANT] * t_lower * area / vol_lower
     if drive[ROUTE] == 0.0:
         per_flow += gamma * p[d.GAS_CONSTANT] * t_lower * annulus / vol_upper
-    fp = _pneumatic(p_lower, p_upper, p)
-    mdot = (closed_rate - (fp_target - fp) / ctrl[TAU_CONTROL]) / per_flow
+    fp = pneumatic_force(p_lower, p_upper, area, p[d.ROD_AREA], p[d.ATMOSPHERE])
+    mdot = (closed_rate - (fp_target - fp) / ctrl[s.TAU_CONTROL]) / per_flow
     if mdot <= 0.0:
         return 0.0
-    unit_flow = orifice_mass_flow(p_lower, t_lower, p_down, 1.0, p[d.DISCHARGE], gamma, p[d.GAS_CONSTANT])
-    if unit_flow <= 0.0:
+    full = d.valve_mass_flow(p_lower, t_lower, p_down, p[d.VALVE_MAX_AREA], p)
+    if full <= 0.0:
         return 0.0
-    return min(mdot / unit_flow, drive[MAX_AREA])
+    return min(mdot / full, 1.0)
 
 
 @njit(cache=True, error_model="numpy")
 def bounce_gate(ctrl, command, relative_velocity):
-    """Valve command [m²] after the optional bounce gate of the real-time strategy.
+    """Opening command [-] after the optional bounce gate of the real-time strategy.
 
-    The net gas force Fp pushes the piston towards the mass: on the relative coordinate δ = u1 − u2 (the contact
-    compression, or minus the gap) it delivers the power μ·Fp·δ'/M2, with μ = M1·M2/(M1 + M2). While the bodies
-    approach each other (δ' = v1 − v2 > 0: closing the gap or compressing the contact) Fp feeds the relative
-    (bounce) motion; while they part it takes energy out of it. A valve can only lower Fp, so lowering it only
-    while they approach dissipates bounce energy (a one-sided, semi-active damper on δ'). With the gate on
-    (``BOUNCE_GATE``) the force-law command is held back (valve closed) while ``relative_velocity`` =
-    v1 − v2 [m/s] is below ``BOUNCE_THRESHOLD``.
+    The net gas force Fp pushes the piston towards the mass: on the relative coordinate δ = u1 − u2 it delivers
+    the power μ·Fp·δ'/M2, with μ = M1·M2/(M1 + M2). While the bodies approach each other (δ' = v1 − v2 > 0) Fp
+    feeds the relative (bounce) motion; while they part it takes energy out of it. A valve can only lower Fp, so
+    lowering it only while they approach dissipates bounce energy (a one-sided, semi-active damper on δ'). With
+    the gate on the command is held back (valve closed) while ``relative_velocity`` = v1 − v2 [m/s] is below
+    ``bounce_threshold``.
     """
-    if ctrl[BOUNCE_GATE] != 0.0 and relative_velocity < ctrl[BOUNCE_THRESHOLD]:
+    if ctrl[s.BOUNCE_GATE] != 0.0 and relative_velocity < ctrl[s.BOUNCE_THRESHOLD]:
         return 0.0
     return command
 
 
-def drive_vector(rig, drive) -> np.ndarray:
-    """Packed drive parameters of the compiled loop for ``drive`` (a ValveDrive) on ``rig``."""
-    from .valve import ROUTES
+@njit(cache=True, inline="always", error_model="numpy")
+def actuator_step(opening, command, dt, drive):
+    """Opening [-] after ``dt`` [s] of the first-order lag with rate limit from ``opening`` under ``command``."""
+    target = command + (opening - command) * math.exp(-dt / drive[TIME_CONSTANT])
+    limit = drive[MAX_RATE] * dt
+    return opening + max(-limit, min(limit, target - opening))
 
+
+@njit(cache=True, error_model="numpy")
+def predict(p, ctrl, drive, e, v, history, newest, delay, dt):
+    """State after the dead time as the controller predicts it: (pL, pU, u2, opening).
+
+    The opening follows the controller's model of the actuator through the commands already sent (``history``,
+    newest at index ``newest``, ``delay`` samples of dead time); the chambers follow their balances with the
+    piston moving at its estimated mean velocity ``v`` [m/s].
+    """
+    p_lower, p_upper, x = e[est.P_LOWER_F], e[est.P_UPPER_F], e[est.X_HAT]
+    opening = e[est.OPENING_MODEL]
+    if delay <= 0:
+        return p_lower, p_upper, x, opening
+    gamma, r_gas = p[d.GAMMA], p[d.GAS_CONSTANT]
+    area, annulus = p[d.AREA], p[d.AREA] - p[d.ROD_AREA]
+    size = history.size
+    per = max(1, (delay + PREDICTION_STEPS - 1) // PREDICTION_STEPS)
+    k = 0
+    while k < delay:
+        m = min(per, delay - k)
+        h = m * dt
+        command = history[(newest - delay + 1 + k + size) % size]  # the command that acts during this step
+        vol_lower, vol_upper = d.volumes(x, p)
+        mdot = 0.0
+        t_lower = lower_temperature(ctrl, p_lower, gamma)
+        if opening > 0.0:
+            p_down = p[d.ATMOSPHERE] if drive[ROUTE] != 0.0 else p_upper
+            if p_lower > p_down:
+                mdot = d.valve_mass_flow(p_lower, t_lower, p_down, opening * p[d.VALVE_MAX_AREA], p)
+        enthalpy = r_gas * t_lower * mdot
+        dp_lower = gamma * (-enthalpy + p_lower * area * v) / vol_lower
+        dp_upper = -gamma * p_upper * annulus * v / vol_upper
+        if drive[ROUTE] == 0.0:
+            dp_upper += gamma * enthalpy / vol_upper
+        p_lower = max(p_lower + h * dp_lower, 1.0)
+        p_upper = max(p_upper + h * dp_upper, 1.0)
+        x += v * h
+        opening = actuator_step(opening, command, h, drive)
+        k += m
+    return p_lower, p_upper, x, opening
+
+
+@njit(cache=True, error_model="numpy")
+def command_of(t, dt, p, ctrl, drive, e, history, newest, delay):
+    """Opening command [-] at sample time ``t`` [s] from the controller state ``e`` (after the estimator's update);
+    the target force goes into ``e[TARGET]``. ``history`` holds the commands sent so far (newest at ``newest``)."""
+    strategy = int(ctrl[s.STRATEGY])
+    mass = e[est.MASS]
+    e[est.TARGET] = math.nan
+    velocity, x = e[est.VELOCITY], e[est.X_HAT]
+    v2 = velocity if e[est.STAGE_B] != 0.0 else e[est.V_SLOW]  # the mean motion of the piston
+    waits = strategy in (s.CONSTANT, s.LEVEL)  # the force strategies act as soon as they know M1 and v1
+    if strategy == s.CLOSED or (waits and t < ctrl[s.T_START]) or e[est.LATCHED] != 0.0 or not mass > 0.0 \
+            or not math.isfinite(velocity):
+        return 0.0
+    p_lower, p_upper = e[est.P_LOWER_F], e[est.P_UPPER_F]
+    if ctrl[s.SUPERVISE] != 0.0 and strategy != s.LEVEL \
+            and must_close(p, ctrl, mass, velocity, v2, x, p_lower, p_upper):
+        return 0.0
+    if strategy == s.CONSTANT:
+        if ctrl[s.CLOSE_ON_STOP] != 0.0 and velocity <= 0.0:
+            e[est.LATCHED] = 1.0
+            return 0.0
+        return ctrl[s.OPENING]
+    if strategy != s.LEVEL and e[est.STAGE_B] != 0.0 and velocity < REST_VELOCITY:
+        e[est.LATCHED] = 1.0
+        return 0.0
+    target = force_target(p, ctrl, mass, velocity, x)
+    e[est.TARGET] = target
+    fp_target = target * (mass + p[d.PISTON_MASS]) / mass - friction_force(velocity, p[d.FRICTION],
+                                                                             p[d.FRICTION_SCALE])
+    if strategy == s.REALTIME:
+        command = needed_opening(p, ctrl, drive, fp_target, p_lower, p_upper, v2, x)
+        return bounce_gate(ctrl, command, velocity - v2)
+    # predictive and level: the law on the state predicted over the dead time, with the lag compensated
+    p_lower, p_upper, x, opening = predict(p, ctrl, drive, e, v2, history, newest, delay, dt)
+    need = needed_opening(p, ctrl, drive, fp_target, p_lower, p_upper, v2, x)
+    decay = math.exp(-ctrl[s.TAU_CONTROL] / drive[TIME_CONSTANT])
+    return max(0.0, min(1.0, (need - opening * decay) / (1.0 - decay)))
+
+
+def drive_vector(drive) -> np.ndarray:
+    """Drive vector of the compiled loop for ``drive`` (a ValveDrive)."""
     out = np.empty(N_DRIVE)
+    out[DEAD_TIME] = drive.dead_time
     out[TIME_CONSTANT] = drive.time_constant
     out[MAX_RATE] = drive.max_rate
-    out[MAX_AREA] = rig.valve.max_area
     out[ROUTE] = ROUTES[drive.route]
-    return out
-
-
-def control_vector(*, strategy: int = CLOSED, start: float = math.inf, area: float = 0.0, mass: float = 1.0,
-                   velocity: float = 0.0, usable_stroke: float = 0.0, tau_control: float = 2e-3,
-                   tau_filter: float = 5e-4, charge_pressure: float = 1e5, charge_temperature: float = 293.15,
-                   close_on_stop: bool = True, max_force: float = math.inf, bounce_gate: bool = False,
-                   bounce_threshold: float = 0.0) -> np.ndarray:
-    """Packed controller parameters of the compiled loop (see the module constants)."""
-    out = np.empty(N_CONTROL)
-    out[STRATEGY] = strategy
-    out[T_START] = start
-    out[AREA_CONSTANT] = area
-    out[MASS_HAT] = mass
-    out[VELOCITY_HAT] = velocity
-    out[U_END] = usable_stroke
-    out[TAU_CONTROL] = tau_control
-    out[TAU_FILTER] = tau_filter
-    out[P_CHARGE] = charge_pressure
-    out[T_CHARGE] = charge_temperature
-    out[CLOSE_ON_STOP] = 1.0 if close_on_stop else 0.0
-    out[F_MAX] = max_force
-    out[BOUNCE_GATE] = 1.0 if bounce_gate else 0.0
-    out[BOUNCE_THRESHOLD] = bounce_threshold
     return out

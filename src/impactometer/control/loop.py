@@ -2,12 +2,12 @@
 the identification becomes available; compared with an oracle that knows the true M1 and V0.
 
 Until the control starts the valve is closed, so the identification reads a record of the closed-valve impact
-(made by :func:`impactometer.sensors.record`, anti-alias filter and noise included). The controller's own
-sensors (contact force, piston acceleration, chamber pressures) get white Gaussian noise of the same relative
-level: ``noise`` × the RMS of each channel over the closed-valve record. Besides the force sensor, the
-accelerometer and the chamber pressure sensors of the paper's Fig. 10, the absorber reads the piston displacement
-(a displacement transducer on the rod): integrating the acceleration twice drifts by about 1 cm over the 0.4 s of
-a controlled stroke at 2 % noise, as much as the whole stroke margin.
+(:mod:`.identified`). The controller's own sensors (contact force, piston acceleration, chamber pressures, rod
+displacement) get white Gaussian noise of the same relative level: ``noise`` × the RMS of each channel over the
+closed-valve record. Besides the force sensor, the accelerometer and the chamber pressure sensors of the paper's
+Fig. 10, the absorber reads the piston displacement (a displacement transducer on the rod): integrating the
+acceleration twice drifts by about 1 cm over the 0.4 s of a controlled stroke at 2 % noise, as much as the whole
+stroke margin.
 """
 
 from __future__ import annotations
@@ -15,35 +15,26 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from ..errors import IdentificationError, ParameterError, shown
+from ..errors import ParameterError, shown
 from ..identify.pulses import contact_pulses
-from ..rig import Rig, Scenario, get_rig
-from . import controller as ctl
+from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
+from .identified import IDENTIFICATION_WINDOW, Identified, identify_impact
 from .metrics import AbsorptionMetrics, absorption_metrics
+from .reference import AchievableReference, achievable_reference
 from .strategies import ControlContext, get_strategy, strategy_names
 from .valve import Absorber
 
-if TYPE_CHECKING:  # for annotations only: the map module is imported where it is used
-    from ..identify.response_map import MapIdentification
-    from ..identify.result import Identification
-
 #: identification methods of the loop
 IDENTIFICATIONS = ("robust", "paper", "oracle", "response-map")
-#: length of the closed-valve record given to the identification [s], and the quiet record before first contact
-#: [s] (a streaming DAQ has it; the identification takes the offsets and the noise level from its last ~1000
-#: samples: with 2 ms instead of 25 ms it gave no estimate in 7 of the 125 grid impacts and 2.5× the mass error)
-IDENTIFICATION_WINDOW = 0.1
-PRE_TRIGGER = 0.025
-#: samples per chunk pushed into the streaming identifier (a DAQ block)
-STREAM_CHUNK = 16
-#: channels whose noise the controller sees, in the order of the loop's sensor rows
-SENSOR_CHANNELS = ("contact_force", "a2", "pressure_lower", "pressure_upper", "u2")
+#: a valve strategy's run ends this long after the mass's deepest point [s]: long enough for the rebound of a mass
+#: resting on the closed gas spring (a period of 0.1-0.3 s) to show
+REBOUND_WINDOW = 0.15
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -54,30 +45,17 @@ class StrategyRun:
     result: Any  # SimulationResult
     controller: dict[str, np.ndarray]
     metrics: AbsorptionMetrics
-    valve_area_constant: float = math.nan
-
-
-@dataclass(frozen=True, kw_only=True)
-class Identified:
-    """What the loop acted on: M1 [kg], V0 [m/s], when it was known [s], by which method (and why it failed)."""
-
-    method: str
-    mass: float
-    velocity: float
-    available_at: float
-    error: str | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        def num(x):
-            return None if x is None or not math.isfinite(x) else float(x)
-
-        return {"method": self.method, "mass_kg": num(self.mass), "velocity_m_s": num(self.velocity),
-                "available_at_s": num(self.available_at), "error": self.error}
+    valve_opening_constant: float = math.nan
 
 
 @dataclass(frozen=True, kw_only=True)
 class AbsorptionResult:
-    """The impact absorbed with one or more strategies, the identification they used and the bound η_max."""
+    """The impact absorbed with one or more strategies, the identification they used and the bound η_max.
+
+    ``control_start`` [s] is the instant the absorber took over, the same for every strategy's metrics: the
+    identification's answer, or earlier, when a force strategy knew M1 and v1 from its own stage-B estimates
+    (``inf`` when neither came).
+    """
 
     scenario: Scenario
     rig: Rig
@@ -86,6 +64,8 @@ class AbsorptionResult:
     runs: dict[str, StrategyRun]
     bound: EfficiencyBound
     over_capacity: bool
+    control_start: float = math.inf
+    reference: AchievableReference | None = None
     notes: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
 
@@ -94,21 +74,24 @@ class AbsorptionResult:
         """Metrics by strategy name."""
         return {name: run.metrics for name, run in self.runs.items()}
 
-    @property
-    def control_start(self) -> float:
-        """Time the strategies took over [s] (``inf`` when the identification failed)."""
-        return self.identified.available_at if self.identified.error is None else math.inf
-
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary: scenario, identification, bound and per-strategy metrics (no histories)."""
         strategies = {}
         for name, run in self.runs.items():
-            strategies[name] = {**run.metrics.to_dict(), "control_start_s": _num(self.control_start)}
-            if math.isfinite(run.valve_area_constant):
-                strategies[name]["valve_area_m2"] = run.valve_area_constant
+            strategies[name] = run.metrics.to_dict()
+            if math.isfinite(run.valve_opening_constant):
+                strategies[name]["valve_opening"] = run.valve_opening_constant
+            mass = run.controller.get("estimated_mass")
+            if mass is not None and np.any(np.isfinite(mass)):
+                last = int(np.flatnonzero(np.isfinite(mass))[-1])
+                strategies[name]["estimated_mass_kg"] = _num(float(mass[last]))
+                strategies[name]["estimated_mass_std_kg"] = _num(float(run.controller["estimated_mass_std"][last]))
+        reference = self.reference
         return {"mass_kg": self.scenario.mass, "velocity_m_s": self.scenario.velocity,
                 "pressure_gauge_Pa": self.scenario.pressure_gauge, "identification": self.identified.to_dict(),
-                "usable_stroke_m": self.absorber.usable_stroke(self.rig),
+                "rig": self.rig.name, "usable_stroke_m": self.absorber.usable_stroke(self.rig),
+                "achievable_force_ratio": None if reference is None else _num(reference.force_ratio),
+                "achievable_level_N": None if reference is None else _num(reference.level),
                 "efficiency_max": _num(self.bound.efficiency), "bound_force_N": _num(self.bound.level),
                 "first_collision_peak_N": _num(self.bound.first_collision_peak),
                 "efficiency_first_collision": _num(self.bound.efficiency_first_collision),
@@ -121,68 +104,31 @@ class AbsorptionResult:
         return plot_absorption(self, ax=ax)
 
 
+def _knew(history: dict[str, np.ndarray], result) -> float:
+    """First sample [s] at which a controller knew both M1 and v1 (``inf`` if never)."""
+    known = np.isfinite(history["estimated_mass"]) & np.isfinite(history["estimated_velocity"])
+    return float(result.time[np.argmax(known)]) if known.any() else math.inf
+
+
 def _num(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
 
 def default_duration(scenario: Scenario, usable_stroke: float) -> float:
     """Simulated time long enough for the slowest strategy to stop the mass [s]: 0.15 s + 4·usable stroke / V0,
-    within [0.3, 1.2] s."""
+    within [0.3, 1.2] s (the valve strategies' runs end ``REBOUND_WINDOW`` after the mass's deepest point)."""
     return float(min(1.2, max(0.3, 0.15 + 4.0 * usable_stroke / scenario.velocity)))
 
 
-def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, seed: int,
-                    sample_rate: float, response_map=None) -> Identified:
-    """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would: the record streams
-    through :class:`~impactometer.identify.streaming.StreamingIdentifier` and the first estimate (the early
-    answer, at the end of the second contact pulse) is taken when it arrives. A response map is applied to the
-    whole record and reports its own ``available_at``. A failed identification is returned with ``error`` set."""
-    from ..sensors import record
-
-    rec = record(scenario, rig, sample_rate=sample_rate, duration=IDENTIFICATION_WINDOW, noise=noise, seed=seed,
-                 pre_trigger=PRE_TRIGGER)
-    found: Identification | MapIdentification | None
-    try:
-        if method == "response-map":
-            from ..identify.response_map import identify_recording
-
-            if response_map is None:
-                raise ParameterError("identification 'response-map' needs response_map= (a map or its file)")
-            found = identify_recording(rec, response_map)
-        else:
-            from ..identify.streaming import StreamingIdentifier
-
-            stream = StreamingIdentifier(rec.sample_rate, variant=method, gravity=rig.gravity,
-                                         start_time=rec.start_time)
-            found = None
-            for k in range(0, rec.time.size, STREAM_CHUNK):
-                estimates = stream.push(rec.contact_force[k:k + STREAM_CHUNK],
-                                        rec.piston_acceleration[k:k + STREAM_CHUNK])
-                if estimates:
-                    found = estimates[0]
-                    break
-            if found is None:
-                raise IdentificationError(f"no estimate within the first {IDENTIFICATION_WINDOW * 1e3:g} ms "
-                                          "of the impact")
-    except IdentificationError as exc:
-        return Identified(method=method, mass=math.nan, velocity=math.nan, available_at=math.inf, error=str(exc))
-    if not (found.mass > 0 and found.velocity > 0 and math.isfinite(found.available_at)):
-        return Identified(method=method, mass=float(found.mass), velocity=float(found.velocity),
-                          available_at=math.inf, error="identification gave no usable mass and velocity")
-    return Identified(method=method, mass=float(found.mass), velocity=float(found.velocity),
-                      available_at=max(float(found.available_at), 0.0))
-
-
-def sensor_noise(closed_result, noise: float, seed: int) -> np.ndarray:
-    """Noise matrix of the controller's sensors: ``noise`` × each channel's RMS over the closed-valve record."""
+def sensor_noise(closed_result, noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Noise matrix of the controller's sensors (rows in the order of ``simulate.SENSOR_CHANNELS``) and the standard
+    deviation of each row: ``noise`` × each channel's RMS over the closed-valve record."""
     t = closed_result.time
     window = t <= IDENTIFICATION_WINDOW
     rng = np.random.default_rng([int(seed), 7])
-    rows = []
-    for name in SENSOR_CHANNELS:
-        x = getattr(closed_result, name)[window]
-        rows.append(noise * float(np.sqrt(np.mean(x * x))) * rng.standard_normal(t.size))
-    return np.array(rows)
+    sigma = np.array([noise * float(np.sqrt(np.mean(getattr(closed_result, name)[window] ** 2)))
+                      for name in loop.SENSOR_CHANNELS])
+    return sigma[:, None] * rng.standard_normal((sigma.size, t.size)), sigma
 
 
 def _check(scenario, noise, seed, identification, absorber, control_start) -> None:
@@ -204,7 +150,7 @@ def _check(scenario, noise, seed, identification, absorber, control_start) -> No
 def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | list[str] = "all",
            identification: str = "robust", noise: float = 0.02, seed: int = 0, absorber: Absorber | None = None,
            sample_rate: float = 50e3, duration: float | None = None, control_start: float | None = None,
-           response_map=None) -> AbsorptionResult:
+           response_map=None, reference: bool = False) -> AbsorptionResult:
     """Absorb one impact with the closed loop identify → control.
 
     Parameters
@@ -212,9 +158,9 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     scenario : Scenario
         The true impact: M1 [kg], V0 [m/s], p0 [Pa gauge].
     rig : Rig or str, optional
-        The stand (default ``drop-stand``).
+        The stand (default ``drop-stand-pad``, :data:`ABSORPTION_RIG`).
     strategy : str or list of str
-        ``"closed"``, ``"constant"``, ``"realtime"``, a list of them, or ``"all"``.
+        ``"closed"``, ``"constant"``, ``"realtime"``, ``"predictive"``, ``"auto"``, a list of them, or ``"all"``.
     identification : {"robust", "paper", "oracle", "response-map"}
         How M1 and V0 are obtained: peak-to-peak identification on the noisy closed-valve record (its early
         answer when it has one), the true values (oracle), or a response map (``response_map=``).
@@ -229,39 +175,49 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     duration : float, optional
         Simulated time [s] (default :func:`default_duration`).
     control_start : float, optional
-        Override of the time the control starts [s] (e.g. the oracle started when the identified loop starts).
-        The oracle otherwise starts at the end of the second contact pulse, when the early identification can
-        first be ready.
+        Override of the time the identification's answer is known [s] (e.g. the oracle started when the
+        identified loop starts). The oracle otherwise knows M1 and V0 from the start of the second contact pulse.
     response_map : ResponseMap or path, optional
         The map for ``identification="response-map"``.
+    reference : bool
+        Also search the achievable reference (:mod:`.reference`; a dozen more simulations).
 
     Returns
     -------
     AbsorptionResult
-        ``.metrics`` by strategy, ``.bound`` (η_max), ``.plot()``.
+        ``.metrics`` by strategy, ``.reference``, ``.bound`` (η_max), ``.plot()``.
     """
     absorber = Absorber() if absorber is None else absorber
     _check(scenario, noise, seed, identification, absorber, control_start)
+    if not isinstance(reference, bool):
+        raise ParameterError(f"reference must be True or False, got {reference!r}")
     names = strategy_names(strategy)
-    rig = get_rig(rig)
+    rig = get_rig(ABSORPTION_RIG if rig is None else rig)
     scenario.check_against(rig)
     usable = absorber.usable_stroke(rig)
     duration = default_duration(scenario, usable) if duration is None else duration
     closed, _ = loop.simulate_controlled(scenario, rig, drive=absorber.drive, duration=duration,
                                          sample_rate=sample_rate)
     if identification == "oracle":
-        pulses = contact_pulses(closed.time, closed.contact_force)
-        start = pulses[1].end if len(pulses) > 1 else (pulses[0].end if pulses else 0.0)
-        found = Identified(method="oracle", mass=scenario.mass, velocity=scenario.velocity, available_at=start)
+        if control_start is None:  # from the start of the second contact pulse (stage B, or the last rebound)
+            pulses = contact_pulses(closed.time, closed.contact_force)
+            at, error = (pulses[1].start, None) if len(pulses) > 1 else (math.inf, "a single contact pulse")
+        else:
+            at, error = float(control_start), None
+        found = Identified(method="oracle", mass=scenario.mass, velocity=scenario.velocity, mass_std=0.0,
+                           velocity_std=0.0, available_at=at, error=error)
     else:
         found = identify_impact(scenario, rig, method=identification, noise=noise, seed=seed,
                                 sample_rate=sample_rate, response_map=response_map)
-    if control_start is not None and found.error is None:
-        found = Identified(method=found.method, mass=found.mass, velocity=found.velocity,
-                           available_at=float(control_start))
+        if control_start is not None and found.error is None:
+            found = dataclasses.replace(found, available_at=float(control_start))
     notes = []
     if found.error is not None:
-        notes.append(f"identification failed ({found.error}); the valve stays closed")
+        notes.append(f"identification failed ({found.error}): the force strategies act on their own stage-B "
+                     f"estimates, the others keep the valve closed")
+    elif not math.isfinite(found.usable_mass) or not math.isfinite(found.usable_velocity):
+        notes.append(f"identified M1 = {found.mass:.3g} ± {found.mass_std:.2g} kg, V0 = {found.velocity:.3g} ± "
+                     f"{found.velocity_std:.2g} m/s not trusted: the controller waits for its stage-B estimate")
     required = (0.5 * scenario.mass * scenario.velocity ** 2 + scenario.mass * rig.gravity * usable) / usable
     over = required > absorber.rated_force
     if over:
@@ -269,30 +225,43 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                      f"({usable:.3f} m), above the rated {absorber.rated_force:.0f} N: the best achievable outcome "
                      f"is shown")
     start = found.available_at if found.error is None else math.inf
+    noise_matrix, sigma = sensor_noise(closed, noise, seed)
+    context = ControlContext(rig=rig, absorber=absorber, mass=found.usable_mass, velocity=found.usable_velocity,
+                             mass_std=found.mass_std if math.isfinite(found.usable_mass)
+                             and not math.isnan(found.mass_std) else math.inf,
+                             pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
+                             sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),
+                             charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]))
+    simulated = {}
+    for name in names:
+        control = get_strategy(name)(context)
+        if found.error is not None and control.strategy not in ("realtime", "predictive"):
+            control = context.base("closed")  # no early answer: only the force strategies act, on their own estimates
+        if control.strategy == "closed":
+            simulated[name] = (control, closed, {key: np.full_like(closed.time, np.nan) for key in loop.HISTORIES})
+        else:
+            simulated[name] = (control, *loop.simulate_controlled(
+                scenario, rig, control=control, drive=absorber.drive, duration=duration, sample_rate=sample_rate,
+                sensor_noise=noise_matrix, stop_after=REBOUND_WINDOW))
+    start = min([start] + [_knew(history, result) for control, result, history in simulated.values()
+                           if control.strategy in ("realtime", "predictive")])
+    runs = {name: StrategyRun(strategy=name, result=result, controller=history,
+                              metrics=absorption_metrics(result, start, usable),
+                              valve_opening_constant=control.opening if control.strategy == "constant" else math.nan)
+            for name, (control, result, history) in simulated.items()}
     if math.isfinite(start) and start <= closed.time[-1]:
         bound = dataclasses.replace(efficiency_bound(closed, start, usable), first_collision_peak=first_collision_peak(
             scenario, rig, absorber.drive, start, sample_rate=sample_rate))
     else:
         bound = EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
-    context = ControlContext(rig=rig, absorber=absorber, mass=found.mass if found.error is None else scenario.mass,
-                             velocity=found.velocity if found.error is None else scenario.velocity,
-                             pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
-                             sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),
-                             charge_temperature=rig.gas.temperature)
-    noise_matrix = sensor_noise(closed, noise, seed)
-    runs = {}
-    for name in names:
-        control = get_strategy(name)(context) if found.error is None else context.base(ctl.CLOSED)
-        if control[ctl.STRATEGY] == ctl.CLOSED:
-            result = closed
-            history = {key: np.zeros_like(closed.time) for key in loop.EXTRA}
-        else:
-            result, history = loop.simulate_controlled(scenario, rig, control=control, drive=absorber.drive,
-                                                       duration=duration, sample_rate=sample_rate,
-                                                       sensor_noise=noise_matrix)
-        area = float(control[ctl.AREA_CONSTANT]) if control[ctl.STRATEGY] == ctl.CONSTANT else math.nan
-        runs[name] = StrategyRun(strategy=name, result=result, controller=history,
-                                 metrics=absorption_metrics(result, start), valve_area_constant=area)
+    achievable = None
+    if reference and math.isfinite(start) and start < closed.time[-1]:
+        i0 = int(np.searchsorted(closed.time, start))  # F_ref of the closed-valve state at the control start
+        level = scenario.mass * (max(float(closed.v1[i0]), 0.0) ** 2 / (2.0 * max(usable - float(closed.u1[i0]),
+                                                                                   1e-3)) + rig.gravity)
+        achievable = achievable_reference(scenario, rig, absorber, start, reference_force=level,
+                                          charge_pressure=float(closed.pressure_lower[0]), duration=duration,
+                                          sample_rate=sample_rate)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,
-                            over_capacity=bool(over or bound.over_capacity), notes=tuple(notes))
-
+                            over_capacity=bool(over or bound.over_capacity), control_start=start,
+                            reference=achievable, notes=tuple(notes))

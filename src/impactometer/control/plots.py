@@ -10,7 +10,8 @@ import math
 import numpy as np
 
 #: line colour per strategy (and per oracle run)
-COLOURS = {"closed": "tab:gray", "constant": "tab:blue", "realtime": "tab:red", "realtime (oracle)": "tab:orange"}
+COLOURS = {"closed": "tab:gray", "constant": "tab:blue", "realtime": "tab:red", "predictive": "tab:purple",
+           "auto": "tab:purple", "realtime (oracle)": "tab:orange", "predictive (oracle)": "tab:pink"}
 
 
 def legend_outside(ax) -> None:
@@ -26,10 +27,14 @@ def _pyplot():
 
 
 def plot_absorption(result, ax=None):
-    """Contact force of every strategy vs time, the control start and the bound level; stroke below.
+    """The paper's Fig. 10b: contact force of every strategy vs time (thin: as simulated; thick: CFC 60, the load
+    the stage-B force ratio is judged on), the control start, stage B and the reference force F_ref; the mass
+    displacement below.
 
     Returns the figure.
     """
+    from ..filters import cfc_filter
+
     plt = _pyplot()
     if ax is None:
         fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True, constrained_layout=True,
@@ -38,26 +43,35 @@ def plot_absorption(result, ax=None):
         axes = np.atleast_1d(ax)
         fig = axes[0].figure
     s = result.scenario
+    deepest = 0.0
     for name, run in result.runs.items():
         r = run.result
         colour = COLOURS.get(name)
-        axes[0].plot(r.time * 1e3, r.contact_force / 1e3, lw=0.9, color=colour, label=name)
+        body = cfc_filter(r.contact_force, r.sample_rate, 60)
+        axes[0].plot(r.time * 1e3, r.contact_force / 1e3, lw=0.4, color=colour, alpha=0.5)
+        axes[0].plot(r.time * 1e3, body / 1e3, lw=1.6, color=colour,
+                     label=f"{name}: R = {run.metrics.stage_b_force_ratio:.2f}")
         if len(axes) > 1:
             axes[1].plot(r.time * 1e3, r.u1 * 1e3, lw=0.9, color=colour, label=name)
+        deepest = max(deepest, float(r.time[np.argmax(r.u1)]))
     start = result.control_start
     for a in axes:
         if math.isfinite(start):
             a.axvline(start * 1e3, color="k", ls=":", lw=1, label="control starts")
         a.grid(alpha=0.3)
-    if math.isfinite(result.bound.level):
-        axes[0].axhline(result.bound.level / 1e3, color="tab:green", ls="--", lw=1,
-                        label=f"bound level (η_max = {result.bound.efficiency:.2f})")
+    judged = [run.metrics for run in result.runs.values() if math.isfinite(run.metrics.reference_force)]
+    if judged:
+        m = judged[-1]
+        axes[0].axhline(m.reference_force / 1e3, color="tab:green", ls="--", lw=1,
+                        label=f"F_ref = {m.reference_force:.0f} N ({list(result.runs)[-1]})")
+        axes[0].set_ylim(0.0, 4.0 * max(m.reference_force, max(j.stage_b_peak_force for j in judged) / 3.0) / 1e3)
+    axes[0].set_xlim(0.0, 1.1 * deepest * 1e3 if deepest > 0.0 else None)
     axes[0].set_ylabel("contact force [kN]")
     ident = result.identified
-    how = "oracle" if ident.method == "oracle" else f"identified ({ident.method}): M1 = {ident.mass:.1f} kg, " \
-                                                      f"V0 = {ident.velocity:.2f} m/s"
-    axes[0].set_title(f"M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, p0 = {s.pressure_gauge / 1e3:g} kPa\n{how}",
-                      fontsize=10)
+    how = "oracle" if ident.method == "oracle" else f"identified ({ident.method}): M1 = {ident.mass:.3g} kg, " \
+                                                      f"V0 = {ident.velocity:.3g} m/s"
+    axes[0].set_title(f"{result.rig.name}: M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, "
+                      f"p0 = {s.pressure_gauge / 1e3:g} kPa\n{how}", fontsize=10)
     legend_outside(axes[0])
     if len(axes) > 1:
         usable = result.absorber.usable_stroke(result.rig)
@@ -66,36 +80,3 @@ def plot_absorption(result, ax=None):
         legend_outside(axes[1])
     axes[-1].set_xlabel("time after first contact [ms]")
     return fig
-
-
-def plot_distributions(rows, *, quantities=("efficiency", "peak_force_controlled_N", "stroke_used_m"), ax=None):
-    """Box plots of metrics per strategy over many cases (rows of :func:`~impactometer.control.study.absorption_table`).
-
-    The bound η_max is drawn next to the efficiencies. Returns the figure.
-    """
-    plt = _pyplot()
-    if ax is None:
-        fig, axes = plt.subplots(1, len(quantities), figsize=(4.2 * len(quantities), 4.5), constrained_layout=True)
-    else:
-        axes = ax
-        fig = np.atleast_1d(axes)[0].figure
-    axes = np.atleast_1d(axes)
-    labels = list(dict.fromkeys(row["strategy"] for row in rows))
-    for a, quantity in zip(axes, quantities, strict=False):
-        data = [[row[quantity] for row in rows if row["strategy"] == name and _finite(row.get(quantity))]
-                for name in labels]
-        names = list(labels)
-        if quantity == "efficiency":
-            bound = {(row["mass_kg"], row["velocity_m_s"], row["pressure_gauge_Pa"]): row["efficiency_max"]
-                     for row in rows if _finite(row.get("efficiency_max"))}
-            data.append(list(bound.values()))
-            names.append("bound η_max")
-        a.boxplot([d if d else [np.nan] for d in data], showfliers=True)
-        a.set_xticks(range(1, len(names) + 1), names, rotation=30, ha="right")
-        a.set_title(quantity)
-        a.grid(alpha=0.3, axis="y")
-    return fig
-
-
-def _finite(value) -> bool:
-    return value is not None and not isinstance(value, bool) and math.isfinite(float(value))

@@ -1,20 +1,28 @@
 """Absorption strategies: a registry from name to a planner that turns what the impactometer knows into the
-controller parameters of the compiled loop (:mod:`impactometer.control.controller`).
+settings of the controller (:class:`~impactometer.control.settings.ControlSettings`).
 
 - ``closed``: the valve stays closed (gas spring).
 - ``constant``: one opening, held from the control start until the estimated mass velocity reaches zero or the
   closed gas spring is needed to stop the bodies within the remaining stroke (then the valve closes for good),
   chosen by optimisation with the model for the identified M1 and V0: the opening with the lowest peak contact
   force after the control start whose stroke stays within the usable stroke.
-- ``realtime``: feedback on the chamber pressures that holds the contact force at F* = M1·(v²/(2·s_remaining) + g),
-  with v propagated from the identified V0 by the momentum balance of the mass (measured contact force), the
-  remaining stroke from the measured piston displacement and the piston velocity from the integrated piston
-  acceleration. Both valve strategies close the valve for good when the closed gas spring is needed to stop the
-  bodies within the remaining stroke (``control.controller.must_close``).
+- ``realtime``: feedback on the chamber pressures that holds the contact force at F* = M1·(v²/(2·s_remaining) + g)
+  from the current estimates (:mod:`.estimator`: M1 refined in sustained contact, v from the momentum balance and,
+  in sustained contact, from the piston observer; s_remaining from the rod displacement).
+- ``predictive``: the same target, with the valve's dead time and lag planned for: the controller predicts the
+  chamber pressures and the opening over the dead time from the commands already sent (its model of the actuator)
+  and sets the command that brings the opening, after the lag, to what the predicted state needs; re-planned at
+  every sample as the estimates improve. It acts from the control start, in stage A when the identification
+  comes before stage B.
+- ``auto``: the better of ``realtime`` and ``predictive`` on the acceptance grid (``predictive``).
+
+Every valve strategy closes the valve for good when the closed gas spring is needed to stop the bodies within the
+remaining stroke (``control.controller.must_close``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -23,8 +31,8 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..rig import Rig, Scenario
-from . import controller as ctl
 from . import simulate as loop
+from .settings import ControlSettings
 from .valve import Absorber
 
 
@@ -35,11 +43,14 @@ class ControlContext:
     Attributes
     ----------
     rig : The stand.  absorber : Usable stroke, rated force, valve drive.
-    mass, velocity : Identified (or, for the oracle, true) M1 [kg] and V0 [m/s].
+    mass, velocity : Identified (or, for the oracle, true) M1 [kg] and V0 [m/s]; NaN mass: not usable (the
+        controller waits for its stage-B estimate).
+    mass_std : Standard error of ``mass`` [kg] (0 for the oracle, which also does not refine it).
     pressure_gauge : Charge pressure p0 [Pa gauge] (known: the stand was charged to it).
     start : Time the control starts [s] (the identification's ``available_at``).
     duration, sample_rate : Simulated time [s] and controller rate [Hz].
     charge_pressure, charge_temperature : Lower chamber pressure [Pa] and gas temperature [K] at first contact.
+    force_noise : Standard deviation of the force sensor's noise [N].
     """
 
     rig: Rig
@@ -52,64 +63,88 @@ class ControlContext:
     sample_rate: float
     charge_pressure: float
     charge_temperature: float
+    mass_std: float = math.inf
+    force_noise: float = 0.0
 
-    def base(self, strategy: int, **extra) -> np.ndarray:
-        """Controller vector with the common fields filled."""
-        return ctl.control_vector(strategy=strategy, start=self.start, mass=self.mass, velocity=self.velocity,
-                                   usable_stroke=self.absorber.usable_stroke(self.rig),
-                                   charge_pressure=self.charge_pressure,
-                                   charge_temperature=self.charge_temperature, **extra)
+    def base(self, strategy: str, **extra) -> ControlSettings:
+        """Controller settings with the common fields filled."""
+        oracle = self.mass_std == 0.0
+        return ControlSettings(strategy=strategy, start=self.start, mass=self.mass, mass_std=self.mass_std,
+                               velocity=self.velocity, usable_stroke=self.absorber.usable_stroke(self.rig),
+                               charge_pressure=self.charge_pressure, charge_temperature=self.charge_temperature,
+                               force_noise=self.force_noise, refine_mass=not oracle, **extra)
 
 
-def plan_closed(context: ControlContext) -> np.ndarray:
+def plan_closed(context: ControlContext) -> ControlSettings:
     """Valve closed throughout."""
-    return context.base(ctl.CLOSED)
+    return context.base("closed")
 
 
-def plan_realtime(context: ControlContext) -> np.ndarray:
+def plan_realtime(context: ControlContext) -> ControlSettings:
     """Real-time force control from the control start (see the module notes)."""
-    return context.base(ctl.REALTIME, max_force=context.absorber.rated_force * 4.0,
-                        tau_control=REALTIME_TAU_CONTROL, tau_filter=REALTIME_TAU_FILTER,
+    return context.base("realtime", max_force=context.absorber.rated_force * 4.0,
+                        tau_control=realtime_tau_control(context.absorber.drive), tau_filter=REALTIME_TAU_FILTER,
                         bounce_gate=context.absorber.bounce_gate, bounce_threshold=BOUNCE_THRESHOLD)
 
 
-#: time constant of the gas-force loop and of the pressure filters of the real-time controller [s]
+def plan_predictive(context: ControlContext) -> ControlSettings:
+    """Predictive force control from the control start (see the module notes)."""
+    return context.base("predictive", max_force=context.absorber.rated_force * 4.0,
+                        tau_control=predictive_tau_control(context.absorber.drive), tau_filter=REALTIME_TAU_FILTER)
+
+
+#: time constant of the gas-force loop of a valve without lag, and of the pressure filters of the controllers [s]
 REALTIME_TAU_CONTROL = 2e-3
 REALTIME_TAU_FILTER = 5e-4
+#: shortest time constant of the predictive gas-force loop [s] (twice the pressure filters')
+PREDICTIVE_TAU_FLOOR = 1e-3
+
+
+def realtime_tau_control(drive) -> float:
+    """Time constant of the real-time gas-force loop [s]: 2 ms plus twice the valve's dead time and lag (a
+    feedback loop much faster than its actuator oscillates; the real-time law does not model the actuator)."""
+    return REALTIME_TAU_CONTROL + 2.0 * (drive.dead_time + drive.time_constant)
+
+
+def predictive_tau_control(drive) -> float:
+    """Time constant of the predictive gas-force loop [s]: the valve's own lag, at least ``PREDICTIVE_TAU_FLOOR``
+    (the dead time is predicted and the lag compensated, so the loop need not wait for them)."""
+    return max(drive.time_constant, PREDICTIVE_TAU_FLOOR)
 #: relative velocity v1 − v2 [m/s] above which the bounce gate lets the force law open the valve
 BOUNCE_THRESHOLD = 0.0
 #: sample rate of the model runs of the constant-opening optimisation [Hz]
 PLANNING_RATE = 10e3
 
 
-def constant_outcome(context: ControlContext, area: float) -> tuple[float, float]:
+def constant_outcome(context: ControlContext, opening: float) -> tuple[float, float]:
     """Peak contact force after the control start [N] and largest mass displacement [m] predicted by the model for
-    a constant opening ``area`` [m²] with the identified M1 and V0 (noise-free sensors)."""
+    a constant ``opening`` [-] with the identified M1 and V0 (noise-free sensors)."""
     scenario = Scenario(mass=context.mass, velocity=context.velocity, pressure_gauge=context.pressure_gauge)
-    control = context.base(ctl.CONSTANT, area=area)
+    control = dataclasses.replace(context.base("constant", opening=opening), mass_std=0.0, refine_mass=False)
     result, _ = loop.simulate_controlled(scenario, context.rig, control=control, drive=context.absorber.drive,
                                          duration=context.duration, sample_rate=PLANNING_RATE)
     after = result.time >= context.start
     return float(result.contact_force[after].max()), float(result.u1.max())
 
 
-def optimal_constant_area(context: ControlContext, *, candidates: int = 9, refinements: int = 4) -> float:
-    """Opening [m²] with the lowest predicted peak force after the control start among those whose stroke stays
-    within the usable stroke; 0 (closed) when no opening is feasible.
+def optimal_constant_opening(context: ControlContext, *, candidates: int = 9, refinements: int = 4) -> float:
+    """Opening [-] with the lowest predicted peak force after the control start among those whose stroke stays
+    within the usable stroke; 0 (closed) when no opening is feasible or the mass is not known.
 
-    A log-spaced scan over (0, A_max] is followed by golden-section refinement around the best feasible opening.
+    A log-spaced scan over (0, 1] is followed by golden-section refinement around the best feasible opening.
     """
-    a_max = context.rig.valve.max_area
+    if not context.mass > 0.0:
+        return 0.0
     usable = context.absorber.usable_stroke(context.rig)
     cache: dict[float, float] = {}
 
-    def cost(area: float) -> float:
-        if area not in cache:
-            peak, stroke = constant_outcome(context, area)
-            cache[area] = peak if stroke <= usable else math.inf
-        return cache[area]
+    def cost(opening: float) -> float:
+        if opening not in cache:
+            peak, stroke = constant_outcome(context, opening)
+            cache[opening] = peak if stroke <= usable else math.inf
+        return cache[opening]
 
-    grid = [0.0] + list(a_max * np.geomspace(1.0 / 64.0, 1.0, candidates))
+    grid = [0.0] + list(np.geomspace(1.0 / 64.0, 1.0, candidates))
     costs = [cost(a) for a in grid]
     best = int(np.argmin(costs))
     if not math.isfinite(costs[best]):
@@ -123,20 +158,23 @@ def optimal_constant_area(context: ControlContext, *, candidates: int = 9, refin
             high = b
         else:
             low = a
-    return min(cache, key=lambda area: (cache[area], -area))
+    return min(cache, key=lambda opening: (cache[opening], -opening))
 
 
-def plan_constant(context: ControlContext) -> np.ndarray:
+def plan_constant(context: ControlContext) -> ControlSettings:
     """The optimised constant opening (closed for good once the mass stops or its stroke runs short)."""
-    return context.base(ctl.CONSTANT, area=optimal_constant_area(context))
+    return context.base("constant", opening=optimal_constant_opening(context))
 
 
-#: strategy name -> planner(context) -> controller vector
-STRATEGIES: dict[str, Callable[[ControlContext], np.ndarray]] = {
-    "closed": plan_closed, "constant": plan_constant, "realtime": plan_realtime}
+#: strategy name -> planner(context) -> controller settings
+STRATEGIES: dict[str, Callable[[ControlContext], ControlSettings]] = {
+    "closed": plan_closed, "constant": plan_constant, "realtime": plan_realtime, "predictive": plan_predictive,
+    "auto": plan_predictive}
+#: the strategies of ``"all"`` (``auto`` is another name of one of them)
+ALL = ("closed", "constant", "realtime", "predictive")
 
 
-def get_strategy(name: str) -> Callable[[ControlContext], np.ndarray]:
+def get_strategy(name: str) -> Callable[[ControlContext], ControlSettings]:
     """The planner of strategy ``name``; ParameterError listing the valid names otherwise."""
     if not isinstance(name, str) or name not in STRATEGIES:
         raise ParameterError(f"strategy must be one of {sorted(STRATEGIES)}, got {name!r}")
@@ -148,7 +186,7 @@ def strategy_names(selection: str | list[str] | tuple[str, ...]) -> list[str]:
     if not isinstance(selection, (str, list, tuple)):
         raise ParameterError(f"strategy selection must be 'all', a strategy name or a list of them, got "
                              f"{type(selection).__name__}")
-    names = list(STRATEGIES) if selection == "all" else [selection] if isinstance(selection, str) else list(selection)
+    names = list(ALL) if selection == "all" else [selection] if isinstance(selection, str) else list(selection)
     for name in names:
         get_strategy(name)
     if not names:

@@ -12,11 +12,13 @@ from __future__ import annotations
 from numba import njit
 
 from .forces import (
+    ORIFICE,
     contact_energy,
     contact_force,
     contact_loss,
     contact_set_rate,
     friction_force,
+    iso6358_mass_flow,
     orifice_mass_flow,
     pneumatic_force,
     stop_force,
@@ -29,8 +31,9 @@ N_STATE = 10
 # parameter indices
 (MASS, PISTON_MASS, GRAVITY, AREA, ROD_AREA, LOWER_LENGTH, UPPER_LENGTH, DEAD_LOWER, DEAD_UPPER, STROKE,
  GAMMA, GAS_CONSTANT, ATMOSPHERE, FRICTION, FRICTION_SCALE, LAW, CONTACT_K, CONTACT_C, STOP_K, STOP_C,
- VALVE_AREA, DISCHARGE, VELOCITY, PRESSURE_GAUGE, TEMPERATURE) = range(25)
-N_PARAM = 25
+ VALVE_AREA, DISCHARGE, VELOCITY, PRESSURE_GAUGE, TEMPERATURE, VALVE_MAX_AREA, VALVE_LAW, SONIC_CONDUCTANCE,
+ CRITICAL_RATIO) = range(29)
+N_PARAM = 29
 
 #: channels a simulation can return, in the order of :func:`channels`
 CHANNELS = ("u1", "v1", "u2", "v2", "pressure_lower", "pressure_upper", "gas_mass_lower", "gas_mass_upper",
@@ -89,6 +92,32 @@ def channels(y, p, out):
         out[i] = derived_value(i, p[GRAVITY], p[MASS], p[PISTON_MASS], fc, fp, ff, f_top, f_bottom)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def valve_mass_flow(p_up, t_up, p_down, valve_area, p):
+    """Mass flow through valve Z [kg/s] (>= 0) at opening ``valve_area`` [m²] from the upstream gas (pressure
+    [Pa], temperature [K]) to the downstream pressure [Pa], by the valve's flow law: an orifice of that area with
+    the discharge coefficient, or the ISO 6358 law of the fully open valve with its sonic conductance scaled by
+    ``valve_area / max_area``."""
+    if p[VALVE_LAW] == ORIFICE:
+        return orifice_mass_flow(p_up, t_up, p_down, valve_area, p[DISCHARGE], p[GAMMA], p[GAS_CONSTANT])
+    return iso6358_mass_flow(p_up, t_up, p_down, p[SONIC_CONDUCTANCE] * valve_area / p[VALVE_MAX_AREA],
+                             p[CRITICAL_RATIO])
+
+
+@njit(cache=True, error_model="numpy")
+def chamber_flow(y, p, valve_area, vol_lower, vol_upper):
+    """Mass flow through valve Z from the lower to the upper chamber [kg/s] (negative the other way) and R·T of
+    the gas that flows times that flow [W·(γ−1)/γ], at opening ``valve_area`` [m²] and chamber volumes [m³]."""
+    r_gas = p[GAS_CONSTANT]
+    if y[P_LOWER] >= y[P_UPPER]:
+        t_lower = y[P_LOWER] * vol_lower / (y[M_LOWER] * r_gas)
+        mdot = valve_mass_flow(y[P_LOWER], t_lower, y[P_UPPER], valve_area, p)
+        return mdot, r_gas * t_lower * mdot
+    t_upper = y[P_UPPER] * vol_upper / (y[M_UPPER] * r_gas)
+    mdot = -valve_mass_flow(y[P_UPPER], t_upper, y[P_LOWER], valve_area, p)
+    return mdot, r_gas * t_upper * mdot
+
+
 @njit(cache=True, error_model="numpy")
 def rhs(y, p, valve_area, dy):
     """Time derivative of the state ``y`` into ``dy`` for a valve opening ``valve_area`` [m²]."""
@@ -116,18 +145,18 @@ def rhs(y, p, valve_area, dy):
     dvol_lower = -p[AREA] * v2
     dvol_upper = (p[AREA] - p[ROD_AREA]) * v2
     gamma = p[GAMMA]
-    r_gas = p[GAS_CONSTANT]
     # gas flow through the valve, positive from the lower to the upper chamber
     flow_enthalpy = 0.0  # R·T of the gas that flows, times the mass flow [W·(γ−1)/γ]
     mdot = 0.0
     if valve_area > 0.0:
+        r_gas = p[GAS_CONSTANT]
         t_lower = y[P_LOWER] * vol_lower / (y[M_LOWER] * r_gas)
         t_upper = y[P_UPPER] * vol_upper / (y[M_UPPER] * r_gas)
         if y[P_LOWER] >= y[P_UPPER]:
-            mdot = orifice_mass_flow(y[P_LOWER], t_lower, y[P_UPPER], valve_area, p[DISCHARGE], gamma, r_gas)
+            mdot = valve_mass_flow(y[P_LOWER], t_lower, y[P_UPPER], valve_area, p)
             flow_enthalpy = r_gas * t_lower * mdot
         else:
-            mdot = -orifice_mass_flow(y[P_UPPER], t_upper, y[P_LOWER], valve_area, p[DISCHARGE], gamma, r_gas)
+            mdot = -valve_mass_flow(y[P_UPPER], t_upper, y[P_LOWER], valve_area, p)
             flow_enthalpy = r_gas * t_upper * mdot
     dy[P_LOWER] = gamma * (-flow_enthalpy - y[P_LOWER] * dvol_lower) / vol_lower
     dy[P_UPPER] = gamma * (flow_enthalpy - y[P_UPPER] * dvol_upper) / vol_upper

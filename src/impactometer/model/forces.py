@@ -16,6 +16,12 @@ HUNT_CROSSLEY = 1
 HYSTERETIC = 2
 #: contact law name -> code used by the compiled model
 LAW_CODES = {"kelvin-voigt": KELVIN_VOIGT, "hunt-crossley": HUNT_CROSSLEY, "hysteretic": HYSTERETIC}
+#: flow laws of valve Z: name -> code used by the compiled model
+ORIFICE, ISO6358 = 0, 1
+VALVE_LAWS = {"orifice": ORIFICE, "iso6358": ISO6358}
+#: ISO 6358-1 reference conditions of the sonic conductance: density [kg/m³] and temperature [K] of air
+ISO_REFERENCE_DENSITY = 1.185
+ISO_REFERENCE_TEMPERATURE = 293.15
 #: |x| from which math.tanh(x) is exactly ±1 in double precision (true from 19.06 on)
 TANH_SATURATION = 20.0
 
@@ -154,3 +160,24 @@ def orifice_mass_flow(p_up, t_up, p_down, area, discharge_coefficient, gamma, ga
     else:
         psi = _flow_function(LAMINAR_RATIO, gamma) * (1.0 - ratio) / (1.0 - LAMINAR_RATIO)
     return discharge_coefficient * area * p_up * psi / math.sqrt(gas_constant * t_up)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def iso6358_mass_flow(p_up, t_up, p_down, conductance, critical_ratio):
+    """Mass flow through a pneumatic component rated by ISO 6358 [kg/s] from the upstream to the downstream side.
+
+    q = C·p_up·ρ0·sqrt(T0/T_up) when choked (p_down/p_up <= b), times sqrt(1 − ((r − b)/(1 − b))²) above it, with
+    the sonic conductance C [m³/(s·Pa)], the critical pressure ratio b [-] and the standard's reference density
+    ρ0 = 1.185 kg/m³ at T0 = 293.15 K (the conditions catalogue values of C refer to). Above ``LAMINAR_RATIO`` the
+    flow falls linearly to zero with the pressure difference, as for the orifice (the elliptic law also has an
+    infinite slope at r -> 1).
+    """
+    if conductance <= 0.0 or p_up <= p_down:
+        return 0.0
+    ratio = p_down / p_up
+    r = min(ratio, LAMINAR_RATIO)
+    x = max(r - critical_ratio, 0.0) / (1.0 - critical_ratio)
+    shape = math.sqrt(1.0 - x * x)
+    if ratio > LAMINAR_RATIO:
+        shape *= (1.0 - ratio) / (1.0 - LAMINAR_RATIO)
+    return conductance * p_up * ISO_REFERENCE_DENSITY * math.sqrt(ISO_REFERENCE_TEMPERATURE / t_up) * shape

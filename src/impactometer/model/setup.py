@@ -10,7 +10,7 @@ from numba import njit, prange
 from .. import rig as rigmod
 from ..errors import ParameterError
 from . import dynamics as d
-from .forces import LAW_CODES, pneumatic_force, stop_force
+from .forces import LAW_CODES, VALVE_LAWS, pneumatic_force, stop_force
 
 
 def pack(rig: rigmod.Rig, scenario: rigmod.Scenario) -> np.ndarray:
@@ -43,6 +43,10 @@ def pack(rig: rigmod.Rig, scenario: rigmod.Scenario) -> np.ndarray:
     p[d.STOP_C] = rig.stops.damping
     p[d.VALVE_AREA] = rig.valve.area
     p[d.DISCHARGE] = rig.valve.discharge_coefficient
+    p[d.VALVE_MAX_AREA] = rig.valve.max_area
+    p[d.VALVE_LAW] = VALVE_LAWS[rig.valve.law]
+    p[d.SONIC_CONDUCTANCE] = rig.valve.sonic_conductance or 0.0
+    p[d.CRITICAL_RATIO] = rig.valve.critical_ratio or 0.5  # unused by the orifice law
     p[d.VELOCITY] = scenario.velocity
     p[d.PRESSURE_GAUGE] = scenario.pressure_gauge
     return p

@@ -121,7 +121,7 @@ def simulate(scenario: Scenario, rig: Rig | None = None, *, duration: float = 0.
                                        int(max_steps), chans)
         if status != fast.OK:
             raise SimulationError(f"fast integrator failed ({fast.STATUS_TEXT[status]}) for {scenario}")
-    return _result(t, chans, p, y0, rig, scenario, integrator)
+    return simulation_result(t, chans, p, y0, rig, scenario, integrator)
 
 
 @njit(cache=True)
@@ -135,7 +135,9 @@ def _energies(chans, p):
     return out
 
 
-def _result(t, chans, p, y0, rig, scenario, integrator) -> SimulationResult:
+def simulation_result(t, chans, p, y0, rig, scenario, integrator) -> SimulationResult:
+    """The :class:`SimulationResult` of channel histories ``chans`` (N_CHANNEL, n) at times ``t`` [s], with the
+    energies computed from the states."""
     energies = _energies(chans, p)
     # kinetic and elastic energies are absolute (never negative); potential and gas energies are changes from t = 0
     energies[1:3] -= energies[1:3, :1].copy()

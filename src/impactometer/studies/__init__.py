@@ -13,7 +13,7 @@ from .base import PAPER_RANGES, STUDIES, Study, StudyOptions, get_study, registe
 from .runner import StudyRun, available_studies, run_studies, run_study
 
 #: study modules, in report order
-MODULES = ("cases", "parameters", "noise", "sampling", "response_map", "absorption", "peak_force")
+MODULES = ("cases", "parameters", "noise", "sampling", "response_map", "absorption", "valve_design", "peak_force")
 
 __all__ = ["PAPER_RANGES", "STUDIES", "Study", "StudyOptions", "StudyRun", "available_studies", "get_study",
            "load_studies", "register", "run_studies", "run_study"]

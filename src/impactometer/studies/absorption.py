@@ -1,91 +1,183 @@
-"""Study ``absorption`` (the paper's Fig. 10b over a grid): every absorber strategy, identified and oracle.
+"""Study ``absorption`` (the paper's Fig. 10b over a grid): every absorber strategy judged on stage B.
 
-A wrapper of :func:`impactometer.control.study.case_rows`: one work unit per impact, each with its own seed (a
-function of the root seed and the case index), so the table does not depend on the number of workers. Summarised
-next to the absorber's acceptance criteria (median efficiency vs the physical bound η_max, bottoming out of the
-identified real-time strategy where the oracle does not, peak force after the control start vs the oracle).
+Per impact (one work unit, its own seed): ``closed``, ``constant``, ``realtime`` and ``predictive`` with M1 and V0
+identified from the noisy closed-valve record (:func:`impactometer.control.absorb`), ``predictive`` with the true
+M1 and V0 started at the same instant (the oracle: the cost of the identification), and the achievable reference
+of the valve from that instant (:mod:`impactometer.control.reference`). One row per strategy, plus one for the
+reference. Runs without a stage B are kept, flagged ``stage_b = False`` and counted apart. The summary sets the
+figures next to the acceptance criteria of the absorber.
 """
 
 from __future__ import annotations
 
 import math
-from collections import defaultdict
+from typing import Any
 
 import numpy as np
 
+from ..control import absorb
+from ..control.strategies import ALL as ALL_STRATEGIES
+from ..rig import ABSORPTION_RIG, Scenario
 from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
+from .tables import finite_values, flag, number
 
 NAME = "absorption"
-REQUIRES = ("impactometer.control.study",)
 #: default values per grid axis (8 impacts at the corners of the ranges; ``--grid 5`` gives the paper's 125)
 GRID = 2
-DEFAULTS = {"noise": 0.02, "identification": "robust"}
+DEFAULTS = {"noise": 0.02, "identification": "robust", "strategies": ["closed", "constant", "realtime",
+                                                                       "predictive"]}
 SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
-            "identification": Setting("choice", choices=("robust", "paper", "oracle"))}
+            "identification": Setting("choice", choices=("robust", "paper", "oracle")),
+            "strategies": Setting("choices", choices=ALL_STRATEGIES)}
+#: the strategy run with the oracle, and the labels of the extra rows
+ORACLE_OF = "predictive"
+ORACLE = f"{ORACLE_OF} (oracle)"
+REFERENCE = "achievable reference"
+#: the metrics kept per row (keys of ``AbsorptionMetrics.to_dict()``)
+METRICS = ("control_start_s", "stage_b", "stage_b_start_s", "reference_force_N", "stage_b_peak_force_N",
+           "stage_b_force_ratio", "stage_b_efficiency", "stage_b_force_ratio_first", "bottomed_out", "rebound_m",
+           "time_to_stop_s", "peak_force_stage_a_N", "stroke_used_m", "efficiency", "peak_force_controlled_N")
+#: acceptance targets of the absorber (the issue's): median and 90th percentile of R, improvement over the closed
+#: valve, rebound limit [m] and the share of cases below it, identified vs oracle R
+TARGETS = {"median": 1.3, "p90": 1.6, "improvement": 2.0, "rebound": 5e-3, "rebound_share": 0.95,
+           "oracle_deviation": 0.10}
 
 
 def _cases(options: StudyOptions) -> list[Row]:
     return scenario_grid(options, GRID)  # one noise realisation per impact (the summary is per impact)
 
 
-def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
-    from ..control.study import case_rows
-
+def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
+    """Rows of one impact: the identified strategies, the oracle and the achievable reference."""
+    scenario = Scenario(mass=case["mass"], velocity=case["velocity"], pressure_gauge=case["pressure_gauge"])
+    noise = float(options.param(NAME, "noise", DEFAULTS["noise"]))
+    strategies = list(options.param(NAME, "strategies", DEFAULTS["strategies"]))
+    found = absorb(scenario, options.rig, strategy=strategies, reference=True, noise=noise, seed=seed,
+                   sample_rate=options.sample_rate,
+                   identification=options.param(NAME, "identification", DEFAULTS["identification"]))
+    start = found.control_start if math.isfinite(found.control_start) else None  # the oracle starts with the loop
+    oracle = absorb(scenario, options.rig, strategy=ORACLE_OF, identification="oracle", control_start=start,
+                    noise=noise, seed=seed, sample_rate=options.sample_rate)
+    base = {"case": case["case"], "mass_kg": scenario.mass, "velocity_m_s": scenario.velocity,
+            "pressure_gauge_Pa": scenario.pressure_gauge, "rig": options.rig.name, "noise": noise, "seed": seed}
+    ident = found.identified.to_dict()
+    ident_columns = {"identified_mass_kg": ident["mass_kg"], "identified_mass_std_kg": ident["mass_std_kg"],
+                     "identified_velocity_m_s": ident["velocity_m_s"], "identification_error": ident["error"]}
+    reference = found.reference
     rows = []
-    for case in cases:
-        seed = int(case_seed(options, NAME, case["case"]).generate_state(1)[0])
-        scenario = {k: case[k] for k in ("mass", "velocity", "pressure_gauge")}
-        rows += [{"case": case["case"], **row} for row in case_rows(
-            scenario, options.rig, noise=float(options.param(NAME, "noise", DEFAULTS["noise"])), seed=seed,
-            identification=options.param(NAME, "identification", DEFAULTS["identification"]), absorber=None,
-            sample_rate=options.sample_rate)]
+    for result, label in ((found, None), (oracle, ORACLE)):
+        summary = result.to_dict()
+        for name, metrics in summary["strategies"].items():
+            rows.append({**base, "strategy": label or name, "identification": summary["identification"]["method"],
+                         **ident_columns, **{k: metrics.get(k) for k in METRICS},
+                         "estimated_mass_kg": metrics.get("estimated_mass_kg"),
+                         "achievable_force_ratio": None if reference is None else _num(reference.force_ratio),
+                         "over_capacity": summary["over_capacity"]})
+    if reference is not None:
+        rows.append({**base, "strategy": REFERENCE, "identification": "oracle", **ident_columns,
+                     **dict.fromkeys(METRICS), "control_start_s": _num(found.control_start),
+                     "stage_b": math.isfinite(reference.force_ratio),
+                     "stage_b_force_ratio": _num(reference.force_ratio),
+                     "stage_b_efficiency": _num(reference.efficiency), "stroke_used_m": _num(reference.stroke_used),
+                     "reference_level_N": _num(reference.level), "estimated_mass_kg": None,
+                     "achievable_force_ratio": _num(reference.force_ratio), "over_capacity": None})
     return rows
 
 
-def _finite(values) -> np.ndarray:
-    out = np.array([np.nan if v is None else float(v) for v in values], dtype=float)
-    return out[np.isfinite(out)]
+def _median(rows: list[Row], column: str) -> float:
+    values = finite_values([r for r in rows if flag(r.get("stage_b"))], column)
+    return float(np.median(values)) if values.size else math.nan
+
+
+def _num(x: float) -> float | None:
+    return None if x is None or not math.isfinite(x) else float(x)
+
+
+def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
+    rows = []
+    for case in cases:
+        seed = int(case_seed(options, NAME, case["case"]).generate_state(1)[0])
+        rows += case_rows(case, options, seed)
+    return rows
+
+
+def _ratios(rows: list[Row], strategy: str) -> np.ndarray:
+    return finite_values([r for r in rows if r["strategy"] == strategy and flag(r.get("stage_b"))],
+                         "stage_b_force_ratio")
 
 
 def _aggregate(rows: list[Row]) -> list[Row]:
     out = []
     for strategy in dict.fromkeys(r["strategy"] for r in rows):
         chosen = [r for r in rows if r["strategy"] == strategy]
-        eff = _finite(r.get("efficiency") for r in chosen)
-        peak = _finite(r.get("peak_force_controlled_N") for r in chosen)
-        out.append({"strategy": strategy, "n": len(chosen),
-                    "median efficiency": float(np.median(eff)) if eff.size else math.nan,
-                    "median η_max": float(np.median(_finite(r.get("efficiency_max") for r in chosen)))
-                    if _finite(r.get("efficiency_max") for r in chosen).size else math.nan,
-                    "median peak force after control [kN]": float(np.median(peak)) / 1e3 if peak.size else math.nan,
-                    "bottomed out": sum(bool(r.get("bottomed_out")) for r in chosen),
-                    "rebounded": sum(bool(r.get("rebounded")) for r in chosen)})
+        ratio = _ratios(rows, strategy)
+        efficiency = finite_values([r for r in chosen if flag(r.get("stage_b"))], "stage_b_efficiency")
+        rebound = np.array([number(r.get("rebound_m")) for r in chosen])
+        out.append({"strategy": strategy, "impacts": len(chosen),
+                    "without stage B": sum(1 for r in chosen if not flag(r.get("stage_b"))),
+                    "median R": float(np.median(ratio)) if ratio.size else math.nan,
+                    "90th pct R": float(np.percentile(ratio, 90)) if ratio.size else math.nan,
+                    "median η_B": float(np.median(efficiency)) if efficiency.size else math.nan,
+                    "median R, t_B at the first sustained contact": _median(chosen, "stage_b_force_ratio_first"),
+                    "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
+                    "rebound < 5 mm": int(np.sum(rebound < TARGETS["rebound"])) if strategy != REFERENCE else None})
     return out
 
 
-def _summary(rows: list[Row]) -> list[Row]:
-    from ..control.study import ORACLE, acceptance_summary
+def acceptance(rows: list[Row], strategy: str = "predictive") -> dict[str, Any]:
+    """The absorber's acceptance figures for ``strategy`` over ``rows`` (see :data:`TARGETS`)."""
+    mine, closed = _ratios(rows, strategy), _ratios(rows, "closed")
+    chosen = [r for r in rows if r["strategy"] == strategy]
+    by_case = {(r["case"], r["strategy"]): r for r in rows}
+    deviation, gap = [], []
+    for r in chosen:
+        oracle = by_case.get((r["case"], ORACLE))
+        ratio = number(r.get("stage_b_force_ratio"))
+        if oracle and math.isfinite(ratio * number(oracle.get("stage_b_force_ratio"))):
+            deviation.append(abs(ratio / number(oracle["stage_b_force_ratio"]) - 1.0))
+        if math.isfinite(ratio * number(r.get("achievable_force_ratio"))):
+            gap.append(ratio / number(r["achievable_force_ratio"]))
+    rebound = [number(r.get("rebound_m")) for r in chosen]
+    median = float(np.median(mine)) if mine.size else math.nan
+    return {"impacts": len(chosen), "with stage B": int(mine.size), "median R": median,
+            "90th pct R": float(np.percentile(mine, 90)) if mine.size else math.nan,
+            "closed median R": float(np.median(closed)) if closed.size else math.nan,
+            "improvement": float(np.median(closed)) / median if mine.size and closed.size else math.nan,
+            "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
+            "rebound below 5 mm": sum(1 for x in rebound if x < TARGETS["rebound"]),
+            "within 10 % of the oracle": sum(1 for x in deviation if x <= TARGETS["oracle_deviation"]),
+            "compared with the oracle": len(deviation),
+            "largest deviation from the oracle": max(deviation) if deviation else math.nan,
+            "median R / achievable R": float(np.median(gap)) if gap else math.nan}
 
-    s = {k: (math.nan if v is None else v) for k, v in acceptance_summary(rows).items()}
-    s = defaultdict(lambda: math.nan, s)
-    return [{"quantity": "median absorber efficiency: realtime (identified) / closed valve / bound η_max",
-             "ours": f"{s['realtime: median efficiency']:.3g} / {s['closed: median efficiency']:.3g} / "
-                     f"{s['efficiency_max_median']:.3g} over {s['cases']} impacts",
-             "paper": "real-time control holds a constant deceleration in stage B (Fig. 10b)"},
-            {"quantity": "impacts where the identified realtime strategy bottoms out and the oracle does not",
-             "ours": f"{s['bottomed_out_identified_not_oracle']} (oracle bottoms out in "
-                     f"{s[f'{ORACLE}: bottomed out']})", "paper": "not stated"},
-            {"quantity": "peak force after control start, identified vs oracle (median / max deviation)",
-             "ours": f"{s['peak_vs_oracle_median'] * 100:.3g} % / {s['peak_vs_oracle_max'] * 100:.3g} %",
-             "paper": "not stated"}]
+
+def _summary(rows: list[Row]) -> list[Row]:
+    a = acceptance(rows)
+    n = a["impacts"]
+    return [
+        {"quantity": "stage-B force ratio R of the predictive strategy (identified): median / 90th percentile",
+         "ours": f"{a['median R']:.3g} / {a['90th pct R']:.3g} over {a['with stage B']} impacts with stage B "
+                 f"({n - a['with stage B']} without, counted apart)",
+         "paper": f"constant deceleration in stage B (Fig. 10b); targets <= {TARGETS['median']} / "
+                  f"<= {TARGETS['p90']}"},
+        {"quantity": "median R of the closed valve / predictive",
+         "ours": f"{a['closed median R']:.3g} / {a['median R']:.3g} ({a['improvement']:.2f}×)",
+         "paper": f"target >= {TARGETS['improvement']:g}×"},
+        {"quantity": "bottoming out; rebound below 5 mm",
+         "ours": f"{a['bottomed out']} of {n}; {a['rebound below 5 mm']} of {n}",
+         "paper": "targets: none; >= 95 %"},
+        {"quantity": "identified R within 10 % of the oracle's",
+         "ours": f"{a['within 10 % of the oracle']} of {a['compared with the oracle']} (largest deviation "
+                 f"{a['largest deviation from the oracle'] * 100:.3g} %)", "paper": "target: every impact"},
+        {"quantity": "median R / the valve's achievable R (same control start)",
+         "ours": f"{a['median R / achievable R']:.3g}", "paper": "1 = all the valve allows"}]
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_strategy_distributions
-    return plot_strategy_distributions(rows)
+    from .plots import plot_absorption_study
+    return plot_absorption_study(rows)
 
 
-STUDY = register(Study(name=NAME, title="Adaptive absorption: closed, constant, realtime (identified and oracle)",
+STUDY = register(Study(name=NAME, title="Adaptive absorption judged on stage B: strategies, oracle, achievable R",
                        figure="Fig. 10b", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=_plot, chunk_size=1, requires=REQUIRES, defaults=DEFAULTS,
-                       settings=SETTINGS))
+                       plot=_plot, chunk_size=1, defaults=DEFAULTS, settings=SETTINGS, rig=ABSORPTION_RIG))

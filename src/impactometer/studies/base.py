@@ -8,6 +8,7 @@ the study name and the case index, so results do not depend on the number of wor
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib.util
 import json
@@ -141,6 +142,8 @@ class StudyOptions:
     pre_trigger : Record length before first contact [s]; the identification learns the noise and the offsets
         from it (at 5 kHz a few milliseconds are only a handful of samples).
     params : Study-specific settings (e.g. ``{"noise.levels": [0, 0.05]}``); see each study's ``defaults``.
+    rig_is_default : ``rig`` is the package's default stand, not one asked for: a study with a stand of its own
+        (``Study.rig``) runs on that one (see :func:`options_for`).
     """
 
     rig: Rig = field(default_factory=get_rig)
@@ -152,8 +155,11 @@ class StudyOptions:
     duration: float = 0.1
     pre_trigger: float = 0.05
     params: Mapping[str, Any] = field(default_factory=dict)
+    rig_is_default: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.rig_is_default, bool):
+            raise ParameterError(f"rig_is_default must be True or False, got {self.rig_is_default!r}")
         if not isinstance(self.rig, Rig):
             raise ParameterError(f"rig must be a Rig, got {self.rig!r}")
         for name, least, most in (("seed", 0, 2**63 - 1), ("grid", 2, MAX_GRID), ("seeds", 1, MAX_SEEDS)):
@@ -213,6 +219,7 @@ class Study:
     requires : Modules the study needs; while one is missing the study is listed as unavailable.
     defaults : Study-specific settings and their defaults (override through ``StudyOptions.params``).
     settings : The type and range of each setting in ``defaults`` (:class:`Setting`).
+    rig : Name of the stand the study runs on when the options carry the default one (None: the options' stand).
     """
 
     name: str
@@ -227,6 +234,7 @@ class Study:
     requires: tuple[str, ...] = ()
     defaults: Mapping[str, Any] = field(default_factory=dict)
     settings: Mapping[str, Setting] = field(default_factory=dict)
+    rig: str | None = None
 
     def __post_init__(self) -> None:
         unchecked = sorted(set(self.defaults) - set(self.settings))
@@ -250,6 +258,7 @@ class Study:
         options = StudyOptions() if options is None else options
         if not isinstance(options, StudyOptions):
             raise ParameterError(f"options must be StudyOptions, got {options!r}")
+        options = options_for(self, options)
         return self.evaluate(indexed_cases(self, options), options)
 
 
@@ -268,6 +277,13 @@ def get_study(name: str) -> Study:
     if not isinstance(name, str) or name not in STUDIES:
         raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {shown(name)}")
     return STUDIES[name]
+
+
+def options_for(study: Study, options: StudyOptions) -> StudyOptions:
+    """``options`` as ``study`` runs them: on the study's own stand when the options carry the default one."""
+    if study.rig is None or not options.rig_is_default:
+        return options
+    return dataclasses.replace(options, rig=get_rig(study.rig), rig_is_default=False)
 
 
 def indexed_cases(study: Study, options: StudyOptions) -> list[Row]:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..plotting import _pyplot, figure_legend
-from .tables import Row, group_stats, pick
+from .tables import Row, flag, group_stats, number, pick
 
 #: colour per compared method
 COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "brute": "tab:red",
@@ -165,26 +165,80 @@ def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = T
     return fig
 
 
-def plot_strategy_distributions(rows: Sequence[Row]):
-    """Absorber strategies side by side: distributions of efficiency, peak force after control and stroke."""
+def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
+    """Absorber strategies on stage B: the distribution of the force ratio R per strategy (oracle and achievable
+    reference included), and per impact the identified ``strategy`` against its oracle and against the achievable
+    reference."""
     plt = _pyplot()
     strategies = list(dict.fromkeys(r["strategy"] for r in rows))
-    panels = [("efficiency", "efficiency η [-]", 1.0), ("peak_force_controlled_N", "peak force after control [kN]",
-                                                         1e-3), ("stroke_used_m", "stroke used [mm]", 1e3)]
-    fig, axes = plt.subplots(1, len(panels), figsize=(14, 4.2), constrained_layout=True)
-    for ax, (column, label, scale) in zip(axes, panels, strict=False):
-        data = []
-        for strategy in strategies:
-            values = np.array([np.nan if r.get(column) is None else float(r[column]) * scale for r in rows
-                               if r["strategy"] == strategy])
-            data.append(values[np.isfinite(values)])
-        ax.boxplot([d if d.size else np.array([np.nan]) for d in data], showfliers=True)
-        ax.set_xticks(range(1, len(strategies) + 1), strategies, rotation=20, fontsize=8)
-        ax.set_ylabel(label)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True,
+                             gridspec_kw={"width_ratios": [1.6, 1, 1]})
+
+    def ratio(row: Row | None) -> float:
+        return np.nan if row is None or not flag(row.get("stage_b")) else number(row.get("stage_b_force_ratio"))
+
+    data = [np.array([ratio(r) for r in rows if r["strategy"] == name]) for name in strategies]
+    axes[0].boxplot([d[np.isfinite(d)] if np.isfinite(d).any() else np.array([np.nan]) for d in data])
+    axes[0].set_xticks(range(1, len(strategies) + 1),
+                       [f"{name}\n({int(np.isfinite(d).sum())} with stage B)" for name, d in zip(strategies, data,
+                                                                                               strict=True)],
+                       rotation=20, fontsize=8)
+    axes[0].axhline(1.0, color="k", lw=0.8)
+    axes[0].axhline(1.3, color="tab:green", ls="--", lw=0.8, label="target median R 1.3")
+    axes[0].axhline(1.6, color="tab:olive", ls=":", lw=0.8, label="target 90th percentile R 1.6")
+    axes[0].set(ylabel="stage-B force ratio R [-] (ideal 1)", yscale="log")
+    axes[0].grid(alpha=0.3, which="both")
+    figure_legend(fig, axes[0])
+    by = {(r["case"], r["strategy"]): r for r in rows}
+    cases = sorted({r["case"] for r in rows})
+    mine = np.array([ratio(by.get((c, strategy))) for c in cases])
+    mass = np.array([number(by[(c, strategy)]["mass_kg"]) if (c, strategy) in by else np.nan for c in cases])
+    for ax, other, label in ((axes[1], f"{strategy} (oracle)", f"R, {strategy} with the true M1, V0"),
+                             (axes[2], "achievable reference", "achievable R of the valve")):
+        theirs = np.array([ratio(by.get((c, other))) for c in cases])
+        sc = ax.scatter(theirs, mine, c=mass, cmap="viridis", s=16)
+        finite = np.concatenate([mine[np.isfinite(mine)], theirs[np.isfinite(theirs)]])
+        top = float(finite.max()) * 1.05 if finite.size else 2.0
+        line = np.array([1.0, top])
+        ax.plot(line, line, "k--", lw=0.8)
+        if other.endswith("(oracle)"):
+            ax.fill_between(line, 0.9 * line, 1.1 * line, color="tab:gray", alpha=0.2, lw=0)
+        ax.set(xlabel=label, ylabel=f"R, {strategy} (identified)", xlim=(0.9, top), ylim=(0.9, top))
         ax.grid(alpha=0.3)
-    bound = np.array([np.nan if r.get("efficiency_max") is None else float(r["efficiency_max"]) for r in rows])
-    if np.isfinite(bound).any():
-        axes[0].axhline(np.nanmedian(bound), color="k", ls="--", lw=0.8, label="median bound η_max")
-        figure_legend(fig, axes[0])
-    fig.suptitle("Absorber strategies over the impact grid")
+    fig.colorbar(sc, ax=axes[2], label="M1 [kg]")
+    fig.suptitle("Adaptive absorption judged on stage B (CFC 60 peak force / F_ref)")
+    return fig
+
+
+def plot_valve_design(rows: Sequence[Row]):
+    """Maps over valve size × response time: median and 90th-percentile R and the number of bottomed-out runs."""
+    plt = _pyplot()
+    areas = sorted({r["effective_area_mm2"] for r in rows})
+    times = sorted({r["response_time_ms"] for r in rows})
+    grids = {key: np.full((len(times), len(areas)), np.nan) for key in ("median", "p90", "bottomed")}
+    for i, t in enumerate(times):
+        for j, a in enumerate(areas):
+            chosen = [r for r in rows if r["effective_area_mm2"] == a and r["response_time_ms"] == t]
+            values = np.array([number(r.get("stage_b_force_ratio")) for r in chosen if flag(r.get("stage_b"))])
+            values = values[np.isfinite(values)]
+            if values.size:
+                grids["median"][i, j] = np.median(values)
+                grids["p90"][i, j] = np.percentile(values, 90)
+            grids["bottomed"][i, j] = sum(flag(r.get("bottomed_out")) for r in chosen)
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), constrained_layout=True)
+    for ax, (key, title) in zip(axes, (("median", "median R"), ("p90", "90th percentile R"),
+                                       ("bottomed", "runs bottomed out")), strict=True):
+        grid = grids[key]
+        image = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis_r" if key != "bottomed" else "Reds")
+        for i in range(len(times)):
+            for j in range(len(areas)):
+                if np.isfinite(grid[i, j]):
+                    ax.text(j, i, f"{grid[i, j]:.2f}" if key != "bottomed" else f"{grid[i, j]:.0f}", ha="center",
+                            va="center", fontsize=8, color="w" if key != "bottomed" else "k")
+        ax.set_xticks(range(len(areas)), [f"{a:g}" for a in areas])
+        ax.set_yticks(range(len(times)), [f"{t:g}" for t in times])
+        ax.set(xlabel="effective area of the open valve [mm²]", ylabel="response time 10-90 % [ms]", title=title)
+        fig.colorbar(image, ax=ax)
+    fig.suptitle("Valve design: stage-B force ratio R of the predictive absorber over valve size and speed "
+                 "(ISO 6358 valves, C ≈ S/5 dm³/(s·bar))")
     return fig

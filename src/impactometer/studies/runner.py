@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import ImpactometerError, ParameterError, SimulationError
 from ..outputs import check_folder
 from . import store
-from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases
+from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases, options_for
 from .tables import to_csv
 
 Task = tuple[int, list[Row]]
@@ -223,6 +223,7 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     options = StudyOptions() if options is None else options
     if not isinstance(options, StudyOptions):
         raise ParameterError(f"options must be StudyOptions, got {options!r}")
+    options = options_for(study, options)
     start = time.perf_counter()
     out = check_folder(out, "--out")
     with store.locked(out):

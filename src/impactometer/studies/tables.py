@@ -103,3 +103,16 @@ def pick(rows: Iterable[Row], **equal: Any) -> list[Row]:
 def finite_values(rows: Iterable[Row], column: str) -> np.ndarray:
     """Finite values of ``column`` as an array."""
     return np.array([float(r[column]) for r in rows if _finite(r.get(column))])
+
+
+def flag(value: Any) -> bool:
+    """A flag of a row, also as read back from a CSV table (``"True"``)."""
+    return value is True or value == "True"
+
+
+def number(value: Any) -> float:
+    """A number of a row, NaN for an empty cell (None, or ``""`` as read back from a CSV table)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan

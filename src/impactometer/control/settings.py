@@ -1,0 +1,117 @@
+"""What the controller of valve Z is told: :class:`ControlSettings` (a frozen dataclass with named fields).
+
+The compiled loop reads the settings as a packed vector (:meth:`ControlSettings.packed`, slot indices below); that
+vector never leaves the control package.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ..errors import ParameterError
+
+#: strategy name -> code of the compiled controller
+STRATEGY_CODES = {"closed": 0, "constant": 1, "realtime": 2, "predictive": 3, "level": 4}
+CLOSED, CONSTANT, REALTIME, PREDICTIVE, LEVEL = range(5)
+
+# slots of the packed settings, in the order of the dataclass fields
+(STRATEGY, T_START, OPENING, MASS_HAT, MASS_STD, VELOCITY_HAT, U_END, TAU_CONTROL, TAU_FILTER, P_CHARGE, T_CHARGE,
+ CLOSE_ON_STOP, F_MAX, BOUNCE_GATE, BOUNCE_THRESHOLD, REFINE_MASS, FORCE_LEVEL, FORCE_NOISE, SUPERVISE,
+ OBSERVER_BANDWIDTH) = range(20)
+N_SETTINGS = 20
+
+
+@dataclass(frozen=True, kw_only=True)
+class ControlSettings:
+    """Settings of the digital controller of valve Z (SI units).
+
+    Attributes
+    ----------
+    strategy : ``closed``, ``constant`` (hold ``opening``), ``realtime`` (force feedback), ``predictive``
+        (force feedback on the state predicted over the valve's dead time, with lag compensation) or ``level``
+        (the ``predictive`` law holding the contact force at ``force_level``, the program of the achievable
+        reference).
+    start : Time the controller takes over the valve [s] (``inf``: never).
+    opening : Opening of the ``constant`` strategy, fraction of the fully open valve [-].
+    mass, mass_std : M1 known at the control start and its standard error [kg]; NaN mass: unknown (the valve
+        waits for the stage-B estimate); ``inf`` std: no weight once the stage-B estimate exists.
+    velocity : V0 known at the control start [m/s].
+    usable_stroke : Largest displacement of the mass the absorber may use [m].
+    tau_control : Time constant of the gas-force loop [s].
+    tau_filter : Time constant of the pressure filters [s].
+    charge_pressure, charge_temperature : Lower-chamber pressure [Pa] and gas temperature [K] at first contact.
+    close_on_stop : The ``constant`` strategy closes the valve for good once the mass stops.
+    max_force : Largest target force [N].
+    bounce_gate, bounce_threshold : The ``realtime`` law acts only while the bodies approach faster than the
+        threshold [m/s] (``control.controller.bounce_gate``).
+    refine_mass : Refine M1 in sustained contact from M1·(g − a2) = Fc.
+    force_level : Contact force held by the ``level`` strategy [N].
+    force_noise : Standard deviation of the force sensor's noise [N] (sets the contact detection levels).
+    supervise : Close the valve for good when the closed gas spring is needed to stop the bodies in the stroke.
+    observer_bandwidth : Bandwidth of the piston position/velocity observer [rad/s].
+    """
+
+    strategy: str = "closed"
+    start: float = math.inf
+    opening: float = 0.0
+    mass: float = math.nan
+    mass_std: float = math.inf
+    velocity: float = 0.0
+    usable_stroke: float = 0.0
+    tau_control: float = 2e-3
+    tau_filter: float = 5e-4
+    charge_pressure: float = 1e5
+    charge_temperature: float = 293.15
+    close_on_stop: bool = True
+    max_force: float = math.inf
+    bounce_gate: bool = False
+    bounce_threshold: float = 0.0
+    refine_mass: bool = True
+    force_level: float = math.nan
+    force_noise: float = 0.0
+    supervise: bool = True
+    observer_bandwidth: float = 2.0 * math.pi * 40.0
+
+    def __post_init__(self) -> None:
+        if self.strategy not in STRATEGY_CODES:
+            raise ParameterError(f"control.strategy must be one of {sorted(STRATEGY_CODES)}, got {self.strategy!r}")
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if f.name == "strategy":
+                continue
+            if f.type in ("bool", bool):
+                if not isinstance(value, bool):
+                    raise ParameterError(f"control.{f.name} must be True or False, got {value!r}")
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+                raise ParameterError(f"control.{f.name} must be a number, got {value!r}")
+        checks = {"start": (0.0, True), "usable_stroke": (0.0, False), "tau_control": (0.0, False),
+                  "tau_filter": (0.0, False), "charge_pressure": (0.0, False), "charge_temperature": (0.0, False),
+                  "force_noise": (0.0, False), "observer_bandwidth": (0.0, False)}
+        for name, (low, inf_ok) in checks.items():
+            value = float(getattr(self, name))
+            if math.isnan(value) or value < low or (math.isinf(value) and not inf_ok) \
+                    or (value == low and name in ("tau_control", "tau_filter", "charge_pressure",
+                                                  "charge_temperature", "observer_bandwidth")):
+                raise ParameterError(f"control.{name} must be a {'' if inf_ok else 'finite '}number "
+                                     f"{'>' if value == low else '>='} {low:g}, got {value!r}")
+        if not 0.0 <= self.opening <= 1.0:
+            raise ParameterError(f"control.opening must be a fraction within [0, 1], got {self.opening!r}")
+        if not (math.isnan(self.mass) or (math.isfinite(self.mass) and self.mass > 0.0)):
+            raise ParameterError(f"control.mass must be > 0 [kg] or NaN (unknown), got {self.mass!r}")
+        if math.isnan(self.mass_std) or self.mass_std < 0.0:
+            raise ParameterError(f"control.mass_std must be >= 0 [kg] (inf: no weight), got {self.mass_std!r}")
+        if self.strategy == "level" and not (math.isfinite(self.force_level) and self.force_level > 0.0):
+            raise ParameterError(f"control.force_level must be > 0 [N] for the level strategy, got "
+                                 f"{self.force_level!r}")
+
+    def packed(self) -> np.ndarray:
+        """The settings as the vector the compiled loop reads (slots in field order)."""
+        out = np.empty(N_SETTINGS)
+        for i, f in enumerate(fields(self)):
+            value = getattr(self, f.name)
+            out[i] = STRATEGY_CODES[value] if f.name == "strategy" else float(value)
+        return out
