@@ -74,8 +74,11 @@ def test_ctrl_c_exits_130_and_keeps_finished_chunks(tmp_path):
     import sys
     import time
 
-    # every chunk takes at least 20 ms, so the interrupt lands mid-run however fast the machine is
-    slow_chunks = ("import time\n"
+    # every chunk takes at least 20 ms, so the interrupt lands mid-run however fast the machine is; Ctrl-C raises
+    # KeyboardInterrupt as in a terminal, also where the test runs under a shell that started it with SIGINT ignored
+    slow_chunks = ("import signal\n"
+                   "import time\n"
+                   "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
                    "import impactometer.studies.runner as runner\n"
                    "evaluate = runner.evaluate_chunk\n"
                    "def slow(*args, **kwargs):\n"
