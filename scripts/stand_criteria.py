@@ -25,16 +25,16 @@ from impactometer.identify.peak_to_peak import identify
 from impactometer.identify.pulses import contact_pulses
 from impactometer.recording import inspect_recording
 from impactometer.sensors import record_batch
-from impactometer.studies.base import PAPER_RANGES
+from impactometer.studies.base import StudyOptions, scenario_grid
 
 DURATION = 0.5  # [s] simulated for the stage figures: past the deepest point in every case
 RATES = (50e3, 40e3, 20e3, 10e3)
 
 
-def grid(n: int = 5):
-    axes = [np.linspace(*PAPER_RANGES[k], n) for k in ("mass", "velocity", "pressure_gauge")]
-    m, v, p = (a.ravel() for a in np.meshgrid(*axes, indexing="ij"))
-    return m, v, p
+def grid(rig, n: int = 5):
+    """The paper's M1 × V0 × p0 grid (``studies.base.scenario_grid``) as three arrays."""
+    rows = scenario_grid(StudyOptions(rig=rig, grid=n))
+    return tuple(np.array([r[k] for r in rows]) for k in ("mass", "velocity", "pressure_gauge"))
 
 
 def stages(rig, m, v, p):
@@ -87,7 +87,7 @@ def main() -> None:
     changes = dict(item.split("=", 1) for item in args.set)
     if changes:
         rig = rig.replace(**{k: (v if k == "contact.law" else float(v)) for k, v in changes.items()})
-    m, v, p = grid(args.grid)
+    m, v, p = grid(rig, args.grid)
     print(f"stand {rig.name!r}: contact {rig.contact}, friction {rig.friction.force:g} N; {m.size} cases")
     for label, area in (("valve wide open", rig.valve.max_area), ("valve closed", 0.0)):
         run = dataclasses.replace(rig, valve=dataclasses.replace(rig.valve, area=area))
