@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from impactometer.identify.peak_to_peak import identify_arrays
-from impactometer.identify.streaming import StreamingIdentifier
+from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
 from impactometer.model import simulate
 from impactometer.rig import Scenario, get_rig
 

@@ -16,9 +16,9 @@ import time
 import numpy as np
 
 from impactometer.identify.response_map import identify_features, refine
-from impactometer.identify.response_map_build import build_map_simulated
-from impactometer.identify.response_map_study import _features_of, paper_axes, test_impacts
+from impactometer.identify.response_map.build import build_map_simulated
 from impactometer.rig import get_rig
+from impactometer.studies.map_tables import _features_of, paper_axes, test_impacts
 
 
 def per_call(function, items, repeats: int) -> tuple[float, float]:

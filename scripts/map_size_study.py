@@ -13,7 +13,7 @@ import argparse
 import os
 import time
 
-from impactometer.identify.response_map_study import PAPER_SIZES, map_size_table, recordings_table
+from impactometer.studies.map_tables import PAPER_SIZES, map_size_table, recordings_table
 
 
 def markdown(rows: list[dict], columns: list[str], percent: tuple[str, ...] = (), micro: tuple[str, ...] = ()) -> str:

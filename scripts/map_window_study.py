@@ -13,7 +13,7 @@ import argparse
 
 import numpy as np
 
-from impactometer.identify.response_map_study import window_table
+from impactometer.studies.map_tables import window_table
 from map_size_study import ERRORS, markdown
 
 

@@ -16,8 +16,8 @@ import numpy as np
 from impactometer.control.strategies import strategy_names
 from impactometer.errors import ImpactometerError
 from impactometer.filters import filter_recording
-from impactometer.identify.features import get_feature_set
 from impactometer.identify.peak_to_peak import identify, identify_arrays
+from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier, stream_arrays
 from impactometer.identify.plausibility import check_answer
 from impactometer.identify.pulses import noise_std
 from impactometer.identify.response_map import (
@@ -29,7 +29,7 @@ from impactometer.identify.response_map import (
     refine,
     save_map,
 )
-from impactometer.identify.streaming import StreamingIdentifier, stream_arrays
+from impactometer.identify.response_map.features import get_feature_set
 from impactometer.io import read_calibration_set, read_recording, write_recording
 from impactometer.recording import Recording, inspect_recording
 from impactometer.rig import Scenario, from_dict, get_rig

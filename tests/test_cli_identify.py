@@ -59,8 +59,8 @@ def test_errors_exit_2(rec_file, tmp_path, capsys):
 
 def test_identify_with_a_response_map(rec_file, tmp_path, capsys):
     """``--method response-map`` hands the recording to the response-map identification."""
-    from impactometer.identify.response_map_build import build_map_simulated
-    from impactometer.identify.response_map_store import save_map
+    from impactometer.identify.response_map.build import build_map_simulated
+    from impactometer.identify.response_map.store import save_map
 
     path = save_map(build_map_simulated(None, 1.5e5, masses=np.linspace(10, 50, 6),
                                         velocities=np.linspace(1, 3, 6)), tmp_path / "map.h5")

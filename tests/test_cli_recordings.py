@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from impactometer.cli import main
+from impactometer.constants import STANDARD_GRAVITY
 from impactometer.io import read_recording, write_recording
 from impactometer.recording import Recording
 
@@ -20,7 +21,7 @@ def test_record_writes_the_format_of_the_extension(tmp_path, ext, capsys):
     assert rec.sample_rate == 50e3 and len(rec) == 2001  # 20 ms default pre-trigger + 20 ms after contact
     assert rec.start_time == pytest.approx(-0.02)
     assert rec.truth("mass_kg") == 30.0
-    assert rec.truth("velocity_m_s") == pytest.approx(np.sqrt(2 * 9.81 * 0.2), rel=1e-12)
+    assert rec.truth("velocity_m_s") == pytest.approx(np.sqrt(2 * STANDARD_GRAVITY * 0.2), rel=1e-12)
     assert rec.metadata["noise"] == {"contact_force": 0.02, "piston_acceleration": 0.02}
     assert rec.metadata["seed"] == 4 and rec.metadata["anti_alias"] == "causal"
 
@@ -33,7 +34,7 @@ def test_record_options_reach_the_sensor_model(tmp_path):
     rec = read_recording(out)
     assert rec.start_time == pytest.approx(-1e-3) and "pressure_lower" in rec.channels
     assert rec.metadata["noise"] == {"contact_force": 0.01} and rec.metadata["contact_law"] == "hunt-crossley"
-    assert rec.piston_acceleration[0] == pytest.approx(-9.81, abs=0.01 * 9.81 + 1.0)
+    assert rec.piston_acceleration[0] == pytest.approx(-STANDARD_GRAVITY, abs=0.01 * STANDARD_GRAVITY + 1.0)
     assert rec.metadata["adc_bits"] == 12 and rec.metadata["anti_alias"] == "zero-phase"
 
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from impactometer.cli import main
+from impactometer.constants import STANDARD_GRAVITY
 from impactometer.rig import get_rig
 
 
@@ -33,7 +34,7 @@ def test_simulate_writes_histories_and_figure(tmp_path, capsys):
     assert fig.stat().st_size > 10_000 and fig.read_bytes()[:4] == b"\x89PNG"
     with h5py.File(out) as f:
         assert f.attrs["mass"] == 30.0
-        assert f.attrs["velocity"] == pytest.approx(math.sqrt(2 * 9.81 * 0.2))
+        assert f.attrs["velocity"] == pytest.approx(math.sqrt(2 * STANDARD_GRAVITY * 0.2))
         assert f.attrs["pressure_gauge"] == 200e3
         assert f.attrs["sample_rate"] == pytest.approx(50e3)
         assert json.loads(f.attrs["rig"])["contact"]["law"] == "kelvin-voigt"

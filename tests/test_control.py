@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from impactometer.constants import STANDARD_GRAVITY
 from impactometer.control import ControlSettings
 from impactometer.control import controller as ctl
 from impactometer.control import simulate as loop
@@ -274,7 +275,7 @@ def _constant_deceleration_run(mass=20.0, v0=2.0, decel=15.0, fs=20e3, relative_
     v = np.where(after < t_stop, v0 - decel * after, 0.0)
     u = v0 * np.minimum(t, stage_a) + np.where(after < t_stop, v0 * after - 0.5 * decel * after ** 2,
                                                  v0 ** 2 / (2 * decel))
-    force = np.where(after < t_stop, mass * (9.81 + decel), mass * 9.81)
+    force = np.where(after < t_stop, mass * (STANDARD_GRAVITY + decel), mass * STANDARD_GRAVITY)
     if stage_a > 0.0:  # a 4 ms collision, then the bodies apart until stage B
         pulse = t < 4e-3
         force = np.where(pulse, 2e3 * np.sin(np.pi * t / 4e-3), np.where(t < stage_a, 0.0, force))
@@ -291,7 +292,7 @@ def test_metrics_of_a_constant_deceleration_are_ideal():
     assert m.stroke_used == pytest.approx(2.0 ** 2 / 30.0, rel=1e-6)
     assert m.max_deceleration == pytest.approx(15.0, rel=1e-9)
     assert not m.bottomed_out and not m.rebounded
-    assert m.energy_absorbed == pytest.approx(0.5 * 20 * 4 + 20 * 9.81 * 4 / 30, rel=1e-6)
+    assert m.energy_absorbed == pytest.approx(0.5 * 20 * 4 + 20 * STANDARD_GRAVITY * 4 / 30, rel=1e-6)
     assert m.bounce_energy == 0.0  # sustained contact: no relative motion
     assert not m.stage_b  # one contact pulse from the first contact on: no stage A, so no stage B either
 
@@ -302,13 +303,14 @@ def test_stage_b_force_ratio_of_a_constant_deceleration_is_one():
     start = 0.03  # control from 30 ms: F_ref is the constant force of the rest of the stroke
     m = absorption_metrics(run, start, usable)
     assert m.stage_b and m.stage_b_start == pytest.approx(0.01, abs=2 / 20e3)
-    assert m.reference_force == pytest.approx(20.0 * (9.81 + 15.0), rel=1e-9)
+    assert m.reference_force == pytest.approx(20.0 * (STANDARD_GRAVITY + 15.0), rel=1e-9)
     # the CFC 60 filter rings by a few percent at the end of the deceleration (a 300 N step down)
     assert m.stage_b_force_ratio == pytest.approx(1.0, abs=0.03)
     assert m.stage_b_efficiency == pytest.approx(1.0, abs=0.03)
     # stopping short of the usable stroke needs more force than F_ref: R > 1 and η_B < 1
     longer = absorption_metrics(run, start, usable + 0.05)
-    assert longer.stage_b_force_ratio == pytest.approx(20.0 * (9.81 + 15.0) / longer.reference_force, rel=0.03)
+    expected = 20.0 * (STANDARD_GRAVITY + 15.0) / longer.reference_force
+    assert longer.stage_b_force_ratio == pytest.approx(expected, rel=0.03)
     assert longer.stage_b_force_ratio > 1.2 and longer.stage_b_efficiency < 0.8
     # control from the start of stage B: the filtered collision leaks in, R is larger
     assert absorption_metrics(run, 0.0, usable).stage_b_force_ratio > m.stage_b_force_ratio

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from impactometer.constants import STANDARD_GRAVITY
 from impactometer.control import ControlSettings, simulate_controlled
 from impactometer.control import estimator as est
 from impactometer.control.loop import sensor_noise
@@ -48,7 +49,7 @@ def test_windows_between_equal_velocity_instants_remove_the_oscillation_bias():
     t, fc, a2 = result.time, result.contact_force, result.a2
     stage_b = (t > 0.02) & (t < 0.04)
     cuts = np.arange(0.022, 0.04, 0.002)
-    ratios = [fc[stage_b & (t < c)].sum() / (9.81 - a2[stage_b & (t < c)]).sum() for c in cuts]
+    ratios = [fc[stage_b & (t < c)].sum() / (STANDARD_GRAVITY - a2[stage_b & (t < c)]).sum() for c in cuts]
     assert np.max(np.abs(np.array(ratios) / 30.0 - 1.0)) > 0.05
 
 

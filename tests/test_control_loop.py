@@ -174,7 +174,7 @@ def test_cli_absorb_bad_input(args, match, capsys):
 
 
 def test_loop_with_a_response_map():
-    from impactometer.identify.response_map_build import build_map_simulated
+    from impactometer.identify.response_map.build import build_map_simulated
 
     rmap = build_map_simulated(pressure_gauge=200e3, masses=np.linspace(10, 50, 21), velocities=np.linspace(1, 3, 21))
     scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from impactometer.errors import ParameterError, ResponseMapError
-from impactometer.identify.features import FEATURE_SETS, extract_batch, extract_features, get_feature_set
+from impactometer.identify.response_map.features import FEATURE_SETS, extract_batch, extract_features, get_feature_set
 
 FS = 50e3
 TIME = np.arange(0, 0.06 * FS) / FS

@@ -8,7 +8,7 @@ from impactometer.errors import IdentificationError
 from impactometer.filters import filter_recording
 from impactometer.identify import peak_to_peak as p2p
 from impactometer.identify.peak_to_peak import identify, identify_arrays
-from impactometer.identify.streaming import StreamingIdentifier
+from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
 from impactometer.model import simulate
 from impactometer.rig import Scenario, get_rig
 from impactometer.sensors import record

@@ -204,7 +204,7 @@ def test_equilibrium_start(stand, pressure, on_stop):
         assert r.u2[0] > 1e-4
         assert r.pneumatic_force[0] == pytest.approx(weight, rel=1e-9)
     assert r.v2[0] == 0.0
-    assert abs(r.a2[0]) < 1e-6  # [m/s²], against g = 9.81
+    assert abs(r.a2[0]) < 1e-6  # [m/s²], against g
 
 
 def test_friction_is_the_smoothed_coulomb_law():

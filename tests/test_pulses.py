@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from impactometer.identify.onsets import onset_index
+from impactometer.identify.peak_to_peak.onsets import onset_index
 from impactometer.identify.pulses import contact_pulses, detect_pulses, noise_std, stage_b_start
 from impactometer.model import simulate
 from impactometer.rig import Scenario, get_rig

@@ -11,7 +11,6 @@ from hypothesis import strategies as st
 
 from impactometer import simulate_batch
 from impactometer.errors import ParameterError, ResponseMapError
-from impactometer.identify.features import extract_batch
 from impactometer.identify.response_map import (
     MapIdentification,
     ResponseMap,
@@ -19,6 +18,7 @@ from impactometer.identify.response_map import (
     identify_features,
     refine,
 )
+from impactometer.identify.response_map.features import extract_batch
 from impactometer.rig import get_rig, to_dict
 
 RIG = get_rig()

@@ -14,9 +14,8 @@ from impactometer.identify.response_map import (
     identify_recording,
     save_map,
 )
-from impactometer.rig import get_rig, to_dict
+from impactometer.rig import fingerprint, get_rig, to_dict
 from impactometer.sensors import record_batch
-from impactometer.stands import fingerprint
 
 RIG = get_rig()
 MASSES = np.linspace(10.0, 50.0, 8)

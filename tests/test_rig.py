@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from impactometer.constants import STANDARD_GRAVITY
 from impactometer.errors import ImpactometerError, ParameterError
 from impactometer.rig import (
     PRESETS,
@@ -32,7 +33,7 @@ def test_pad_stand_is_the_paper_like_stand():
         (4.0, 0.08, 0.025, 0.20, 0.20, 0.02)
     assert c.area == pytest.approx(math.pi * 0.04**2)
     assert c.annulus_area == pytest.approx(math.pi * (0.04**2 - 0.0125**2))
-    assert (rig.gas.gamma, rig.gas.atmospheric_pressure, rig.gravity) == (1.4, 101325.0, 9.81)
+    assert (rig.gas.gamma, rig.gas.atmospheric_pressure, rig.gravity) == (1.4, 101325.0, STANDARD_GRAVITY)
     assert (rig.friction.force, rig.friction.velocity_scale) == (100.0, 0.01)
     assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 1e6, 0.5)
     assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(4e6)
@@ -164,7 +165,7 @@ def test_invalid_height(height):
 
 def test_scenario_from_height_and_numpy_scalars():
     s = Scenario.from_height(mass=np.float32(30.0), height=0.2, pressure_gauge=np.int64(200_000))
-    assert s.velocity == pytest.approx(math.sqrt(2 * 9.81 * 0.2))
+    assert s.velocity == pytest.approx(math.sqrt(2 * STANDARD_GRAVITY * 0.2))
 
 
 def test_pressure_above_rating():

@@ -7,7 +7,7 @@ from hypothesis import strategies as st
 
 from impactometer.errors import IdentificationError, ParameterError
 from impactometer.identify.peak_to_peak import identify_arrays
-from impactometer.identify.streaming import StreamingIdentifier, stream_arrays
+from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier, stream_arrays
 from impactometer.model import simulate
 from impactometer.rig import Scenario
 

@@ -218,7 +218,7 @@ class Recording:
 
     def plot(self, axes=None, *, inspection: Inspection | None = None):
         """Force and acceleration vs time with the contact pulses marked; returns the figure."""
-        from .plotting_recordings import plot_recording
+        from .plotting.recordings import plot_recording
 
         return plot_recording(self, axes, inspection=inspection)
 

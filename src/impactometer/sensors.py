@@ -28,12 +28,12 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from .constants import STANDARD_GRAVITY
 from .errors import ParameterError, shown
 from .model import simulate_batch
 from .model.dynamics import CHANNELS as MODEL_CHANNELS
 from .recording import ACCELERATION, FORCE, Recording, check_sample_rate
-from .rig import Rig, Scenario, get_rig
-from .stands import fingerprint
+from .rig import Rig, Scenario, fingerprint, get_rig
 
 #: model channel -> recording channel name
 MODEL_TO_RECORDING = {"contact_force": FORCE, "a2": ACCELERATION, "u2": "piston_displacement"}
@@ -339,7 +339,7 @@ def record(scenario: Scenario, rig: Rig | None = None, *, sample_rate: float = 5
 def apply_sensors(data: Recording | Mapping[str, Any], *, input_rate: float | None = None,
                   sample_rate: float | None = None, start_time: float = 0.0, noise: float | Mapping = 0.0,
                   seed=None, anti_alias: str | bool = True, adc_bits: int | None = None, adc_range=None,
-                  include_gravity: bool = False, gravity: float = 9.80665,
+                  include_gravity: bool = False, gravity: float = STANDARD_GRAVITY,
                   metadata: Mapping[str, Any] | None = None) -> Recording:
     """Degrade a clean signal (a Recording or a mapping of arrays) as the sensors and DAQ would.
 

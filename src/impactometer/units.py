@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 import re
 
+from .constants import STANDARD_GRAVITY
 from .errors import UnitError
 
 #: dimension -> unit symbol (as written) -> factor to SI
@@ -21,7 +22,7 @@ UNITS: dict[str, dict[str, float]] = {
     "time": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6},
     "frequency": {"Hz": 1.0, "mHz": 1e-3, "kHz": 1e3, "MHz": 1e6, "GHz": 1e9},
     "force": {"N": 1.0, "kN": 1e3},
-    "acceleration": {"m/s2": 1.0, "m/s^2": 1.0, "m/s²": 1.0, "g": 9.80665},
+    "acceleration": {"m/s2": 1.0, "m/s^2": 1.0, "m/s²": 1.0, "g": STANDARD_GRAVITY},
     "fraction": {"%": 1e-2},
     "stiffness": {"N/m": 1.0, "kN/m": 1e3, "kN/mm": 1e6},
     "area": {"m2": 1.0, "mm2": 1e-6, "mm^2": 1e-6, "cm2": 1e-4},

@@ -123,7 +123,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
            as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate.")] = False,
            reader: ReaderOptions = DEFAULT_READER) -> None:
     """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
-    from ..identify.streaming import StreamingIdentifier
+    from ..identify.peak_to_peak.streaming import StreamingIdentifier
 
     if chunk < 1:
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")

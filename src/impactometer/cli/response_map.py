@@ -83,7 +83,7 @@ def build(
     import numpy as np
 
     from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
-    from ..identify.response_map_build import MAX_SIMULATED
+    from ..identify.response_map.build import MAX_SIMULATED
     from ..rig import get_rig
 
     output_path(out, force)

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from ..errors import IdentificationError, ParameterError
-from ..identify.streaming import StreamingIdentifier
+from ..identify.peak_to_peak.streaming import StreamingIdentifier
 from ..rig import Rig, Scenario
 from ..sensors import record
 
@@ -73,7 +73,7 @@ class Identified:
 def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, seed: int,
                     sample_rate: float, response_map=None) -> Identified:
     """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would: the record streams
-    through :class:`~impactometer.identify.streaming.StreamingIdentifier` and the first estimate (the early
+    through :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdentifier` and the first estimate (the early
     answer, at the end of the second contact pulse) is taken when it arrives. A response map is applied to the
     whole record and reports its own ``available_at``. A failed identification is returned with ``error`` set."""
     rec = record(scenario, rig, sample_rate=sample_rate, duration=IDENTIFICATION_WINDOW, noise=noise, seed=seed,

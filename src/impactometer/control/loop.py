@@ -99,7 +99,7 @@ class AbsorptionResult:
 
     def plot(self, ax=None):
         """The force histories of every strategy on one figure (the paper's Fig. 10b); see ``control.plots``."""
-        from .plots import plot_absorption
+        from ..plotting.absorption import plot_absorption
 
         return plot_absorption(self, ax=ax)
 

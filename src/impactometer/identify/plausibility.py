@@ -32,6 +32,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..constants import STANDARD_GRAVITY
 from ..errors import IdentificationError, ParameterError, shown
 from ..stands import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
 
@@ -44,7 +45,8 @@ RELATIVE_ERROR_LIMIT = 0.25
 SWING_FRACTION, SWING_SIGMAS = 0.05, 10.0
 #: unit slips: factor by which the identified velocity comes out too large -> how it happens
 VELOCITY_SLIPS = {1e3: "an acceleration in mm/s² read as m/s²", 1e-3: "an acceleration in m/s² read as mm/s²",
-                  9.80665: "an acceleration in m/s² read as g", 1 / 9.80665: "an acceleration in g read as m/s²"}
+                  STANDARD_GRAVITY: "an acceleration in m/s² read as g",
+                  1 / STANDARD_GRAVITY: "an acceleration in g read as m/s²"}
 #: reduced χ² above which an acceleration unit slip is looked for, and how much better a slip must fit to be named
 SLIP_CHI2, SLIP_GAIN = 4.0, 25.0
 #: unit slips: factor by which the identified mass comes out too large -> how it happens
@@ -152,7 +154,8 @@ def _cumulative(x: np.ndarray, dt: float) -> np.ndarray:
 
 
 def check_answer(mass: float, velocity: float, *, force: np.ndarray | None = None, sample_rate: float = 1.0,
-                 onset: float = 0.0, pulse_ends: Sequence[int] = (), gravity: float = 9.81, noise_force: float = 0.0,
+                 onset: float = 0.0, pulse_ends: Sequence[int] = (), gravity: float = STANDARD_GRAVITY,
+                 noise_force: float = 0.0,
                  acceleration: np.ndarray | None = None,
                  noise_acceleration: float = 0.0, reduced_chi2: float | None = None,
                  mass_std: float | None = None, velocity_std: float | None = None) -> tuple[str, ...]:

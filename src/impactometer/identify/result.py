@@ -74,7 +74,7 @@ class Identification:
 
     def plot(self, recording, ax=None):
         """Force and acceleration with the instants used marked (matplotlib imported lazily)."""
-        from .plots import plot_identification
+        from ..plotting.identification import plot_identification
         return plot_identification(recording, self, ax=ax)
 
 

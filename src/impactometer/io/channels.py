@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from ..constants import STANDARD_GRAVITY
 from ..errors import RecordingError, UnitError
 from ..recording import (
     ACCELERATION,
@@ -41,13 +42,12 @@ UNIT_ALIASES = {"m/s**2": "m/s^2", "ms^-2": "m/s^2", "ms-2": "m/s^2", "m/s/s": "
                 "sec": "s", "seconds": "s", "msec": "ms", "newton": "N", "newtons": "N", "kilonewton": "kN",
                 "pascal": "Pa"}
 #: units of lab files not in impactometer.units.UNITS (same layout: dimension -> symbol -> factor to SI)
-EXTRA_UNITS = {"acceleration": {"mm/s^2": 1e-3}, "force": {"lbf": 4.4482216152605, "kgf": 9.80665}}
+EXTRA_UNITS = {"acceleration": {"mm/s^2": 1e-3}, "force": {"lbf": 4.4482216152605, "kgf": STANDARD_GRAVITY}}
 #: the dimension each standard channel must have
 CHANNEL_DIMENSIONS = {FORCE: "force", ACCELERATION: "acceleration"}
 #: SI unit of each dimension a channel may have
 SI_UNITS = {"force": "N", "acceleration": "m/s^2", "pressure": "Pa", "length": "m", "velocity": "m/s",
             "time": "s", "mass": "kg", "frequency": "Hz"}
-STANDARD_GRAVITY = 9.80665
 #: a time column is regular when no sample is further than this fraction of a period from the fitted grid
 TIME_JITTER = 0.05
 #: samples of a time column checked at a time

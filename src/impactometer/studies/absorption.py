@@ -174,7 +174,7 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_absorption_study
+    from ..plotting.studies import plot_absorption_study
     return plot_absorption_study(rows)
 
 

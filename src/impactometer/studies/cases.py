@@ -44,7 +44,7 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_case_bars
+    from ..plotting.studies import plot_case_bars
     return plot_case_bars(rows)
 
 

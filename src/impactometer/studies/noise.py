@@ -71,7 +71,7 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_noise
+    from ..plotting.studies import plot_noise
     return plot_noise(rows)
 
 

@@ -44,7 +44,7 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_mean_error_vs
+    from ..plotting.studies import plot_mean_error_vs
     title = f"Mean identification error vs scenario parameters (noise {options.noise * 100:g} % of RMS)"
     return plot_mean_error_vs(rows, AXES, errors=("mass_error", "velocity_error"), title=title)
 

@@ -117,7 +117,7 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_peak_force
+    from ..plotting.studies import plot_peak_force
     return plot_peak_force(rows)
 
 

@@ -1,6 +1,6 @@
 """Studies ``map-size`` (the paper's Fig. 8) and ``window`` (Fig. 9): the response-map analyses.
 
-Thin wrappers: the tables come from :mod:`impactometer.identify.response_map_study`; here they are split into
+Thin wrappers: the tables come from :mod:`impactometer.studies.map_tables`; here they are split into
 independent work units (one database size, feature set and test set; one window) for the runner, and summarised
 next to the paper's statements (velocity 5-10× more accurate than mass; more than 350 ms per identification at
 3000×3000 with the brute search; mass error falling with the window T, velocity insensitive to it).
@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..identify.features import FEATURE_SETS
-from ..identify.response_map_search import SEARCHES
+from ..identify.response_map.features import FEATURE_SETS
+from ..identify.response_map.search import SEARCHES
 from .base import Row, Setting, Study, StudyOptions, register
 from .tables import pick
 
-REQUIRES = ("impactometer.identify.response_map_study",)
+REQUIRES = ("impactometer.studies.map_tables",)
 MAP_SIZE = "map-size"
 WINDOW = "window"
 MAP_DEFAULTS = {"sizes": [10, 25, 50, 100, 250, 500, 1000, 2000, 2500, 3000], "grid125_sizes": [10, 50],
@@ -43,7 +43,7 @@ def _map_cases(options: StudyOptions) -> list[Row]:
 
 
 def _map_evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
-    from ..identify.response_map_study import map_size_table
+    from .map_tables import map_size_table
 
     rows = []
     for case in cases:
@@ -60,7 +60,7 @@ def _window_cases(options: StudyOptions) -> list[Row]:
 
 
 def _window_evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
-    from ..identify.response_map_study import window_table
+    from .map_tables import window_table
 
     get = lambda name: _setting(options, WINDOW, WINDOW_DEFAULTS, name)  # noqa: E731
     rows = []
@@ -139,13 +139,13 @@ def _window_summary(rows: list[Row]) -> list[Row]:
 
 
 def _map_plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_map_tables
+    from ..plotting.studies import plot_map_tables
     return plot_map_tables(rows, "size", "database size N (N×N)", title="Response map: error and time vs "
                                                                          "database size")
 
 
 def _window_plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_map_tables
+    from ..plotting.studies import plot_map_tables
     return plot_map_tables(rows, "window_s", "integration window T [ms]", log_x=False, x_scale=1e3,
                            title="Response map (max-impulse): error vs integration window")
 

@@ -78,7 +78,7 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_mean_error_vs
+    from ..plotting.studies import plot_mean_error_vs
     return plot_mean_error_vs(rows, (("sample_rate", "sampling frequency [kHz]", 1e-3),),
                               errors=("mass_error", "velocity_error"), maximum=True, log_x=True,
                               reference=(5.0, "paper: mean < 5 % above 30-40 kHz"),

@@ -114,7 +114,7 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 
 def _plot(rows: list[Row], options: StudyOptions):
-    from .plots import plot_valve_design
+    from ..plotting.studies import plot_valve_design
     return plot_valve_design(rows)
 
 

@@ -14,11 +14,11 @@ import math
 import numpy as np
 from numba import njit
 
-from ..errors import IdentificationError, ParameterError, shown
-from ..recording import check_sample_rate
-from . import peak_to_peak as p2p
-from . import trigger
-from .result import Identification
+from ...errors import IdentificationError, ParameterError, shown
+from ...recording import check_sample_rate
+from .. import peak_to_peak as p2p
+from .. import trigger
+from ..result import Identification
 
 
 @njit(cache=True)

@@ -16,11 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ImpactometerError, ParameterError, ResponseMapError
-from ..outputs import as_path, check_file, write_failed
-from ..recording import check_sample_rate
+from ...errors import ImpactometerError, ParameterError, ResponseMapError
+from ...outputs import as_path, check_file, write_failed
+from ...recording import check_sample_rate
+from .build import SCHEMA_VERSION, ResponseMap
 from .features import get_feature_set
-from .response_map_build import SCHEMA_VERSION, ResponseMap
 
 SCHEMA = "impactometer-response-map"
 _ATTRS = ("schema", "schema_version", "feature_set", "feature_labels", "feature_params", "sample_rate", "rig",

@@ -1,6 +1,6 @@
 """Response-map identification (paper section 5): impacting mass and velocity from the contact force alone.
 
-The measured features (see :mod:`~impactometer.identify.features`) are matched against a database of features over
+The measured features (see :mod:`.features`, eq. (6)) are matched against a database of features over
 mass × velocity (× charge pressure), the response map, by minimizing eq. (7) of the paper::
 
     f(M1, V1) = Σ_i [(Y_i^M - Y_i(M1, V1)) / Y_i^M]²
@@ -19,20 +19,20 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, ResponseMapError, shown
-from ..recording import Recording, inspect_recording
-from ..stands import check_recorded_on
-from .features import FEATURE_SETS, extract_features, recording_signal
-from .plausibility import check_answer
-from .response_map_build import (
+from ...errors import ParameterError, ResponseMapError, shown
+from ...recording import Recording, inspect_recording
+from ...rig import check_recorded_on
+from ..plausibility import check_answer
+from .build import (
     PRESSURE_TOLERANCE,
     ResponseMap,
     build_map_from_recordings,
     build_map_simulated,
     refine,
 )
-from .response_map_search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
-from .response_map_store import load_map, save_map
+from .features import FEATURE_SETS, extract_features, recording_signal
+from .search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
+from .store import load_map, save_map
 
 __all__ = ["FEATURE_SETS", "MapIdentification", "ResponseMap", "build_map_from_recordings", "build_map_simulated",
            "identify_features", "identify_recording", "load_map", "refine", "save_map"]
@@ -229,7 +229,7 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
     """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
 
     The recording must have the map's sample rate, contact law and stand (when its metadata states them: the
-    stand by the fingerprint of its parameters, see :func:`impactometer.stands.fingerprint`); its
+    stand by the fingerprint of its parameters, see :func:`impactometer.rig.fingerprint`); its
     charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis), and the
     delay of its anti-alias filter (``anti_alias_delay_s``) is taken out of its time base.
     """

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from ..errors import ParameterError, ResponseMapError, shown
+from ...errors import ParameterError, ResponseMapError, shown
 
 #: every extractor takes ``time`` ((samples,) array: sample instants [s], t = 0 at first contact) and ``forces``
 #: ((n, samples) or (samples,) array: contact force [N])

@@ -14,11 +14,10 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline, RBFInterpolator
 
-from .. import __version__
-from ..errors import ParameterError, ResponseMapError
-from ..recording import Recording, check_sample_rate
-from ..rig import PRESETS, Rig, from_dict, get_rig, to_dict
-from ..stands import STAND_KEY, check_recorded_on
+from ... import __version__
+from ...errors import ParameterError, ResponseMapError
+from ...recording import Recording, check_sample_rate
+from ...rig import PRESETS, STAND_KEY, Rig, check_recorded_on, from_dict, get_rig, to_dict
 from .features import extract_batch, extract_features, get_feature_set, recording_signal
 
 SCHEMA_VERSION = 1
@@ -61,7 +60,7 @@ class ResponseMap:
     velocities : (n_v,) Velocity axis V0 [m/s], increasing.
     pressures_gauge : (n_p,) Charge-pressure axis p0 [Pa gauge]; one entry for a map at a single pressure.
     values : (m, n_p, n_m, n_v) Feature values (units of the feature set), all > 0.
-    feature_set : Name in :data:`~impactometer.identify.features.FEATURE_SETS`.
+    feature_set : Name in :data:`~impactometer.identify.response_map.features.FEATURE_SETS`.
     feature_params : Parameters of the feature set (SI).
     sample_rate : Sample rate of the signals the features came from [Hz].
     rig : The stand (``rig.to_dict`` form).
@@ -253,8 +252,8 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
                              f"interpolate it (refine_to=, map build --refine {masses.size}x{velocities.size})")
     sample_rate = check_sample_rate(sample_rate, error=ParameterError)
     duration = _default_duration(features, params, sample_rate) if duration is None else float(duration)
-    from ..model import simulate_batch
-    from ..model.gpu import resolve_device
+    from ...model import simulate_batch
+    from ...model.gpu import resolve_device
 
     device = resolve_device(device)
     if chunk_size is None:

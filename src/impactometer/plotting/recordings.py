@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .plotting import _pyplot, legend_outside, shade_pulses
-from .recording import ACCELERATION, FORCE
+from ..recording import ACCELERATION, FORCE
+from . import _pyplot, legend_outside, shade_pulses
 
 
 def plot_recording(recording, axes=None, *, inspection=None):
@@ -22,7 +22,7 @@ def plot_recording(recording, axes=None, *, inspection=None):
     -------
     matplotlib.figure.Figure
     """
-    from .recording import inspect_recording
+    from ..recording import inspect_recording
 
     plt = _pyplot()
     names = [name for name in (FORCE, ACCELERATION) if name in recording.channels] or list(recording.channels)[:2]

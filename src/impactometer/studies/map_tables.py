@@ -19,9 +19,15 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import ParameterError
+from ..identify.response_map import (
+    build_map_from_recordings,
+    build_map_simulated,
+    identify_features,
+    identify_recording,
+    refine,
+)
+from ..identify.response_map.features import extract_batch, extract_features, recording_signal
 from ..rig import Rig, get_rig
-from .features import extract_batch, extract_features, recording_signal
-from .response_map import build_map_from_recordings, build_map_simulated, identify_features, identify_recording, refine
 
 #: database sizes of the paper's Fig. 8
 PAPER_SIZES = (10, 25, 50, 100, 250, 500, 1000, 2000, 2500, 3000)

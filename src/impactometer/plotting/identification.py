@@ -5,7 +5,7 @@ from __future__ import annotations
 
 def plot_identification(recording, result, ax=None):
     """Force and piston acceleration vs time with t00, t01, t11 and the onsets used marked; returns the figure."""
-    from ..plotting import _pyplot, legend_outside
+    from . import _pyplot, legend_outside
 
     plt = _pyplot()
     if ax is None:

@@ -17,12 +17,13 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import IdentificationError, RecordingError, shown
-from ..recording import START_TIME_LIMIT, Recording
+from ...constants import STANDARD_GRAVITY
+from ...errors import IdentificationError, RecordingError, shown
+from ...recording import START_TIME_LIMIT, Recording
+from ..plausibility import answer_warnings, check_segment
+from ..pulses import detection_levels, first_peak, sustained_index
+from ..result import Identification
 from .early import solve_early
-from .plausibility import answer_warnings, check_segment
-from .pulses import detection_levels, first_peak, sustained_index
-from .result import Identification
 from .robust import Equations, Kinematics, combine, solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
@@ -44,7 +45,7 @@ from .segment import (  # noqa: F401 - re-exported: the streaming identifier and
     segment_separation,
 )
 
-GRAVITY = 9.81
+GRAVITY = STANDARD_GRAVITY
 #: lag-1 autocorrelation of the pre-trigger noise above which a channel counts as low-pass filtered [-]
 COLOURED_LIMIT = 0.5
 #: the separation lag λ is at most this fraction of the first pulse's duration [-]
@@ -198,7 +199,7 @@ def equations(seg: Segment) -> tuple[Equations, float, float]:
 
 def _determined(eqs: Equations, dof: int = 1) -> bool:
     """Whether the agnostic rows leave ``dof`` degrees of freedom once (V0, w) and the nuisances are fitted
-    (extrema bring one nuisance, separations two; see :func:`~impactometer.identify.robust.solve_rows`)."""
+    (extrema bring one nuisance, separations two; see :func:`~impactometer.identify.peak_to_peak.robust.solve_rows`)."""
     n_ext, n_sep = eqs.extrema.size, eqs.separations.size
     rows = eqs.onsets.size + (n_ext - 1 if n_ext >= 2 else 0) + (n_sep - 2 if n_sep >= 3 else 0)
     return rows >= 2 + dof
@@ -208,8 +209,8 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
                  contact_phase: bool = False, stage: str = "final") -> Identification:
     """The robust variant's answer from a prepared segment.
 
-    ``stage="early"``: the contact-phase fit of the first two pulses (:func:`~impactometer.identify.early.
-    solve_early`). ``stage="final"``: the agnostic rows of :func:`~impactometer.identify.robust.solve_rows` --
+    ``stage="early"``: the contact-phase fit of the first two pulses (:func:`.early.solve_early`).
+    ``stage="final"``: the agnostic rows of :func:`.robust.solve_rows` --
     every onset, turning point of the force and separation -- where they leave at least one degree of freedom,
     else the contact-phase fit. With ``contact_phase`` the agnostic answer is combined with the contact-phase fit
     (best linear unbiased, with the shared acceleration noise), at the price of depending on the contact-law
@@ -270,7 +271,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
 
 
 def _contact_phase(seg: Segment, kin: Kinematics, peak2: int, noise: dict):
-    """The contact-phase fit of the first two pulses (:func:`~impactometer.identify.early.solve_early`)."""
+    """The contact-phase fit of the first two pulses (:func:`~impactometer.identify.peak_to_peak.early.solve_early`)."""
     first, second = seg.pulses[0], seg.pulses[1]
     onset, onset_std = segment_onset(seg, second)
     running = second if second.complete else replace(second, end=seg.force.size)

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .pulses import PulseSpan, detection_levels
+from ..pulses import PulseSpan, detection_levels
 
 #: exponents p of the foot F = A·s^p·(1 + q·s) tried (0: a jump)
 EXPONENTS = np.arange(0.0, 2.0001, 0.25)

@@ -11,11 +11,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import IdentificationError
-from ..recording import check_sample_rate
-from . import trigger
+from ...errors import IdentificationError
+from ...recording import check_sample_rate
+from .. import trigger
+from ..pulses import PulseSpan, detect_pulses, noise_std, sustained_index
 from .onsets import VERTEX_HALF_MAX, onset_index, separation_index, turning_points, vertex
-from .pulses import PulseSpan, detect_pulses, noise_std, sustained_index
 
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
 #: offset, double-integrated, is the largest error of the final answer, so keep up to 0.1 s at 50 kHz
@@ -237,8 +237,8 @@ def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
 
     Stage B is the first pulse that lasts longer than ``SUSTAINED_FACTOR`` times the longest bounce before it
     (:func:`~impactometer.identify.pulses.sustained_index`). The force is smoothed over ``1/SMOOTH_PER_PULSE`` of
-    the first pulse's duration to find the turning points (:func:`~impactometer.identify.onsets.turning_points`),
-    which a cubic then places to a fraction of a sample (:func:`~impactometer.identify.onsets.vertex`).
+    the first pulse's duration to find the turning points (:func:`.onsets.turning_points`),
+    which a cubic then places to a fraction of a sample (:func:`.onsets.vertex`).
     """
     sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
     first = seg.pulses[0]

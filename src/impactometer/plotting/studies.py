@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from ..plotting import _pyplot, figure_legend
-from .tables import Row, flag, group_stats, number, pick
+from ..studies.tables import Row, flag, group_stats, number, pick
+from . import _pyplot, figure_legend
 
 #: colour per compared method
 COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "brute": "tab:red",

@@ -15,13 +15,13 @@ COLOURS = {"closed": "tab:gray", "constant": "tab:blue", "realtime": "tab:red", 
 
 
 def legend_outside(ax) -> None:
-    from ..plotting import legend_outside as outside
+    from . import legend_outside as outside
 
     outside(ax)
 
 
 def _pyplot():
-    from ..plotting import _pyplot as pyplot
+    from . import _pyplot as pyplot
 
     return pyplot()
 
