@@ -22,14 +22,12 @@ import contextlib
 import functools
 import importlib.util
 import os
-import types
 from collections.abc import Iterator
-from typing import Any
 
 import numpy as np
-from numba.core.dispatcher import Dispatcher
 
 from ..errors import DeviceError, ParameterError
+from .gpu_source import device_function  # noqa: F401 - part of the GPU backend's API
 
 #: name of the optional dependency set that brings the CUDA target
 EXTRA = "impactometer[gpu]"
@@ -107,46 +105,6 @@ def use_device(device: str) -> Iterator[None]:
             os.environ.pop(DEVICE_VARIABLE, None)
         else:
             os.environ[DEVICE_VARIABLE] = previous
-
-
-# --- one source, two targets ------------------------------------------------------------------------------------
-
-_DEVICE_FUNCTIONS: dict[int, Any] = {}
-_DEVICE_MODULES: dict[str, types.ModuleType] = {}
-
-
-def _device_module(module: types.ModuleType) -> types.ModuleType:
-    """A stand-in for a module of the package whose compiled functions are device functions."""
-    if module.__name__ not in _DEVICE_MODULES:
-        proxy = types.ModuleType(module.__name__ + "[cuda]")
-        _DEVICE_MODULES[module.__name__] = proxy
-        for name, value in vars(module).items():
-            setattr(proxy, name, device_function(value) if isinstance(value, Dispatcher) else value)
-    return _DEVICE_MODULES[module.__name__]
-
-
-def device_function(dispatcher: Dispatcher):
-    """The CUDA device function compiled from the Python source of the CPU-compiled ``dispatcher``.
-
-    The compiled functions it refers to, by name or as attributes of a module of the package, are replaced by
-    their device functions, recursively; everything else (constants, tables, ``math``, ``numpy``) is shared.
-    """
-    from numba import cuda
-
-    key = id(dispatcher)
-    if key not in _DEVICE_FUNCTIONS:
-        source = dispatcher.py_func
-        namespace = dict(source.__globals__)
-        for name in source.__code__.co_names:
-            value = namespace.get(name)
-            if isinstance(value, Dispatcher):
-                namespace[name] = device_function(value)
-            elif isinstance(value, types.ModuleType) and value.__name__.startswith(f"{__package__}."):
-                namespace[name] = _device_module(value)
-        function = types.FunctionType(source.__code__, namespace, source.__name__, source.__defaults__,
-                                      source.__closure__)
-        _DEVICE_FUNCTIONS[key] = cuda.jit(device=True)(function)
-    return _DEVICE_FUNCTIONS[key]
 
 
 def _block_size(n: int, bytes_per_scenario: int, block_bytes: int) -> int:

@@ -9,7 +9,7 @@ from numba import cuda, float64, int64
 
 from . import dynamics as d
 from . import fast
-from .gpu import device_function
+from .gpu_source import device_function
 
 ROWS, N_STATE, N_CHANNEL = fast.WORK_ROWS, d.N_STATE, d.N_CHANNEL
 integrate_into = device_function(fast.integrate_into)

@@ -73,7 +73,7 @@ class SimulationResult:
 
     def plot(self, ax=None, *, pulses=None):
         """Figure of contact force, piston acceleration, displacements and pressures (see plotting)."""
-        from ..plotting import plot_simulation
+        from ..plotting.simulation import plot_simulation
 
         return plot_simulation(self, axes=ax, pulses=pulses)
 

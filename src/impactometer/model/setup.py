@@ -7,13 +7,13 @@ from collections.abc import Mapping
 import numpy as np
 from numba import njit, prange
 
-from .. import rig as rigmod
 from ..errors import ParameterError
+from ..rig import Rig, Scenario, parameter_names
 from . import dynamics as d
 from .forces import LAW_CODES, VALVE_LAWS, pneumatic_force, stop_force
 
 
-def pack(rig: rigmod.Rig, scenario: rigmod.Scenario) -> np.ndarray:
+def pack(rig: Rig, scenario: Scenario) -> np.ndarray:
     """Parameter vector of the compiled model for one scenario on ``rig``."""
     scenario.check_against(rig)
     c, g = rig.cylinder, rig.gas
@@ -52,7 +52,7 @@ def pack(rig: rigmod.Rig, scenario: rigmod.Scenario) -> np.ndarray:
     return p
 
 
-def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
+def pack_batch(rig: Rig, mass, velocity, pressure_gauge,
                overrides: Mapping[str, object] | None = None) -> np.ndarray:
     """Parameter matrix (n, N_PARAM) for arrays of M1 [kg], V0 [m/s], p0 [Pa gauge] and stand overrides.
 
@@ -61,7 +61,7 @@ def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
     error names the first offending row.
     """
     overrides = dict(overrides or {})
-    names = rigmod.parameter_names()
+    names = parameter_names()
     for key in overrides:
         if key not in names:
             raise ParameterError(f"unknown stand parameter {key!r} in overrides; expected one of {names}")
@@ -82,7 +82,7 @@ def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
             i = int(np.flatnonzero(bad)[0])
             raise ParameterError(f"{name}[{i}] must be a finite number {'>=' if zero_ok else '>'} 0 [{unit}], "
                                  f"got {float(values[i])!r}")
-    placeholder = rigmod.Scenario(mass=1.0, velocity=1.0, pressure_gauge=0.0)
+    placeholder = Scenario(mass=1.0, velocity=1.0, pressure_gauge=0.0)
     rows = np.repeat(pack(rig, placeholder)[None, :], flat[0].size, axis=0)
     if overrides:  # one validated stand per distinct combination of override values
         combos, inverse = np.unique(np.column_stack(flat[3:]), axis=0, return_inverse=True)
@@ -99,7 +99,7 @@ def pack_batch(rig: rigmod.Rig, mass, velocity, pressure_gauge,
     return rows
 
 
-def _rated_pressure(rig: rigmod.Rig, overrides: dict, flat: list[np.ndarray]) -> np.ndarray:
+def _rated_pressure(rig: Rig, overrides: dict, flat: list[np.ndarray]) -> np.ndarray:
     key = "cylinder.rated_pressure_gauge"
     if key in overrides:
         return flat[3 + list(overrides).index(key)]

@@ -9,21 +9,12 @@ import math
 
 import numpy as np
 
+from ..filters import cfc_filter
+from . import _pyplot, legend_outside
+
 #: line colour per strategy (and per oracle run)
 COLOURS = {"closed": "tab:gray", "constant": "tab:blue", "realtime": "tab:red", "predictive": "tab:purple",
            "auto": "tab:purple", "realtime (oracle)": "tab:orange", "predictive (oracle)": "tab:pink"}
-
-
-def legend_outside(ax) -> None:
-    from . import legend_outside as outside
-
-    outside(ax)
-
-
-def _pyplot():
-    from . import _pyplot as pyplot
-
-    return pyplot()
 
 
 def plot_absorption(result, ax=None):
@@ -33,8 +24,6 @@ def plot_absorption(result, ax=None):
 
     Returns the figure.
     """
-    from ..filters import cfc_filter
-
     plt = _pyplot()
     if ax is None:
         fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True, constrained_layout=True,

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+from . import _pyplot, legend_outside
+
 
 def plot_identification(recording, result, ax=None):
     """Force and piston acceleration vs time with t00, t01, t11 and the onsets used marked; returns the figure."""
-    from . import _pyplot, legend_outside
-
     plt = _pyplot()
     if ax is None:
         fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True, constrained_layout=True)

@@ -31,6 +31,7 @@ estimated from their own scatter. It depends on the estimate, so the solution is
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -62,6 +63,18 @@ def integrals_at(signal, first, second, dt, index):
     return value, v, d
 
 
+class KinematicsAt(NamedTuple):
+    """Force, piston acceleration and their integrals from first contact t00 at given instants (arrays)."""
+
+    tau: np.ndarray  #: time since first contact t00 [s]
+    force: np.ndarray  #: contact force Fc [N]
+    force_impulse: np.ndarray  #: JF = ∫Fc dt from t00 [N·s]
+    force_double: np.ndarray  #: IF = ∫∫Fc dt² from t00 [N·s²]
+    acceleration: np.ndarray  #: piston acceleration a2 [m/s²]
+    velocity_change: np.ndarray  #: V2 = ∫a2 dt from t00 [m/s]
+    displacement: np.ndarray  #: D2 = ∫∫a2 dt² from t00 [m]
+
+
 class Kinematics:
     """Double integrals of force and piston acceleration referred to the first contact t00."""
 
@@ -74,15 +87,15 @@ class Kinematics:
         self._f0 = integrals_at(force, *self.cf, dt, self.t00)
         self._a0 = integrals_at(acceleration, *self.ca, dt, self.t00)
 
-    def at(self, index):
-        """(τ, Fc, JF, IF, a2, V2, D2) at fractional sample indices, integrals from t00."""
+    def at(self, index) -> KinematicsAt:
+        """τ, Fc, JF, IF, a2, V2, D2 at fractional sample indices ``index``, integrals from t00."""
         index = np.asarray(index, dtype=float)
         tau = (index - self.t00) * self.dt
         f, jf, i_f = integrals_at(self.force, *self.cf, self.dt, index)
         a, va, da = integrals_at(self.acceleration, *self.ca, self.dt, index)
         jf, i_f = jf - self._f0[1], i_f - self._f0[2] - self._f0[1] * tau
         va, da = va - self._a0[1], da - self._a0[2] - self._a0[1] * tau
-        return tau, f, jf, i_f, a, va, da
+        return KinematicsAt(tau, f, jf, i_f, a, va, da)
 
 
 def atom_kernel(tau: np.ndarray, cd: np.ndarray, cv: np.ndarray, dt: float) -> np.ndarray:
