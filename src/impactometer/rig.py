@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import tomli_w
+
 from .components import (  # noqa: F401 - the parts are part of the stand's API
     CONTACT_ALIASES,
     CONTACT_LAWS,
@@ -36,6 +38,7 @@ from .components import (  # noqa: F401 - the parts are part of the stand's API
 )
 from .constants import STANDARD_GRAVITY
 from .errors import ParameterError
+from .outputs import check_file, write_failed
 from .stands import MASS_RANGE, VELOCITY_RANGE, check_stops
 
 if TYPE_CHECKING:  # annotations only: recording.py is a layer above the stand
@@ -160,10 +163,6 @@ def load_toml(path: str | Path) -> Rig:
 
 def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``rig`` to ``path`` as TOML."""
-    import tomli_w
-
-    from .outputs import check_file, write_failed
-
     path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
     try:
         path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")

@@ -8,6 +8,7 @@ import sys
 from rich.markup import escape
 
 from ..errors import ImpactometerError
+from ..outputs import write_failed
 from . import control, demo, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
 from .app import app, console
 
@@ -34,8 +35,6 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         _fail("interrupted", 130)
     except OSError as exc:  # reading or writing a file failed where no check could foresee it (disk full, ...)
-        from ..outputs import write_failed
-
         target = exc.filename if exc.filename is not None else "a file"
         _fail(str(write_failed(target, exc)).replace("cannot write", "cannot read or write", 1), 2)
     except Exception as exc:

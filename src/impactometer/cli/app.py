@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import sys
 from pathlib import Path
 from typing import Annotated, overload
 
@@ -9,7 +11,8 @@ import typer
 import typer.core
 from rich.console import Console
 
-from ..outputs import check_file
+from .. import __version__
+from ..outputs import check_file, figure_formats
 from ..units import parse_quantity
 
 
@@ -38,8 +41,6 @@ console = Console()
 
 def _version(value: bool) -> None:
     if value:
-        from .. import __version__
-
         typer.echo(f"impactometer {__version__}")
         raise typer.Exit()
 
@@ -73,8 +74,6 @@ def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: s
     if path is None:
         return None
     if kind == "figure":
-        from ..outputs import figure_formats
-
         extensions = figure_formats()
     elif kind == "recording":
         from ..io import FORMATS
@@ -87,8 +86,6 @@ def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: s
 
 def announce_compilation() -> None:
     """Say so on stderr before the compiled kernels are built for the first time (no cache beside the model)."""
-    import sys
-
     cache = Path(__file__).resolve().parents[1] / "model" / "__pycache__"
     if not any(cache.glob("*.nbi")):
         print("compiling kernels, once, about 15 s ...", file=sys.stderr, flush=True)
@@ -97,8 +94,6 @@ def announce_compilation() -> None:
 def with_uncertainty(value: float, std: float | None, unit: str = "", *, digits: int = 4) -> str:
     """``value ± std unit`` with the value rounded where the standard error's first digit sits (1.970 ± 0.004 m/s);
     without a finite, positive ``std``, ``digits`` significant digits."""
-    import math
-
     suffix = f" {unit}" if unit else ""
     if std is None or not math.isfinite(std) or std <= 0:
         return f"{value:.{digits}g}{suffix}"

@@ -9,8 +9,11 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from ..errors import ParameterError
+from ..errors import IdentificationError, ParameterError
+from ..outputs import check_file, check_folder, save_figure
+from ..rig import ABSORPTION_RIG, Scenario, get_rig
 from .app import announce_compilation, app, console, with_uncertainty
+from .control import metrics_table
 from .simulate import summary_table
 
 NOISE = 0.02  # sensor noise of the demo, fraction of each channel's RMS
@@ -29,8 +32,6 @@ def demo(
 ) -> None:
     """Built-in impact (30 kg from 0.2 m onto the stand at 200 kPa): simulate, identify, absorb, draw."""
     from ..model import simulate as run_simulation
-    from ..outputs import check_file, check_folder, save_figure
-    from ..rig import Scenario, get_rig
 
     if out.exists() and not (force and out.is_dir()):
         raise ParameterError(f"--out: {str(out)!r} exists; pass --force to replace the demo's figures in it, or "
@@ -54,8 +55,6 @@ def demo(
     console.print(identification_table(scenario, stand))
     if absorb:
         from ..control.loop import absorb as run_absorb
-        from ..rig import ABSORPTION_RIG
-        from .control import metrics_table
 
         with console.status(f"closed loop on {ABSORPTION_RIG}: identify, then control valve Z with each strategy "
                             "..."):
@@ -67,7 +66,6 @@ def demo(
 
 def identification_table(scenario, stand) -> Table:
     """Peak-to-peak identification of ``scenario`` from simulated sensors with noise, next to the truth."""
-    from ..errors import IdentificationError
     from ..identify.peak_to_peak import identify
     from ..sensors import record
 

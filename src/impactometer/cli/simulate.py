@@ -9,6 +9,8 @@ import typer
 from rich.table import Table
 
 from ..errors import ParameterError
+from ..outputs import save_figure, write_failed
+from ..rig import Scenario, get_rig
 from .app import announce_compilation, app, console, output_path, quantity
 
 MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30kg).")]
@@ -25,7 +27,6 @@ RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the 
 def stand_and_scenario(mass: str, height: str | None, velocity: str | None, pressure: str, *, rig: str | None,
                        contact: str | None, default_height: str = "0.2m"):
     """The (stand, scenario) of a command's options (neither height nor velocity: ``default_height``)."""
-    from ..rig import Scenario, get_rig
 
     stand = get_rig(rig, contact=contact)
     m = quantity(mass, "mass", "--mass")
@@ -98,7 +99,6 @@ def simulate(
     """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""
     from ..model import simulate as run_simulation
     from ..model.io import save_simulation
-    from ..outputs import save_figure, write_failed
 
     announce_compilation()
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)

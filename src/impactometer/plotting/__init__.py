@@ -11,8 +11,6 @@ The computation never imports this package at module level: a result's ``.plot()
 
 from __future__ import annotations
 
-import numpy as np
-
 
 def _pyplot():
     import matplotlib

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ...errors import ResponseMapError
 from .build import ResponseMap, spline_basis
 
 #: nodes per axis the fast surfaces are fitted on (every k-th node of larger maps)
@@ -245,8 +246,6 @@ def fast_tables(rmap: ResponseMap) -> FastTables:
     im, iv = _subsample(rmap.masses), _subsample(rmap.velocities)
     xm, xv = rmap.masses[im], rmap.velocities[iv]
     if xm.size < 2 or xv.size < 2:
-        from ...errors import ResponseMapError
-
         raise ResponseMapError(f"the fast search needs at least 2 masses and 2 velocities, got a {rmap.shape} map")
     dm, dv = spline_basis(xm, xm, 1), spline_basis(xv, xv, 1)
     nf, n_p = rmap.values.shape[:2]
