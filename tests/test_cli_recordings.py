@@ -54,7 +54,7 @@ def test_record_refuses_to_overwrite_without_force(tmp_path, capsys):
     (["record", "--out", "x.xlsx"], "unknown extension '.xlsx'"),
     (["record", "--noise", "loud", "--out", "x.csv"], "--noise"),
     (["record", "--noise", "-2%", "--out", "x.csv"], "noise must be"),
-    (["record", "--sample-rate", "1kHz", "--out", "x.csv"], "sample_rate must be within"),
+    (["record", "--sample-rate", "1kHz", "--out", "x.csv"], "sample_rate must be >= 5000"),
     (["record", "--anti-alias", "sinc", "--out", "x.csv"], "anti_alias must be"),
     (["record", "--extra", "voltage", "--out", "x.csv"], "unknown channel 'voltage'"),
     (["inspect", "missing.csv"], "no such file"),

@@ -160,12 +160,12 @@ def test_apply_sensors_degrades_a_recording_without_decimation():
 
 
 @pytest.mark.parametrize("call, match", [
-    (lambda: record(SCENARIO, sample_rate=1e3), r"sample_rate must be within \[5000, 1e\+06\]"),
-    (lambda: record(SCENARIO, noise=-0.1), "noise must be a finite number >= 0"),
+    (lambda: record(SCENARIO, sample_rate=1e3), r"sample_rate must be >= 5000 \[Hz\]"),
+    (lambda: record(SCENARIO, noise=-0.1), "noise must be >= 0"),
     (lambda: record(SCENARIO, noise={"pressure": 0.1}), "noise names unknown channel"),
     (lambda: record(SCENARIO, anti_alias="sinc"), "anti_alias must be True, False or one of"),
     (lambda: record(SCENARIO, extra_channels=["voltage"]), "extra_channels: unknown channel 'voltage'"),
-    (lambda: record(SCENARIO, adc_bits=1), r"adc_bits must be an integer within \[2, 32\]"),
+    (lambda: record(SCENARIO, adc_bits=1), r"adc_bits must be an integer >= 2"),
     (lambda: record(SCENARIO, adc_bits=12, adc_range={"contact_force": (5.0, 1.0)}), "high > low"),
     (lambda: record(SCENARIO, pre_trigger=-1.0), "pre_trigger must be"),
     (lambda: record(SCENARIO, duration=0.0), "duration must be > 0"),

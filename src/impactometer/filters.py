@@ -24,6 +24,7 @@ from scipy import signal
 
 from .errors import ParameterError, RecordingError, shown
 from .recording import Recording
+from .validation import check_real, is_real
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -52,7 +53,7 @@ DEFAULT_PAD_TIME = 0.010
 
 def channel_class(cfc: int) -> ChannelClass:
     """The corridor of ``cfc``; the error lists the valid classes."""
-    if isinstance(cfc, bool) or not isinstance(cfc, (int, np.integer, float)) or cfc not in CFC_CLASSES:
+    if not is_real(cfc) or cfc not in CFC_CLASSES:
         raise ParameterError(f"cfc must be one of {sorted(CFC_CLASSES)}, got {cfc!r}")
     return CFC_CLASSES[int(cfc)]
 
@@ -77,10 +78,8 @@ def cfc_coefficients(cfc: int, sample_rate: float, *, standard: str = "J211") ->
     klass = channel_class(cfc)
     if not isinstance(standard, str) or standard not in DESIGN_FACTORS:
         raise ParameterError(f"standard must be one of {sorted(DESIGN_FACTORS)}, got {shown(standard)}")
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float, np.floating)) \
-            or not math.isfinite(sample_rate) or sample_rate < MIN_RATE_OVER_FN * klass.f_n:
-        raise ParameterError(f"sample_rate must be >= {MIN_RATE_OVER_FN * klass.f_n:g} Hz (6 x f_n) for CFC "
-                             f"{klass.cfc}, got {sample_rate!r}")
+    check_real("sample_rate", sample_rate, low=MIN_RATE_OVER_FN * klass.f_n,
+               unit=f" Hz (6 x f_n) for CFC {klass.cfc}")
     period = 1.0 / float(sample_rate)
     wd = 2.0 * math.pi * klass.cfc * DESIGN_FACTORS[standard]
     wa = math.sin(wd * period / 2.0) / math.cos(wd * period / 2.0)
@@ -121,9 +120,7 @@ def cfc_filter(x, sample_rate: float, cfc: int, *, standard: str = "J211", pad_t
         raise ParameterError(f"x must hold at least 3 samples along axis {axis}, got shape {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ParameterError("x must hold finite samples only")
-    if isinstance(pad_time, bool) or not isinstance(pad_time, (int, float)) or not math.isfinite(pad_time) \
-            or pad_time < 0:
-        raise ParameterError(f"pad_time must be a finite number >= 0 [s], got {pad_time!r}")
+    check_real("pad_time", pad_time, low=0.0, unit=" [s]")
     pad = min(int(round(pad_time * sample_rate)), x.shape[axis] - 1)
     return signal.filtfilt(b, a, x, axis=axis, padtype="odd" if pad else None, padlen=pad)
 

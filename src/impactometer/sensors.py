@@ -34,6 +34,7 @@ from .model import simulate_batch
 from .model.dynamics import CHANNELS as MODEL_CHANNELS
 from .recording import ACCELERATION, FORCE, Recording, check_sample_rate
 from .rig import Rig, Scenario, fingerprint, get_rig
+from .validation import check_integer, check_real
 
 #: model channel -> recording channel name
 MODEL_TO_RECORDING = {"contact_force": FORCE, "a2": ACCELERATION, "u2": "piston_displacement"}
@@ -84,17 +85,11 @@ def _design(anti_alias: str | bool) -> str:
 
 
 def _check_rate(sample_rate: float, field: str = "sample_rate") -> float:
-    if isinstance(sample_rate, bool) or not isinstance(sample_rate, (int, float)) or not math.isfinite(sample_rate) \
-            or not MIN_SAMPLE_RATE <= sample_rate <= MAX_SAMPLE_RATE:
-        raise ParameterError(f"{field} must be within [{MIN_SAMPLE_RATE:g}, {MAX_SAMPLE_RATE:g}] Hz, "
-                             f"got {shown(sample_rate)}")
-    return float(sample_rate)
+    return check_real(field, sample_rate, low=MIN_SAMPLE_RATE, high=MAX_SAMPLE_RATE, unit=" [Hz]")
 
 
 def _check_nonnegative(value: Any, field: str, unit: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-        raise ParameterError(f"{field} must be a finite number >= 0 {unit}, got {shown(value)}")
-    return float(value)
+    return check_real(field, value, low=0.0, unit=f" {unit}")
 
 
 def noise_levels(noise: float | Mapping[str, float], channels: Sequence[str]) -> dict[str, float]:
@@ -171,9 +166,8 @@ def _degrade(channels: dict[str, np.ndarray], factor: int, first: int, *, design
                 row = row + rng.normal(0.0, levels[name] * rms, row.size)
             out[i][name] = row
     if adc_bits is not None or adc_range is not None:
-        if adc_bits is not None and (isinstance(adc_bits, bool) or not isinstance(adc_bits, (int, np.integer))
-                                     or not 2 <= adc_bits <= 32):
-            raise ParameterError(f"adc_bits must be an integer within [2, 32], got {adc_bits!r}")
+        if adc_bits is not None:
+            check_integer("adc_bits", adc_bits, low=2, high=32)
         for rec in out:
             for name, (low, high) in _adc_ranges(adc_range, rec).items():
                 rec[name] = quantise(rec[name], low, high, adc_bits)
@@ -184,10 +178,7 @@ def _check_seed(seed: Any, field: str = "seed") -> Any:
     """A seed numpy accepts: None, an integer >= 0, a SeedSequence or a Generator; ParameterError otherwise."""
     if seed is None or isinstance(seed, (np.random.SeedSequence, np.random.Generator, np.random.BitGenerator)):
         return seed
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        shown = int(seed) if isinstance(seed, np.integer) else seed
-        raise ParameterError(f"{field} must be None or an integer >= 0, got {shown!r}")
-    return int(seed)
+    return check_integer(field, seed, low=0, unit=" (or None)")
 
 
 def _rngs(n: int, seed, seeds) -> tuple[list[np.random.Generator], list[Any]]:

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..recording import Recording
+from ..validation import is_real
 from .channels import RawData, metadata_from_json, plain
 
 SEPARATORS = (";", "\t", ",")
@@ -182,7 +183,7 @@ def read(path: Path) -> RawData:
     rate = metadata.pop("sample_rate", None)
     start = metadata.pop("start_time", None)
     for field, value in (("sample_rate", rate), ("start_time", start)):
-        if value is not None and (isinstance(value, bool) or not isinstance(value, (int, float))):
+        if value is not None and not is_real(value):
             raise RecordingError(f"{where}: sidecar {field} must be a number, got {value!r}")
     columns: dict[str, tuple[np.ndarray, str | None]] = {name: (values[j], None) for j, name in enumerate(header)}
     return RawData(columns=columns, source=str(path), sample_rate=rate, start_time=start, metadata=metadata)

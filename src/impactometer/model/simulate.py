@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import numbers
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
@@ -11,6 +10,7 @@ from numba import njit
 
 from ..errors import ParameterError, SimulationError
 from ..rig import Rig, Scenario, get_rig
+from ..validation import check_integer, check_real
 from . import dynamics as d
 from . import fast, gpu, reference
 from .result import BatchResult, SimulationResult
@@ -27,10 +27,6 @@ _CHUNK_BYTES = 64 * 2**20
 _STATE_SCALE = np.array([0.1, 1.0, 0.1, 1.0, 1e5, 1e5, 1e-3, 1e-4, 100.0, 1e-3])
 
 
-def _real(value) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
 def absolute_tolerance(rtol: float) -> np.ndarray:
     """Per-state absolute tolerance matching a relative tolerance ``rtol`` on the state's typical scale."""
     return rtol * _STATE_SCALE
@@ -38,9 +34,8 @@ def absolute_tolerance(rtol: float) -> np.ndarray:
 
 def sample_times(duration: float, sample_rate: float) -> np.ndarray:
     """Sample instants 0, 1/fs, ... up to ``duration`` [s]."""
-    for name, value in (("duration", duration), ("sample_rate", sample_rate)):
-        if not _real(value) or not np.isfinite(value) or value <= 0:
-            raise ParameterError(f"{name} must be a finite number > 0, got {value!r}")
+    check_real("duration", duration, low=0.0, low_open=True, unit=" [s]")
+    check_real("sample_rate", sample_rate, low=0.0, low_open=True, unit=" [Hz]")
     n = int(np.floor(duration * sample_rate + 1e-9)) + 1
     if n < 2:
         raise ParameterError(f"duration·sample_rate must give at least 2 samples, got {duration!r} s at "
@@ -55,13 +50,9 @@ def _check_integrator(integrator: str, rtol: float | None, max_step: float = MAX
     if integrator not in INTEGRATORS:
         raise ParameterError(f"integrator must be one of {sorted(INTEGRATORS)}, got {integrator!r}")
     rtol = INTEGRATORS[integrator] if rtol is None else rtol
-    if not _real(rtol) or not np.isfinite(rtol) or not 1e-14 <= rtol <= 1e-3:
-        raise ParameterError(f"rtol must be within [1e-14, 1e-3], got {rtol!r}")
-    if not _real(max_step) or np.isnan(max_step) or max_step <= 0:
-        raise ParameterError(f"max_step must be > 0 [s] (inf for no bound), got {max_step!r}")
-    if isinstance(max_steps, bool) or not isinstance(max_steps, (int, np.integer)) or max_steps < 1:
-        raise ParameterError(f"max_steps must be an integer >= 1, got {max_steps!r}")
-    return float(rtol)
+    check_real("max_step", max_step, low=0.0, low_open=True, finite=False, unit=" [s] (inf for no bound)")
+    check_integer("max_steps", max_steps, low=1)
+    return check_real("rtol", rtol, low=1e-14, high=1e-3)
 
 
 def simulate(scenario: Scenario, rig: Rig | None = None, *, duration: float = 0.05, sample_rate: float = 50e3,
@@ -231,8 +222,8 @@ def simulate_blocks(mass, velocity, pressure_gauge, rig: Rig | None = None, *, o
         per_scenario = plan.index.size * plan.time.size * plan.dtype.itemsize
         budget = gpu.BLOCK_BYTES if plan.device == "gpu" else _CHUNK_BYTES * 4
         block_size = max(1, budget // per_scenario)
-    elif isinstance(block_size, bool) or not isinstance(block_size, (int, np.integer)) or block_size < 1:
-        raise ParameterError(f"block_size must be an integer >= 1 (scenarios), got {block_size!r}")
+    else:
+        check_integer("block_size", block_size, low=1, unit=" (scenarios)")
     for start in range(0, n, int(block_size)):
         rows = slice(start, min(n, start + int(block_size)))
         yield rows, _run(plan, rows)
