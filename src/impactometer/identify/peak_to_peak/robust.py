@@ -91,8 +91,8 @@ class Kinematics:
         """τ, Fc, JF, IF, a2, V2, D2 at fractional sample indices ``index``, integrals from t00."""
         index = np.asarray(index, dtype=float)
         tau = (index - self.t00) * self.dt
-        f, jf, i_f = integrals_at(self.force, *self.cf, self.dt, index)
-        a, va, da = integrals_at(self.acceleration, *self.ca, self.dt, index)
+        f, jf, i_f = integrals_at(self.force, self.cf[0], self.cf[1], self.dt, index)
+        a, va, da = integrals_at(self.acceleration, self.ca[0], self.ca[1], self.dt, index)
         jf, i_f = jf - self._f0[1], i_f - self._f0[2] - self._f0[1] * tau
         va, da = va - self._a0[1], da - self._a0[2] - self._a0[1] * tau
         return KinematicsAt(tau, f, jf, i_f, a, va, da)
