@@ -3,7 +3,9 @@
 Grid: the 125 cases of the paper's ranges (M1 10-50 kg × V0 1-3 m/s × p0 20-400 kPa, 5 values each; the grid of
 :func:`impactometer.studies.base.scenario_grid`), recorded at 50 kHz by the sensor model (causal anti-alias
 filter), ``--duration`` after first contact plus ``--pre-trigger``, Gaussian noise of each channel's RMS on force
-and acceleration (``--seeds`` realisations; one run without noise). For every stand and contact law it prints
+and acceleration (``--seeds`` realisations; one run without noise), recorded and seeded as the studies do
+(:func:`impactometer.studies.identification.clean_recordings`, ``with_noise`` and per-case
+:func:`impactometer.studies.base.case_seed`). For every stand and contact law it prints
 mean and max relative errors of mass and velocity of ``paper``, ``robust early`` and ``robust`` final, when the
 answer is available (median) and how long after the second force peak t11 (median / max), the ±2σ coverage
 (truth within two stated standard errors, mass / velocity) and the number of refusals (IdentificationError) and
@@ -28,10 +30,12 @@ import numpy as np
 from impactometer.errors import IdentificationError
 from impactometer.identify.peak_to_peak import identify
 from impactometer.rig import get_rig
-from impactometer.sensors import record_batch
-from impactometer.studies.base import StudyOptions, scenario_grid
+from impactometer.studies.base import StudyOptions, case_seed, scenario_grid
+from impactometer.studies.identification import clean_recordings, with_noise
 
 NAMES = ("paper", "robust early", "robust")
+#: name of the per-case noise draws (the studies' seeding scheme)
+DRAW = "accuracy-peak-to-peak"
 
 
 def cases(values: int, subset: int | None) -> list[dict]:
@@ -46,10 +50,11 @@ def evaluate(task) -> tuple[tuple, list]:
     """One (stand, law, noise, seed) over the cases: rows (variant, dM, dV, after t11, available_at, in 2σ M,
     in 2σ V, equations)."""
     stand, law, noise, seed, grid, duration, pre_trigger, contact_phase = task
-    rig = get_rig(stand, contact=law)
-    m, v, p = (np.array([c[k] for c in grid]) for k in ("mass", "velocity", "pressure_gauge"))
-    recs = record_batch(m, v, p, rig, sample_rate=50e3, duration=duration, noise=noise, seed=1000 + seed,
-                        pre_trigger=pre_trigger)
+    options = StudyOptions(rig=get_rig(stand, contact=law), sample_rate=50e3, duration=duration,
+                           pre_trigger=pre_trigger)
+    levels = {"contact_force": noise, "piston_acceleration": noise}
+    recs = [with_noise(clean, levels, case_seed(options, DRAW, i, seed))
+            for i, clean in enumerate(clean_recordings(grid, options))]
     rows = []
     for rec in recs:
         mass, velocity = rec.truth("mass_kg"), rec.truth("velocity_m_s")

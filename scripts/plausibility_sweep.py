@@ -21,6 +21,7 @@ from impactometer.errors import ImpactometerError
 from impactometer.identify.peak_to_peak import identify
 from impactometer.rig import Scenario, get_rig
 from impactometer.sensors import record
+from impactometer.studies.base import PAPER_RANGES
 
 #: an answer within these relative errors of the truth is good (mass, velocity)
 GOOD = (0.05, 0.02)
@@ -39,7 +40,7 @@ def main(argv: list[str] | None = None) -> None:
         stand = stand.replace(**{"cylinder.piston_mass": float(rng.uniform(2, 10)),
                                  "friction.force": float(rng.uniform(0, 60))})
         scenario = Scenario(mass=float(rng.uniform(5, 80)), velocity=float(rng.uniform(0.5, 4)),
-                            pressure_gauge=float(rng.uniform(20e3, 400e3)))
+                            pressure_gauge=float(rng.uniform(*PAPER_RANGES["pressure_gauge"])))
         try:
             rec = record(scenario, stand, sample_rate=float(rng.choice([10e3, 20e3, 50e3, 100e3, 200e3])),
                          duration=0.1, noise=float(rng.choice([0, 0.005, 0.01, 0.02, 0.05])), seed=i,

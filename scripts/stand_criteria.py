@@ -24,11 +24,13 @@ from impactometer.errors import IdentificationError, SimulationError
 from impactometer.identify.peak_to_peak import identify
 from impactometer.identify.pulses import contact_pulses
 from impactometer.recording import inspect_recording
-from impactometer.sensors import record_batch
-from impactometer.studies.base import StudyOptions, scenario_grid
+from impactometer.studies.base import StudyOptions, case_seed, scenario_grid
+from impactometer.studies.identification import clean_recordings, with_noise
 
 DURATION = 0.5  # [s] simulated for the stage figures: past the deepest point in every case
 RATES = (50e3, 40e3, 20e3, 10e3)
+#: name of the per-case noise draws (the studies' seeding scheme)
+DRAW = "stand-criteria"
 
 
 def grid(rig, n: int = 5):
@@ -56,8 +58,15 @@ def stages(rig, m, v, p):
     return out
 
 
+def _cases(m, v, p) -> list[dict]:
+    return [{"mass": float(a), "velocity": float(b), "pressure_gauge": float(c)} for a, b, c in zip(m, v, p,
+                                                                                                   strict=True)]
+
+
 def paper_errors(rig, m, v, p, rate):
-    recs = record_batch(m, v, p, rig, sample_rate=rate, duration=0.05, noise=0.0, pre_trigger=0.02)
+    """Relative (mass, velocity) errors [-] of eqs. (3)-(5) per case on noise-free recordings at ``rate`` [Hz]."""
+    options = StudyOptions(rig=rig, sample_rate=rate, duration=0.05, pre_trigger=0.02)
+    recs = clean_recordings(_cases(m, v, p), options)
     errors = []
     for rec, mi, vi in zip(recs, m, v, strict=True):
         try:
@@ -70,8 +79,10 @@ def paper_errors(rig, m, v, p, rate):
 
 def stage_split(rig, m, v, p, truth, noise):
     """inspect's stage-B start minus the true one [s] per case (NaN where inspect reports none)."""
-    recs = record_batch(m, v, p, rig, sample_rate=50e3, duration=0.1, noise=noise, pre_trigger=0.02,
-                        seeds=range(len(m)))
+    options = StudyOptions(rig=rig, sample_rate=50e3, duration=0.1, pre_trigger=0.02)
+    levels = {"contact_force": noise, "piston_acceleration": noise}
+    recs = [with_noise(clean, levels, case_seed(options, DRAW, i))
+            for i, clean in enumerate(clean_recordings(_cases(m, v, p), options))]
     found = np.array([np.nan if (b := inspect_recording(r).stage_b_start) is None else b for r in recs])
     return found - truth
 

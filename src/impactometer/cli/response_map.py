@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+from rich.progress import Progress
 from rich.table import Table
 
 from ..errors import ParameterError
@@ -119,10 +120,16 @@ def build(
         if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
             print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
                   "pressure(s)) ...", file=sys.stderr, flush=True)
-        rmap = build_map_simulated(stand, pressures if len(pressures) > 1 else pressures[0], masses=masses,
-                                   velocities=velocities, features=features, feature_params=params,
-                                   sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
-                                   progress=console.is_terminal, device=device)
+        with Progress(console=console, transient=True, disable=not console.is_terminal) as bar:
+            task = bar.add_task("simulating the response map", total=None)
+
+            def progress(done: int, total: int) -> None:
+                bar.update(task, completed=done, total=total)
+
+            rmap = build_map_simulated(stand, pressures if len(pressures) > 1 else pressures[0], masses=masses,
+                                       velocities=velocities, features=features, feature_params=params,
+                                       sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
+                                       progress=progress, device=device)
     if refine_to is not None:
         rmap = refine(rmap, parse_grid(refine_to, "--refine"))
     save_map(rmap, out, overwrite=force)

@@ -13,6 +13,11 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 from ..errors import ParameterError
+from ..outputs import check_folder
+from ..rig import get_rig
+from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
+from ..studies.report import markdown, write_report
+from ..studies.runner import check_backend
 from .app import app, console, quantity
 
 
@@ -21,8 +26,6 @@ def _fraction(text: str, field: str) -> float:
 
 
 def _print_list() -> None:
-    from ..studies import STUDIES, load_studies
-
     load_studies()
     table = Table(title="studies")
     for column in ("name", "paper", "title", "settings (--set NAME.SETTING=JSON)", "status"):
@@ -95,26 +98,19 @@ def study(
                          "usable); local workers inherit it, Dask workers read IMPACTOMETER_DEVICE.")] = "cpu",
 ) -> None:
     """Run a study of the paper (or all of them): tables (CSV), figures (PNG) and DIR/index.html."""
-    from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
-
     if name == "list":
         _print_list()
         return
     if out is None:
         raise ParameterError("--out is required: the folder for the tables, figures and index.html")
-    from ..outputs import check_folder
-    from ..studies.runner import check_backend
-
     check_folder(out, "--out")
     check_backend(workers, scheduler)
     if name == "report":
-        from ..studies.report import markdown, write_report
-
         path = write_report(out, force=force)
         console.print(markdown(out), highlight=False, markup=False, soft_wrap=True)
         console.print(f"report written to {path}")
         return
-    from ..model.gpu import resolve_device, use_device
+    from ..model.gpu import resolve_device, use_device  # lazily: loads numba, which --help must not
 
     device = resolve_device(device)  # a bad or unusable device fails before any study starts
     load_studies()
@@ -126,8 +122,6 @@ def study(
     else:
         get_study(name)
         names = [name]
-    from ..rig import get_rig
-
     options = StudyOptions(rig=get_rig(rig, contact=contact), seed=seed, seeds=seeds, grid=grid,
                            noise=_fraction(noise, "--noise"),
                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),

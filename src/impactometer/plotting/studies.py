@@ -144,6 +144,7 @@ def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = T
     fig, axes = plt.subplots(1, len(panels), figsize=(5.0 * len(panels), 4.0), squeeze=False,
                              constrained_layout=True)
     keys = [k for k in ("search", "feature_set", "cases") if any(k in r for r in rows)]
+    keys += [k for k in ("noise", "size") if k != x and len({r.get(k) for r in rows}) > 1]  # e.g. Fig. 9 settings
     series = list(dict.fromkeys(tuple(r.get(k) for k in keys) for r in rows))
     styles = ["-", "--", ":", "-."]
     feature_sets = list(dict.fromkeys(r.get("feature_set") for r in rows))
@@ -162,6 +163,31 @@ def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = T
         ax.grid(alpha=0.3, which="both")
     figure_legend(fig, axes[0][-1])
     fig.suptitle(title)
+    return fig
+
+
+def plot_map_recordings(rows: Sequence[Row]):
+    """Map from noisy recordings: mean and max |mass| and |velocity| error [%] on held-back recordings, a group of
+    bars per feature set, one bar per search method."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), constrained_layout=True)
+    feature_sets = list(dict.fromkeys(r["feature_set"] for r in rows))
+    searches = _methods(rows, "search")
+    width = 0.8 / max(len(searches), 1)
+    for ax, quantity in zip(axes, ("mass", "velocity"), strict=True):
+        for k, search in enumerate(searches):
+            chosen = {r["feature_set"]: r for r in pick(rows, search=search)}
+            x = np.arange(len(feature_sets)) + (k - (len(searches) - 1) / 2) * width
+            mean = [100 * number(chosen[f][f"{quantity}_error_mean"]) if f in chosen else np.nan for f in feature_sets]
+            top = [100 * number(chosen[f][f"{quantity}_error_max"]) if f in chosen else np.nan for f in feature_sets]
+            ax.bar(x, mean, width, color=_color(search), label=f"{search} mean")
+            ax.scatter(x, top, marker="_", s=200, color="k", label="max" if k == 0 else None)
+        ax.set_xticks(np.arange(len(feature_sets)), feature_sets)
+        ax.set(ylabel=f"|{quantity} error| [%]", title=f"{quantity}, held-back recordings")
+        ax.set_yscale("log")
+        ax.grid(alpha=0.3, which="both", axis="y")
+    figure_legend(fig, axes[-1])
+    fig.suptitle("Response map from noisy calibration recordings")
     return fig
 
 

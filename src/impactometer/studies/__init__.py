@@ -1,30 +1,18 @@
 """The paper's numerical studies (Figs. 3-9 and the absorber), runnable locally or on a Dask cluster.
 
-Each study is registered in :data:`STUDIES`; ``get_study(name).run(options)`` returns its tidy table in this
-process, :func:`run_study` / :func:`run_studies` run it in parallel with persisted, resumable chunks and write the
-CSV tables, the figures and the ``index.html`` report.
+Each study is registered in :data:`STUDIES` (:mod:`.registry`); ``get_study(name).run(options)`` returns its tidy
+table in this process, :func:`run_study` / :func:`run_studies` run it in parallel with persisted, resumable chunks
+and write the CSV tables, the figures and the ``index.html`` report.
+
+Imports point one way: :mod:`.registry` <- :mod:`.base` <- the study modules and :mod:`.runner`
+(<- :mod:`.report`); this package only re-exports.
 """
 
 from __future__ import annotations
 
-import importlib
-
-from .base import PAPER_RANGES, STUDIES, Study, StudyOptions, get_study, register
+from .base import PAPER_RANGES, Study, StudyOptions
+from .registry import MODULES, STUDIES, get_study, load_studies, register
 from .runner import StudyRun, available_studies, run_studies, run_study
 
-#: study modules, in report order
-MODULES = ("cases", "parameters", "noise", "sampling", "response_map", "absorption", "valve_design", "peak_force")
-
-__all__ = ["PAPER_RANGES", "STUDIES", "Study", "StudyOptions", "StudyRun", "available_studies", "get_study",
-           "load_studies", "register", "run_studies", "run_study"]
-
-
-def load_studies() -> dict[str, Study]:
-    """Import every study module (each registers itself) and return the registry."""
-    for module in MODULES:
-        try:
-            importlib.import_module(f"{__name__}.{module}")
-        except ModuleNotFoundError as exc:
-            if not exc.name or not exc.name.startswith(f"{__name__}.{module}"):
-                raise
-    return STUDIES
+__all__ = ["MODULES", "PAPER_RANGES", "STUDIES", "Study", "StudyOptions", "StudyRun", "available_studies",
+           "get_study", "load_studies", "register", "run_studies", "run_study"]

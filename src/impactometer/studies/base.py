@@ -1,4 +1,4 @@
-"""What a study is: options, the registry, the case grid and per-case seeding.
+"""What a study is: options, settings, the case grid and per-case seeding (the registry is :mod:`.registry`).
 
 A study turns a list of *cases* (JSON-ready dicts, one unit of work each) into a tidy table (a list of flat dicts,
 one row per case and method). The runner splits the cases into fixed chunks, evaluates them anywhere (this process,
@@ -23,11 +23,20 @@ import numpy as np
 
 from ..errors import ParameterError, shown
 from ..rig import Rig, get_rig, to_dict
+from ..units import parse_quantity
+from ..validation import is_integer, is_real
+from .registry import STUDIES, get_study, load_studies, register
+
+__all__ = ["MAX_GRID", "MAX_SCENARIOS", "MAX_SEEDS", "PAPER_HEIGHTS", "PAPER_RANGES", "STUDIES", "Row", "Setting",
+           "Study", "StudyOptions", "case_seed", "check_params", "get_study", "grid_size", "hashed_seed",
+           "indexed_cases", "options_for", "paper_grid", "register", "relative_error", "scenario_grid"]
 
 Row = dict[str, Any]
 
 #: the paper's scenario ranges: M1 [kg], V0 [m/s], p0 [Pa gauge]
 PAPER_RANGES = MappingProxyType({"mass": (10.0, 50.0), "velocity": (1.0, 3.0), "pressure_gauge": (20e3, 400e3)})
+#: drop heights of the paper's response-map grid and random test impacts [m] (masses: ``PAPER_RANGES["mass"]``)
+PAPER_HEIGHTS = (0.05, 0.5)
 #: largest values per grid axis, noise realisations per case, and grid scenarios times realisations
 MAX_GRID, MAX_SEEDS, MAX_SCENARIOS = 40, 100, 200_000
 #: longest list a study setting may hold
@@ -67,13 +76,11 @@ class Setting:
                 raise ParameterError(f"--set {key} must be one of {list(self.choices)}, got {_short(value)}")
             return value
         integer = self.kind in ("integer", "integers")
-        if integer and (isinstance(value, bool) or not isinstance(value, int)):
+        if integer and not is_integer(value):
             raise ParameterError(f"--set {key} must be an integer, got {_short(value)}")
         if isinstance(value, (dict, list, type(None))) or (isinstance(value, str) and (self.dimension is None
                                                                                       or len(value) > 40)):
             raise ParameterError(f"--set {key} must be a number{_unit_hint(self.dimension)}, got {_short(value)}")
-        from ..units import parse_quantity
-
         number = parse_quantity(value, self.dimension or "number", field=f"--set {key}")
         below = self.low is not None and (number <= self.low if self.low_open else number < self.low)
         if below or (self.high is not None and number > self.high):
@@ -107,8 +114,6 @@ def check_params(params: Mapping[str, Any]) -> dict[str, Any]:
     """
     if not params:
         return {}
-    from . import load_studies
-
     load_studies()
     out = {}
     for key, value in params.items():
@@ -166,7 +171,7 @@ class StudyOptions:
             value = getattr(self, name)
             if name == "grid" and value is None:
                 continue
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not least <= value <= most:
+            if not is_integer(value) or not least <= value <= most:
                 raise ParameterError(f"{name} must be an integer within [{least}, {most}], got {shown(value)}")
         if (self.grid or 5) ** 3 * self.seeds > MAX_SCENARIOS:
             raise ParameterError(f"grid³ × seeds must be at most {MAX_SCENARIOS} scenarios, got "
@@ -174,8 +179,7 @@ class StudyOptions:
         for name, low, high in (("noise", 0.0, 1.0), ("sample_rate", 1e3, 1e7), ("duration", 1e-3, 1.0),
                                 ("pre_trigger", 0.0, 0.1)):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or not low <= value <= high:
+            if not is_real(value) or not math.isfinite(value) or not low <= value <= high:
                 raise ParameterError(f"{name} must be a number within [{low:g}, {high:g}], got {shown(value)}")
         if not isinstance(self.params, Mapping):
             raise ParameterError(f"params must be a mapping of setting -> value, got {self.params!r}")
@@ -262,23 +266,6 @@ class Study:
         return self.evaluate(indexed_cases(self, options), options)
 
 
-#: study name -> Study (filled by the study modules)
-STUDIES: dict[str, Study] = {}
-
-
-def register(study: Study) -> Study:
-    """Add ``study`` to :data:`STUDIES`."""
-    STUDIES[study.name] = study
-    return study
-
-
-def get_study(name: str) -> Study:
-    """The registered study ``name``; an unknown name raises with the list of valid names."""
-    if not isinstance(name, str) or name not in STUDIES:
-        raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {shown(name)}")
-    return STUDIES[name]
-
-
 def options_for(study: Study, options: StudyOptions) -> StudyOptions:
     """``options`` as ``study`` runs them: on the study's own stand when the options carry the default one."""
     if study.rig is None or not options.rig_is_default:
@@ -291,9 +278,15 @@ def indexed_cases(study: Study, options: StudyOptions) -> list[Row]:
     return [{"case": i, **case} for i, case in enumerate(study.cases(options))]
 
 
+def hashed_seed(root: int, name: str, *indices: int) -> np.random.SeedSequence:
+    """The studies' one seeding scheme: a seed that depends on the ``root`` seed, the ``name`` (a study, or a draw
+    every case of a study shares) and the ``indices`` only, never on chunking or workers."""
+    return np.random.SeedSequence(int(root), spawn_key=(zlib.crc32(name.encode()), *(int(i) for i in indices)))
+
+
 def case_seed(options: StudyOptions, study: str, case: int, *more: int) -> np.random.SeedSequence:
     """Seed of one case (and optional sub-draw): a function of the root seed, the study and the indices only."""
-    return np.random.SeedSequence(int(options.seed), spawn_key=(zlib.crc32(study.encode()), int(case), *more))
+    return hashed_seed(options.seed, study, case, *more)
 
 
 def grid_size(options: StudyOptions, default: int) -> int:
@@ -301,18 +294,39 @@ def grid_size(options: StudyOptions, default: int) -> int:
     return default if options.grid is None else int(options.grid)
 
 
-def scenario_grid(options: StudyOptions, default: int = 5, *, pressures=None) -> list[Row]:
-    """The M1 × V0 × p0 grid over the paper's ranges: ``options.grid`` (else ``default``) values per axis."""
-    n = grid_size(options, default)
+def paper_grid(n: int = 5, *, rig: Rig | None = None, pressures=None) -> list[Row]:
+    """The M1 × V0 × p0 grid over the paper's ranges, ``n`` values per axis (5: the paper's 125 cases).
+
+    Parameters
+    ----------
+    n : int
+        Values per axis.
+    rig : Rig, optional
+        The stand whose rated pressure [Pa gauge] bounds the pressures (default: the built-in stand).
+    pressures : sequence of float, optional
+        Charge pressures p0 [Pa gauge] instead of ``n`` values over the paper's range.
+
+    Returns
+    -------
+    list of dict
+        ``{"mass" [kg], "velocity" [m/s], "pressure_gauge" [Pa]}`` per case, mass-major, pressure fastest.
+    """
+    rig = get_rig() if rig is None else rig
     masses = np.linspace(*PAPER_RANGES["mass"], n)
     velocities = np.linspace(*PAPER_RANGES["velocity"], n)
     pressures = np.linspace(*PAPER_RANGES["pressure_gauge"], n) if pressures is None else np.asarray(pressures)
-    rated = options.rig.cylinder.rated_pressure_gauge
+    rated = rig.cylinder.rated_pressure_gauge
     if np.any(pressures > rated):
-        raise ParameterError(f"pressures must be <= the rated {rated:g} Pa of {options.rig.name!r}, "
+        raise ParameterError(f"pressures must be <= the rated {rated:g} Pa of {rig.name!r}, "
                              f"got {pressures.max():g}")
     return [{"mass": float(m), "velocity": float(v), "pressure_gauge": float(p)}
             for m in masses for v in velocities for p in pressures]
+
+
+def scenario_grid(options: StudyOptions, default: int = 5, *, pressures=None) -> list[Row]:
+    """The paper's grid (:func:`paper_grid`) on ``options.rig``: ``options.grid`` (else ``default``) values per
+    axis."""
+    return paper_grid(grid_size(options, default), rig=options.rig, pressures=pressures)
 
 
 def relative_error(estimate: float, truth: float) -> float:

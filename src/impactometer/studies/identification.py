@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import ImpactometerError
 from ..recording import Recording
+from ..sensors import apply_sensors, record_batch
 from .base import Row, StudyOptions, case_seed, relative_error
 from .tables import finite_values, group_stats, percent_labels, pick
 
@@ -26,8 +27,6 @@ METHODS = ("paper", "robust-early", "robust")
 def clean_recordings(cases: Sequence[Row], options: StudyOptions, *, sample_rate: float | None = None
                      ) -> list[Recording]:
     """Noise-free recordings of ``cases`` (mass, velocity, pressure_gauge) at ``sample_rate`` [Hz]."""
-    from ..sensors import record_batch
-
     return record_batch(np.array([c["mass"] for c in cases]), np.array([c["velocity"] for c in cases]),
                         np.array([c["pressure_gauge"] for c in cases]), options.rig,
                         sample_rate=options.sample_rate if sample_rate is None else sample_rate,
@@ -38,8 +37,6 @@ def with_noise(recording: Recording, noise: Mapping[str, float], seed) -> Record
     """``recording`` with Gaussian noise per channel (fractions of each channel's RMS after first contact)."""
     if not any(level > 0 for level in noise.values()):
         return recording
-    from ..sensors import apply_sensors
-
     return apply_sensors(recording, noise=dict(noise), seed=seed)
 
 
@@ -52,7 +49,7 @@ def _row(case: Row, method: str, mass: float, velocity: float, available_at: flo
 
 def identify_rows(recording: Recording, case: Row) -> list[Row]:
     """One row per compared answer (see :data:`METHODS`) for ``recording`` of the scenario ``case``."""
-    from ..identify.peak_to_peak import identify
+    from ..identify.peak_to_peak import identify  # lazily: one of REQUIRES, absent from some trees
 
     nan = math.nan
     rows = []

@@ -5,9 +5,12 @@
 - :func:`recordings_table` -- a map built from noisy calibration recordings identifies held-back recordings.
 
 Test impacts are simulated noise-free at the map's sample rate (``random``: seeded uniform masses 10-50 kg and drop
-heights 5-50 cm at 200 kPa, as in the paper; ``grid125``: 5 masses 10-50 kg × 5 velocities 1-3 m/s × 5 pressures
-20-400 kPa, identified with one map per pressure). Errors are relative to the truth; times are wall-clock per
-identification with the features already extracted.
+heights 5-50 cm at 200 kPa, as in the paper; ``grid125``: the paper's 125-case grid of
+:func:`~impactometer.studies.base.paper_grid`, identified with one map per pressure). Errors are relative to the
+truth; times are wall-clock per identification with the features already extracted.
+
+Random draws follow the studies' seeding scheme (:func:`~impactometer.studies.base.hashed_seed`): they depend on
+the root seed and the name of the draw only; the random test impacts are one draw, shared by Figs. 8 and 9.
 """
 
 from __future__ import annotations
@@ -27,40 +30,57 @@ from ..identify.response_map import (
     refine,
 )
 from ..identify.response_map.features import extract_batch, extract_features, recording_signal
+from ..model import simulate_batch
 from ..rig import Rig, get_rig
+from ..sensors import record_batch
+from .base import PAPER_HEIGHTS, PAPER_RANGES, hashed_seed, paper_grid
 
 #: database sizes of the paper's Fig. 8
 PAPER_SIZES = (10, 25, 50, 100, 250, 500, 1000, 2000, 2500, 3000)
 CASES = ("random", "grid125")
-#: the paper's base grid: masses 10-50 kg, drop heights 5-50 cm
-MASS_RANGE = (10.0, 50.0)
-HEIGHT_RANGE = (0.05, 0.5)
+#: name of the random test impacts' draw (one set, shared by Figs. 8 and 9)
+TEST_DRAW = "response-map/test-impacts"
+#: name of the draws of the map-from-recordings table
+RECORDINGS_DRAW = "map-recordings"
 
 
 def paper_axes(rig: Rig, n_m: int = 10, n_v: int = 10) -> tuple[np.ndarray, np.ndarray]:
     """Masses [kg] and velocities [m/s] (from uniform drop heights) of the paper's base grid."""
-    heights = np.linspace(*HEIGHT_RANGE, n_v)
-    return np.linspace(*MASS_RANGE, n_m), np.sqrt(2.0 * rig.gravity * heights)
+    heights = np.linspace(*PAPER_HEIGHTS, n_v)
+    return np.linspace(*PAPER_RANGES["mass"], n_m), np.sqrt(2.0 * rig.gravity * heights)
+
+
+def random_impacts(rig: Rig, n: int, seed) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` uniform masses [kg] and velocities [m/s] (from uniform drop heights) of the paper's ranges."""
+    rng = np.random.default_rng(seed)
+    masses = rng.uniform(*PAPER_RANGES["mass"], n)
+    return masses, np.sqrt(2.0 * rig.gravity * rng.uniform(*PAPER_HEIGHTS, n))
+
+
+def noise_seeds(seed: int, name: str, n: int) -> list[np.random.SeedSequence]:
+    """Per-recording noise seeds of draw ``name`` (index 1: the draw's recordings, one stream each)."""
+    return [hashed_seed(seed, name, 1, i) for i in range(n)]
 
 
 def test_impacts(cases: str, rig: Rig, *, n: int = 10, seed: int = 0,
                  pressure_gauge: float = 200e3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(masses [kg], velocities [m/s], pressures [Pa gauge]) of a named set of test impacts."""
+    """(masses [kg], velocities [m/s], pressures [Pa gauge]) of a named set of test impacts.
+
+    ``random``: ``n`` impacts at ``pressure_gauge`` [Pa], drawn from the root ``seed`` and :data:`TEST_DRAW`;
+    ``grid125``: the paper's 125-case grid.
+    """
     if cases == "random":
-        rng = np.random.default_rng(seed)
-        masses = rng.uniform(*MASS_RANGE, n)
-        velocities = np.sqrt(2.0 * rig.gravity * rng.uniform(*HEIGHT_RANGE, n))
+        masses, velocities = random_impacts(rig, n, hashed_seed(seed, TEST_DRAW, 0))
         return masses, velocities, np.full(n, float(pressure_gauge))
     if cases == "grid125":
-        p, m, v = np.meshgrid(np.linspace(20e3, 400e3, 5), np.linspace(10, 50, 5), np.linspace(1, 3, 5),
-                              indexing="ij")
-        return m.ravel(), v.ravel(), p.ravel()
+        grid = paper_grid(5, rig=rig)
+        m, v, p = (np.array([c[k] for c in grid]) for k in ("mass", "velocity", "pressure_gauge"))
+        return m, v, p
     raise ParameterError(f"cases must be one of {list(CASES)}, got {cases!r}")
 
 
 def _features_of(masses, velocities, pressure, rig, features, params, sample_rate) -> np.ndarray:
-    from ..model import simulate_batch
-
+    """Features of noise-free simulated impacts at one pressure [Pa gauge], one row per impact."""
     batch = simulate_batch(masses, velocities, pressure, rig, duration=0.08, sample_rate=sample_rate,
                            channels=("contact_force",))
     values, _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
@@ -156,10 +176,8 @@ def window_table(*, rig: Rig | str | None = None, windows: Sequence[float] = tup
     masses, velocities = paper_axes(rig, base_grid, base_grid)
     recordings = None
     if noise > 0:
-        from ..sensors import record_batch
-
         recordings = record_batch(m_true, v_true, p_true[0], rig, sample_rate=sample_rate, duration=0.08,
-                                  noise=noise, seed=seed + 1)
+                                  noise=noise, seeds=noise_seeds(seed, TEST_DRAW, m_true.size))
     rows = []
     for window in windows:
         params = {"window": float(window)}
@@ -190,18 +208,14 @@ def recordings_table(*, rig: Rig | str | None = None, grid: int = 10, map_grid: 
     inside the grid (other noise seeds). The map is interpolated to ``map_grid`` × ``map_grid``.
     Rows: feature_set, search, map_grid, n_cases, mass/velocity error mean and max [-], extrapolated.
     """
-    from ..sensors import record_batch
-
     rig = get_rig(rig)
     masses, velocities = paper_axes(rig, grid, grid)
     mm, vv = (a.ravel() for a in np.meshgrid(masses, velocities, indexing="ij"))
     calibration = record_batch(mm, vv, pressure_gauge, rig, sample_rate=sample_rate, duration=0.08, noise=noise,
-                               seed=seed)
-    rng = np.random.default_rng(seed + 1)
-    m_true = rng.uniform(*MASS_RANGE, n_held_back)
-    v_true = np.sqrt(2.0 * rig.gravity * rng.uniform(*HEIGHT_RANGE, n_held_back))
+                               seeds=[hashed_seed(seed, RECORDINGS_DRAW, 2, i) for i in range(mm.size)])
+    m_true, v_true = random_impacts(rig, n_held_back, hashed_seed(seed, RECORDINGS_DRAW, 0))
     held = record_batch(m_true, v_true, pressure_gauge, rig, sample_rate=sample_rate, duration=0.08, noise=noise,
-                        seed=seed + 2)
+                        seeds=noise_seeds(seed, RECORDINGS_DRAW, n_held_back))
     rows = []
     for features in feature_sets:
         params = {"window": window} if features == "max-impulse" else {}

@@ -9,7 +9,7 @@ from typing import Any
 
 from ..errors import ParameterError
 from . import store
-from .base import STUDIES
+from .registry import STUDIES, load_studies
 from .tables import columns, fmt
 
 #: marker of a report written by impactometer (an index.html without it is a user file)
@@ -63,8 +63,6 @@ def _table(rows: list[dict[str, Any]], *, limit: int = 200) -> str:
 
 def collect(out: str | Path) -> list[dict[str, Any]]:
     """Results of every study run found in ``out``, in registry order (unknown ones last)."""
-    from . import load_studies
-
     load_studies()
     out = Path(out)
     order = {name: i for i, name in enumerate(STUDIES)}

@@ -21,8 +21,11 @@ import numpy as np
 
 from ..errors import ImpactometerError, ParameterError, SimulationError
 from ..outputs import check_folder
+from ..validation import check_integer
 from . import store
-from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases, options_for
+from .base import Row, StudyOptions, indexed_cases, options_for
+from .registry import STUDIES, get_study, load_studies
+from .report import check_target, write_report
 from .tables import to_csv
 
 Task = tuple[int, list[Row]]
@@ -49,8 +52,6 @@ class StudyRun:
 
 def evaluate_chunk(name: str, cases: list[Row], options: StudyOptions) -> tuple[list[Row], float]:
     """Evaluate one chunk of study ``name`` (module-level, so process pools and Dask workers can call it)."""
-    from . import load_studies
-
     load_studies()
     start = time.perf_counter()
     try:
@@ -171,8 +172,8 @@ def check_backend(workers: int | None = None, scheduler: str | None = None) -> N
         if scheme not in SCHEDULER_SCHEMES or not host or not port.isdigit() or not 0 < int(port) < 65536:
             raise ParameterError(f"--scheduler must be an address like tcp://HOST:PORT (scheme "
                                  f"{', '.join(SCHEDULER_SCHEMES)}), got {scheduler!r}")
-    elif workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ParameterError(f"--workers must be an integer >= 1, got {workers!r}")
+    elif workers is not None:
+        check_integer("--workers", workers, low=1)
 
 
 def backend(workers: int | None = None, scheduler: str | None = None):
@@ -213,8 +214,6 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     -------
     StudyRun
     """
-    from . import load_studies
-
     load_studies()
     study = get_study(name)
     missing = study.missing()
@@ -280,8 +279,6 @@ def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | N
                 workers: int | None = None, scheduler: str | None = None, force: bool = False,
                 progress: Callable | None = None, report: bool = True) -> list[StudyRun]:
     """Run several studies with one executor, then write ``out/index.html`` (see :func:`run_study`)."""
-    from . import load_studies
-
     load_studies()
     names = list(names)
     for name in names:
@@ -289,8 +286,6 @@ def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | N
     check_folder(out, "--out")
     with store.locked(Path(out)):
         if report:
-            from .report import check_target
-
             check_target(out, force=force)
         executor = backend(workers, scheduler)
         try:
@@ -299,15 +294,11 @@ def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | N
         finally:
             executor.close()
         if report:
-            from .report import write_report
-
             write_report(out, force=force)
     return runs
 
 
 def available_studies() -> list[str]:
     """Registered studies whose dependencies are importable, in registry order."""
-    from . import load_studies
-
     load_studies()
     return [name for name, study in STUDIES.items() if not study.missing()]

@@ -7,7 +7,7 @@ and refined by interpolation (tensor-product cubic spline, not-a-knot) to any NÃ
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -205,7 +205,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
                         features: str = "max-impulse",
                         feature_params: Mapping[str, float] | None = None, sample_rate: float = 50e3,
                         duration: float | None = None, refine_to: int | tuple[int, int] | None = None,
-                        progress: bool = False, chunk_size: int | None = None,
+                        progress: Callable[[int, int], None] | None = None, chunk_size: int | None = None,
                         device: str | None = None) -> ResponseMap:
     """Response map by simulation of every grid node with the fast simulator (in parallel).
 
@@ -227,8 +227,9 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         Simulated time after first contact [s] (default: what the feature set needs).
     refine_to : int or (int, int), optional
         Interpolate the simulated grid to this size afterwards (see :func:`refine`).
-    progress : bool
-        Show a rich progress bar.
+    progress : callable, optional
+        ``progress(done, total)`` called with the simulated and the total number of grid nodes [-] before the first
+        batch and after each one (e.g. to drive a progress bar).
     chunk_size : int, optional
         Scenarios simulated per parallel batch (default 2000 on the CPU, 65536 on a GPU).
     device : {"cpu", "gpu", "auto"}, optional
@@ -260,16 +261,17 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
         chunk_size = GPU_CHUNK if device == "gpu" else CPU_CHUNK
     grid_p, grid_m, grid_v = (a.ravel() for a in np.meshgrid(pressures, masses, velocities, indexing="ij"))
     values = np.empty((grid_m.size, fs.size))
-    from rich.progress import Progress
-
-    with Progress(transient=True, disable=not progress) as bar:
-        task = bar.add_task("simulating the response map", total=grid_m.size)
-        for start in range(0, grid_m.size, max(1, int(chunk_size))):
-            part = slice(start, start + max(1, int(chunk_size)))
-            batch = simulate_batch(grid_m[part], grid_v[part], grid_p[part], rig, duration=duration,
-                                   sample_rate=sample_rate, channels=("contact_force",), device=device)
-            values[part], _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
-            bar.advance(task, part.stop - part.start)
+    if progress is not None and not callable(progress):
+        raise ParameterError(f"progress must be a callable progress(done, total) or None, got {progress!r}")
+    if progress is not None:
+        progress(0, grid_m.size)
+    for start in range(0, grid_m.size, max(1, int(chunk_size))):
+        part = slice(start, start + max(1, int(chunk_size)))
+        batch = simulate_batch(grid_m[part], grid_v[part], grid_p[part], rig, duration=duration,
+                               sample_rate=sample_rate, channels=("contact_force",), device=device)
+        values[part], _ = extract_batch(batch.time, batch.data["contact_force"], features, params)
+        if progress is not None:
+            progress(min(part.stop, grid_m.size), grid_m.size)
     bad = np.flatnonzero(~np.all(np.isfinite(values) & (values > 0), axis=1))
     if bad.size:
         i = int(bad[0])
