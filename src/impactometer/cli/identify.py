@@ -15,8 +15,7 @@ from ..errors import IdentificationError, ParameterError
 from .app import app, console, output_path, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 
-if TYPE_CHECKING:  # for annotations only: the identification modules are imported where they are used
-    from ..identify.response_map import MapIdentification
+if TYPE_CHECKING:  # for annotations only: the identification modules (numba) are imported where they are used
     from ..identify.result import Identification
 
 METHODS = ("peak-to-peak", "response-map")
@@ -87,7 +86,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError("--plot is available for --method peak-to-peak")
     output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
-    result: Identification | MapIdentification
+    result: Identification
     if method == "response-map":
         if map_path is None:
             raise ParameterError("--method response-map needs --map FILE "
@@ -108,7 +107,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     if plot is not None:
         from ..outputs import save_figure
 
-        save_figure(result.plot(rec), plot)  # type: ignore[union-attr]  # peak-to-peak: a map was refused above
+        save_figure(result.plot(rec), plot)
         if not as_json:
             console.print(f"figure written to {plot}")
 
