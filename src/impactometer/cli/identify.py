@@ -12,10 +12,12 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
+from ..outputs import save_figure
 from .app import app, console, output_path, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 
-if TYPE_CHECKING:  # for annotations only: the identification modules (numba) are imported where they are used
+# the identification modules load numba: they are imported where they are used, so that ``--help`` stays light
+if TYPE_CHECKING:
     from ..identify.result import Identification
 
 METHODS = ("peak-to-peak", "response-map")
@@ -105,8 +107,6 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
-        from ..outputs import save_figure
-
         save_figure(result.plot(rec), plot)
         if not as_json:
             console.print(f"figure written to {plot}")

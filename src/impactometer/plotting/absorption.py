@@ -9,6 +9,8 @@ import math
 
 import numpy as np
 
+from ..filters import cfc_filter
+
 #: line colour per strategy (and per oracle run)
 COLOURS = {"closed": "tab:gray", "constant": "tab:blue", "realtime": "tab:red", "predictive": "tab:purple",
            "auto": "tab:purple", "realtime (oracle)": "tab:orange", "predictive (oracle)": "tab:pink"}
@@ -33,8 +35,6 @@ def plot_absorption(result, ax=None):
 
     Returns the figure.
     """
-    from ..filters import cfc_filter
-
     plt = _pyplot()
     if ax is None:
         fig, axes = plt.subplots(2, 1, figsize=(9, 7), sharex=True, constrained_layout=True,

@@ -14,7 +14,7 @@ def plot_identification(result, recording=None, ax=None):
         The answer.
     recording : Recording, optional
         With it: contact force [kN] and piston acceleration [km/s²] vs time [ms], with the instants the answer used
-        (t00, t01, t11 and the onsets, peak-to-peak) and the time it was available marked. Without it: mass [kg] and
+        (peak-to-peak: t00, t01, t11 and the onsets) marked. Without it: mass [kg] and
         velocity [m/s] of the early and the final answer, with their standard errors, vs the time they were
         available [ms].
     ax : Axes or pair of Axes, optional
@@ -33,7 +33,8 @@ def plot_identification(result, recording=None, ax=None):
     else:
         _signals(axes, result, recording)
     legend_outside(axes[0])
-    axes[0].set_title(f"{result.method}: M1 = {result.mass:.3g} kg, V0 = {result.velocity:.4g} m/s "
+    name = result.method if recording is None else result.variant
+    axes[0].set_title(f"{name}: M1 = {result.mass:.3g} kg, V0 = {result.velocity:.4g} m/s "
                       f"(available at {result.available_at * 1e3:.2f} ms)")
     return fig
 
@@ -45,12 +46,11 @@ def _signals(axes, result, recording) -> None:
     axes[1].plot(t, recording.piston_acceleration / 1e3, color="tab:red", lw=0.8)
     axes[1].set_ylabel("piston acceleration [km/s²]")
     axes[1].set_xlabel("time [ms]")
-    marks = [("t00", result.t00, "tab:green", "--"), ("t01", result.t01, "tab:blue", "--"),
-             ("t11", result.t11, "tab:purple", "--"), ("available", result.available_at, "tab:gray", ":")]
-    for name, when, color, style in marks:
-        if math.isfinite(when):
+    for name, when, color in (("t00", result.t00, "tab:green"), ("t01", result.t01, "tab:blue"),
+                              ("t11", result.t11, "tab:purple")):
+        if math.isfinite(when):  # the peak-to-peak instants; other methods have none
             for a in axes:
-                a.axvline(when * 1e3, color=color, ls=style, lw=1, label=name if a is axes[0] else None)
+                a.axvline(when * 1e3, color=color, ls="--", lw=1, label=name if a is axes[0] else None)
     for k, onset in enumerate(result.onsets):
         axes[0].axvline(onset * 1e3, color="tab:orange", lw=0.6, alpha=0.7, label="onsets" if k == 0 else None)
 
