@@ -8,11 +8,11 @@ import pytest
 
 from impactometer.cli import main
 from impactometer.control import loop as control_loop
-from impactometer.control.identified import Identified
 from impactometer.control.loop import absorb
 from impactometer.control.reference import STROKE_TOLERANCE
 from impactometer.control.valve import Absorber
 from impactometer.errors import ParameterError
+from impactometer.identify.result import Identification
 from impactometer.rig import Scenario
 from impactometer.studies import StudyOptions, get_study, load_studies
 from impactometer.studies.base import options_for
@@ -70,8 +70,8 @@ def test_achievable_reference_is_a_level_program_that_stops_in_the_stroke(oracle
 
 def test_untrusted_identification_waits_for_the_stage_b_mass(monkeypatch):
     """An early answer with a huge standard error is not acted on; the stage-B estimate takes over."""
-    poor = Identified(method="robust", mass=6.7e8, velocity=0.69, mass_std=8e16, velocity_std=0.69,
-                      available_at=0.014)
+    poor = Identification(method="peak-to-peak/robust", mass=6.7e8, velocity=0.69, mass_std=8e16,
+                          velocity_std=0.69, available_at=0.014)
     monkeypatch.setattr(control_loop, "identify_impact", lambda *a, **k: poor)
     result = absorb(SCENARIO, strategy="predictive", noise=0.02)
     assert any("not trusted" in note for note in result.notes)
@@ -82,8 +82,8 @@ def test_untrusted_identification_waits_for_the_stage_b_mass(monkeypatch):
 
 
 def test_without_an_identification_the_force_strategies_wait_for_stage_b(monkeypatch):
-    failed = Identified(method="robust", mass=math.nan, velocity=math.nan, available_at=math.inf,
-                        error="fewer pulses than needed")
+    failed = Identification(method="peak-to-peak/robust", mass=math.nan, velocity=math.nan, available_at=math.inf,
+                            error="fewer pulses than needed")
     monkeypatch.setattr(control_loop, "identify_impact", lambda *a, **k: failed)
     result = absorb(SCENARIO, strategy=["closed", "constant", "predictive"], noise=0.02)
     assert any("identification failed" in note for note in result.notes)
@@ -180,7 +180,8 @@ def test_loop_with_a_response_map():
     scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3)
     result = absorb(scenario, "drop-stand", strategy="predictive", identification="response-map",
                     response_map=rmap, duration=0.1)
-    assert result.identified.method == "response-map" and result.identified.error is None
+    assert result.identified.method == "response-map/fast" and result.identified.error is None
+    assert result.identification == "response-map" and result.to_dict()["identification"]["method"] == "response-map"
     # the map identifies the impact to a few percent at 2 % noise, within the first pulses
     assert result.identified.mass == pytest.approx(30.0, rel=0.05)
     assert result.identified.velocity == pytest.approx(2.0, rel=0.02)

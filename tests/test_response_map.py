@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from impactometer import simulate_batch
 from impactometer.errors import ParameterError, ResponseMapError
 from impactometer.identify.response_map import (
-    MapIdentification,
+    Identification,
     ResponseMap,
     build_map_simulated,
     identify_features,
@@ -178,7 +178,7 @@ def test_round_trip_identification_of_simulated_impacts(features):
 
 def test_identification_result_reports_the_shared_keys():
     result = identify_features(polynomial_features(30, 2), polynomial_map())
-    assert isinstance(result, MapIdentification)
+    assert isinstance(result, Identification)
     data = result.to_dict()
     for key in ("mass_kg", "velocity_m_s", "energy_J", "available_at_s", "method", "search", "residual",
                 "features", "mass_std_kg", "velocity_std_m_s"):

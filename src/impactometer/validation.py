@@ -58,3 +58,15 @@ def check_integer(name: str, value: Any, *, low: int | None = None, high: int | 
     if high is not None and value > high:
         raise error(f"{name} must be an integer <= {high}{unit}, got {int(value)!r}")
     return int(value)
+
+
+def is_finite(value: Any) -> bool:
+    """True for a finite real number (Python or numpy scalar), False for NaN, an infinity, a bool or anything
+    else."""
+    return is_real(value) and math.isfinite(value)
+
+
+def finite_or_none(value: Any) -> float | None:
+    """``value`` as a float where it is a finite real number, else None: the JSON form of a number that may be
+    unknown (NaN, an infinity, None)."""
+    return float(value) if is_finite(value) else None

@@ -12,11 +12,12 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
+from ..outputs import save_figure
 from .app import app, console, output_path, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 
-if TYPE_CHECKING:  # for annotations only: the identification modules are imported where they are used
-    from ..identify.response_map import MapIdentification
+# the identification modules load numba: they are imported where they are used, so that ``--help`` stays light
+if TYPE_CHECKING:
     from ..identify.result import Identification
 
 METHODS = ("peak-to-peak", "response-map")
@@ -87,7 +88,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError("--plot is available for --method peak-to-peak")
     output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
-    result: Identification | MapIdentification
+    result: Identification
     if method == "response-map":
         if map_path is None:
             raise ParameterError("--method response-map needs --map FILE "
@@ -106,9 +107,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
-        from ..outputs import save_figure
-
-        save_figure(result.plot(rec), plot)  # type: ignore[union-attr]  # peak-to-peak: a map was refused above
+        save_figure(result.plot(rec), plot)
         if not as_json:
             console.print(f"figure written to {plot}")
 

@@ -8,17 +8,16 @@ by :func:`impactometer.sensors.record`, anti-alias filter and noise included).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from dataclasses import replace
+from typing import Any
 
 from ..errors import IdentificationError, ParameterError
 from ..identify.peak_to_peak.streaming import StreamingIdentifier
+from ..identify.response_map import identify_recording
+from ..identify.result import Identification
 from ..rig import Rig, Scenario
 from ..sensors import record
-
-if TYPE_CHECKING:  # for annotations only: the map module is imported where it is used
-    from ..identify.response_map import MapIdentification
-    from ..identify.result import Identification
+from ..validation import finite_or_none
 
 #: length of the closed-valve record given to the identification [s], and the quiet record before first contact
 #: [s] (a streaming DAQ has it; the identification takes the offsets and the noise level from its last ~1000
@@ -32,57 +31,71 @@ STREAM_CHUNK = 16
 MASS_TRUST, VELOCITY_TRUST = 1.0, 0.5
 
 
-@dataclass(frozen=True, kw_only=True)
-class Identified:
-    """What the loop acted on: M1 [kg], V0 [m/s], their standard errors, when they were known [s], by which method
-    (and why it failed). ``usable_mass`` / ``usable_velocity`` are what the controller takes: NaN where the
-    estimate is not trustworthy (the controller then waits for its stage-B estimate)."""
+def usable_mass(found: Identification) -> float:
+    """The mass the controller takes [kg]: the identified mass if finite, positive and with a standard error below
+    ``MASS_TRUST`` of it, else NaN (the controller then waits for its stage-B estimate)."""
+    ok = math.isfinite(found.mass) and found.mass > 0.0 and not found.mass_std >= MASS_TRUST * found.mass
+    return found.mass if ok else math.nan
 
-    method: str
-    mass: float
-    velocity: float
-    available_at: float
-    mass_std: float = math.nan
-    velocity_std: float = math.nan
-    error: str | None = None
 
-    @property
-    def usable_mass(self) -> float:
-        """The mass if finite, positive and with a standard error below ``MASS_TRUST`` of it, else NaN [kg]."""
-        ok = math.isfinite(self.mass) and self.mass > 0.0 and not self.mass_std >= MASS_TRUST * self.mass
-        return self.mass if ok else math.nan
+def usable_velocity(found: Identification) -> float:
+    """The velocity the controller takes [m/s]: the identified velocity if finite, positive and with a standard
+    error below ``VELOCITY_TRUST`` of it, else NaN."""
+    ok = math.isfinite(found.velocity) and found.velocity > 0.0 \
+        and not found.velocity_std >= VELOCITY_TRUST * found.velocity
+    return found.velocity if ok else math.nan
 
-    @property
-    def usable_velocity(self) -> float:
-        """The velocity if finite, positive and with a standard error below ``VELOCITY_TRUST`` of it, else NaN
-        [m/s]."""
-        ok = math.isfinite(self.velocity) and self.velocity > 0.0 \
-            and not self.velocity_std >= VELOCITY_TRUST * self.velocity
-        return self.velocity if ok else math.nan
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping (NaN -> None)."""
-        def num(x):
-            return None if x is None or not math.isfinite(x) else float(x)
+def loop_method(found: Identification) -> str:
+    """The loop's name of the identification (its ``identification`` option): the peak-to-peak variant
+    (``robust``, ``paper``) or the method's family (``response-map``, ``oracle``)."""
+    return found.variant if found.family == "peak-to-peak" else found.family
 
-        return {"method": self.method, "mass_kg": num(self.mass), "velocity_m_s": num(self.velocity),
-                "mass_std_kg": num(self.mass_std), "velocity_std_m_s": num(self.velocity_std),
-                "available_at_s": num(self.available_at), "error": self.error}
+
+def loop_summary(found: Identification) -> dict[str, Any]:
+    """JSON-ready summary of what the loop acted on: ``method`` (:func:`loop_method`), ``mass_kg``,
+    ``velocity_m_s``, their standard errors, ``available_at_s`` (None when unknown) and ``error``."""
+    return {"method": loop_method(found), "mass_kg": finite_or_none(found.mass),
+            "velocity_m_s": finite_or_none(found.velocity), "mass_std_kg": finite_or_none(found.mass_std),
+            "velocity_std_m_s": finite_or_none(found.velocity_std),
+            "available_at_s": finite_or_none(found.available_at), "error": found.error}
 
 
 def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, seed: int,
-                    sample_rate: float, response_map=None) -> Identified:
-    """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would: the record streams
-    through :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdentifier` and the first estimate (the early
-    answer, at the end of the second contact pulse) is taken when it arrives. A response map is applied to the
-    whole record and reports its own ``available_at``. A failed identification is returned with ``error`` set."""
+                    sample_rate: float, response_map=None) -> Identification:
+    """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would.
+
+    The record streams through :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdentifier` and the
+    first estimate (the early answer, at the end of the second contact pulse) is taken when it arrives. A response
+    map is applied to the whole record and reports its own ``available_at``.
+
+    Parameters
+    ----------
+    scenario, rig : Scenario, Rig
+        The impact and the stand.
+    method : {"robust", "paper", "response-map"}
+        The loop's identification.
+    noise : float
+        Relative sensor noise [-].
+    seed : int
+        Seed of the noise.
+    sample_rate : float
+        [Hz].
+    response_map : ResponseMap or path, optional
+        The map for ``method="response-map"``.
+
+    Returns
+    -------
+    Identification
+        ``available_at`` [s] not before 0; a failed identification with NaN mass and velocity, ``available_at``
+        inf and ``error`` set.
+    """
     rec = record(scenario, rig, sample_rate=sample_rate, duration=IDENTIFICATION_WINDOW, noise=noise, seed=seed,
                  pre_trigger=PRE_TRIGGER)
-    found: Identification | MapIdentification | None
+    name = "response-map/fast" if method == "response-map" else f"peak-to-peak/{method}"
+    found: Identification | None
     try:
         if method == "response-map":
-            from ..identify.response_map import identify_recording
-
             if response_map is None:
                 raise ParameterError("identification 'response-map' needs response_map= (a map or its file)")
             found = identify_recording(rec, response_map)
@@ -100,11 +113,7 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
                 raise IdentificationError(f"no estimate within the first {IDENTIFICATION_WINDOW * 1e3:g} ms "
                                           "of the impact")
     except IdentificationError as exc:
-        return Identified(method=method, mass=math.nan, velocity=math.nan, available_at=math.inf, error=str(exc))
-    std = tuple(math.nan if x is None else float(x) for x in (found.mass_std, found.velocity_std))
+        return Identification(method=name, mass=math.nan, velocity=math.nan, available_at=math.inf, error=str(exc))
     if not math.isfinite(found.available_at):
-        return Identified(method=method, mass=float(found.mass), velocity=float(found.velocity),
-                          available_at=math.inf, mass_std=std[0], velocity_std=std[1],
-                          error="identification gave no time of availability")
-    return Identified(method=method, mass=float(found.mass), velocity=float(found.velocity),
-                      available_at=max(float(found.available_at), 0.0), mass_std=std[0], velocity_std=std[1])
+        return replace(found, available_at=math.inf, error="identification gave no time of availability")
+    return replace(found, available_at=max(float(found.available_at), 0.0))

@@ -21,10 +21,19 @@ import numpy as np
 
 from ..errors import ParameterError, shown
 from ..identify.pulses import contact_pulses
+from ..identify.result import Identification
 from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
+from ..validation import check_integer, check_real, finite_or_none
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
-from .identified import IDENTIFICATION_WINDOW, Identified, identify_impact
+from .identified import (
+    IDENTIFICATION_WINDOW,
+    identify_impact,
+    loop_method,
+    loop_summary,
+    usable_mass,
+    usable_velocity,
+)
 from .metrics import AbsorptionMetrics, absorption_metrics
 from .reference import AchievableReference, achievable_reference
 from .strategies import ControlContext, get_strategy, strategy_names
@@ -60,7 +69,7 @@ class AbsorptionResult:
     scenario: Scenario
     rig: Rig
     absorber: Absorber
-    identified: Identified
+    identified: Identification
     runs: dict[str, StrategyRun]
     bound: EfficiencyBound
     over_capacity: bool
@@ -68,6 +77,12 @@ class AbsorptionResult:
     reference: AchievableReference | None = None
     notes: tuple[str, ...] = ()
     extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def identification(self) -> str:
+        """The loop's name of the identification it acted on: ``robust``, ``paper``, ``response-map`` or
+        ``oracle``."""
+        return loop_method(self.identified)
 
     @property
     def metrics(self) -> dict[str, AbsorptionMetrics]:
@@ -84,17 +99,19 @@ class AbsorptionResult:
             mass = run.controller.get("estimated_mass")
             if mass is not None and np.any(np.isfinite(mass)):
                 last = int(np.flatnonzero(np.isfinite(mass))[-1])
-                strategies[name]["estimated_mass_kg"] = _num(float(mass[last]))
-                strategies[name]["estimated_mass_std_kg"] = _num(float(run.controller["estimated_mass_std"][last]))
+                strategies[name]["estimated_mass_kg"] = finite_or_none(float(mass[last]))
+                std = float(run.controller["estimated_mass_std"][last])
+                strategies[name]["estimated_mass_std_kg"] = finite_or_none(std)
         reference = self.reference
         return {"mass_kg": self.scenario.mass, "velocity_m_s": self.scenario.velocity,
-                "pressure_gauge_Pa": self.scenario.pressure_gauge, "identification": self.identified.to_dict(),
+                "pressure_gauge_Pa": self.scenario.pressure_gauge, "identification": loop_summary(self.identified),
                 "rig": self.rig.name, "usable_stroke_m": self.absorber.usable_stroke(self.rig),
-                "achievable_force_ratio": None if reference is None else _num(reference.force_ratio),
-                "achievable_level_N": None if reference is None else _num(reference.level),
-                "efficiency_max": _num(self.bound.efficiency), "bound_force_N": _num(self.bound.level),
-                "first_collision_peak_N": _num(self.bound.first_collision_peak),
-                "efficiency_first_collision": _num(self.bound.efficiency_first_collision),
+                "achievable_force_ratio": None if reference is None else finite_or_none(reference.force_ratio),
+                "achievable_level_N": None if reference is None else finite_or_none(reference.level),
+                "efficiency_max": finite_or_none(self.bound.efficiency),
+                "bound_force_N": finite_or_none(self.bound.level),
+                "first_collision_peak_N": finite_or_none(self.bound.first_collision_peak),
+                "efficiency_first_collision": finite_or_none(self.bound.efficiency_first_collision),
                 "over_capacity": self.over_capacity, "notes": list(self.notes), "strategies": strategies}
 
     def plot(self, ax=None):
@@ -108,10 +125,6 @@ def _knew(history: dict[str, np.ndarray], result) -> float:
     """First sample [s] at which a controller knew both M1 and v1 (``inf`` if never)."""
     known = np.isfinite(history["estimated_mass"]) & np.isfinite(history["estimated_velocity"])
     return float(result.time[np.argmax(known)]) if known.any() else math.inf
-
-
-def _num(x: float) -> float | None:
-    return None if x is None or not math.isfinite(x) else float(x)
 
 
 def default_duration(scenario: Scenario, usable_stroke: float) -> float:
@@ -134,17 +147,14 @@ def sensor_noise(closed_result, noise: float, seed: int) -> tuple[np.ndarray, np
 def _check(scenario, noise, seed, identification, absorber, control_start) -> None:
     if not isinstance(scenario, Scenario):
         raise ParameterError(f"scenario must be a Scenario, got {scenario!r}")
-    if isinstance(noise, bool) or not isinstance(noise, (int, float)) or not 0.0 <= noise <= 1.0:
-        raise ParameterError(f"noise must be a fraction within [0, 1] of each channel's RMS, got {shown(noise)}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ParameterError(f"seed must be an integer >= 0, got {shown(seed)}")
+    check_real("noise", noise, low=0.0, high=1.0, unit=" (a fraction of each channel's RMS)")
+    check_integer("seed", seed, low=0)
     if not isinstance(identification, str) or identification not in IDENTIFICATIONS:
         raise ParameterError(f"identification must be one of {list(IDENTIFICATIONS)}, got {shown(identification)}")
     if not isinstance(absorber, Absorber):
         raise ParameterError(f"absorber must be an Absorber, got {absorber!r}")
-    if control_start is not None and (isinstance(control_start, bool) or not isinstance(control_start, (int, float))
-                                      or not math.isfinite(control_start) or control_start < 0):
-        raise ParameterError(f"control_start must be a finite time >= 0 [s] or None, got {shown(control_start)}")
+    if control_start is not None:
+        check_real("control_start", control_start, low=0.0, unit=" [s] or None")
 
 
 def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | list[str] = "all",
@@ -204,8 +214,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
             at, error = (pulses[1].start, None) if len(pulses) > 1 else (math.inf, "a single contact pulse")
         else:
             at, error = float(control_start), None
-        found = Identified(method="oracle", mass=scenario.mass, velocity=scenario.velocity, mass_std=0.0,
-                           velocity_std=0.0, available_at=at, error=error)
+        found = Identification(method="oracle", mass=scenario.mass, velocity=scenario.velocity, mass_std=0.0,
+                               velocity_std=0.0, available_at=at, error=error)
     else:
         found = identify_impact(scenario, rig, method=identification, noise=noise, seed=seed,
                                 sample_rate=sample_rate, response_map=response_map)
@@ -215,7 +225,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     if found.error is not None:
         notes.append(f"identification failed ({found.error}): the force strategies act on their own stage-B "
                      f"estimates, the others keep the valve closed")
-    elif not math.isfinite(found.usable_mass) or not math.isfinite(found.usable_velocity):
+    elif not math.isfinite(usable_mass(found)) or not math.isfinite(usable_velocity(found)):
         notes.append(f"identified M1 = {found.mass:.3g} ± {found.mass_std:.2g} kg, V0 = {found.velocity:.3g} ± "
                      f"{found.velocity_std:.2g} m/s not trusted: the controller waits for its stage-B estimate")
     required = (0.5 * scenario.mass * scenario.velocity ** 2 + scenario.mass * rig.gravity * usable) / usable
@@ -226,8 +236,9 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                      f"is shown")
     start = found.available_at if found.error is None else math.inf
     noise_matrix, sigma = sensor_noise(closed, noise, seed)
-    context = ControlContext(rig=rig, absorber=absorber, mass=found.usable_mass, velocity=found.usable_velocity,
-                             mass_std=found.mass_std if math.isfinite(found.usable_mass)
+    trusted_mass = usable_mass(found)
+    context = ControlContext(rig=rig, absorber=absorber, mass=trusted_mass, velocity=usable_velocity(found),
+                             mass_std=found.mass_std if math.isfinite(trusted_mass)
                              and not math.isnan(found.mass_std) else math.inf,
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
                              sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),

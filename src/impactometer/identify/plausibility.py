@@ -28,13 +28,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import replace
 
 import numpy as np
 
 from ..constants import STANDARD_GRAVITY
-from ..errors import IdentificationError, ParameterError, shown
+from ..errors import IdentificationError, ParameterError
 from ..stands import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
+from ..validation import check_real
 
 #: the recorded impulse (energy) may exceed what the answer allows by this factor before a warning (noise,
 #: offsets, the piston's gas and friction forces)
@@ -96,52 +96,6 @@ def check_clipping(seg) -> None:
                                   "clipped, its range must be raised")
 
 
-def answer_warnings(seg, result, gravity: float) -> tuple[str, ...]:
-    """What makes a peak-to-peak ``result`` implausible for the signals of its segment (:func:`check_answer`)."""
-    details = result.details
-    fitted = _agnostic(details)  # the agnostic equations' χ² measures the fit to noise
-    chi2 = details["chi2"] / details["dof"] if fitted and details.get("dof") else None
-    found = check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
-                         onset=(result.t00 - seg.start_time) * seg.sample_rate,
-                         pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
-                         noise_force=seg.noise_force, acceleration=seg.acceleration,
-                         noise_acceleration=seg.noise_acceleration, reduced_chi2=chi2, mass_std=result.mass_std,
-                         velocity_std=result.velocity_std)
-    if chi2 is not None and chi2 > SLIP_CHI2:
-        found += _unit_slip(seg, result, gravity, chi2)
-    return found
-
-
-def _agnostic(details: dict) -> bool:
-    """Whether an answer came from the agnostic equations (onsets, turning points, separations), whose χ² measures
-    the fit to the noise, rather than from the contact-phase fit."""
-    used = details.get("equations") or {}
-    return details.get("stage") == "final" and "contact_phase" not in used and used.get("onsets", 0) >= 1
-
-
-def _unit_slip(seg, result, gravity: float, chi2: float) -> tuple[str, ...]:
-    """An acceleration unit slip the signals recognise: the onset equations, which hold gravity as a known term,
-    fit the noise far better with the acceleration rescaled by the slip's factor, to a plausible answer."""
-    from .peak_to_peak import solve_robust
-
-    for factor, text in VELOCITY_SLIPS.items():
-        scaled = replace(seg, acceleration=seg.acceleration / factor, noise_acceleration=seg.noise_acceleration
-                         / factor)
-        try:
-            other = solve_robust(scaled, gravity)
-        except IdentificationError:
-            continue
-        rows = other.details
-        if not _agnostic(rows) or not rows.get("dof"):
-            continue
-        better = chi2 / max(rows["chi2"] / rows["dof"], 1.0)
-        if better >= SLIP_GAIN and not check_answer(other.mass, other.velocity):
-            return (f"the onset equations fit the noise {math.sqrt(better):.3g} times better with the acceleration "
-                    f"multiplied by {1 / factor:.6g}: {text} would give this answer; read so, M1 = "
-                    f"{other.mass:.4g} kg and V0 = {other.velocity:.4g} m/s",)
-    return ()
-
-
 def _slip(value: float, low: float, high: float, slips: dict[float, str]) -> str:
     found = [f"{text} (×{factor:g})" for factor, text in slips.items() if low <= value / factor <= high]
     return f"; {' or '.join(found)} would give this" if found else ""
@@ -181,10 +135,8 @@ def check_answer(mass: float, velocity: float, *, force: np.ndarray | None = Non
     mass_std, velocity_std : float, optional
         Standard errors [kg], [m/s].
     """
-    for name, value in (("mass", mass), ("velocity", velocity)):
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                or not math.isfinite(value):
-            raise ParameterError(f"{name} must be a finite number, got {shown(value)}")
+    mass = check_real("mass", mass, error=ParameterError)
+    velocity = check_real("velocity", velocity, error=ParameterError)
     out: list[str] = []
     low_v, high_v = VELOCITY_RANGE
     if not low_v <= velocity <= high_v:

@@ -1,50 +1,96 @@
-"""The result of a peak-to-peak identification: mass, velocity, energy, standard errors and when they were known."""
+"""The result of an identification, whatever the method: mass, velocity, energy, their standard errors, when the
+answer was known, the early answer, warnings and the method's own details.
+
+Every method returns an :class:`Identification`: the peak-to-peak method (``peak-to-peak/robust``,
+``peak-to-peak/paper``, batch or streaming), the response map (``response-map/fast``, ``response-map/brute``), and
+the closed loop's oracle (``oracle``), which knows the true impact.
+
+Unknown numbers are NaN (a standard error the method does not give, a time never reached); :meth:`to_dict` gives
+them as None, ready for JSON.
+"""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-#: names of the identification variants
+from ..validation import finite_or_none
+
+#: names of the peak-to-peak variants
 VARIANTS = ("robust", "paper")
+#: method-specific details reported by :meth:`Identification.to_dict`: detail name -> JSON key, in order
+REPORTED_DETAILS = {"t00": "t00_s", "t01": "t01_s", "t11": "t11_s", "onsets": "onsets_s", "stage": "stage",
+                    "equations": "equations", "caution": "caution", "residual": "residual", "features": "features",
+                    "feature_set": "feature_set", "pressure_gauge": "pressure_gauge_Pa",
+                    "extrapolated": "extrapolated"}
+#: JSON key of the part of the method's name after its family: the peak-to-peak variant, the map's search
+VARIANT_KEYS = {"peak-to-peak": "variant", "response-map": "search"}
 
 
 @dataclass(frozen=True, kw_only=True)
 class Identification:
-    """Identified impact: mass M1 [kg], velocity V0 [m/s] at first contact, and their standard errors.
+    """An identified impact: mass M1 [kg] and velocity V0 [m/s] at first contact, with their standard errors.
 
     Attributes
     ----------
-    mass : Impacting mass M1 [kg].
-    velocity : Impact velocity V0 at first contact [m/s].
-    mass_std, velocity_std : Standard errors [kg], [m/s] (NaN when the variant gives none, e.g. ``paper``).
-    available_at : Time at which the data used had all arrived [s] (same clock as the recording).
-    t00, t01, t11 : First contact and the force peaks of the first two pulses [s] (the paper's instants).
-    method : ``"peak-to-peak"``.
-    variant : ``"robust"`` or ``"paper"``.
-    early : The early answer (from the data up to the second pulse), or None.
-    onsets : Contact onsets found [s] (robust variant): t00 and the onset of every later pulse.
-    details : Diagnostics: ``stage`` (``early`` or ``final``), ``equations`` (what the answer used: counts of
-        onsets, force extrema, of them in stage B, separations and the stage-B samples, the contact-phase fit's
-        samples where one was used, and the fitted nuisances), chi-square and degrees of freedom, noise levels.
-    warnings : Sentences on what makes the answer implausible (see :mod:`.plausibility`); empty when nothing does.
+    mass : float
+        Impacting mass M1 [kg] (NaN: no answer, see ``error``).
+    velocity : float
+        Impact velocity V0 at first contact [m/s] (NaN: no answer).
+    available_at : float
+        Time at which the data used had all arrived [s], same clock as the recording (``inf``: never).
+    method : str
+        ``family/variant``: ``peak-to-peak/robust``, ``peak-to-peak/paper``, ``response-map/fast``,
+        ``response-map/brute``; or ``oracle`` (the true impact, in the closed loop).
+    mass_std, velocity_std : float
+        Standard errors [kg], [m/s]; NaN when the method gives none (``peak-to-peak/paper``, the response map).
+    early : Identification or None
+        The early answer (peak-to-peak robust: from the data up to the second pulse), or None.
+    warnings : tuple of str
+        Sentences on what makes the answer implausible (:mod:`.plausibility`); empty when nothing does.
+    details : mapping
+        The method's own diagnostics. Peak-to-peak: ``t00``, ``t01``, ``t11`` (first contact and the force peaks
+        of the first two pulses [s]), ``onsets`` (contact onsets [s], robust), ``stage`` (``early`` or
+        ``final``), ``equations`` (what the answer used), ``chi2``, ``dof``, noise levels, ``caution``. Response
+        map: ``residual`` (eq. (7) [-]), ``features``, ``feature_set``, ``pressure_gauge`` [Pa gauge],
+        ``extrapolated``.
+    error : str or None
+        Why there is no answer (or why it never became available), where a caller keeps a failed identification
+        (the closed loop); None for an answer.
     """
 
     mass: float
     velocity: float
+    available_at: float
+    method: str
     mass_std: float = math.nan
     velocity_std: float = math.nan
-    available_at: float
-    t00: float
-    t01: float
-    t11: float
-    method: str = "peak-to-peak"
-    variant: str = "robust"
     early: Identification | None = None
-    onsets: tuple[float, ...] = ()
-    details: dict[str, Any] = field(default_factory=dict)
     warnings: tuple[str, ...] = ()
+    details: Mapping[str, Any] = field(default_factory=dict)
+    error: str | None = None
+
+    @classmethod
+    def _make(cls, **values: Any) -> Identification:
+        """Build without the dataclass ``__init__`` (the response map's fast search costs less than setting each
+        frozen field); every field not given takes its default."""
+        obj = cls.__new__(cls)
+        obj.__dict__.update({"mass_std": math.nan, "velocity_std": math.nan, "early": None, "warnings": (),
+                             "details": {}, "error": None, **values})
+        return obj
+
+    @property
+    def family(self) -> str:
+        """The method's family: ``peak-to-peak``, ``response-map`` or ``oracle``."""
+        return self.method.partition("/")[0]
+
+    @property
+    def variant(self) -> str:
+        """The method's name after its family: the peak-to-peak variant (``robust``, ``paper``) or the map's
+        search (``fast``, ``brute``); empty for the oracle."""
+        return self.method.partition("/")[2]
 
     @property
     def energy(self) -> float:
@@ -53,37 +99,75 @@ class Identification:
 
     @property
     def energy_std(self) -> float:
-        """Standard error of the energy [J], first order, mass and velocity errors taken as independent."""
+        """Standard error of the energy [J], first order, mass and velocity errors taken as independent (NaN
+        when a standard error is unknown)."""
         return math.hypot(0.5 * self.velocity ** 2 * self.mass_std, self.mass * self.velocity * self.velocity_std)
 
+    @property
+    def t00(self) -> float:
+        """First contact [s] (peak-to-peak; NaN for other methods)."""
+        return self.details.get("t00", math.nan)
+
+    @property
+    def t01(self) -> float:
+        """Force peak of the first pulse [s] (peak-to-peak; NaN for other methods)."""
+        return self.details.get("t01", math.nan)
+
+    @property
+    def t11(self) -> float:
+        """Force peak of the second pulse [s] (peak-to-peak; NaN for other methods)."""
+        return self.details.get("t11", math.nan)
+
+    @property
+    def onsets(self) -> tuple[float, ...]:
+        """Contact onsets found [s]: t00 and the onset of every later pulse (peak-to-peak robust; else empty)."""
+        return tuple(self.details.get("onsets", ()))
+
+    @property
+    def residual(self) -> float:
+        """Eq. (7) at the answer [-] (response map; NaN for other methods)."""
+        return self.details.get("residual", math.nan)
+
+    @property
+    def extrapolated(self) -> bool:
+        """Whether the answer lies outside the response map (False for other methods)."""
+        return bool(self.details.get("extrapolated", False))
+
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping with the CLI keys (``mass_kg``, ``velocity_m_s``, ... , ``early``); NaN -> None."""
-        def num(x: float) -> float | None:
-            return None if x is None or not math.isfinite(x) else float(x)
+        """JSON-ready mapping: ``mass_kg``, ``velocity_m_s``, ``energy_J``, their standard errors, ``available_at_s``,
+        ``method`` (the family), ``variant`` (peak-to-peak) or ``search`` (response map), ``early``, ``warnings``,
+        ``error``, and the reported details (:data:`REPORTED_DETAILS`); unknown numbers as None."""
+        out: dict[str, Any] = {
+            "mass_kg": finite_or_none(self.mass), "velocity_m_s": finite_or_none(self.velocity),
+            "energy_J": finite_or_none(self.energy), "mass_std_kg": finite_or_none(self.mass_std),
+            "velocity_std_m_s": finite_or_none(self.velocity_std), "energy_std_J": finite_or_none(self.energy_std),
+            "available_at_s": finite_or_none(self.available_at), "method": self.family}
+        if self.family in VARIANT_KEYS:
+            out[VARIANT_KEYS[self.family]] = self.variant
+        out["early"] = None if self.early is None else self.early.to_dict()
+        out["warnings"] = list(self.warnings)
+        out["error"] = self.error
+        for name, key in REPORTED_DETAILS.items():
+            value = self.details.get(name)
+            if value is not None and not (isinstance(value, (str, Mapping)) and not value):
+                out[key] = plain(value)
+        return out
 
-        return {"mass_kg": num(self.mass), "velocity_m_s": num(self.velocity), "energy_J": num(self.energy),
-                "mass_std_kg": num(self.mass_std), "velocity_std_m_s": num(self.velocity_std),
-                "energy_std_J": num(self.energy_std), "available_at_s": num(self.available_at),
-                "t00_s": num(self.t00), "t01_s": num(self.t01), "t11_s": num(self.t11),
-                "method": self.method, "variant": self.variant,
-                "early": None if self.early is None else self.early.to_dict(),
-                "onsets_s": [float(t) for t in self.onsets], "warnings": list(self.warnings),
-                **({"stage": self.details["stage"]} if self.details.get("stage") else {}),
-                **({"equations": _plain(self.details["equations"])} if self.details.get("equations") else {}),
-                **({"caution": self.details["caution"]} if self.details.get("caution") else {})}
-
-    def plot(self, recording, ax=None):
-        """Force and acceleration with the instants used marked (matplotlib imported lazily)."""
+    def plot(self, recording=None, ax=None):
+        """Figure of the answer (:func:`impactometer.plotting.identification.plot_identification`; matplotlib
+        imported lazily): with a recording, its force and acceleration with the instants used marked; without,
+        mass and velocity (early and final answer) against the time they were known."""
         from ..plotting.identification import plot_identification
-        return plot_identification(recording, self, ax=ax)
+
+        return plot_identification(self, recording, ax=ax)
 
 
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
     """JSON-ready copy of nested details: numpy numbers as Python numbers, non-finite numbers as None."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, Mapping):
+        return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     if isinstance(value, (bool, str)) or value is None:
         return value
     try:

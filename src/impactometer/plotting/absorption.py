@@ -57,8 +57,8 @@ def plot_absorption(result, ax=None):
     axes[0].set_xlim(0.0, 1.1 * deepest * 1e3 if deepest > 0.0 else None)
     axes[0].set_ylabel("contact force [kN]")
     ident = result.identified
-    how = "oracle" if ident.method == "oracle" else f"identified ({ident.method}): M1 = {ident.mass:.3g} kg, " \
-                                                      f"V0 = {ident.velocity:.3g} m/s"
+    how = "oracle" if ident.method == "oracle" else f"identified ({result.identification}): " \
+                                                      f"M1 = {ident.mass:.3g} kg, V0 = {ident.velocity:.3g} m/s"
     axes[0].set_title(f"{result.rig.name}: M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, "
                       f"p0 = {s.pressure_gauge / 1e3:g} kPa\n{how}", fontsize=10)
     legend_outside(axes[0])

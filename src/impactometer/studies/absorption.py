@@ -18,6 +18,7 @@ import numpy as np
 from ..control import absorb
 from ..control.strategies import ALL as ALL_STRATEGIES
 from ..rig import ABSORPTION_RIG, Scenario
+from ..validation import finite_or_none
 from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 from .tables import finite_values, flag, number
 
@@ -71,16 +72,17 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
             rows.append({**base, "strategy": label or name, "identification": summary["identification"]["method"],
                          **ident_columns, **{k: metrics.get(k) for k in METRICS},
                          "estimated_mass_kg": metrics.get("estimated_mass_kg"),
-                         "achievable_force_ratio": None if reference is None else _num(reference.force_ratio),
+                         "achievable_force_ratio": None if reference is None else finite_or_none(reference.force_ratio),
                          "over_capacity": summary["over_capacity"]})
     if reference is not None:
         rows.append({**base, "strategy": REFERENCE, "identification": "oracle", **ident_columns,
-                     **dict.fromkeys(METRICS), "control_start_s": _num(found.control_start),
+                     **dict.fromkeys(METRICS), "control_start_s": finite_or_none(found.control_start),
                      "stage_b": math.isfinite(reference.force_ratio),
-                     "stage_b_force_ratio": _num(reference.force_ratio),
-                     "stage_b_efficiency": _num(reference.efficiency), "stroke_used_m": _num(reference.stroke_used),
-                     "reference_level_N": _num(reference.level), "estimated_mass_kg": None,
-                     "achievable_force_ratio": _num(reference.force_ratio), "over_capacity": None})
+                     "stage_b_force_ratio": finite_or_none(reference.force_ratio),
+                     "stage_b_efficiency": finite_or_none(reference.efficiency),
+                     "stroke_used_m": finite_or_none(reference.stroke_used),
+                     "reference_level_N": finite_or_none(reference.level), "estimated_mass_kg": None,
+                     "achievable_force_ratio": finite_or_none(reference.force_ratio), "over_capacity": None})
     return rows
 
 
@@ -88,9 +90,6 @@ def _median(rows: list[Row], column: str) -> float:
     values = finite_values([r for r in rows if flag(r.get("stage_b"))], column)
     return float(np.median(values)) if values.size else math.nan
 
-
-def _num(x: float) -> float | None:
-    return None if x is None or not math.isfinite(x) else float(x)
 
 
 def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:

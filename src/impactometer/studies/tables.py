@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from ..validation import is_finite
+
 Row = dict[str, Any]
 
 
@@ -59,10 +61,10 @@ def group_stats(rows: Iterable[Row], by: Sequence[str], values: Sequence[str], *
     for key, members in groups.items():
         entry: Row = dict(zip(by, key, strict=False))
         entry["n"] = len(members)
-        failed = [r for r in members if any(not _finite(r.get(v)) for v in values)]
+        failed = [r for r in members if any(not is_finite(r.get(v)) for v in values)]
         entry["failed"] = len(failed)
         for v in values:
-            data = np.array([abs(float(r[v])) for r in members if _finite(r.get(v))])
+            data = np.array([abs(float(r[v])) for r in members if is_finite(r.get(v))])
             entry[f"mean_abs_{v}"] = float(np.mean(data)) * scale if data.size else math.nan
             entry[f"max_abs_{v}"] = float(np.max(data)) * scale if data.size else math.nan
         out.append(entry)
@@ -77,10 +79,6 @@ def percent_labels(rows: Iterable[Row]) -> list[Row]:
                 return f"{stat} |{key[len(stat) + 5:].replace('_', ' ')}| [%]"
         return key
     return [{label(k): v for k, v in row.items()} for row in rows]
-
-
-def _finite(value: Any) -> bool:
-    return isinstance(value, (int, float, np.floating, np.integer)) and math.isfinite(float(value))
 
 
 def fmt(value: Any) -> str:
@@ -102,7 +100,7 @@ def pick(rows: Iterable[Row], **equal: Any) -> list[Row]:
 
 def finite_values(rows: Iterable[Row], column: str) -> np.ndarray:
     """Finite values of ``column`` as an array."""
-    return np.array([float(r[column]) for r in rows if _finite(r.get(column))])
+    return np.array([float(r[column]) for r in rows if is_finite(r.get(column))])
 
 
 def flag(value: Any) -> bool:

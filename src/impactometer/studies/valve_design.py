@@ -17,6 +17,7 @@ import numpy as np
 from ..control import Absorber, ValveDrive, absorb
 from ..control.valve import iso6358_valve
 from ..rig import ABSORPTION_RIG, Scenario
+from ..validation import finite_or_none
 from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 from .tables import finite_values, flag
 
@@ -65,15 +66,12 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
                      "velocity_m_s": scenario.velocity, "pressure_gauge_Pa": scenario.pressure_gauge,
                      "effective_area_mm2": case["effective_area_mm2"], "response_time_ms": case["response_time_ms"],
                      "dead_time_ms": dead * 1e3, "sonic_conductance_m3_sPa": rig.valve.sonic_conductance,
-                     "strategy": strategy, "identification": result.identified.method, "stage_b": m.stage_b,
-                     "stage_b_force_ratio": _num(m.stage_b_force_ratio),
-                     "stage_b_efficiency": _num(m.stage_b_efficiency), "bottomed_out": m.bottomed_out,
-                     "rebound_m": _num(m.rebound), "control_start_s": _num(m.control_start)})
+                     "strategy": strategy, "identification": result.identification, "stage_b": m.stage_b,
+                     "stage_b_force_ratio": finite_or_none(m.stage_b_force_ratio),
+                     "stage_b_efficiency": finite_or_none(m.stage_b_efficiency), "bottomed_out": m.bottomed_out,
+                     "rebound_m": finite_or_none(m.rebound), "control_start_s": finite_or_none(m.control_start)})
     return rows
 
-
-def _num(x: float) -> float | None:
-    return None if not math.isfinite(x) else float(x)
 
 
 def _valves(rows: list[Row]) -> list[Row]:

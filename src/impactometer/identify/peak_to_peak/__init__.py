@@ -12,18 +12,20 @@ onset, every separation and the stage-B samples of the record. Each answer state
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ...constants import STANDARD_GRAVITY
-from ...errors import IdentificationError, RecordingError, shown
-from ...recording import START_TIME_LIMIT, Recording
-from ..plausibility import answer_warnings, check_segment
+from ...errors import IdentificationError, RecordingError
+from ...recording import Recording
+from ..plausibility import SLIP_CHI2, SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
 from ..pulses import detection_levels, first_peak, sustained_index
 from ..result import Identification
 from .early import solve_early
+from .options import check_options, check_unfiltered
 from .robust import Equations, Kinematics, combine, solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
@@ -61,7 +63,7 @@ def solve(seg: Segment, variant: str, gravity: float, *, early: Identification |
 
     The segment passes :func:`.plausibility.check_segment` first, so the batch and the streaming identification,
     their early and final answers, refuse the same data; the answer carries the warnings of
-    :func:`.plausibility.answer_warnings`.
+    :func:`answer_warnings`.
     """
     check_segment(seg)
     if variant == "robust":
@@ -71,18 +73,49 @@ def solve(seg: Segment, variant: str, gravity: float, *, early: Identification |
     return replace(result, warnings=answer_warnings(seg, result, gravity))
 
 
-def check_options(variant: Any, gravity: Any, start_time: Any, *,
-                  error: type[Exception] = IdentificationError) -> tuple[str, float, float]:
-    """The options the batch and the streaming identification share, checked: variant, gravity [m/s²] within
-    [0, 100], start time [s]; ``error`` naming the option otherwise."""
-    if not isinstance(variant, str) or variant not in VARIANT_SOLVERS:
-        raise error(f"variant must be one of {sorted(VARIANT_SOLVERS)}, got {shown(variant)}")
-    for name, value, low, high, unit in (("gravity", gravity, 0.0, 100.0, "m/s²"),
-                                         ("start_time", start_time, -START_TIME_LIMIT, START_TIME_LIMIT, "s")):
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-                or not low <= value <= high:
-            raise error(f"{name} must be a number within [{low:g}, {high:g}] [{unit}], got {shown(value)}")
-    return variant, float(gravity), float(start_time)
+def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tuple[str, ...]:
+    """What makes a peak-to-peak ``result`` implausible for the signals of its segment
+    (:func:`.plausibility.check_answer`, and an acceleration unit slip the signals recognise)."""
+    details = result.details
+    fitted = _agnostic(details)  # the agnostic equations' χ² measures the fit to noise
+    chi2 = details["chi2"] / details["dof"] if fitted and details.get("dof") else None
+    found = check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
+                         onset=(result.t00 - seg.start_time) * seg.sample_rate,
+                         pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
+                         noise_force=seg.noise_force, acceleration=seg.acceleration,
+                         noise_acceleration=seg.noise_acceleration, reduced_chi2=chi2, mass_std=result.mass_std,
+                         velocity_std=result.velocity_std)
+    if chi2 is not None and chi2 > SLIP_CHI2:
+        found += _unit_slip(seg, gravity, chi2)
+    return found
+
+
+def _agnostic(details: Mapping[str, Any]) -> bool:
+    """Whether an answer came from the agnostic equations (onsets, turning points, separations), whose χ² measures
+    the fit to the noise, rather than from the contact-phase fit."""
+    used = details.get("equations") or {}
+    return details.get("stage") == "final" and "contact_phase" not in used and used.get("onsets", 0) >= 1
+
+
+def _unit_slip(seg: Segment, gravity: float, chi2: float) -> tuple[str, ...]:
+    """An acceleration unit slip the signals recognise: the onset equations, which hold gravity as a known term,
+    fit the noise far better with the acceleration rescaled by the slip's factor, to a plausible answer."""
+    for factor, text in VELOCITY_SLIPS.items():
+        scaled = replace(seg, acceleration=seg.acceleration / factor, noise_acceleration=seg.noise_acceleration
+                         / factor)
+        try:
+            other = solve_robust(scaled, gravity)
+        except IdentificationError:
+            continue
+        rows = other.details
+        if not _agnostic(rows) or not rows.get("dof"):
+            continue
+        better = chi2 / max(rows["chi2"] / rows["dof"], 1.0)
+        if better >= SLIP_GAIN and not check_answer(other.mass, other.velocity):
+            return (f"the onset equations fit the noise {math.sqrt(better):.3g} times better with the acceleration "
+                    f"multiplied by {1 / factor:.6g}: {text} would give this answer; read so, M1 = "
+                    f"{other.mass:.4g} kg and V0 = {other.velocity:.4g} m/s",)
+    return ()
 
 
 def _need_pulses(seg: Segment, needed: int, what: str) -> None:
@@ -107,8 +140,6 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     """
     peak2 = second_peak(seg)
     if peak2 is None:
-        peak2 = second_peak(seg)
-    if peak2 is None:
         _need_pulses(seg, 2, "the paper variant")
         raise IdentificationError("the paper variant needs the second force peak: the second pulse has not yet "
                                   "fallen from a maximum")
@@ -124,13 +155,14 @@ def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
     mass = -impulse / denominator
     velocity = va[0] + jf[0] / mass - gravity * tau[0]
     _check_velocity(velocity, "the paper's eqs. (3)-(5)")
-    details: dict[str, Any] = {"noise_force_N": seg.noise_force, "noise_acceleration_m_s2": seg.noise_acceleration}
+    details: dict[str, Any] = {"t00": seg.time_of(t00), "t01": seg.time_of(p1.peak), "t11": seg.time_of(peak2),
+                               "onsets": (), "noise_force_N": seg.noise_force,
+                               "noise_acceleration_m_s2": seg.noise_acceleration}
     caution = paper_caution(seg)
     if caution:
         details["caution"] = caution
     return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(peak2),
-                          t00=seg.time_of(t00), t01=seg.time_of(p1.peak), t11=seg.time_of(peak2),
-                          variant="paper", details=details)
+                          method="peak-to-peak/paper", details=details)
 
 
 def _check_velocity(velocity: float, source: str) -> None:
@@ -263,10 +295,12 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
                                   "more of the record is needed")
     return Identification(
         mass=1.0 / w, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
-        velocity_std=float(np.sqrt(cov[0, 0])), early=early, t00=seg.time_of(t00),
-        t01=seg.time_of(seg.pulses[0].peak), t11=seg.time_of(second_peak(seg) or second.peak), variant="robust",
-        onsets=tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), available_at=seg.time_of(last),
-        details={"stage": stage, "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
+        velocity_std=float(np.sqrt(cov[0, 0])), early=early, available_at=seg.time_of(last),
+        method="peak-to-peak/robust",
+        details={"t00": seg.time_of(t00), "t01": seg.time_of(seg.pulses[0].peak),
+                 "t11": seg.time_of(second_peak(seg) or second.peak),
+                 "onsets": tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), "stage": stage,
+                 "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
                  "noise_acceleration_m_s2": seg.noise_acceleration, "pre_trigger_samples": seg.pre_samples})
 
 
@@ -331,27 +365,6 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     if variant == "robust":
         early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
     return solve(seg, variant, gravity, early=early, contact_phase=contact_phase)
-
-
-def check_unfiltered(recording: Recording, variant: str) -> None:
-    """IdentificationError when the robust variant is asked to identify channels the recording says were
-    CFC-filtered (``metadata['cfc']``, as :func:`~impactometer.filters.filter_recording` notes it).
-
-    A zero-phase low-pass filter spreads each contact onset ahead of the contact and colours the noise: the
-    robust variant's onset times, noise model and standard errors would all be wrong (answers off by several
-    standard errors, or absurd). It identifies the unfiltered channels instead; the paper variant, which reads
-    peaks, accepts filtered ones.
-    """
-    filtered = recording.metadata.get("cfc")
-    if variant != "robust" or not isinstance(filtered, dict):
-        return
-    named = {name: cfc for name, cfc in filtered.items() if name in ("contact_force", "piston_acceleration")}
-    if named:
-        listed = ", ".join(f"{name} (CFC {cfc})" for name, cfc in named.items())
-        raise IdentificationError(f"{recording.source}: {listed} filtered; the robust identification needs the "
-                                  "unfiltered channels (a zero-phase filter moves the contact onsets ahead of the "
-                                  "contact and colours the noise, so its answers and standard errors would be "
-                                  "wrong) -- identify without --cfc, or use --variant paper")
 
 
 def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY,

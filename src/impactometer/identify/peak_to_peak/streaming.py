@@ -9,13 +9,13 @@ duration) the identifier re-arms for the next one.
 from __future__ import annotations
 
 import contextlib
-import math
 
 import numpy as np
 from numba import njit
 
-from ...errors import IdentificationError, ParameterError, shown
+from ...errors import IdentificationError, ParameterError
 from ...recording import check_sample_rate
+from ...validation import check_integer, check_real
 from .. import peak_to_peak as p2p
 from .. import trigger
 from ..result import Identification
@@ -70,10 +70,9 @@ class StreamingIdentifier:
                  start_time: float = 0.0, floor: float = p2p.TRIGGER_FLOOR, contact_phase: bool = False):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
         variant, gravity, start_time = p2p.check_options(variant, gravity, start_time, error=ParameterError)
-        if isinstance(floor, bool) or not isinstance(floor, (int, float)) or not 0.0 <= floor < math.inf:
-            raise ParameterError(f"floor must be a finite number >= 0 [N], got {shown(floor)}")
+        floor = check_real("floor", floor, low=0.0, unit=" [N]", error=ParameterError)
         self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, gravity
-        self.start_time, self.floor = start_time, float(floor)
+        self.start_time, self.floor = start_time, floor
         self.contact_phase = bool(contact_phase)
         self.quiet = max(int(p2p.QUIET_TIME * sample_rate), 1)
         self.max_samples = max(int(p2p.MAX_DURATION * sample_rate), 1)
@@ -235,8 +234,7 @@ class StreamingIdentifier:
 def stream_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64, **options) -> list[Identification]:
     """Replay arrays through a :class:`StreamingIdentifier` in chunks; every estimate in order of availability,
     the final answer that the end of the data completes included."""
-    if not isinstance(chunk, int) or chunk < 1:
-        raise ParameterError(f"chunk must be an integer >= 1 [samples], got {chunk!r}")
+    chunk = check_integer("chunk", chunk, low=1, unit=" [samples]", error=ParameterError)
     ident = StreamingIdentifier(sample_rate, **options)
     out = []
     for k in range(0, len(force), chunk):

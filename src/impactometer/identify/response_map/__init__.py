@@ -13,16 +13,17 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from ...errors import ParameterError, ResponseMapError, shown
 from ...recording import Recording, inspect_recording
 from ...rig import check_recorded_on
+from ...validation import check_real, is_real
 from ..plausibility import check_answer
+from ..result import Identification
 from .build import (
     PRESSURE_TOLERANCE,
     ResponseMap,
@@ -34,67 +35,13 @@ from .features import FEATURE_SETS, extract_features, recording_signal
 from .search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
 from .store import load_map, save_map
 
-__all__ = ["FEATURE_SETS", "MapIdentification", "ResponseMap", "build_map_from_recordings", "build_map_simulated",
+__all__ = ["FEATURE_SETS", "Identification", "ResponseMap", "build_map_from_recordings", "build_map_simulated",
            "identify_features", "identify_recording", "load_map", "refine", "save_map"]
 
 #: eq. (7) residual above which the features are said to fit nowhere in the map (≈ 7 % feature mismatch)
 MISFIT_RESIDUAL = 0.01
 #: eq. (7) residual of the best fit inside the map up to which no fit outside it is sought (≈ 0.7 % mismatch)
 INSIDE_RESIDUAL = 1e-4
-
-
-@dataclass(frozen=True, kw_only=True)
-class MapIdentification:
-    """Result of a response-map identification.
-
-    Attributes
-    ----------
-    mass : Identified impacting mass M1 [kg].
-    velocity : Identified impact velocity V0 [m/s].
-    residual : Value of eq. (7) at the answer [-].
-    available_at : When the features were complete, after first contact [s] (NaN when unknown).
-    search : ``fast`` or ``brute``.
-    features : Feature name -> measured value.
-    feature_set : Feature-set name.
-    pressure_gauge : Charge pressure the map was read at [Pa gauge].
-    extrapolated : The answer lies outside the map (only with ``allow_extrapolation``).
-    mass_std, velocity_std : Standard uncertainties [kg], [m/s]; None (not estimated).
-    warnings : Sentences on what makes the answer implausible (see :mod:`.plausibility`).
-    """
-
-    mass: float
-    velocity: float
-    residual: float
-    available_at: float
-    search: str
-    features: dict[str, float]
-    feature_set: str
-    pressure_gauge: float
-    extrapolated: bool = False
-    mass_std: float | None = None
-    velocity_std: float | None = None
-    warnings: tuple[str, ...] = ()
-
-    @classmethod
-    def _make(cls, **values: Any) -> MapIdentification:
-        """Build without the dataclass ``__init__`` (each frozen-field assignment costs more than the search)."""
-        obj = cls.__new__(cls)
-        obj.__dict__.update(mass_std=None, velocity_std=None, warnings=(), **values)
-        return obj
-
-    @property
-    def energy(self) -> float:
-        """Impact energy M1·V0²/2 [J]."""
-        return 0.5 * self.mass * self.velocity ** 2
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready summary (the keys shared with the peak-to-peak identification, plus ``residual``)."""
-        return {"mass_kg": self.mass, "velocity_m_s": self.velocity, "energy_J": self.energy,
-                "available_at_s": None if math.isnan(self.available_at) else self.available_at,
-                "method": "response-map", "search": self.search, "residual": self.residual,
-                "features": dict(self.features), "feature_set": self.feature_set,
-                "pressure_gauge_Pa": self.pressure_gauge, "extrapolated": self.extrapolated,
-                "mass_std_kg": self.mass_std, "velocity_std_m_s": self.velocity_std, "warnings": list(self.warnings)}
 
 
 def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapolation: bool) -> float:
@@ -104,10 +51,7 @@ def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapo
             raise ResponseMapError(f"the map has a pressure axis ({axis[0] / 1e3:g}-{axis[-1] / 1e3:g} kPa); give "
                                    "the measured charge pressure (metadata pressure_gauge_Pa)")
         return float(axis[0])
-    if isinstance(pressure_gauge, bool) or not isinstance(pressure_gauge, (int, float)) \
-            or not math.isfinite(pressure_gauge):
-        raise ParameterError(f"pressure_gauge must be a finite number [Pa], got {shown(pressure_gauge)}")
-    p = float(pressure_gauge)
+    p = check_real("pressure_gauge", pressure_gauge, unit=" [Pa]")
     lo, hi = axis[0], axis[-1]
     tol = max(PRESSURE_TOLERANCE[0], PRESSURE_TOLERANCE[1] * hi)
     if lo - tol <= p <= hi + tol:
@@ -123,7 +67,7 @@ def _pressure_for(rmap: ResponseMap, pressure_gauge: float | None, allow_extrapo
 
 
 def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pressure_gauge: float | None = None,
-                      allow_extrapolation: bool = False, available_at: float | None = None) -> MapIdentification:
+                      allow_extrapolation: bool = False, available_at: float | None = None) -> Identification:
     """Mass and velocity whose map features best match ``features`` (eq. (7) of the paper).
 
     Parameters
@@ -143,7 +87,10 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
 
     Returns
     -------
-    MapIdentification
+    Identification
+        Method ``response-map/fast`` or ``response-map/brute``; no standard errors (NaN); details ``residual``
+        (eq. (7) at the answer [-]), ``features`` (name -> measured value), ``feature_set``, ``pressure_gauge`` (the
+        pressure the map was read at [Pa gauge]) and ``extrapolated`` (the answer lies outside the map).
 
     Notes
     -----
@@ -176,15 +123,13 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         mass, velocity, residual, _, _ = brute_search(rmap, y, p)  # python floats, like fast_search
     if available_at is None:
         available_at = rmap.feature_params.get("window", math.nan)
-    elif isinstance(available_at, bool) or not isinstance(available_at, (int, float)) or math.isinf(available_at):
-        raise ParameterError(f"available_at must be a time [s] or None, got {shown(available_at)}")
-    found = MapIdentification._make(mass=mass, velocity=velocity, residual=residual, available_at=float(available_at),
-                                    search=search, features=dict(zip(labels, y.tolist(), strict=False)),
-                                    feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
-    ranges = check_answer(mass, velocity)
-    if ranges:
-        object.__setattr__(found, "warnings", ranges)
-    return found
+    elif not (is_real(available_at) and math.isnan(available_at)):  # NaN: not known
+        available_at = check_real("available_at", available_at, unit=" [s] or None")
+    details = {"residual": residual, "features": dict(zip(labels, y.tolist(), strict=False)),
+               "feature_set": rmap.feature_set, "pressure_gauge": p, "extrapolated": outside}
+    return Identification._make(mass=mass, velocity=velocity, available_at=float(available_at),
+                                method=f"response-map/{search}", details=details,
+                                warnings=check_answer(mass, velocity))
 
 
 def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:
@@ -225,7 +170,7 @@ def check_recording(recording: Recording, rmap: ResponseMap) -> None:
 
 
 def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Path, *, search: str = "fast",
-                       allow_extrapolation: bool = False) -> MapIdentification:
+                       allow_extrapolation: bool = False) -> Identification:
     """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
 
     The recording must have the map's sample rate, contact law and stand (when its metadata states them: the
@@ -242,8 +187,7 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
     delay = recording.time[0] - time[0]  # the filter delay: the features are complete that much later
     found = identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
                               allow_extrapolation=allow_extrapolation, available_at=available + delay)
-    object.__setattr__(found, "warnings", force_plausibility(recording, found.mass, found.velocity, rmap.stand.gravity))
-    return found
+    return replace(found, warnings=force_plausibility(recording, found.mass, found.velocity, rmap.stand.gravity))
 
 
 def force_plausibility(recording: Recording, mass: float, velocity: float, gravity: float) -> tuple[str, ...]:

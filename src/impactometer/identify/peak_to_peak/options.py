@@ -1,0 +1,59 @@
+"""What the batch and the streaming peak-to-peak identification check before they start: the options they share,
+and that the robust variant is not given filtered channels."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from ...errors import IdentificationError, shown
+from ...recording import START_TIME_LIMIT, Recording
+from ...validation import check_real
+from ..result import VARIANTS
+
+
+def check_options(variant: Any, gravity: Any, start_time: Any, *,
+                  error: type[Exception] = IdentificationError) -> tuple[str, float, float]:
+    """The options the batch and the streaming identification share, checked.
+
+    Parameters
+    ----------
+    variant : {"robust", "paper"}
+    gravity : float
+        Gravitational acceleration [m/s²], within [0, 100].
+    start_time : float
+        Time of the first sample [s], within ±``START_TIME_LIMIT``.
+    error : type
+        Exception raised, naming the option, its value and what was expected.
+
+    Returns
+    -------
+    tuple
+        (variant, gravity [m/s²], start time [s]).
+    """
+    if not isinstance(variant, str) or variant not in VARIANTS:
+        raise error(f"variant must be one of {sorted(VARIANTS)}, got {shown(variant)}")
+    gravity = check_real("gravity", gravity, low=0.0, high=100.0, unit=" [m/s²]", error=error)
+    start_time = check_real("start_time", start_time, low=-START_TIME_LIMIT, high=START_TIME_LIMIT, unit=" [s]",
+                            error=error)
+    return variant, gravity, start_time
+
+
+def check_unfiltered(recording: Recording, variant: str) -> None:
+    """IdentificationError when the robust variant is asked to identify channels the recording says were
+    CFC-filtered (``metadata['cfc']``, as :func:`~impactometer.filters.filter_recording` notes it).
+
+    A zero-phase low-pass filter spreads each contact onset ahead of the contact and colours the noise: the
+    robust variant's onset times, noise model and standard errors would all be wrong (answers off by several
+    standard errors, or absurd). It identifies the unfiltered channels instead; the paper variant, which reads
+    peaks, accepts filtered ones.
+    """
+    filtered = recording.metadata.get("cfc")
+    if variant != "robust" or not isinstance(filtered, dict):
+        return
+    named = {name: cfc for name, cfc in filtered.items() if name in ("contact_force", "piston_acceleration")}
+    if named:
+        listed = ", ".join(f"{name} (CFC {cfc})" for name, cfc in named.items())
+        raise IdentificationError(f"{recording.source}: {listed} filtered; the robust identification needs the "
+                                  "unfiltered channels (a zero-phase filter moves the contact onsets ahead of the "
+                                  "contact and colours the noise, so its answers and standard errors would be "
+                                  "wrong) -- identify without --cfc, or use --variant paper")
