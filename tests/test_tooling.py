@@ -33,3 +33,17 @@ def test_mypy_finds_nothing(tmp_path):
         pytest.skip("the sources are not beside the tests")
     done = _run("mypy", "--cache-dir", str(tmp_path / "mypy-cache"), "src", cwd=ROOT)
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_no_import_cycle():
+    """The layers point one way: no two modules of the package import each other, even through others."""
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "import_graph.py")], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_no_module_above_400_lines():
+    """One concept per module: none grows past about 400 lines."""
+    long = {str(p.relative_to(ROOT)): n for p in (ROOT / "src").rglob("*.py")
+            if (n := len(p.read_text(encoding="utf-8").splitlines())) > 410}
+    assert not long, long

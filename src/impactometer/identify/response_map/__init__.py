@@ -24,13 +24,8 @@ from ...rig import check_recorded_on
 from ...validation import check_real, is_real
 from ..plausibility import check_answer
 from ..result import Identification
-from .build import (
-    PRESSURE_TOLERANCE,
-    ResponseMap,
-    build_map_from_recordings,
-    build_map_simulated,
-    refine,
-)
+from .build import PRESSURE_TOLERANCE, build_map_from_recordings, build_map_simulated
+from .database import ResponseMap, refine
 from .features import FEATURE_SETS, extract_features, recording_signal
 from .search import EXTENSION, SEARCHES, brute_search, fast_tables, locate
 from .store import load_map, save_map

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from ...errors import ResponseMapError
-from .build import ResponseMap, spline_basis
+from .database import ResponseMap, spline_basis
 
 #: nodes per axis the fast surfaces are fitted on (every k-th node of larger maps)
 FAST_NODES = 65

@@ -19,7 +19,7 @@ import numpy as np
 from ...errors import ImpactometerError, ParameterError, ResponseMapError
 from ...outputs import as_path, check_file, write_failed
 from ...recording import check_sample_rate
-from .build import SCHEMA_VERSION, ResponseMap
+from .database import SCHEMA_VERSION, ResponseMap
 from .features import get_feature_set
 
 SCHEMA = "impactometer-response-map"

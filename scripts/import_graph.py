@@ -1,0 +1,127 @@
+"""Import graph of the package: cycles between modules, and the internal imports made inside functions.
+
+    python scripts/import_graph.py          # cycles (exit status 1 if any) and a count of function-level imports
+    python scripts/import_graph.py -v       # ... and which module imports which inside its functions
+
+Imports under ``if TYPE_CHECKING:`` are annotations only and are not counted. A function-level import counts as an
+arrow of the graph (it still runs), so a cycle through one is a cycle.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+PACKAGE = "impactometer"
+
+
+def modules(root: Path) -> dict[str, Path]:
+    """Dotted module name -> file, for every module of the package below ``root`` (the package folder)."""
+    found = {}
+    for path in root.rglob("*.py"):
+        parts = list(path.relative_to(root.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        found[".".join(parts)] = path
+    return found
+
+
+def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str | None:
+    if not node.level:
+        return node.module
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    base = base[:len(base) - (node.level - 1)]
+    return ".".join(base) + (f".{node.module}" if node.module else "")
+
+
+def import_graph(root: Path) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
+    """(every internal import arrow, the arrows made inside functions) between modules of the package."""
+    mods = modules(root)
+    edges: dict[str, set[str]] = defaultdict(set)
+    inside: dict[str, set[str]] = defaultdict(set)
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        annotations_only = {id(n) for block in ast.walk(tree)
+                            if isinstance(block, ast.If) and "TYPE_CHECKING" in ast.unparse(block.test)
+                            for n in ast.walk(block)}
+        in_function = {id(n) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
+                       for n in ast.walk(f)}
+        for node in ast.walk(tree):
+            if id(node) in annotations_only:
+                continue
+            if isinstance(node, ast.ImportFrom):
+                target = _resolve(name, path.name == "__init__.py", node)
+                if not target or not target.startswith(PACKAGE):
+                    continue
+                targets = [f"{target}.{a.name}" if f"{target}.{a.name}" in mods else target for a in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names if a.name.startswith(PACKAGE)]
+            else:
+                continue
+            for target in targets:
+                while target not in mods and "." in target:
+                    target = target.rsplit(".", 1)[0]
+                if target != name:
+                    edges[name].add(target)
+                    if id(node) in in_function:
+                        inside[name].add(target)
+    return edges, inside
+
+
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected groups of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+    sys.setrecursionlimit(10_000)
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in edges.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                found.append(sorted(group))
+
+    for v in list(edges):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("-v", "--verbose", action="store_true", help="list the function-level imports")
+    parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1] / "src" / PACKAGE)
+    args = parser.parse_args()
+    edges, inside = import_graph(args.root)
+    groups = cycles(edges)
+    for group in groups:
+        print("cycle:", " <-> ".join(group))
+    print(f"{len(groups)} import cycle(s); {sum(len(v) for v in inside.values())} internal imports inside functions")
+    if args.verbose:
+        for name in sorted(inside):
+            print(f"  {name} -> {', '.join(sorted(inside[name]))}")
+    return 1 if groups else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
