@@ -37,7 +37,7 @@ def test_simulate_writes_histories_and_figure(tmp_path, capsys):
         assert f.attrs["velocity"] == pytest.approx(math.sqrt(2 * STANDARD_GRAVITY * 0.2))
         assert f.attrs["pressure_gauge"] == 200e3
         assert f.attrs["sample_rate"] == pytest.approx(50e3)
-        assert json.loads(f.attrs["rig"])["contact"]["law"] == "kelvin-voigt"
+        assert json.loads(f.attrs["rig"])["contact"]["law"] == "hysteretic"  # the default stand's pad
         time, force = f["time"][:], f["contact_force"][:]
     assert time.size == 1001 and time[-1] == pytest.approx(0.02)
     assert force.max() > 1000.0  # [N]: a real impact was simulated

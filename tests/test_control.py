@@ -105,18 +105,18 @@ def test_venting_to_atmosphere_removes_gas_from_the_lower_chamber_only():
 
 
 def test_choked_orifice_flow_matches_the_closed_form():
-    rig = get_rig()
+    rig = get_rig("drop-stand-stiff")  # the orifice valve
     gamma, r_gas, cd = rig.gas.gamma, rig.gas.gas_constant, rig.valve.discharge_coefficient
     p_up, temp, area = 500e3, 300.0, 2e-5
     expected = cd * area * p_up * math.sqrt(gamma / (r_gas * temp)) * (2 / (gamma + 1)) ** (
         (gamma + 1) / (2 * (gamma - 1)))
-    assert valve_mass_flow(p_up, temp, 0.3 * p_up, area) == pytest.approx(expected, rel=1e-12)
+    assert valve_mass_flow(p_up, temp, 0.3 * p_up, area, rig=rig) == pytest.approx(expected, rel=1e-12)
     # continuous at the critical ratio and at the laminar transition, zero at equal pressures, monotone
     critical = (2 / (gamma + 1)) ** (gamma / (gamma - 1))
     for ratio in (critical, LAMINAR_RATIO):
-        below, above = valve_mass_flow(p_up, temp, p_up * ratio * np.array([1 - 1e-10, 1 + 1e-10]), area)
+        below, above = valve_mass_flow(p_up, temp, p_up * ratio * np.array([1 - 1e-10, 1 + 1e-10]), area, rig=rig)
         assert abs(below - above) < 1e-6 * expected
-    flows = valve_mass_flow(p_up, temp, p_up * np.linspace(0.1, 1.0, 2001), area)
+    flows = valve_mass_flow(p_up, temp, p_up * np.linspace(0.1, 1.0, 2001), area, rig=rig)
     assert flows[-1] == 0.0
     assert np.all(np.diff(flows) <= 1e-15)
 
@@ -346,7 +346,7 @@ def test_closed_capacity_is_the_work_of_the_adiabatic_gas_spring():
 
 
 @pytest.mark.parametrize("strategy", ["realtime", "predictive"])
-@pytest.mark.parametrize("rig", ["drop-stand", "drop-stand-pad"])
+@pytest.mark.parametrize("rig", ["drop-stand", "drop-stand-stiff"])
 def test_controller_keeps_enough_gas_to_stop_a_heavy_fast_impact_at_low_pressure(strategy, rig):
     scenario = Scenario(mass=50.0, velocity=3.0, pressure_gauge=20e3)
     p = pack(get_rig(rig), scenario)
@@ -355,7 +355,8 @@ def test_controller_keeps_enough_gas_to_stop_a_heavy_fast_impact_at_low_pressure
                               refine_mass=False, tau_control=5e-3)
     result, _ = loop.simulate_controlled(scenario, rig, control=control, duration=0.4, sample_rate=50e3)
     assert result.bottom_stop_force.max() == 0.0 and "ended_at_bottom" not in result.extra
-    assert result.u1.max() < 0.19 + 0.005  # usable stroke + contact compression at the bounce peaks
+    # the piston stays within the usable stroke (the mass goes deeper by the contact's compression)
+    assert result.u2.max() < 0.19 + 0.002
 
 
 @settings(max_examples=60, deadline=None)

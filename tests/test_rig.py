@@ -25,18 +25,20 @@ from impactometer.rig import (
 )
 
 
-def test_pad_stand_is_the_paper_like_stand():
+def test_pad_stand_is_the_paper_like_stand_and_the_default():
     rig = get_rig("drop-stand-pad")
     assert rig is PRESETS["drop-stand-pad"] and rig.name == "drop-stand-pad"
+    default = get_rig()  # the default stand is the pad stand under its own name
+    assert default is PRESETS["drop-stand"] and dataclasses.replace(default, name="drop-stand-pad") == rig
     c = rig.cylinder
     assert (c.piston_mass, c.bore, c.rod_diameter, c.stroke, c.lower_length, c.upper_length) == \
         (4.0, 0.08, 0.025, 0.20, 0.20, 0.02)
     assert c.area == pytest.approx(math.pi * 0.04**2)
     assert c.annulus_area == pytest.approx(math.pi * (0.04**2 - 0.0125**2))
     assert (rig.gas.gamma, rig.gas.atmospheric_pressure, rig.gravity) == (1.4, 101325.0, STANDARD_GRAVITY)
-    assert (rig.friction.force, rig.friction.velocity_scale) == (100.0, 0.01)
-    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 1e6, 0.5)
-    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(4e6)
+    assert (rig.friction.force, rig.friction.velocity_scale) == (200.0, 0.01)
+    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 5e5, 0.4)
+    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(5e5 / 0.4**2)
     assert (c.dead_volume_lower, c.dead_volume_upper) == (2e-5, 1e-5)
     assert (rig.stops.stiffness, rig.stops.damping) == (5e7, 2e3)
 
@@ -50,8 +52,7 @@ def test_stiff_preset_is_the_earlier_stand():
     pad = get_rig("drop-stand-pad")
     assert dataclasses.replace(stiff.cylinder, dead_volume_lower=2e-5, dead_volume_upper=1e-5) == pad.cylinder
     assert stiff.gas == pad.gas
-    default = get_rig()  # the default stand is the stiff one under its own name
-    assert default is PRESETS["drop-stand"] and dataclasses.replace(default, name="drop-stand-stiff") == stiff
+    assert dataclasses.replace(Rig(), name="drop-stand-stiff") == stiff  # the parts' defaults
 
 
 @pytest.mark.parametrize("section, message", [
@@ -74,7 +75,7 @@ def test_a_law_change_keeps_only_the_new_laws_parameters():
     kv = get_rig("drop-stand-pad").replace(**{"contact.law": "kv"}).contact
     assert (kv.law, kv.stiffness, kv.damping, kv.restitution) == ("kelvin-voigt", 2e6, 150.0, None)
     hys = get_rig("drop-stand-stiff").replace(**{"contact.law": "hysteretic", "contact.restitution": 0.6}).contact
-    assert (hys.stiffness, hys.restitution, hys.damping) == (1e6, 0.6, None)
+    assert (hys.stiffness, hys.restitution, hys.damping) == (5e5, 0.6, None)
 
 
 @pytest.mark.parametrize("name, law, stiffness, damping", [
@@ -88,7 +89,7 @@ def test_contact_law_by_name_or_alias(name, law, stiffness, damping):
 def test_replace_by_dotted_names():
     rig = get_rig().replace(**{"contact.stiffness": 3e6, "gravity": 0.0, "cylinder.dead_volume_lower": 1e-4})
     assert (rig.contact.stiffness, rig.gravity, rig.cylinder.dead_volume_lower) == (3e6, 0.0, 1e-4)
-    assert get_rig().contact.stiffness == 2e6  # frozen original unchanged
+    assert get_rig().contact.stiffness == 5e5  # frozen original unchanged
 
 
 def test_changing_the_law_takes_its_defaults_unless_given():
@@ -124,7 +125,7 @@ def test_parameter_names_all_replaceable():
     ({"contact.stiffness": -1.0}, "contact.stiffness must be > 0"),
     ({"contact.law": "maxwell"}, "contact.law must be one of"),
     ({"stops.damping": "a lot"}, "stops.damping must be a finite number, got 'a lot'"),
-    ({"valve.area": 1.0}, "valve.area must be <= 5e-05"),
+    ({"valve.area": 1.0}, "valve.area must be <= 0.0002"),
     ({"gravity": -9.81}, "rig.gravity must be >= 0"),
     ({"name": 3}, "rig.name must be a string"),
 ])

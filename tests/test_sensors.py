@@ -23,7 +23,7 @@ def test_plain_sampling_equals_the_simulation(clean):
     np.testing.assert_allclose(rec.contact_force, clean.contact_force, rtol=1e-9, atol=1e-6)
     np.testing.assert_allclose(rec.piston_acceleration, clean.a2, rtol=1e-9, atol=1e-6)
     assert rec.metadata["mass_kg"] == 30.0 and rec.metadata["velocity_m_s"] == 2.0
-    assert rec.metadata["pressure_gauge_Pa"] == 200e3 and rec.metadata["contact_law"] == "kelvin-voigt"
+    assert rec.metadata["pressure_gauge_Pa"] == 200e3 and rec.metadata["contact_law"] == "hysteretic"
 
 
 def test_zero_phase_anti_alias_keeps_pulse_timing_and_size(clean):

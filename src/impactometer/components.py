@@ -122,7 +122,7 @@ class Friction:
 
 #: contact law name -> its parameters and their defaults on the built-in stand
 CONTACT_LAWS: dict[str, dict[str, float]] = {
-    "hysteretic": {"stiffness": 1e6, "restitution": 0.5},
+    "hysteretic": {"stiffness": 5e5, "restitution": 0.4},
     "kelvin-voigt": {"stiffness": 2e6, "damping": 150.0},
     "hunt-crossley": {"stiffness": 4e8, "damping": 0.2},
 }

@@ -52,7 +52,9 @@ def check_integer(name: str, value: Any, *, low: int | None = None, high: int | 
                   error: type[Exception] = ParameterError) -> int:
     """``value`` as an int, or ``error`` naming ``name``, the value and the expected range."""
     if not is_integer(value):
-        raise error(f"{name} must be an integer{unit}, got {shown(value)}")
+        bounds = (f" within [{low}, {high}]" if low is not None and high is not None else
+                  f" >= {low}" if low is not None else f" <= {high}" if high is not None else "")
+        raise error(f"{name} must be an integer{bounds}{unit}, got {shown(value)}")
     if low is not None and value < low:
         raise error(f"{name} must be an integer >= {low}{unit}, got {int(value)!r}")
     if high is not None and value > high:

@@ -91,7 +91,7 @@ def identification_table(scenario, stand) -> Table:
                       f"{100 * (found.mass / scenario.mass - 1):+.2f}",
                       with_uncertainty(found.velocity, found.velocity_std),
                       f"{100 * (found.velocity / scenario.velocity - 1):+.2f}", f"{found.energy:.1f}",
-                      f"{found.available_at * 1e3:.2f}")
+                      f"{found.available_at * 1e3:.1f}")
     cautions = [found.details["caution"] for _, found in answers if found.details.get("caution")]
     if cautions:
         table.caption = f"paper: caution: {cautions[0]}"
