@@ -37,8 +37,8 @@ def test_pad_stand_is_the_paper_like_stand_and_the_default():
     assert c.annulus_area == pytest.approx(math.pi * (0.04**2 - 0.0125**2))
     assert (rig.gas.gamma, rig.gas.atmospheric_pressure, rig.gravity) == (1.4, 101325.0, STANDARD_GRAVITY)
     assert (rig.friction.force, rig.friction.velocity_scale) == (200.0, 0.01)
-    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 5e5, 0.4)
-    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(5e5 / 0.4**2)
+    assert (rig.contact.law, rig.contact.stiffness, rig.contact.restitution) == ("hysteretic", 7e5, 0.4)
+    assert rig.contact.damping is None and rig.contact.unloading_stiffness == pytest.approx(7e5 / 0.4**2)
     assert (c.dead_volume_lower, c.dead_volume_upper) == (2e-5, 1e-5)
     assert (rig.stops.stiffness, rig.stops.damping) == (5e7, 2e3)
 
@@ -75,7 +75,7 @@ def test_a_law_change_keeps_only_the_new_laws_parameters():
     kv = get_rig("drop-stand-pad").replace(**{"contact.law": "kv"}).contact
     assert (kv.law, kv.stiffness, kv.damping, kv.restitution) == ("kelvin-voigt", 2e6, 150.0, None)
     hys = get_rig("drop-stand-stiff").replace(**{"contact.law": "hysteretic", "contact.restitution": 0.6}).contact
-    assert (hys.stiffness, hys.restitution, hys.damping) == (5e5, 0.6, None)
+    assert (hys.stiffness, hys.restitution, hys.damping) == (7e5, 0.6, None)
 
 
 @pytest.mark.parametrize("name, law, stiffness, damping", [
@@ -89,7 +89,7 @@ def test_contact_law_by_name_or_alias(name, law, stiffness, damping):
 def test_replace_by_dotted_names():
     rig = get_rig().replace(**{"contact.stiffness": 3e6, "gravity": 0.0, "cylinder.dead_volume_lower": 1e-4})
     assert (rig.contact.stiffness, rig.gravity, rig.cylinder.dead_volume_lower) == (3e6, 0.0, 1e-4)
-    assert get_rig().contact.stiffness == 5e5  # frozen original unchanged
+    assert get_rig().contact.stiffness == 7e5  # frozen original unchanged
 
 
 def test_changing_the_law_takes_its_defaults_unless_given():

@@ -1,7 +1,8 @@
 """The parts of the drop stand: cylinder, gas, seal friction, contact element, stops and valve.
 
 Each part is a frozen keyword-only dataclass validated when it is created; :class:`~impactometer.rig.Rig` bundles
-them. The defaults are the parts of the stiff stand (``drop-stand-stiff``).
+them. The defaults are the parts of the built-in stand (``drop-stand``): a TOML file or a :meth:`Rig.replace` that
+leaves a parameter out keeps the built-in stand's value.
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ class Cylinder:
     stroke: float = 0.20
     lower_length: float = 0.20
     upper_length: float = 0.02
-    dead_volume_lower: float = 0.0
-    dead_volume_upper: float = 0.0
+    dead_volume_lower: float = 2e-5
+    dead_volume_upper: float = 1e-5
     rated_pressure_gauge: float = 400e3
 
     def __post_init__(self) -> None:
@@ -107,12 +108,12 @@ class Friction:
 
     Attributes
     ----------
-    force : Coulomb friction force [N]. The pad stand's 100 N is about 15 % of the gas force on the 80 mm piston
-        at 100 kPa: published thrust losses of pneumatic cylinders are 10-25 % (about 50-250 N at this bore).
+    force : Coulomb friction force [N]. The built-in stand's 200 N is 20 % of the gas force on the 80 mm piston at
+        200 kPa: published thrust losses of pneumatic cylinders are 10-25 % (about 50-250 N at this bore).
     velocity_scale : Smoothing velocity [m/s]: the friction reaches 76 % of its Coulomb level at this speed.
     """
 
-    force: float = 30.0
+    force: float = 200.0
     velocity_scale: float = 0.01
 
     def __post_init__(self) -> None:
@@ -122,7 +123,7 @@ class Friction:
 
 #: contact law name -> its parameters and their defaults on the built-in stand
 CONTACT_LAWS: dict[str, dict[str, float]] = {
-    "hysteretic": {"stiffness": 5e5, "restitution": 0.4},
+    "hysteretic": {"stiffness": 7e5, "restitution": 0.4},
     "kelvin-voigt": {"stiffness": 2e6, "damping": 150.0},
     "hunt-crossley": {"stiffness": 4e8, "damping": 0.2},
 }
@@ -147,14 +148,14 @@ class Contact:
 
     ``hysteretic`` (Walton-Braun): loading F = k1·δ, unloading and reloading F = k2·(δ − s) with the
     set s of the current pulse [stiffness = k1 N/m, restitution e = sqrt(k1/k2), 0 < e <= 1]; the force peaks
-    exactly at maximum compression and a collision keeps e² of its relative kinetic energy;
-    ``kelvin-voigt`` (the default): F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
+    exactly at maximum compression and a collision keeps e² of its relative kinetic energy (the default);
+    ``kelvin-voigt``: F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
     ``hunt-crossley``: F = k·δ^1.5·(1 + 1.5·α·δ') [stiffness N/m^1.5, damping = α s/m].
     The force is zero while δ <= 0 and never pulls. Parameters left out take the law's defaults
     (``CONTACT_LAWS``); a parameter of another law is an error.
     """
 
-    law: str = "kelvin-voigt"
+    law: str = "hysteretic"
     # None here means "the law's default"; every law has a stiffness, so it is a float once created
     stiffness: float = None  # type: ignore[assignment]
     damping: float | None = None
@@ -211,6 +212,8 @@ class Stops:
         _check("stops.damping", self.damping, low=0.0, low_open=False)
 
 
+#: ISO 6358 parameters of the built-in valve, taken where a valve of that law leaves them out
+ISO6358_DEFAULTS = {"sonic_conductance": 2e-7, "critical_ratio": 0.3}
 #: flow laws of valve Z and the parameters each one uses besides ``area`` and ``max_area``
 VALVE_LAW_PARAMETERS: dict[str, tuple[str, ...]] = {"orifice": ("discharge_coefficient",),
                                                      "iso6358": ("sonic_conductance", "critical_ratio")}
@@ -218,7 +221,7 @@ VALVE_LAW_PARAMETERS: dict[str, tuple[str, ...]] = {"orifice": ("discharge_coeff
 
 @dataclass(frozen=True, kw_only=True)
 class Valve:
-    """Valve Z between the lower and the upper chamber (closed by default).
+    """Valve Z between the lower and the upper chamber (closed by default; ISO 6358, about 100 mm² effective).
 
     ``orifice``: compressible flow through an orifice of the opening area with discharge coefficient C_d.
     ``iso6358``: the flow law of pneumatic catalogues (ISO 6358-1), q = C·p_up·ρ0·sqrt(T0/T_up)·φ(p_down/p_up, b),
@@ -230,14 +233,15 @@ class Valve:
     max_area : Fully open area A_max [m²].
     law : ``"orifice"`` or ``"iso6358"``.
     discharge_coefficient : C_d [-] (orifice law).
-    sonic_conductance : C of the fully open valve [m³/(s·Pa)]; 1 dm³/(s·bar) = 1e-8 m³/(s·Pa) (ISO 6358 law).
-    critical_ratio : Critical pressure ratio b [-], within (0, 1) (ISO 6358 law).
+    sonic_conductance : C of the fully open valve [m³/(s·Pa)]; 1 dm³/(s·bar) = 1e-8 m³/(s·Pa) (ISO 6358 law;
+        left out: 2e-7, a 20 dm³/(s·bar) valve).
+    critical_ratio : Critical pressure ratio b [-], within (0, 1) (ISO 6358 law; left out: 0.3).
     """
 
     area: float = 0.0
-    max_area: float = 5e-5
+    max_area: float = 2e-4
     discharge_coefficient: float = 0.7
-    law: str = "orifice"
+    law: str = "iso6358"
     sonic_conductance: float | None = None
     critical_ratio: float | None = None
 
@@ -253,9 +257,9 @@ class Valve:
                     raise ParameterError(f"valve.{name} is a parameter of the iso6358 law, not of the orifice law; "
                                          f"got {getattr(self, name)!r} (set valve.law = 'iso6358' or leave it out)")
             return
-        for name in ("sonic_conductance", "critical_ratio"):
+        for name, default in ISO6358_DEFAULTS.items():
             if getattr(self, name) is None:
-                raise ParameterError(f"valve.{name} is required by the iso6358 law, got None")
+                object.__setattr__(self, name, default)
         _check("valve.sonic_conductance", self.sonic_conductance, low=0.0, unit=" [m³/(s·Pa)]")
         _check("valve.critical_ratio", self.critical_ratio, low=0.0, high=1.0, unit=" (expected within (0, 1))")
         if self.critical_ratio >= 1.0:  # type: ignore[operator]  # set for this law

@@ -3,10 +3,11 @@
 A stand is loaded from and saved to TOML (unknown keys are errors). ``PRESETS['drop-stand']`` is the built-in
 stand, representative of the stand of the reference paper (Fig. 1): a 4 kg piston and rod in an 80 mm bore,
 25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge, with a hysteretic elastomer pad between mass and rod
-(Walton-Braun, loading stiffness 5e5 N/m, restitution 0.4), 200 N of seal friction, end-of-stroke gas cushions and
+(Walton-Braun, loading stiffness 7e5 N/m, restitution 0.4), 200 N of seal friction, end-of-stroke gas cushions and
 an ISO 6358 valve between the chambers: a rebound or two (stage A), then sustained contact to the deepest point
-(stage B), as the paper describes (Fig. 2). It is also named ``drop-stand-pad``.
-``PRESETS['drop-stand-stiff']`` is the earlier built-in stand (the defaults of the part classes): a nearly elastic
+(stage B), as the paper describes (Fig. 2). It is also named ``drop-stand-pad``; its parts are the defaults of the
+part classes.
+``PRESETS['drop-stand-stiff']`` is the earlier built-in stand: a nearly elastic
 Kelvin-Voigt contact on which the rod bounces on the mass for most of the stroke, 30 N of friction, no cushions.
 """
 
@@ -173,11 +174,12 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
 
 
 #: the stand with a nearly elastic Kelvin-Voigt contact: the rod bounces on the mass for most of the stroke
-STIFF_STAND = Rig(name="drop-stand-stiff")
-#: the stand with a hysteretic elastomer pad: a rebound or two (stage A), then sustained contact (stage B)
-PAD_STAND = Rig(name="drop-stand-pad", contact=Contact(law="hysteretic"), friction=Friction(force=200.0),
-                cylinder=Cylinder(dead_volume_lower=2e-5, dead_volume_upper=1e-5),
-                valve=Valve(law="iso6358", sonic_conductance=2e-7, critical_ratio=0.3, max_area=2e-4))
+STIFF_STAND = Rig(name="drop-stand-stiff", contact=Contact(law="kelvin-voigt"), friction=Friction(force=30.0),
+                  cylinder=Cylinder(dead_volume_lower=0.0, dead_volume_upper=0.0),
+                  valve=Valve(law="orifice", max_area=5e-5))
+#: the stand with a hysteretic elastomer pad: a rebound or two (stage A), then sustained contact (stage B); the
+#: defaults of the part classes
+PAD_STAND = Rig(name="drop-stand-pad")
 #: named stands; ``drop-stand`` is the default (the pad stand)
 PRESETS: dict[str, Rig] = {
     "drop-stand": dataclasses.replace(PAD_STAND, name="drop-stand"),

@@ -46,7 +46,8 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     and ``gap`` the (first, last) samples between them. A law of the family loads and unloads along one curve;
     a hysteretic contact does not, but it still loads along one. So the law is fitted to the whole pulses, and
     where it does not fit them (a chi-square more than ``FIT_SIGMAS`` standard deviations above its degrees of
-    freedom) to their loading parts alone (each onset to its peak). Where the overlap stayed positive throughout
+    freedom) to their loading parts alone (each onset to its peak); where these do not fit either, there is no
+    answer (the contact is not one of the family, or the pulses found are not whole contacts). Where the overlap stayed positive throughout
     the gap (by ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and loaded again, so the second
     pulse is not a fresh contact) there is no answer: the first pulse alone determines V0 but hardly the mass
     (theta is NaN).
@@ -60,6 +61,10 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     fits = np.all(np.isfinite(whole[0])) and whole[2] <= whole[3] + FIT_SIGMAS * np.sqrt(2.0 * max(whole[3], 1))
     chosen = whole if fits else _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole[6],
                                      **common)
+    if not fits and not chosen[2] <= chosen[3] + FIT_SIGMAS * np.sqrt(2.0 * max(chosen[3], 1)):
+        # not even the loading parts follow one law of the family: the contact phase says nothing reliable
+        return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
+                {"samples": 0, "onset_row": False, "branches": "none"})
     gap_index = np.arange(gap[0], gap[1], dtype=float)
     if gap_index.size and np.all(np.isfinite(chosen[0])):
         tau, _, _, i_f, _, _, da = kin.at(gap_index)
