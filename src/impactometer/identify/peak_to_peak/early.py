@@ -47,10 +47,10 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     a hysteretic contact does not, but it still loads along one. So the law is fitted to the whole pulses, and
     where it does not fit them (a chi-square more than ``FIT_SIGMAS`` standard deviations above its degrees of
     freedom) to their loading parts alone (each onset to its peak); where these do not fit either, there is no
-    answer (the contact is not one of the family, or the pulses found are not whole contacts). Where the overlap stayed positive throughout
-    the gap (by ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and loaded again, so the second
-    pulse is not a fresh contact) there is no answer: the first pulse alone determines V0 but hardly the mass
-    (theta is NaN).
+    answer (the contact is not one of the family, or the pulses found are not whole contacts). Where the overlap
+    stayed positive throughout the gap (by ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and
+    loaded again, so the second pulse is not a fresh contact) there is no answer either: the first pulse alone
+    determines V0 but hardly the mass (theta is NaN).
 
     Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
     the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
