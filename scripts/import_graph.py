@@ -4,7 +4,9 @@
     python scripts/import_graph.py -v       # ... and which module imports which inside its functions
 
 Imports under ``if TYPE_CHECKING:`` are annotations only and are not counted. A function-level import counts as an
-arrow of the graph (it still runs), so a cycle through one is a cycle.
+arrow of the graph (it still runs), so a cycle through one is a cycle -- except a function-level import of the
+``plotting`` package: that is a result's ``.plot()`` reaching the view layer (python-control's pattern: the
+computation never imports matplotlib), which sits above everything and may read what it draws.
 """
 
 from __future__ import annotations
@@ -16,6 +18,8 @@ from collections import defaultdict
 from pathlib import Path
 
 PACKAGE = "impactometer"
+#: the view layer: reached from below only by ``.plot()`` methods, inside the function
+VIEW = f"{PACKAGE}.plotting"
 
 
 def modules(root: Path) -> dict[str, Path]:
@@ -65,9 +69,11 @@ def import_graph(root: Path) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
                 while target not in mods and "." in target:
                     target = target.rsplit(".", 1)[0]
                 if target != name:
-                    edges[name].add(target)
                     if id(node) in in_function:
                         inside[name].add(target)
+                        if target.startswith(VIEW):
+                            continue
+                    edges[name].add(target)
     return edges, inside
 
 

@@ -16,6 +16,7 @@ import numpy as np
 from impactometer.control.strategies import strategy_names
 from impactometer.errors import ImpactometerError
 from impactometer.filters import filter_recording
+from impactometer.identify.inspection import inspect_recording
 from impactometer.identify.peak_to_peak import identify, identify_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier, stream_arrays
 from impactometer.identify.plausibility import check_answer
@@ -31,7 +32,7 @@ from impactometer.identify.response_map import (
 )
 from impactometer.identify.response_map.features import get_feature_set
 from impactometer.io import read_calibration_set, read_recording, write_recording
-from impactometer.recording import Recording, inspect_recording
+from impactometer.recording import Recording
 from impactometer.rig import Scenario, from_dict, get_rig
 from impactometer.sensors import apply_sensors, record
 from impactometer.studies import StudyOptions, get_study

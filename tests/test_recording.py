@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 from impactometer.errors import RecordingError
-from impactometer.recording import Recording, inspect_recording
+from impactometer.identify.inspection import inspect_recording
+from impactometer.io import read_recording, write_recording
+from impactometer.recording import Recording
 from impactometer.rig import Scenario
 from impactometer.sensors import record
 
@@ -59,10 +61,10 @@ def test_validation(kwargs, match):
         Recording(**args)
 
 
-def test_read_and_write_wrappers(tmp_path):
+def test_read_and_write_round_trip(tmp_path):
     rec = Recording(sample_rate=2e3, channels={"contact_force": [0.0, 3.0, 1.0]}, metadata={"mass_kg": 4.0})
-    path = rec.write(tmp_path / "r.h5")
-    back = Recording.read(path)
+    path = write_recording(rec, tmp_path / "r.h5")
+    back = read_recording(path)
     np.testing.assert_array_equal(back.contact_force, rec.contact_force)
     assert back.truth("mass_kg") == 4.0
 

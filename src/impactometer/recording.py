@@ -10,13 +10,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .errors import RecordingError, UnitError
 from .stands import MASS_RANGE, VELOCITY_RANGE
 from .units import parse_quantity
+
+if TYPE_CHECKING:  # annotations only: inspection is a layer above
+    from .identify.inspection import Inspection
 
 FORCE = "contact_force"
 ACCELERATION = "piston_acceleration"
@@ -193,28 +196,13 @@ class Recording:
 
         The time must increase strictly and stay within 5 % of a period of a regular grid.
         """
-        from .io.channels import time_base
-
-        rate, start = time_base(time, None, source)
+        rate, start = time_base(samples(time, "time", source, squeeze=True), source)
         recording = cls(sample_rate=rate, channels=channels, start_time=start, metadata=dict(metadata or {}),
                         source=source)
         if np.size(time) != len(recording):
             raise RecordingError(f"{source}: time has {np.size(time)} samples but the channels have "
                                  f"{len(recording)}; expected equal lengths")
         return recording
-
-    @classmethod
-    def read(cls, path, **options: Any) -> Recording:
-        """Read a lab file; see :func:`impactometer.io.read_recording` for the options."""
-        from .io import read_recording
-
-        return read_recording(path, **options)
-
-    def write(self, path, *, overwrite: bool = False):
-        """Write to ``path`` in the format of its extension; see :func:`impactometer.io.write_recording`."""
-        from .io import write_recording
-
-        return write_recording(self, path, overwrite=overwrite)
 
     def plot(self, axes=None, *, inspection: Inspection | None = None):
         """Force and acceleration vs time with the contact pulses marked; returns the figure."""
@@ -223,112 +211,31 @@ class Recording:
         return plot_recording(self, axes, inspection=inspection)
 
 
-@dataclass(frozen=True, kw_only=True)
-class ChannelSummary:
-    """Range and white-noise estimate of one channel, in its SI unit."""
-
-    unit: str
-    minimum: float
-    maximum: float
-    noise: float
+#: a time column is regular when no sample is further than this fraction of a period from the fitted grid
+TIME_JITTER = 0.05
+#: samples of a time column checked at a time
+TIME_BLOCK = 1 << 20
 
 
-@dataclass(frozen=True, kw_only=True)
-class Inspection:
-    """What ``impactometer inspect`` reports about a recording.
-
-    Attributes
-    ----------
-    duration, sample_rate, start_time : Record length [s], sample rate [Hz], time of the first sample [s].
-    channels : Channel name -> :class:`ChannelSummary`.
-    peak_force, peak_force_time : Largest contact force [N] and when [s] (None without a force channel).
-    force_offset : Offset removed before pulse detection [N] (median of the pre-trigger samples, else 0).
-    pulses : Contact pulses (``identify.pulses.Pulse``), the last one ``sustained`` when it is stage B.
-    stage_b_start : Start of sustained contact [s] or None.
-    truth : Known-truth metadata present in the recording.
-    """
-
-    duration: float
-    sample_rate: float
-    start_time: float
-    samples: int
-    channels: dict[str, ChannelSummary]
-    peak_force: float | None
-    peak_force_time: float | None
-    force_offset: float
-    pulses: list
-    stage_b_start: float | None
-    truth: dict[str, float]
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready mapping (SI units, keys suffixed with the unit)."""
-        return {"duration_s": self.duration, "sample_rate_Hz": self.sample_rate, "start_time_s": self.start_time,
-                "samples": self.samples,
-                "channels": {name: {"unit": c.unit, "min": c.minimum, "max": c.maximum, "noise": c.noise}
-                             for name, c in self.channels.items()},
-                "peak_force_N": self.peak_force, "peak_force_time_s": self.peak_force_time,
-                "force_offset_N": self.force_offset,
-                "pulses": [{"start_s": p.start, "peak_time_s": p.peak_time, "end_s": p.end,
-                            "peak_force_N": p.peak_force, "impulse_Ns": p.impulse, "sustained": p.sustained}
-                           for p in self.pulses],
-                "stage_b_start_s": self.stage_b_start, "truth": dict(self.truth)}
-
-
-#: a pulse lasting longer than this multiple of the first pulse is sustained contact (stage B)
-SUSTAINED_FACTOR = 4.0
-#: fewest pre-trigger samples from which the force offset is estimated
-MIN_OFFSET_SAMPLES = 10
-
-
-def _samples_before_contact(recording: Recording) -> int:
-    """Number of samples at t < 0 (the pre-trigger), without forming the time array."""
-    n = int(np.clip(np.ceil(-recording.start_time * recording.sample_rate), 0, len(recording)))
-    while n > 0 and recording.start_time + (n - 1) / recording.sample_rate >= 0:
-        n -= 1
-    while n < len(recording) and recording.start_time + n / recording.sample_rate < 0:
-        n += 1
-    return n
-
-
-def inspect_recording(recording: Recording) -> Inspection:
-    """Duration, rate, channels with ranges and noise, peak force, contact pulses and stage B of ``recording``.
-
-    Pulses come from the noise-aware detector of :mod:`impactometer.identify.pulses` (detection at 5 σ of the
-    estimated white noise, release at 2 σ), on the force minus its pre-trigger median.
-    """
-    from .identify.pulses import Pulse, detect_pulses, noise_std, stage_b_start
-
-    if not isinstance(recording, Recording):
-        raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
-    channels = {name: ChannelSummary(unit=recording.unit(name), minimum=float(x.min()), maximum=float(x.max()),
-                                     noise=noise_std(x)) for name, x in recording.channels.items()}
-    pulses: list = []
-    peak = peak_time = None
-    offset = 0.0
-    if FORCE in recording.channels:
-        f = recording.contact_force
-        dt = 1.0 / recording.sample_rate
-
-        def t(i: int) -> float:  # as Recording.time gives it, without the array
-            return recording.start_time + i / recording.sample_rate
-
-        before = f[:_samples_before_contact(recording)]
-        offset = float(np.median(before)) if before.size >= MIN_OFFSET_SAMPLES else 0.0
-        f = f - offset
-        k = int(np.argmax(f))
-        peak, peak_time = float(f[k]), t(k)
-        for span in detect_pulses(f, channels[FORCE].noise):
-            stop = span.end if span.complete else f.size - 1
-            first = pulses[0].end - pulses[0].start if pulses else None
-            sustained = not span.complete or (first is not None and t(stop) - t(span.zero) > SUSTAINED_FACTOR * first)
-            pulses.append(Pulse(start=t(span.zero), peak_time=t(span.peak), end=t(stop),
-                                peak_force=float(f[span.peak]),
-                                impulse=float(np.trapezoid(f[span.zero:stop + 1], dx=dt)),
-                                sustained=bool(sustained)))
-            if sustained:
-                break
-    return Inspection(duration=recording.duration, sample_rate=recording.sample_rate,
-                      start_time=recording.start_time, samples=len(recording), channels=channels, peak_force=peak,
-                      peak_force_time=peak_time, force_offset=offset, pulses=pulses,
-                      stage_b_start=stage_b_start(pulses),
-                      truth={k: v for k in TRUTH_KEYS if (v := recording.truth(k)) is not None})
+def time_base(t: np.ndarray, source: str, *, scale: float = 1.0) -> tuple[float, float]:
+    """(sample rate [Hz], start time [s]) of a time column ``t`` (in units of ``scale`` seconds); refuses
+    non-monotonic or irregular time."""
+    if t.size < 2:
+        raise RecordingError(f"{source}: time must have at least 2 samples, got {t.size}")
+    for start in range(0, t.size, TIME_BLOCK):  # a block at a time: no temporaries the size of the column
+        steps = np.diff(t[start:start + TIME_BLOCK + 1])
+        if np.any(steps <= 0):
+            i = start + int(np.flatnonzero(steps <= 0)[0])
+            raise RecordingError(f"{source}: time must increase strictly; sample {i + 1} ({float(t[i + 1]) * scale!r} "
+                                 f"s) does not follow sample {i} ({float(t[i]) * scale!r} s)")
+    first, period = float(t[0]) * scale, float(t[-1] - t[0]) * scale / (t.size - 1)
+    check_sample_rate(1.0 / period if period > 0 else math.inf, f"{source}: the sample rate of the time column")
+    for start in range(0, t.size, TIME_BLOCK):
+        block = t[start:start + TIME_BLOCK] * scale
+        deviation = np.abs(block - (first + period * np.arange(start, start + block.size)))
+        if deviation.max() > TIME_JITTER * period:
+            i = int(np.argmax(deviation))
+            raise RecordingError(f"{source}: time must be regularly sampled; sample {start + i} is "
+                                 f"{deviation[i]:.3g} s off the grid of period {period:.6g} s (tolerance "
+                                 f"{TIME_JITTER:g} period)")
+    return 1.0 / period, first

@@ -138,7 +138,7 @@ def inspect(
     reader: ReaderOptions = DEFAULT_READER,
 ) -> None:
     """Print what FILE holds: duration, rate, channels and units, peak force, contact pulses, stage B, noise."""
-    from ..recording import inspect_recording
+    from ..identify.inspection import inspect_recording
 
     output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)

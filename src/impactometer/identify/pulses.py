@@ -21,12 +21,28 @@ class Pulse:
     sustained: bool = False
 
 
+#: stage B is the first pulse after the first that lasts longer than this many times the longest pulse before it
+SUSTAINED_FACTOR = 2.0
+
+
+def is_sustained(k: int, length: float, longest: float, factor: float = SUSTAINED_FACTOR) -> bool:
+    """True when pulse ``k`` (0 = the first) of ``length`` is sustained contact (stage B): never the first pulse,
+    and a later one that lasts longer than ``factor`` times the ``longest`` pulse before it (any unit of time).
+
+    A bounce lasts as long as the contact's stiffness makes it, whatever the law; sustained contact lasts as long
+    as the gas spring holds the bodies together, many bounces long. The one rule of stage B for the simulation's
+    pulses (:func:`contact_pulses`), the detected ones (:func:`sustained_index`) and ``inspect``.
+    """
+    return k > 0 and length > factor * longest
+
+
 def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.0,
-                   sustained_factor: float = 4.0) -> list[Pulse]:
+                   sustained_factor: float = SUSTAINED_FACTOR) -> list[Pulse]:
     """Contact pulses of ``force`` [N] sampled at ``time`` [s]: runs where the force exceeds ``threshold`` [N].
 
-    A pulse is marked ``sustained`` (stage B) when it lasts longer than ``sustained_factor`` times the first pulse
-    (the first pulse itself never is); pulses after the first sustained one are not reported.
+    A pulse is marked ``sustained`` (stage B, :func:`is_sustained`) when it lasts longer than
+    ``sustained_factor`` times the longest pulse before it (the first pulse itself never is); pulses after the
+    first sustained one are not reported.
     """
     time = np.asarray(time, dtype=float)
     force = np.asarray(force, dtype=float)
@@ -47,10 +63,10 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
         ipk = i0 + int(np.argmax(force[i0:i1]))
         t_start = time[max(i0 - 1, 0)]
         t_end = time[min(i1, force.size - 1)]
-        first = pulses[0].end - pulses[0].start if pulses else None
+        longest = max((q.end - q.start for q in pulses), default=0.0)
         # a pulse cut by the end of the record is stage B only once it has lasted that long: a short one is
         # simply the next bounce, cut
-        sustained = first is not None and t_end - t_start > sustained_factor * first
+        sustained = is_sustained(len(pulses), t_end - t_start, longest, sustained_factor)
         pulses.append(Pulse(start=float(t_start), peak_time=float(time[ipk]), end=float(t_end),
                             peak_force=float(force[ipk]),
                             impulse=float(np.trapezoid(np.clip(force[segment], 0.0, None), time[segment])),
@@ -204,20 +220,15 @@ def first_peak(force: np.ndarray, span: PulseSpan, drop: float) -> int | None:
     return span.first + int(np.argmax(f[:fallen[0]]))
 
 
-def sustained_index(spans: list[PulseSpan], *, size: int, factor: float = 2.0) -> int | None:
-    """Index in ``spans`` of the pulse where sustained contact (stage B) starts, or None.
-
-    Stage B is the first pulse after the first that lasts longer than ``factor`` times the longest pulse before
-    it, counting a pulse still running at the end of the data (``size`` samples) by how long it has run so far.
-    A bounce lasts as long as the contact's stiffness makes it, whatever the law; sustained contact lasts as long
-    as the gas spring holds the bodies together, many bounces long.
-    """
+def sustained_index(spans: list[PulseSpan], *, size: int, factor: float = SUSTAINED_FACTOR) -> int | None:
+    """Index in ``spans`` of the pulse where sustained contact (stage B, :func:`is_sustained`) starts, or None,
+    counting a pulse still running at the end of the data (``size`` samples) by how long it has run so far."""
     if len(spans) < 2 or not spans[0].complete:
         return None
     longest = 0
     for k, span in enumerate(spans):
         length = (span.end if span.complete else size) - span.zero
-        if k > 0 and length > factor * longest:
+        if is_sustained(k, length, longest, factor):
             return k
         if not span.complete:
             return None
@@ -225,7 +236,7 @@ def sustained_index(spans: list[PulseSpan], *, size: int, factor: float = 2.0) -
     return None
 
 
-def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = 2.0) -> int | None:
+def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = SUSTAINED_FACTOR) -> int | None:
     """Sample index where sustained contact (stage B) starts (see :func:`sustained_index`), or None."""
     k = sustained_index(spans, size=size, factor=factor)
     return None if k is None else spans[k].zero

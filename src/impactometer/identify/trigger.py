@@ -1,4 +1,5 @@
-"""Compiled sample-by-sample impact trigger shared by the batch and the streaming identification.
+"""Compiled sample-by-sample impact trigger shared by the batch and the streaming identification: the incremental
+form of the pulse detector of :mod:`.pulses`, with its detection and release levels.
 
 One pass over the samples keeps a running (exponentially weighted) baseline and noise level of the force, fires
 when the force leaves the noise, reports the end of each contact pulse and closes the impact after a quiet spell
@@ -17,6 +18,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from .pulses import DETECT_SIGMAS as PULSE_SIGMAS  # the levels of the batch detector, in running σ
+from .pulses import RELEASE_SIGMAS
+
 IDLE, ACTIVE = 0, 1
 EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE, EVENT_PAST_PEAK = 1, 2, 3, 4
 #: a pulse is past its peak when the force has fallen below this fraction of its maximum so far
@@ -27,8 +31,6 @@ BASELINE_SAMPLES = 256
 WARM_SAMPLES = 64
 #: the trigger fires at this many running standard deviations above the baseline
 TRIGGER_SIGMAS = 8.0
-#: pulse detection and release levels in the kernel [running standard deviations]
-PULSE_SIGMAS, RELEASE_SIGMAS = 5.0, 2.0
 
 # float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline, maximum of the pulse; while
 # learning: first sample, the two previous samples, sum of squared second differences, largest sample

@@ -29,6 +29,7 @@ from ..recording import (
     Recording,
     check_sample_rate,
     samples,
+    time_base,
     truth_value,
 )
 from ..units import UNITS, find_unit
@@ -48,10 +49,6 @@ CHANNEL_DIMENSIONS = {FORCE: "force", ACCELERATION: "acceleration"}
 #: SI unit of each dimension a channel may have
 SI_UNITS = {"force": "N", "acceleration": "m/s^2", "pressure": "Pa", "length": "m", "velocity": "m/s",
             "time": "s", "mass": "kg", "frequency": "Hz"}
-#: a time column is regular when no sample is further than this fraction of a period from the fitted grid
-TIME_JITTER = 0.05
-#: samples of a time column checked at a time
-TIME_BLOCK = 1 << 20
 
 _UNIT_IN_NAME = re.compile(r"^\s*(.*?)\s*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
@@ -135,30 +132,10 @@ def pick_channel(names: list[str], standard: str, explicit: str | None, *, optio
     return None
 
 
-def time_base(time: np.ndarray, unit: str | None, source: str) -> tuple[float, float]:
-    """(sample rate [Hz], start time [s]) of a time column; refuses non-monotonic or irregular time."""
+def time_base_of(time: np.ndarray, unit: str | None, source: str) -> tuple[float, float]:
+    """(sample rate [Hz], start time [s]) of a time column in ``unit``; see :func:`impactometer.recording.time_base`."""
     known = unit_factor(unit, dimension="time", field="time", source=source)
-    t = samples(time, "time", source, squeeze=True)
-    scale = 1.0 if known is None else known[1]
-    if t.size < 2:
-        raise RecordingError(f"{source}: time must have at least 2 samples, got {t.size}")
-    for start in range(0, t.size, TIME_BLOCK):  # a block at a time: no temporaries the size of the column
-        steps = np.diff(t[start:start + TIME_BLOCK + 1])
-        if np.any(steps <= 0):
-            i = start + int(np.flatnonzero(steps <= 0)[0])
-            raise RecordingError(f"{source}: time must increase strictly; sample {i + 1} ({float(t[i + 1]) * scale!r} "
-                                 f"s) does not follow sample {i} ({float(t[i]) * scale!r} s)")
-    first, period = float(t[0]) * scale, float(t[-1] - t[0]) * scale / (t.size - 1)
-    check_sample_rate(1.0 / period if period > 0 else math.inf, f"{source}: the sample rate of the time column")
-    for start in range(0, t.size, TIME_BLOCK):
-        block = t[start:start + TIME_BLOCK] * scale
-        deviation = np.abs(block - (first + period * np.arange(start, start + block.size)))
-        if deviation.max() > TIME_JITTER * period:
-            i = int(np.argmax(deviation))
-            raise RecordingError(f"{source}: time must be regularly sampled; sample {start + i} is "
-                                 f"{deviation[i]:.3g} s off the grid of period {period:.6g} s (tolerance "
-                                 f"{TIME_JITTER:g} period)")
-    return 1.0 / period, first
+    return time_base(samples(time, "time", source, squeeze=True), source, scale=1.0 if known is None else known[1])
 
 
 def plain(value: Any) -> Any:
@@ -346,7 +323,7 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
     if rate is not None:
         rate = check_sample_rate(rate, f"{source}: sample rate stated in the file")
     if raw_time is not None:
-        time_rate, time_start = time_base(raw_time[0], raw_time[1], source)
+        time_rate, time_start = time_base_of(raw_time[0], raw_time[1], source)
         if rate is not None and abs(time_rate - rate) > 1e-3 * rate:
             raise RecordingError(f"{source}: time column gives {time_rate:g} Hz but the file states {rate:g} Hz")
         rate, start = rate or time_rate, time_start  # a stated rate is exact, a printed time column rounded

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..identify.inspection import inspect_recording
 from ..recording import ACCELERATION, FORCE
 from . import _pyplot, legend_outside, shade_pulses
 
@@ -16,13 +17,12 @@ def plot_recording(recording, axes=None, *, inspection=None):
     recording : Recording
     axes : sequence of two matplotlib Axes, optional
     inspection : Inspection, optional
-        Result of :func:`impactometer.recording.inspect_recording` (computed when not given).
+        Result of :func:`impactometer.identify.inspection.inspect_recording` (computed when not given).
 
     Returns
     -------
     matplotlib.figure.Figure
     """
-    from ..recording import inspect_recording
 
     plt = _pyplot()
     names = [name for name in (FORCE, ACCELERATION) if name in recording.channels] or list(recording.channels)[:2]

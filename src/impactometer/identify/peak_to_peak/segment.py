@@ -14,7 +14,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ...recording import check_sample_rate
 from .. import trigger
-from ..pulses import PulseSpan, detect_pulses, noise_std, sustained_index
+from ..pulses import SUSTAINED_FACTOR, PulseSpan, detect_pulses, noise_std, sustained_index
 from .onsets import VERTEX_HALF_MAX, onset_index, separation_index, turning_points, vertex
 
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
@@ -31,8 +31,6 @@ QUIET_TIME = 0.3
 MAX_DURATION = 1.0
 #: the impact's own noise estimate replaces the pre-trigger's when it is this much larger [-]
 NOISE_GROWTH = 1.5
-#: a sustained contact (stage B) lasts longer than this many times the longest bounce before it [-]
-SUSTAINED_FACTOR = 2.0
 #: turning points of the force are found on a moving average over this fraction of the first pulse [1/-]
 SMOOTH_PER_PULSE = 16
 

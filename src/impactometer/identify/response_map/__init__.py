@@ -19,9 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ParameterError, ResponseMapError, shown
-from ...recording import Recording, inspect_recording
+from ...recording import Recording
 from ...rig import check_recorded_on
 from ...validation import check_real, is_real
+from ..inspection import inspect_recording
 from ..plausibility import check_answer
 from ..result import Identification
 from .build import PRESSURE_TOLERANCE, build_map_from_recordings, build_map_simulated
@@ -187,7 +188,7 @@ def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Pa
 
 def force_plausibility(recording: Recording, mass: float, velocity: float, gravity: float) -> tuple[str, ...]:
     """What makes an answer implausible for the recording's contact force (:func:`.plausibility.check_answer`;
-    the pulses and the offset are those :func:`~impactometer.recording.inspect_recording` finds)."""
+    the pulses and the offset are those :func:`~impactometer.identify.inspection.inspect_recording` finds)."""
     found = inspect_recording(recording)
     force = recording.contact_force - found.force_offset
     index = [(p.start - recording.start_time) * recording.sample_rate for p in found.pulses]

@@ -1,0 +1,121 @@
+"""What a recording holds, as ``impactometer inspect`` reports it: duration, rate, channels with their ranges and
+noise, peak force, the contact pulses (stage A) and the start of sustained contact (stage B)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..errors import RecordingError
+from ..recording import FORCE, TRUTH_KEYS, Recording
+from .pulses import Pulse, detect_pulses, is_sustained, noise_std, stage_b_start
+
+
+@dataclass(frozen=True, kw_only=True)
+class ChannelSummary:
+    """Range and white-noise estimate of one channel, in its SI unit."""
+
+    unit: str
+    minimum: float
+    maximum: float
+    noise: float
+
+
+@dataclass(frozen=True, kw_only=True)
+class Inspection:
+    """What ``impactometer inspect`` reports about a recording.
+
+    Attributes
+    ----------
+    duration, sample_rate, start_time : Record length [s], sample rate [Hz], time of the first sample [s].
+    channels : Channel name -> :class:`ChannelSummary`.
+    peak_force, peak_force_time : Largest contact force [N] and when [s] (None without a force channel).
+    force_offset : Offset removed before pulse detection [N] (median of the pre-trigger samples, else 0).
+    pulses : Contact pulses (``identify.pulses.Pulse``), the last one ``sustained`` when it is stage B.
+    stage_b_start : Start of sustained contact [s] or None.
+    truth : Known-truth metadata present in the recording.
+    """
+
+    duration: float
+    sample_rate: float
+    start_time: float
+    samples: int
+    channels: dict[str, ChannelSummary]
+    peak_force: float | None
+    peak_force_time: float | None
+    force_offset: float
+    pulses: list
+    stage_b_start: float | None
+    truth: dict[str, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (SI units, keys suffixed with the unit)."""
+        return {"duration_s": self.duration, "sample_rate_Hz": self.sample_rate, "start_time_s": self.start_time,
+                "samples": self.samples,
+                "channels": {name: {"unit": c.unit, "min": c.minimum, "max": c.maximum, "noise": c.noise}
+                             for name, c in self.channels.items()},
+                "peak_force_N": self.peak_force, "peak_force_time_s": self.peak_force_time,
+                "force_offset_N": self.force_offset,
+                "pulses": [{"start_s": p.start, "peak_time_s": p.peak_time, "end_s": p.end,
+                            "peak_force_N": p.peak_force, "impulse_Ns": p.impulse, "sustained": p.sustained}
+                           for p in self.pulses],
+                "stage_b_start_s": self.stage_b_start, "truth": dict(self.truth)}
+
+
+#: fewest pre-trigger samples from which the force offset is estimated
+MIN_OFFSET_SAMPLES = 10
+
+
+def _samples_before_contact(recording: Recording) -> int:
+    """Number of samples at t < 0 (the pre-trigger), without forming the time array."""
+    n = int(np.clip(np.ceil(-recording.start_time * recording.sample_rate), 0, len(recording)))
+    while n > 0 and recording.start_time + (n - 1) / recording.sample_rate >= 0:
+        n -= 1
+    while n < len(recording) and recording.start_time + n / recording.sample_rate < 0:
+        n += 1
+    return n
+
+
+def inspect_recording(recording: Recording) -> Inspection:
+    """Duration, rate, channels with ranges and noise, peak force, contact pulses and stage B of ``recording``.
+
+    Pulses come from the noise-aware detector of :mod:`impactometer.identify.pulses` (detection at 5 σ of the
+    estimated white noise, release at 2 σ), on the force minus its pre-trigger median.
+    """
+    if not isinstance(recording, Recording):
+        raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
+    channels = {name: ChannelSummary(unit=recording.unit(name), minimum=float(x.min()), maximum=float(x.max()),
+                                     noise=noise_std(x)) for name, x in recording.channels.items()}
+    pulses: list = []
+    peak = peak_time = None
+    offset = 0.0
+    if FORCE in recording.channels:
+        f = recording.contact_force
+        dt = 1.0 / recording.sample_rate
+
+        def t(i: int) -> float:  # as Recording.time gives it, without the array
+            return recording.start_time + i / recording.sample_rate
+
+        before = f[:_samples_before_contact(recording)]
+        offset = float(np.median(before)) if before.size >= MIN_OFFSET_SAMPLES else 0.0
+        f = f - offset
+        k = int(np.argmax(f))
+        peak, peak_time = float(f[k]), t(k)
+        longest = 0.0
+        for span in detect_pulses(f, channels[FORCE].noise):
+            stop = span.end if span.complete else f.size - 1
+            sustained = is_sustained(len(pulses), t(stop) - t(span.zero), longest)
+            longest = max(longest, t(stop) - t(span.zero))
+            pulses.append(Pulse(start=t(span.zero), peak_time=t(span.peak), end=t(stop),
+                                peak_force=float(f[span.peak]),
+                                impulse=float(np.trapezoid(f[span.zero:stop + 1], dx=dt)),
+                                sustained=bool(sustained)))
+            if sustained:
+                break
+    return Inspection(duration=recording.duration, sample_rate=recording.sample_rate,
+                      start_time=recording.start_time, samples=len(recording), channels=channels, peak_force=peak,
+                      peak_force_time=peak_time, force_offset=offset, pulses=pulses,
+                      stage_b_start=stage_b_start(pulses),
+                      truth={k: v for k in TRUTH_KEYS if (v := recording.truth(k)) is not None})
