@@ -96,7 +96,9 @@ def test_inspect_json_matches_the_recording(recorded, capsys):
     rec = read_recording(recorded)
     assert data["sample_rate_Hz"] == 50e3 and data["samples"] == len(rec)
     assert data["peak_force_N"] == pytest.approx(rec.contact_force.max() - data["force_offset_N"], rel=1e-9)
-    assert len(data["pulses"]) >= 8 and data["stage_b_start_s"] is None
+    # the built-in stand: one rebound, then sustained contact (stage B) that lasts past the record's end
+    assert len(data["pulses"]) == 2 and data["pulses"][1]["sustained"]
+    assert data["stage_b_start_s"] == data["pulses"][1]["start_s"]
     assert [p["start_s"] for p in data["pulses"]] == sorted(p["start_s"] for p in data["pulses"])
     assert data["truth"]["mass_kg"] == 30.0
 

@@ -188,8 +188,8 @@ def test_invalid_valve_drive(kwargs, match):
     ({"law": "iso6358", "sonic_conductance": 1e-7, "critical_ratio": 1.2}, r"valve.critical_ratio must be"),
     ({"law": "iso6358", "sonic_conductance": 1e-7, "critical_ratio": 0.0}, r"valve.critical_ratio must be"),
     ({"law": "iso6358", "sonic_conductance": 1e-7, "critical_ratio": 1.0}, r"within \(0, 1\), got 1.0"),
-    ({"law": "iso6358", "critical_ratio": 0.3}, "valve.sonic_conductance is required"),
-    ({"sonic_conductance": 1e-7}, "not of the orifice law"), ({"law": "venturi"}, "valve.law must be one of")])
+    ({"law": "orifice", "sonic_conductance": 1e-7}, "not of the orifice law"),
+    ({"law": "venturi"}, "valve.law must be one of")])
 def test_invalid_valve(kwargs, match):
     with pytest.raises(ParameterError, match=match):
         Valve(**kwargs)
@@ -371,3 +371,9 @@ def test_valve_flow_properties(p_up, ratio, temperature, area):
     assert valve_mass_flow(p_up, temperature, max(ratio * p_up, 1.0), area / 2) == pytest.approx(flow / 2, rel=1e-12,
                                                                                                 abs=1e-18)
     assert valve_mass_flow(1.1 * p_up, temperature, max(ratio * p_up, 1.0), area) >= flow
+
+
+def test_an_iso6358_valve_takes_the_built_in_valves_parameters_it_leaves_out():
+    valve = Valve(critical_ratio=0.4)
+    assert (valve.law, valve.sonic_conductance, valve.critical_ratio) == ("iso6358", 2e-7, 0.4)
+    assert Valve(law="orifice").sonic_conductance is None

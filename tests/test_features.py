@@ -52,9 +52,21 @@ def test_impulse_profile_of_a_constant_force_is_linear_in_time():
 def test_peaks_finds_both_amplitudes_and_the_end_of_the_second_pulse():
     values, available = extract_features(TIME, half_sines(TWO_PULSES), "peaks")
     np.testing.assert_allclose(values, [3000.0, 3600.0], rtol=2e-4)
-    # the second pulse ends when it falls below 5 % of its peak: sin(x) = 0.05 near the end of the half sine
-    end = 0.015 + 0.005 * (1 - np.arcsin(0.05) / np.pi)
+    # the second peak is known once the force has fallen below it by 5 % of the first peak (150 N):
+    # 3600·sin(x) = 3450 past the top of the half sine
+    end = 0.015 + 0.005 * (1 - np.arcsin(3450.0 / 3600.0) / np.pi)
     assert available == pytest.approx(end, abs=2 / FS)
+
+
+def test_peaks_takes_the_first_peak_of_a_second_contact_that_runs_into_stage_b():
+    force = half_sines(TWO_PULSES[:1])
+    # the rebound's half sine past its peak down to 2400 N, then sustained contact at that level
+    settle = 0.015 + 0.005 * (1 - np.arcsin(2400.0 / 3600.0) / np.pi)
+    rebound = (TIME >= 0.015) & (settle > TIME)
+    force[rebound] = 3600.0 * np.sin(np.pi * (TIME[rebound] - 0.015) / 0.005)
+    force[settle <= TIME] = 2400.0
+    values, _ = extract_features(TIME, force, "peaks")
+    np.testing.assert_allclose(values, [3000.0, 3600.0], rtol=2e-3)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -36,7 +36,7 @@ class App(typer.Typer):
 
 app = App(add_completion=False, pretty_exceptions_enable=False,
           help="On-line impact load identification and adaptive impact absorption.")
-console = Console()
+console = Console(soft_wrap=True)  # paths and one-line messages are never broken (the terminal wraps)
 
 
 def _version(value: bool) -> None:

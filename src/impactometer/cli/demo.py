@@ -88,9 +88,9 @@ def identification_table(scenario, stand) -> Table:
         answers.append((variant if variant == "paper" else "robust, final", found))
     for label, found in answers:
         table.add_row(label, with_uncertainty(found.mass, found.mass_std),
-                      f"{100 * (found.mass / scenario.mass - 1):+.2f}",
+                      f"{100 * (found.mass / scenario.mass - 1):+.1f}",
                       with_uncertainty(found.velocity, found.velocity_std),
-                      f"{100 * (found.velocity / scenario.velocity - 1):+.2f}", f"{found.energy:.1f}",
+                      f"{100 * (found.velocity / scenario.velocity - 1):+.1f}", f"{found.energy:.1f}",
                       f"{found.available_at * 1e3:.1f}")
     cautions = [found.details["caution"] for _, found in answers if found.details.get("caution")]
     if cautions:

@@ -94,7 +94,8 @@ def _agnostic(details: Mapping[str, Any]) -> bool:
     """Whether an answer came from the agnostic equations (onsets, turning points, separations), whose χ² measures
     the fit to the noise, rather than from the contact-phase fit."""
     used = details.get("equations") or {}
-    return details.get("stage") == "final" and "contact_phase" not in used and used.get("onsets", 0) >= 1
+    return details.get("stage") == "final" and "contact_phase" not in used and (
+        used.get("onsets", 0) >= 1 or used.get("stage_b_extrema", 0) >= 1)
 
 
 def _unit_slip(seg: Segment, gravity: float, chi2: float) -> tuple[str, ...]:

@@ -34,6 +34,10 @@ def _law(delta, rate, k, c, n, m, dscale):
 #: the law fits the whole pulses when their chi-square exceeds its degrees of freedom ν by at most this many
 #: standard deviations √(2ν) of it [-]
 FIT_SIGMAS = 4.0
+#: a fit that fails the chi-square test is refused when its force residual is also this fraction of the force
+#: (RMS over the fitted samples) or more: the law family does not describe the contact, which noise-free records
+#: (whose chi-square fails on any model error) must not be refused for [-]
+MISFIT_LIMIT = 0.05
 #: the overlap in the gap counts as positive throughout when its least value is this many standard errors above
 #: zero [-]
 DIP_SIGMAS = 2.0
@@ -46,8 +50,9 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     and ``gap`` the (first, last) samples between them. A law of the family loads and unloads along one curve;
     a hysteretic contact does not, but it still loads along one. So the law is fitted to the whole pulses, and
     where it does not fit them (a chi-square more than ``FIT_SIGMAS`` standard deviations above its degrees of
-    freedom) to their loading parts alone (each onset to its peak); where these do not fit either, there is no
-    answer (the contact is not one of the family, or the pulses found are not whole contacts). Where the overlap
+    freedom) to their loading parts alone (each onset to its peak); where these do not fit either, and miss by
+    ``MISFIT_LIMIT`` of the force or more, there is no answer (the contact is not one of the family, or the pulses
+    found are not whole contacts). Where the overlap
     stayed positive throughout the gap (by ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and
     loaded again, so the second pulse is not a fresh contact) there is no answer either: the first pulse alone
     determines V0 but hardly the mass (theta is NaN).
@@ -61,8 +66,10 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     fits = np.all(np.isfinite(whole[0])) and whole[2] <= whole[3] + FIT_SIGMAS * np.sqrt(2.0 * max(whole[3], 1))
     chosen = whole if fits else _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole[6],
                                      **common)
-    if not fits and not chosen[2] <= chosen[3] + FIT_SIGMAS * np.sqrt(2.0 * max(chosen[3], 1)):
-        # not even the loading parts follow one law of the family: the contact phase says nothing reliable
+    if not fits and not chosen[2] <= chosen[3] + FIT_SIGMAS * np.sqrt(2.0 * max(chosen[3], 1)) \
+            and (chosen[5] or {}).get("misfit", 0.0) > MISFIT_LIMIT:
+        # not even the loading parts follow one law of the family, beyond the noise and by a visible part of the
+        # force: the contact phase says nothing reliable
         return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
                 {"samples": 0, "onset_row": False, "branches": "none"})
     gap_index = np.arange(gap[0], gap[1], dtype=float)
@@ -181,6 +188,7 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     except np.linalg.LinAlgError:
         return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0)), None, None
     cov = bread * max(1.0, chi2 / max(dof, 1))
+    info = {"misfit": float(np.sqrt(np.mean((fit.fun[:-2] * sigma_f) ** 2) / max(np.mean(f ** 2), 1e-300)))}
     # correlated part: the double-integrated acceleration noise and residual offset shift δ at every sample
     v0, w, d0, k, c, n, m = fit.x
     delta, rate = kinematics(v0, w, d0)
@@ -193,4 +201,4 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     if pre_samples > 0:
         shift = weights @ (taus ** 2 / 2.0)
         cov = cov + noise_acceleration ** 2 / pre_samples * np.outer(shift, shift)
-    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus), None, (fit.x, dscale)
+    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus), info, (fit.x, dscale)

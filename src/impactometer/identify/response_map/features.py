@@ -200,7 +200,9 @@ def _two_pulses(forces, i0, min_samples, fraction, out_index, out_end):
     """Indices of the maxima of the first two contact pulses and of the end of the second (-1: not found).
 
     Pulse 1 starts at ``i0``; a pulse ends when the force falls below ``fraction`` of its running maximum (not
-    before ``min_samples``); pulse 2 starts when the force rises above ``2·fraction`` of the first peak.
+    before ``min_samples``), pulse 2 also when it has fallen below its running maximum by ``fraction`` of the first
+    peak (its first peak, where it runs into sustained contact); pulse 2 starts when the force rises above
+    ``2·fraction`` of the first peak.
     """
     n, samples = forces.shape
     for r in range(n):
@@ -219,7 +221,12 @@ def _two_pulses(forces, i0, min_samples, fraction, out_index, out_end):
                 if x > best:
                     best = x
                     ibest = k
-                if k - start >= min_samples and best > 0 and x < fraction * best:
+                # pulse 1 ends when the force falls to ``fraction`` of its maximum; pulse 2 also at its first
+                # peak, once the force has fallen below it by ``fraction`` of the first peak: a second contact that
+                # runs into sustained contact (stage B) has its peak at the end of the rebound part, as in the
+                # paper variant's t11
+                ended = x < fraction * best or (state == 2 and x < best - fraction * peak1)
+                if k - start >= min_samples and best > 0 and ended:
                     out_index[r, state // 2] = ibest
                     if state == 2:
                         out_end[r] = k
@@ -235,7 +242,8 @@ def _two_pulses(forces, i0, min_samples, fraction, out_index, out_end):
 
 def peaks(time, forces, *, fraction: float = 0.05, min_duration: float = 5e-4,
           smoothing: float = 5e-4) -> tuple[np.ndarray, np.ndarray]:
-    """Amplitudes of the first two contact-force peaks [N] (stage A).
+    """Amplitudes of the first two contact-force peaks [N] (stage A; the second one the first peak of a contact
+    that runs into stage B).
 
     Parameters
     ----------
