@@ -157,6 +157,20 @@ NO_EVENT, PULSE_START, PULSE_END = 0, 1, 2
 
 
 @njit(cache=True)
+def edge(v, detect, release, hold, inside, run):
+    """One sample ``v`` [N] of the detector's hysteresis: (inside, run, whether the pulse started or ended).
+
+    Outside a pulse, ``run`` counts consecutive samples above ``detect`` [N]; inside, consecutive samples at or
+    below ``release`` [N]. When it reaches ``hold`` the pulse started (at the first sample of the run) or ended.
+    """
+    beyond = v > detect if inside == 0 else v <= release
+    run = run + 1 if beyond else 0
+    if run == hold:
+        return 1 - inside, 0, True
+    return inside, run, False
+
+
+@njit(cache=True)
 def _scan(x, detect, release, hold, istate, fstate):
     """Advance the detector over the samples ``x`` [N] up to the first pulse start or end.
 
@@ -169,32 +183,27 @@ def _scan(x, detect, release, hold, istate, fstate):
         index = istate[_SEEN]
         istate[_SEEN] += 1
         if istate[_INSIDE] == 0:
-            if v > detect:
-                if istate[_RUN] == 0 or v > fstate[_RUN_MAX]:
-                    istate[_RUN_PEAK] = index
-                    fstate[_RUN_MAX] = v
-                istate[_RUN] += 1
-            else:
-                istate[_RUN] = 0
-                if not v > release:
-                    istate[_LOW] = index
-            if istate[_RUN] == hold:
-                first = index - hold + 1
-                istate[_INSIDE], istate[_RUN], istate[_FIRST] = 1, 0, first
-                istate[_PEAK], fstate[_PMAX] = istate[_RUN_PEAK], fstate[_RUN_MAX]
-                # the last sample consistent with zero force before the pulse, not before the bound
-                istate[_ZERO] = first - 1 if first == istate[_BOUND] else max(istate[_LOW], istate[_BOUND])
-                return PULSE_START, k + 1
-        else:
-            if v > fstate[_PMAX]:
-                istate[_PEAK] = index
-                fstate[_PMAX] = v
-            istate[_RUN] = istate[_RUN] + 1 if v <= release else 0
-            if istate[_RUN] == hold:
-                istate[_INSIDE], istate[_RUN] = 0, 0
-                istate[_BOUND] = index - hold + 1
+            if v > detect and (istate[_RUN] == 0 or v > fstate[_RUN_MAX]):
+                istate[_RUN_PEAK] = index
+                fstate[_RUN_MAX] = v
+            elif not v > release:
                 istate[_LOW] = index
-                return PULSE_END, k + 1
+        elif v > fstate[_PMAX]:
+            istate[_PEAK] = index
+            fstate[_PMAX] = v
+        inside, istate[_RUN], changed = edge(v, detect, release, hold, istate[_INSIDE], istate[_RUN])
+        istate[_INSIDE] = inside
+        if changed and inside == 1:
+            first = index - hold + 1
+            istate[_FIRST] = first
+            istate[_PEAK], fstate[_PMAX] = istate[_RUN_PEAK], fstate[_RUN_MAX]
+            # the last sample consistent with zero force before the pulse, not before the bound
+            istate[_ZERO] = first - 1 if first == istate[_BOUND] else max(istate[_LOW], istate[_BOUND])
+            return PULSE_START, k + 1
+        if changed:
+            istate[_BOUND] = index - hold + 1
+            istate[_LOW] = index
+            return PULSE_END, k + 1
     return NO_EVENT, x.shape[0]
 
 
