@@ -1,4 +1,11 @@
-"""Contact pulses of a force signal (stage A) and the start of sustained contact (stage B)."""
+"""Contact pulses of a force signal (stage A) and the start of sustained contact (stage B).
+
+One noise-aware pulse detector in two forms that share a compiled kernel and its constants (``DETECT_SIGMAS``,
+``RELEASE_SIGMAS``, ``HOLD``, ``SUSTAINED_FACTOR``): :class:`PulseDetector` takes the samples in chunks of any
+size, :func:`detect_pulses` takes them all at once (and is the former fed once). The impact trigger
+(:mod:`.trigger`) follows pulses with the same step (:func:`edge`); :func:`contact_pulses` cuts noise-free
+(simulated) forces at a threshold.
+"""
 
 from __future__ import annotations
 
