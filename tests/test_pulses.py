@@ -4,9 +4,17 @@ import numpy as np
 import pytest
 
 from impactometer.identify.peak_to_peak.onsets import onset_index
-from impactometer.identify.pulses import contact_pulses, detect_pulses, noise_std, stage_b_start
+from impactometer.identify.pulses import (
+    PulseDetector,
+    contact_pulses,
+    detect_pulses,
+    noise_std,
+    stage_b_start,
+    sustained_start,
+)
 from impactometer.model import simulate
 from impactometer.rig import Scenario, get_rig
+from impactometer.sensors import record
 
 
 @pytest.mark.parametrize("sigma", [0.5, 30.0])
@@ -67,8 +75,6 @@ def test_the_built_in_stand_rebounds_then_stays_in_contact():
 
 def test_sustained_start_with_noise():
     """A long run of bounces ends in sustained contact: found with and without noise, at the same place."""
-    from impactometer.identify.pulses import sustained_start
-
     r = simulate(Scenario(mass=50, velocity=3, pressure_gauge=4e5), get_rig(None, contact="hunt"), duration=0.1)
     clean = detect_pulses(r.contact_force, 0.0)
     b_clean = sustained_start(clean, size=r.time.size)
@@ -78,3 +84,42 @@ def test_sustained_start_with_noise():
     b_noisy = sustained_start(detect_pulses(noisy, noise_std(noisy)), size=r.time.size)
     assert abs(b_noisy - b_clean) <= 20
     assert sustained_start(clean[:1], size=r.time.size) is None
+
+
+def _boundaries(spans):
+    return [(p.zero, p.first, p.peak, p.end) for p in spans]
+
+
+@pytest.mark.parametrize("chunk", [1, 2, 3, 7, 64, 1000])
+def test_incremental_detector_agrees_with_the_batch_one_sample_for_sample(chunk):
+    """The incremental form, pushed the noisy record in chunks of any size, finds the pulses of the batch form
+    (zero, first, peak and end samples), and after every chunk those of the batch form on the samples so far."""
+    rec = record(Scenario.from_height(mass=30, height=0.2, pressure_gauge=200e3), sample_rate=50e3, duration=0.1,
+                 noise=0.02, seed=0, pre_trigger=0.02)
+    f = rec.contact_force
+    sigma, scale = noise_std(f), float(np.max(np.abs(f)))
+    batch = detect_pulses(f, sigma, start=100)
+    assert len(batch) >= 2 and batch[0].first > 1000  # the pre-trigger is quiet; separated bounces follow
+    detector = PulseDetector(sigma, scale, start=100)
+    checks = range(chunk, f.size, max(chunk, 997))  # prefixes where the incremental answer is compared
+    for k in range(0, f.size, chunk):
+        found = detector.push(f[k:k + chunk])
+        if k + chunk in checks:
+            assert _boundaries(found) == _boundaries(detect_pulses(f[:k + chunk], sigma, force_scale=scale,
+                                                                   start=100))
+    assert detector.seen == f.size
+    assert _boundaries(detector.pulses) == _boundaries(batch)
+
+
+def test_incremental_detector_merges_a_gap_that_is_not_a_separation():
+    """A dip below the release level whose force stays clearly positive is one pulse, however it is chunked."""
+    t = np.arange(400)
+    f = 100 * np.exp(-0.5 * ((t - 100) / 30) ** 2) + 100 * np.exp(-0.5 * ((t - 220) / 30) ** 2)
+    f = np.where((t > 150) & (t < 170), 1.0, f) + np.random.default_rng(1).normal(0, 0.05, t.size)
+    batch = detect_pulses(f, 0.2)
+    assert len(batch) == 1
+    for chunk in (1, 5, 160):
+        detector = PulseDetector(0.2, float(np.max(np.abs(f))))
+        for k in range(0, f.size, chunk):
+            detector.push(f[k:k + chunk])
+        assert _boundaries(detector.pulses) == _boundaries(batch)

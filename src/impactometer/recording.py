@@ -10,16 +10,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from .errors import RecordingError, UnitError
+from .errors import RecordingError, UnitError, shown
 from .stands import MASS_RANGE, VELOCITY_RANGE
 from .units import parse_quantity
-
-if TYPE_CHECKING:  # annotations only: inspection is a layer above
-    from .identify.inspection import Inspection
+from .validation import is_real
 
 FORCE = "contact_force"
 ACCELERATION = "piston_acceleration"
@@ -42,10 +40,8 @@ SAMPLE_RATE_RANGE = (1.0, 1e8)
 def check_sample_rate(value: Any, field: str = "sample_rate", *, error: type[Exception] = RecordingError) -> float:
     """``value`` as a sample rate [Hz] within :data:`SAMPLE_RATE_RANGE`; ``error`` naming ``field`` otherwise."""
     low, high = SAMPLE_RATE_RANGE
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
-            or not math.isfinite(value) or not low <= value <= high:
-        shown = float(value) if isinstance(value, (np.integer, np.floating)) else value
-        raise error(f"{field} must be a number within [{low:g}, {high:g}] Hz, got {shown!r}")
+    if not is_real(value) or not math.isfinite(value) or not low <= value <= high:
+        raise error(f"{field} must be a number within [{low:g}, {high:g}] Hz, got {shown(value)}")
     return float(value)
 
 
@@ -55,16 +51,16 @@ def truth_value(key: str, value: Any, where: str = "") -> float:
     RecordingError naming ``where`` and the key unless it is a finite number within :data:`TRUTH_RANGES`.
     """
     dimension, low, high = TRUTH_RANGES[key]
-    shown = value.item() if isinstance(value, np.generic) else value
-    if isinstance(shown, bool) or not isinstance(shown, (int, float, str)):
-        raise RecordingError(f"{where}metadata {key} must be a number, got {_short(shown)}")
+    plain = value.item() if isinstance(value, np.generic) else value
+    if not (is_real(plain) or isinstance(plain, str)):
+        raise RecordingError(f"{where}metadata {key} must be a number, got {_short(plain)}")
     try:
-        number = parse_quantity(shown, dimension, field=f"metadata {key}")
+        number = parse_quantity(plain, dimension, field=f"metadata {key}")
     except UnitError as exc:
         raise RecordingError(f"{where}{exc}") from None
     if not low <= number <= high:
         raise RecordingError(f"{where}metadata {key} must be within [{low:g}, {high:g}] {TRUTH_UNITS[key]}, got "
-                             f"{_short(shown)}")
+                             f"{_short(plain)}")
     return number
 
 
@@ -119,11 +115,9 @@ class Recording:
     def __post_init__(self) -> None:
         where = f"{self.source}: "
         object.__setattr__(self, "sample_rate", check_sample_rate(self.sample_rate, f"{where}sample_rate"))
-        if isinstance(self.start_time, bool) or not isinstance(self.start_time, (int, float, np.integer, np.floating)) \
-                or not abs(self.start_time) <= START_TIME_LIMIT:
-            shown = float(self.start_time) if isinstance(self.start_time, np.generic) else self.start_time
+        if not is_real(self.start_time) or not abs(self.start_time) <= START_TIME_LIMIT:
             raise RecordingError(f"{where}start_time must be a number within ±{START_TIME_LIMIT:g} [s], got "
-                                 f"{shown!r}")
+                                 f"{shown(self.start_time)}")
         object.__setattr__(self, "start_time", float(self.start_time))
         if not isinstance(self.channels, dict) or not self.channels:
             raise RecordingError(f"{where}channels must be a non-empty mapping of name -> samples")
@@ -203,12 +197,6 @@ class Recording:
             raise RecordingError(f"{source}: time has {np.size(time)} samples but the channels have "
                                  f"{len(recording)}; expected equal lengths")
         return recording
-
-    def plot(self, axes=None, *, inspection: Inspection | None = None):
-        """Force and acceleration vs time with the contact pulses marked; returns the figure."""
-        from .plotting.recordings import plot_recording
-
-        return plot_recording(self, axes, inspection=inspection)
 
 
 #: a time column is regular when no sample is further than this fraction of a period from the fitted grid

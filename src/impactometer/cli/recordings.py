@@ -11,6 +11,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from ..errors import ParameterError
+from ..outputs import save_figure
 from .app import app, console, output_path, quantity
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 from .simulate import (
@@ -149,7 +150,7 @@ def inspect(
         for table in _inspection_tables(rec, result):
             console.print(table)
     if plot is not None:
-        from ..outputs import save_figure
+        from ..plotting.recordings import plot_recording
 
-        save_figure(rec.plot(inspection=result), plot)
+        save_figure(plot_recording(rec, inspection=result), plot)
         console.print(f"figure written to {plot}")

@@ -1,10 +1,18 @@
-"""Contact pulses of a force signal (stage A) and the start of sustained contact (stage B)."""
+"""Contact pulses of a force signal (stage A) and the start of sustained contact (stage B).
+
+One noise-aware pulse detector in two forms that share a compiled kernel and its constants (``DETECT_SIGMAS``,
+``RELEASE_SIGMAS``, ``HOLD``, ``SUSTAINED_FACTOR``): :class:`PulseDetector` takes the samples in chunks of any
+size, :func:`detect_pulses` takes them all at once (and is the former fed once). The impact trigger
+(:mod:`.trigger`) follows pulses with the same step (:func:`edge`); :func:`contact_pulses` cuts noise-free
+(simulated) forces at a threshold.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..errors import IdentificationError
 
@@ -147,12 +155,163 @@ def detection_levels(noise: float, force_scale: float) -> tuple[float, float]:
     return DETECT_SIGMAS * sigma, RELEASE_SIGMAS * sigma
 
 
-def _held(mask: np.ndarray, hold: int) -> np.ndarray:
-    """Positions where ``mask`` holds for ``hold`` consecutive samples (an array ``hold - 1`` shorter)."""
-    out = mask[:mask.size - hold + 1].copy()
-    for k in range(1, hold):
-        out &= mask[k:mask.size - hold + 1 + k]
-    return out
+# state of the compiled detector: (int) inside a pulse, length of the current run, first sample of the pulse, last
+# sample at or below the release level, peak sample, lower bound of the zero sample, samples seen, zero sample,
+# peak of the current run above the detection level; (float) peak force of the pulse, of the run
+_INSIDE, _RUN, _FIRST, _LOW, _PEAK, _BOUND, _SEEN, _ZERO, _RUN_PEAK = range(9)
+_PMAX, _RUN_MAX = range(2)
+NO_EVENT, PULSE_START, PULSE_END = 0, 1, 2
+
+
+@njit(cache=True)
+def edge(v, detect, release, hold, inside, run):
+    """One sample ``v`` [N] of the detector's hysteresis: (inside, run, whether the pulse started or ended).
+
+    Outside a pulse, ``run`` counts consecutive samples above ``detect`` [N]; inside, consecutive samples at or
+    below ``release`` [N]. When it reaches ``hold`` the pulse started (at the first sample of the run) or ended.
+    """
+    beyond = v > detect if inside == 0 else v <= release
+    run = run + 1 if beyond else 0
+    if run == hold:
+        return 1 - inside, 0, True
+    return inside, run, False
+
+
+@njit(cache=True)
+def _scan(x, detect, release, hold, istate, fstate):
+    """Advance the detector over the samples ``x`` [N] up to the first pulse start or end.
+
+    Returns (event, samples consumed). A pulse starts at the first of ``hold`` consecutive samples above
+    ``detect`` [N] and ends at the first of ``hold`` consecutive samples at or below ``release`` [N]; the
+    absolute indices are in the state (``_FIRST``, ``_ZERO``, ``_PEAK`` and, at an end, ``_BOUND``).
+    """
+    for k in range(x.shape[0]):
+        v = x[k]
+        index = istate[_SEEN]
+        istate[_SEEN] += 1
+        if istate[_INSIDE] == 0:
+            if v > detect and (istate[_RUN] == 0 or v > fstate[_RUN_MAX]):
+                istate[_RUN_PEAK] = index
+                fstate[_RUN_MAX] = v
+            elif not v > release:
+                istate[_LOW] = index
+        elif v > fstate[_PMAX]:
+            istate[_PEAK] = index
+            fstate[_PMAX] = v
+        inside, istate[_RUN], changed = edge(v, detect, release, hold, istate[_INSIDE], istate[_RUN])
+        istate[_INSIDE] = inside
+        if changed and inside == 1:
+            first = index - hold + 1
+            istate[_FIRST] = first
+            istate[_PEAK], fstate[_PMAX] = istate[_RUN_PEAK], fstate[_RUN_MAX]
+            # the last sample consistent with zero force before the pulse, not before the bound
+            istate[_ZERO] = first - 1 if first == istate[_BOUND] else max(istate[_LOW], istate[_BOUND])
+            return PULSE_START, k + 1
+        if changed:
+            istate[_BOUND] = index - hold + 1
+            istate[_LOW] = index
+            return PULSE_END, k + 1
+    return NO_EVENT, x.shape[0]
+
+
+def _separated(gap: np.ndarray, sigma: float) -> bool:
+    """Whether the force between two pulses (``gap`` [N], from the end of one to the start of the next) is
+    consistent with zero: the median of its middle half within 3·1.25·``sigma``/√n of zero (n = samples there).
+
+    The median, not the mean: the slow foot of a gentle re-contact may reach into the middle half."""
+    quarter = gap.size // 4  # the middle half: away from the tail and the next foot
+    middle = gap[quarter:gap.size - quarter]
+    return not (middle.size > 0 and np.median(middle) > 3.0 * MEDIAN_EFFICIENCY * sigma / np.sqrt(middle.size))
+
+
+class PulseDetector:
+    """The pulse detector in incremental form: push samples of an offset-free force, read the pulses found so far.
+
+    Parameters
+    ----------
+    noise : float
+        Standard deviation of the white noise of the force [N].
+    force_scale : float
+        Largest force [N] (sets the resolution floor of the levels, :func:`detection_levels`).
+    start : int
+        No pulse starts before this sample.
+
+    Notes
+    -----
+    Sample by sample, in a compiled kernel whose state lives in two small arrays, so the pulses do not depend on
+    how the samples are chunked: fed the whole force at once it is :func:`detect_pulses`. The samples of the
+    current gap between two pulses are kept (the gap test needs their median).
+    """
+
+    def __init__(self, noise: float, force_scale: float, *, start: int = 0):
+        self.detect, self.release = detection_levels(noise, force_scale)
+        # the gap test uses the noise itself: the resolution floor of the levels is for edges (ringing), and any
+        # positive force in the middle of a gap means the bodies still touch
+        self.gap_sigma = max(float(noise), 1e-6 * float(force_scale), 1e-12)
+        self.start = max(int(start), 0)
+        self._istate = np.zeros(9, dtype=np.int64)
+        self._istate[_LOW] = -1
+        self._istate[_BOUND] = self.start
+        self._fstate = np.zeros(2)
+        self._spans: list[list] = []  # [zero, first, peak, end (-1: running), peak force]
+        self._kept: list[np.ndarray] = []  # samples since the end of the last pulse (the gap so far)
+
+    @property
+    def seen(self) -> int:
+        """Samples pushed so far."""
+        return int(self._istate[_SEEN])
+
+    def push(self, chunk) -> list[PulseSpan]:
+        """Feed the next samples of the force [N]; return the pulses found so far (:attr:`pulses`)."""
+        x = np.asarray(chunk, dtype=float).reshape(-1)
+        skip = min(max(self.start - self.seen, 0), x.size)
+        self._istate[_SEEN] += skip
+        x = x[skip:]
+        while x.size:
+            event, used = _scan(x, self.detect, self.release, HOLD, self._istate, self._fstate)
+            self._kept.append(x[:used])
+            if event == PULSE_START:
+                self._started()
+            elif event == PULSE_END:
+                last = self._spans[-1]
+                last[2], last[3], last[4] = int(self._istate[_PEAK]), int(self._istate[_BOUND]), self._fstate[_PMAX]
+            x = x[used:]
+            self._trim()
+        return self.pulses
+
+    @property
+    def pulses(self) -> list[PulseSpan]:
+        """The pulses found so far, the last one with ``end = -1`` while it runs."""
+        return [PulseSpan(zero=zero, first=first, peak=int(self._istate[_PEAK]) if end < 0 else peak, end=end)
+                for zero, first, peak, end, _ in self._spans]
+
+    def _samples(self, start: int) -> np.ndarray:
+        """The kept samples from absolute index ``start`` up to the last one seen."""
+        kept = self._kept[0] if len(self._kept) == 1 else np.concatenate(self._kept)
+        return kept[kept.size - (self.seen - start):]
+
+    def _trim(self) -> None:
+        """Keep the samples of the current gap, else the last ``HOLD - 1`` (a pulse edge's hold run)."""
+        gap = bool(self._spans) and self._istate[_INSIDE] == 0
+        keep = self.seen - int(self._spans[-1][3]) if gap else HOLD - 1
+        while self._kept and sum(c.size for c in self._kept[1:]) >= keep:
+            self._kept.pop(0)
+
+    def _started(self) -> None:
+        """A pulse started: a new one, or the last one again where the gap before it is not a separation."""
+        first, peak, force = int(self._istate[_FIRST]), int(self._istate[_PEAK]), float(self._fstate[_PMAX])
+        if self._spans:  # the last pulse has ended (a running pulse cannot be followed by a start)
+            last = self._spans[-1]
+            gap = self._samples(last[3])[:first - last[3]]
+            if not _separated(gap, self.gap_sigma):  # the same pulse: its peak is the largest force since its
+                best, best_force = last[2], last[4]  # first sample, the earliest of equal ones
+                if gap.size and gap.max() > best_force:
+                    best, best_force = last[3] + int(np.argmax(gap)), float(gap.max())
+                if not force > best_force:
+                    self._istate[_PEAK], self._fstate[_PMAX] = best, best_force
+                last[3] = -1
+                return
+        self._spans.append([max(int(self._istate[_ZERO]), 0), first, peak, -1, force])
 
 
 def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None = None,
@@ -160,46 +319,15 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     """Contact pulses of an offset-free ``force`` [N] with white noise of standard deviation ``noise`` [N].
 
     A pulse starts where the force exceeds ``DETECT_SIGMAS``·σ for ``HOLD`` consecutive samples (not before
-    sample ``start``) and ends where it stays below ``RELEASE_SIGMAS``·σ for ``HOLD`` samples. A gap between two
-    pulses counts as a separation only when the force in it is consistent with zero (the median of its middle
+    sample ``start``) and ends where it stays at or below ``RELEASE_SIGMAS``·σ for ``HOLD`` samples. A gap between
+    two pulses counts as a separation only when the force in it is consistent with zero (the median of its middle
     half within 3·1.25·σ/√n of zero, n = samples there); otherwise both are merged into one pulse. A pulse still
-    running at the end of the data has ``end = -1``.
+    running at the end of the data has ``end = -1``. The batch form of :class:`PulseDetector`
+    (``force_scale`` [N], the largest force, defaults to that of ``force``).
     """
     f = np.asarray(force, dtype=float)
-    scale = float(np.max(np.abs(f))) if force_scale is None else float(force_scale)
-    detect, release = detection_levels(noise, scale)
-    # the gap test uses the noise itself: the resolution floor of the levels is for edges (ringing), and any
-    # positive force in the middle of a gap means the bodies still touch
-    gap_sigma = max(float(noise), 1e-6 * scale, 1e-12)
-    spans: list[list[int]] = []
-    i, n = max(int(start), 0), f.size
-    above = np.flatnonzero(_held(f > detect, HOLD))
-    above = above[above >= i]
-    while above.size:
-        first = int(above[0])
-        below = np.flatnonzero(_held(f[first:] <= release, HOLD))
-        end = first + int(below[0]) if below.size else -1
-        if spans and spans[-1][3] >= 0:
-            quarter = (first - spans[-1][3]) // 4  # the middle half: away from the tail and the next foot
-            gap = f[spans[-1][3] + quarter:first - quarter]
-            # the median, not the mean: the slow foot of a gentle re-contact may reach into the middle half
-            if gap.size > 0 and np.median(gap) > 3.0 * MEDIAN_EFFICIENCY * gap_sigma / np.sqrt(gap.size):
-                spans[-1][3] = end  # not a separation: same pulse
-                first = -1
-        if first >= 0:
-            zero = first - 1
-            while zero > i and f[zero] > release:
-                zero -= 1
-            spans.append([max(zero, 0), first, 0, end])
-        if end < 0:
-            break
-        i = end
-        above = above[above > end]
-    out = []
-    for zero, first, _, end in spans:
-        stop = n if end < 0 else end
-        out.append(PulseSpan(zero=zero, first=first, peak=first + int(np.argmax(f[first:stop])), end=end))
-    return out
+    scale = (float(np.max(np.abs(f))) if f.size else 0.0) if force_scale is None else float(force_scale)
+    return PulseDetector(noise, scale, start=start).push(f)
 
 
 def first_peak(force: np.ndarray, span: PulseSpan, drop: float) -> int | None:

@@ -1,5 +1,9 @@
-"""Compiled sample-by-sample impact trigger shared by the batch and the streaming identification: the incremental
-form of the pulse detector of :mod:`.pulses`, with its detection and release levels.
+"""Compiled sample-by-sample impact trigger shared by the batch and the streaming identification.
+
+Inside an impact it follows the contact pulses with the detector of :mod:`.pulses` (its compiled step
+:func:`~.pulses.edge`, its detection and release levels in running σ), without the hold: a pulse ends at its first
+sample at or below the release level, so that the streaming answer comes without delay (an end that noise
+brings early only costs one more solve; the pulses themselves come from :func:`~.pulses.detect_pulses`).
 
 One pass over the samples keeps a running (exponentially weighted) baseline and noise level of the force, fires
 when the force leaves the noise, reports the end of each contact pulse and closes the impact after a quiet spell
@@ -18,8 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .pulses import DETECT_SIGMAS as PULSE_SIGMAS  # the levels of the batch detector, in running σ
-from .pulses import RELEASE_SIGMAS
+from .pulses import DETECT_SIGMAS, RELEASE_SIGMAS, edge
 
 IDLE, ACTIVE = 0, 1
 EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE, EVENT_PAST_PEAK = 1, 2, 3, 4
@@ -31,19 +34,22 @@ BASELINE_SAMPLES = 256
 WARM_SAMPLES = 64
 #: the trigger fires at this many running standard deviations above the baseline
 TRIGGER_SIGMAS = 8.0
+#: samples beyond a level that start or end a pulse inside an impact (the detector's ``HOLD`` is for whole pulses)
+TRIGGER_HOLD = 1
 
 # float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline, maximum of the pulse; while
 # learning: first sample, the two previous samples, sum of squared second differences, largest sample
 _MEAN, _VAR, _SIGMA, _BASE, _PMAX, _FIRST, _PREV1, _PREV2, _D2SUM, _WMAX = range(10)
-# int state: mode, samples seen, index of trigger, samples since trigger, quiet run, inside a pulse, past peak
-_MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE, _PAST = range(7)
+# int state: mode, samples seen, index of trigger, samples since trigger, quiet run, inside a pulse, past peak,
+# run of the pulse detector's step
+_MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE, _PAST, _RUN = range(8)
 #: index of the int state that is 1 while the force is inside a pulse (read by the streaming identifier)
 INSIDE = _INSIDE
 
 
 def new_state() -> tuple[np.ndarray, np.ndarray]:
     """Fresh (float, int) state arrays of the trigger."""
-    return np.zeros(10), np.zeros(7, dtype=np.int64)
+    return np.zeros(10), np.zeros(8, dtype=np.int64)
 
 
 @njit(cache=True)
@@ -99,7 +105,7 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
                 istate[_SINCE] = 0
                 istate[_QUIET] = 0
                 istate[_INSIDE] = 1
-                fstate[_SIGMA] = sigma if sigma * PULSE_SIGMAS > floor else floor / PULSE_SIGMAS
+                fstate[_SIGMA] = sigma if sigma * DETECT_SIGMAS > floor else floor / DETECT_SIGMAS
                 fstate[_BASE] = fstate[_MEAN]
                 fstate[_PMAX] = x - fstate[_MEAN]
                 istate[_PAST] = 0
@@ -121,7 +127,7 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
                     istate[_TRIG] = 0
                     istate[_SINCE] = index
                     noise = np.sqrt(fstate[_D2SUM] / (6.0 * (index - 1)))
-                    fstate[_SIGMA] = noise if noise * PULSE_SIGMAS > floor else floor / PULSE_SIGMAS
+                    fstate[_SIGMA] = noise if noise * DETECT_SIGMAS > floor else floor / DETECT_SIGMAS
                     fstate[_BASE] = 0.0
                     fstate[_PMAX] = fstate[_WMAX]
                     istate[_PAST] = 0
@@ -133,35 +139,37 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events
             continue
         istate[_SINCE] += 1
         y = x - fstate[_BASE]
-        if istate[_INSIDE] == 1:
+        was = istate[_INSIDE]
+        if was == 1:
             if y > fstate[_PMAX]:
                 fstate[_PMAX] = y
             elif istate[_PAST] == 0 and y < PAST_PEAK_FRACTION * fstate[_PMAX] \
-                    and fstate[_PMAX] > 2.0 * PULSE_SIGMAS * fstate[_SIGMA]:
+                    and fstate[_PMAX] > 2.0 * DETECT_SIGMAS * fstate[_SIGMA]:
                 istate[_PAST] = 1
                 events[n_events, 0] = EVENT_PAST_PEAK
                 events[n_events, 1] = index
                 n_events += 1
-            if y < RELEASE_SIGMAS * fstate[_SIGMA]:
-                istate[_INSIDE] = 0
-                istate[_QUIET] = 1
-                events[n_events, 0] = EVENT_PULSE_END
-                events[n_events, 1] = index
-                n_events += 1
-        else:
-            if y > PULSE_SIGMAS * fstate[_SIGMA]:
-                istate[_INSIDE] = 1
-                istate[_QUIET] = 0
-                istate[_PAST] = 0
-                fstate[_PMAX] = y
-            elif y < RELEASE_SIGMAS * fstate[_SIGMA]:
-                istate[_QUIET] += 1
+        release = RELEASE_SIGMAS * fstate[_SIGMA]
+        istate[_INSIDE], istate[_RUN], changed = edge(y, DETECT_SIGMAS * fstate[_SIGMA], release, TRIGGER_HOLD,
+                                                      was, istate[_RUN])
+        if changed and was == 1:
+            istate[_QUIET] = 1
+            events[n_events, 0] = EVENT_PULSE_END
+            events[n_events, 1] = index
+            n_events += 1
+        elif changed:
+            istate[_QUIET] = 0
+            istate[_PAST] = 0
+            fstate[_PMAX] = y
+        elif was == 0 and y <= release:
+            istate[_QUIET] += 1
         if istate[_QUIET] >= quiet_samples or istate[_SINCE] >= max_samples:
             events[n_events, 0] = EVENT_CLOSE
             events[n_events, 1] = index
             n_events += 1
             istate[_MODE] = IDLE
             istate[_INSIDE] = 0
+            istate[_RUN] = 0
             fstate[_VAR] = fstate[_SIGMA] ** 2
             fstate[_MEAN] = x
     return n_events
