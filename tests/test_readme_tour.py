@@ -42,7 +42,7 @@ def test_readme_tour_runs_verbatim(tmp_path):
                               capture_output=True, text=True, stdin=subprocess.DEVNULL, timeout=600)
         assert done.returncode == 0, f"{shlex.join(argv)} failed:\n{done.stdout}\n{done.stderr}"
         outputs[shlex.join(argv)] = done.stdout
-    # the file the tour records starts at first contact and is identified: 30 kg at 1.98 m/s, 2 % noise
+    # the file the tour records starts at first contact and is identified: 30 kg at 1.98 m/s, 1 % noise
     robust = json.loads(outputs["impactometer identify drop.tdms --json"])
     assert abs(robust["mass_kg"] / 30.0 - 1) < 0.05 and abs(robust["velocity_m_s"] / 1.981 - 1) < 0.02
     stream_final = [line for line in outputs["impactometer stream drop.tdms --realtime"].splitlines()
@@ -50,7 +50,7 @@ def test_readme_tour_runs_verbatim(tmp_path):
     # the stream's last estimate is the batch's final answer
     assert with_uncertainty(robust["mass_kg"], robust["mass_std_kg"], "kg") in stream_final
     paper = outputs["impactometer identify drop.tdms --variant paper"]
-    assert "caution" in paper  # 2 % noise: the paper's noise-free assumption does not hold
+    assert "caution" in paper  # 1 % noise: the paper's noise-free assumption does not hold
     for name in ("impactometer-demo/impact.png", "impactometer-demo/absorb.png", "run.h5", "run.png", "drop.tdms",
                  "drop.png", "map.h5", "fig10.png", "studies/index.html"):
         assert (tmp_path / name).exists(), name

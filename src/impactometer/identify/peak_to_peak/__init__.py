@@ -183,7 +183,7 @@ def second_peak(seg: Segment) -> int | None:
 
 
 #: noise, as a fraction of a channel's peak, above which the paper variant's answer carries a caution [-]
-PAPER_NOISE_LIMIT = 0.005
+PAPER_NOISE_LIMIT = 0.002
 
 
 def paper_caution(seg: Segment) -> str | None:
