@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..recording import FORCE, TRUTH_KEYS, Recording
-from .pulses import Pulse, detect_pulses, is_sustained, noise_std, stage_b_start
+from .pulses import Pulse, detect_pulses, noise_std, stage_b_start, sustained_index
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -103,17 +103,14 @@ def inspect_recording(recording: Recording) -> Inspection:
         f = f - offset
         k = int(np.argmax(f))
         peak, peak_time = float(f[k]), t(k)
-        longest = 0.0
-        for span in detect_pulses(f, channels[FORCE].noise):
+        spans = detect_pulses(f, channels[FORCE].noise)
+        stage_b = sustained_index(spans, size=f.size)  # the identification's rule of stage B
+        for k, span in enumerate(spans[:None if stage_b is None else stage_b + 1]):
             stop = span.end if span.complete else f.size - 1
-            sustained = is_sustained(len(pulses), t(stop) - t(span.zero), longest)
-            longest = max(longest, t(stop) - t(span.zero))
             pulses.append(Pulse(start=t(span.zero), peak_time=t(span.peak), end=t(stop),
                                 peak_force=float(f[span.peak]),
                                 impulse=float(np.trapezoid(f[span.zero:stop + 1], dx=dt)),
-                                sustained=bool(sustained)))
-            if sustained:
-                break
+                                sustained=k == stage_b))
     return Inspection(duration=recording.duration, sample_rate=recording.sample_rate,
                       start_time=recording.start_time, samples=len(recording), channels=channels, peak_force=peak,
                       peak_force_time=peak_time, force_offset=offset, pulses=pulses,

@@ -52,10 +52,9 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     where it does not fit them (a chi-square more than ``FIT_SIGMAS`` standard deviations above its degrees of
     freedom) to their loading parts alone (each onset to its peak); where these do not fit either, and miss by
     ``MISFIT_LIMIT`` of the force or more, there is no answer (the contact is not one of the family, or the pulses
-    found are not whole contacts). Where the overlap
-    stayed positive throughout the gap (by ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and
-    loaded again, so the second pulse is not a fresh contact) there is no answer either: the first pulse alone
-    determines V0 but hardly the mass (theta is NaN).
+    found are not whole contacts). Where the overlap stayed positive throughout the gap (by ``DIP_SIGMAS``
+    standard errors: a pad that unloaded to zero force and loaded again, so the second pulse is not a fresh
+    contact) there is no answer either: the first pulse alone determines V0 but hardly the mass (theta is NaN).
 
     Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
     the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
@@ -70,8 +69,7 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
             and (chosen[5] or {}).get("misfit", 0.0) > MISFIT_LIMIT:
         # not even the loading parts follow one law of the family, beyond the noise and by a visible part of the
         # force: the contact phase says nothing reliable
-        return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
-                {"samples": 0, "onset_row": False, "branches": "none"})
+        return _no_answer()
     gap_index = np.arange(gap[0], gap[1], dtype=float)
     if gap_index.size and np.all(np.isfinite(chosen[0])):
         tau, _, _, i_f, _, _, da = kin.at(gap_index)
@@ -81,10 +79,15 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
         grad = np.array([tau[k], -i_f[k]])
         if delta[k] > DIP_SIGMAS * np.sqrt(max(float(grad @ chosen[1] @ grad), 0.0)):
             # the first pulse alone determines V0 but hardly the mass: no answer
-            return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
-                    {"samples": 0, "onset_row": False, "branches": "none"})
+            return _no_answer()
     return (*chosen[:5], {"samples": int(chosen[4][1].size - 1), "onset_row": True,
                           "branches": "whole" if fits else "loading"})
+
+
+def _no_answer():
+    """What :func:`solve_early` returns where the contact phase gives no answer."""
+    return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
+            {"samples": 0, "onset_row": False, "branches": "none"})
 
 
 def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, start=None):

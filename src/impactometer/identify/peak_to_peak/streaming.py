@@ -18,6 +18,7 @@ from ...recording import check_sample_rate
 from ...validation import check_integer, check_real
 from .. import peak_to_peak as p2p
 from .. import trigger
+from ..pulses import is_sustained
 from ..result import Identification
 
 
@@ -143,7 +144,8 @@ class StreamingIdentifier:
 
     def _sustained(self) -> bool:
         """Whether the running pulse has lasted longer than a bounce could (stage B): time for an update."""
-        return self._longest > 0 and self.seen - self._inside_since > p2p.SUSTAINED_FACTOR * self._longest
+        # a pulse before this one (``_longest`` > 0), and this one many bounces long: the one rule of stage B
+        return is_sustained(int(self._longest > 0), self.seen - self._inside_since, self._longest)
 
     def _segment(self, stop: int) -> p2p.Segment:
         assert self._start is not None  # called only while an impact runs
