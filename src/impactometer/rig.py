@@ -35,13 +35,13 @@ from .components import (  # noqa: F401 - the parts are part of the stand's API
     Gas,
     Stops,
     Valve,
-    _check,
     contact_law_name,
 )
 from .constants import STANDARD_GRAVITY
 from .errors import ParameterError
 from .outputs import check_file, write_failed
 from .stands import MASS_RANGE, VELOCITY_RANGE, check_stops
+from .validation import check_real
 
 if TYPE_CHECKING:  # annotations only: recording.py is a layer above the stand
     from .recording import Recording
@@ -64,7 +64,7 @@ class Rig:
         for name, kind in _SECTIONS.items():
             if not isinstance(getattr(self, name), kind):
                 raise ParameterError(f"rig.{name} must be a {kind.__name__}, got {getattr(self, name)!r}")
-        _check("rig.gravity", self.gravity, low=0.0, low_open=False)
+        check_real("rig.gravity", self.gravity, low=0.0)
         if not isinstance(self.name, str):
             raise ParameterError(f"rig.name must be a string, got {self.name!r}")
         check_stops(self)
@@ -218,15 +218,15 @@ class Scenario:
     pressure_gauge: float = 200e3
 
     def __post_init__(self) -> None:
-        _check("mass", self.mass, low=MASS_RANGE[0], low_open=False, high=MASS_RANGE[1], unit=" [kg]")
-        _check("velocity", self.velocity, low=0.0, high=VELOCITY_RANGE[1], unit=" [m/s]")
-        _check("pressure_gauge", self.pressure_gauge, low=0.0, low_open=False, unit=" [Pa]")
+        check_real("mass", self.mass, low=MASS_RANGE[0], high=MASS_RANGE[1], unit=" [kg]")
+        check_real("velocity", self.velocity, low=0.0, low_open=True, high=VELOCITY_RANGE[1], unit=" [m/s]")
+        check_real("pressure_gauge", self.pressure_gauge, low=0.0, unit=" [Pa]")
 
     @classmethod
     def from_height(cls, *, mass: float, height: float, pressure_gauge: float = 200e3,
                     gravity: float = STANDARD_GRAVITY) -> Scenario:
         """Scenario of a free drop from ``height`` [m]: V0 = sqrt(2·g·h)."""
-        _check("height", height, low=0.0, unit=" [m]")
+        check_real("height", height, low=0.0, low_open=True, unit=" [m]")
         return cls(mass=mass, velocity=math.sqrt(2.0 * gravity * height), pressure_gauge=pressure_gauge)
 
     def check_against(self, rig: Rig) -> None:
