@@ -145,15 +145,18 @@ def throughput(n, dtype):
 def agreement():
     grid = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0],
                        [20e3, 115e3, 210e3, 305e3, 400e3], indexing="ij")
-    print(f"\n## Fast (rtol {INTEGRATORS['fast']:g}) vs reference (DOP853, rtol {INTEGRATORS['reference']:g}), "
-          "125 scenarios, 50 ms at 200 kHz")
-    print("| contact law | pulses compared | max rel. diff. peak force | max rel. diff. impulse | "
+    print(f"\n## Fast (rtol {INTEGRATORS['fast']:g} unless stated) vs reference (DOP853, rtol "
+          f"{INTEGRATORS['reference']:g}), 125 scenarios, 50 ms at 200 kHz")
+    print("| stand | contact law | fast rtol | pulses compared | max rel. diff. peak force | max rel. diff. impulse | "
           "max diff. pulse-peak time [µs] | pulse-count mismatches |")
-    print("|---|---:|---:|---:|---:|---:|")
-    for law in ("kelvin-voigt", "hunt-crossley"):
-        a = compare_integrators(*grid, get_rig(contact=law), duration=0.05, sample_rate=200e3)
-        print(f"| {law} | {a.pulses} | {a.peak_force:.1e} | {a.impulse:.1e} | {a.peak_time * 1e6:.3f} | "
-              f"{a.pulse_count_mismatches} |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|")
+    # the pad's sustained-contact maxima are flat: their times converge with the fast rtol (second hysteretic row)
+    for stand, law, rtol in (("drop-stand", "kelvin-voigt", None), ("drop-stand", "hunt-crossley", None),
+                             ("drop-stand", "hysteretic", None), ("drop-stand", "hysteretic", 1e-10),
+                             ("drop-stand-stiff", "kelvin-voigt", None)):
+        a = compare_integrators(*grid, get_rig(stand, contact=law), duration=0.05, sample_rate=200e3, rtol=rtol)
+        print(f"| {stand} | {law} | {rtol or INTEGRATORS['fast']:g} | {a.pulses} | {a.peak_force:.1e} | "
+              f"{a.impulse:.1e} | {a.peak_time * 1e6:.3f} | {a.pulse_count_mismatches} |")
 
 
 def gpu_versus_cpu(n_gpu, n_cpu, agree=True, repeat=3):

@@ -19,25 +19,27 @@ GRID = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0],
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name, law, pulses, peak_time", [
-    ("drop-stand", "kelvin-voigt", 3, 1e-6), ("drop-stand", "hunt-crossley", 3, 1e-6),
-    pytest.param("drop-stand-pad", "hysteretic", 2, 1.5e-6, marks=pytest.mark.xfail(
-        strict=True, reason="known miss: the softer pad (7e5 N/m) makes the maxima of sustained contact flatter; "
-        "their times differ by up to 2.3 µs between the integrators while peak force and impulse agree to 1e-6")),
-    ("drop-stand-stiff", "kelvin-voigt", 3, 1e-6)])
-def test_fast_agrees_with_reference_on_the_paper_grid(name, law, pulses, peak_time):
+@pytest.mark.parametrize("name, law, pulses, rtol", [
+    ("drop-stand", "kelvin-voigt", 3, None), ("drop-stand", "hunt-crossley", 3, None),
+    pytest.param("drop-stand-pad", "hysteretic", 2, None, marks=pytest.mark.xfail(
+        strict=True, reason="known miss at the default rtol 1e-9: the maxima of the pad's sustained contact are so "
+        "flat (curvature about 1.6e-5 of the force per 5 µs sample squared) that their times differ by up to 2.3 µs "
+        "while peak force and impulse agree to 1e-6")),
+    ("drop-stand-pad", "hysteretic", 2, 1e-10),
+    ("drop-stand-stiff", "kelvin-voigt", 3, None)])
+def test_fast_agrees_with_reference_on_the_paper_grid(name, law, pulses, rtol):
     """125 scenarios (M1 10-50 kg, V0 1-3 m/s, p0 20-400 kPa), 50 ms at 200 kHz: peak contact force and impulse
-    ∫Fc dt within 1e-4 relative, every contact-pulse peak time within 1 µs (fast: defaults, reference: DOP853
-    rtol 1e-10). The hysteretic pad stand has fewer pulses (a rebound or two, then sustained contact); the
-    maximum of its sustained contact is so flat that a force difference of 1e-6 moves it by up to 1.3 µs (the
-    sharp stage-A peaks agree within 1 µs)."""
-    result = compare_integrators(*GRID, get_rig(name, contact=law), duration=0.05, sample_rate=200e3)
+    ∫Fc dt within 1e-4 relative, every contact-pulse peak time within 1 µs (fast: default rtol 1e-9 unless
+    ``rtol`` says otherwise, reference: DOP853 rtol 1e-10). The hysteretic pad stand has fewer pulses (a rebound or
+    two, then sustained contact); the peak times of its flat sustained-contact maxima converge with the fast
+    integrator's tolerance (2.3 µs at 1e-9, 0.46 µs at 1e-10, 0.16 µs at 1e-11), so it is compared at 1e-10."""
+    result = compare_integrators(*GRID, get_rig(name, contact=law), duration=0.05, sample_rate=200e3, rtol=rtol)
     assert result.scenarios == 125
     assert result.pulse_count_mismatches == 0
     assert result.pulses >= pulses * 125  # several pulses per record were compared
     assert result.peak_force < 1e-4
     assert result.impulse < 1e-4
-    assert result.peak_time < peak_time
+    assert result.peak_time < 1e-6
 
 
 def test_fast_kernel_is_scipy_rk45_step_for_step(free_bodies):
