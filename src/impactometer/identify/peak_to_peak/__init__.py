@@ -52,6 +52,9 @@ GRAVITY = STANDARD_GRAVITY
 COLOURED_LIMIT = 0.5
 #: the separation lag λ is at most this fraction of the first pulse's duration [-]
 LAG_FRACTION = 0.5
+#: turning points that scatter more than this fraction of V0 beyond their noise (model error, m/s) make the answer
+#: suspect: a warning [-]
+TURNING_SCATTER_LIMIT = 0.03
 #: an answer whose standard error exceeds this fraction of itself says nothing and is refused [-]
 MAX_RELATIVE_STD = 0.5
 
@@ -87,6 +90,11 @@ def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tup
                          velocity_std=result.velocity_std)
     if chi2 is not None and chi2 > SLIP_CHI2:
         found += _unit_slip(seg, gravity, chi2)
+    scatter = ((details.get("equations") or {}).get("model_error") or {}).get("extrema_m_s", 0.0)
+    if fitted and scatter > TURNING_SCATTER_LIMIT * abs(result.velocity):
+        found += (f"the force's turning points scatter {scatter:.3g} m/s beyond their noise about the answer "
+                  f"({scatter / abs(result.velocity):.0%} of V0): neither flights nor a pad's set describe the gaps "
+                  "between the pulses, and the answer may be far off",)
     return found
 
 

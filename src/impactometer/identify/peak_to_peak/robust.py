@@ -187,7 +187,8 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     Every gap is first taken for a flight. Where stage B has an estimate of its own, the gaps are also judged by
     that estimate first (a pad with a set may never let the mass fly), and of the two answers the one whose
     turning points and separations scatter less beyond their noise is kept -- unless that one needs a contact
-    model at the edge of its range (a set or a lag at its bound).
+    model at the edge of its range (a set or a lag at its bound) and the other, inside its range, scatters less
+    than ``BOUNDED_SCATTER`` times as much.
     """
     options: dict = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples,
                          lag_max=lag_max)
@@ -195,9 +196,16 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     if int(np.count_nonzero(eqs.stage_b)) < STAGE_B_ROWS or not eqs.onsets.size:
         return flights
     judged = _solve_rows(kin, eqs, judge_by_stage_b=True, **options)
-    bounded = any(value >= 0.99 * limit for name, limit in (("set", SET_MAX), ("lag_e", lag_max), ("lag_s", lag_max))
-                  if isinstance(value := judged.nuisances.get(name), float))
-    return judged if judged.scatter < flights.scatter and not bounded else flights
+
+    def bounded(sol: Solution) -> bool:
+        return any(value >= 0.99 * limit for name, limit in (("set", SET_MAX), ("lag_e", lag_max), ("lag_s", lag_max))
+                   if isinstance(value := sol.nuisances.get(name), float))
+
+    # the one that scatters less wins, unless it needs a model at the edge of its range and the other, without
+    # one, scatters less than BOUNDED_SCATTER times as much (and fits within its noise, or does so)
+    best, other = (judged, flights) if judged.scatter < flights.scatter else (flights, judged)
+    near = other.scatter <= max(1.0, BOUNDED_SCATTER * best.scatter)
+    return other if bounded(best) and not bounded(other) and near else best
 
 
 def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
@@ -298,6 +306,7 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
         cov += np.diag(mixer @ ((rate * atom_std) ** 2 + ca ** 2 * white))
         shift = mixer @ (cd * v0 * kin.onset_std0 * dt)  # t00's error moves every overlap alike
         cov += np.outer(shift, shift)
+        noise_diag = np.diag(cov).copy()  # each row's variance from the noise alone, before the model error
         cov += np.diag(model[group] + 1e-30 + 1e-18 * float(np.mean(np.diag(cov))))
         cov[np.flatnonzero(dips), np.flatnonzero(dips)] += 1e12 * float(np.max(np.diag(cov)))
         jac_nl = derivatives(vals)
@@ -321,7 +330,7 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
             inside = group == k
             if inside.any():
                 excess = float(np.sum(resid[inside] ** 2)) / int(inside.sum())
-                noise_part = float(np.mean(np.diag(cov)[inside])) - model[k]
+                noise_part = float(np.mean(noise_diag[inside]))
                 model[k] = max((model[k] + noise_part) * excess - noise_part, 0.0)
     resid = yw - aw @ sol
     chi2 = float(resid @ resid)
@@ -333,8 +342,7 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
         nuisances["offset_m_s2"] = float(theta[2])
     nuisances["model_error"] = {"extrema_m_s": float(np.sqrt(model[EXTREMUM])),
                                 "separations_m": float(np.sqrt(model[SEPARATION]))}
-    noise_var = np.array([float(np.mean(np.diag(cov)[group == k]) - model[k]) if np.any(group == k) else 1.0
-                          for k in range(3)])
+    noise_var = np.array([float(np.mean(noise_diag[group == k])) if np.any(group == k) else 1.0 for k in range(3)])
     scatter = float(np.max(model / np.maximum(noise_var, 1e-300)))
     used = {"onsets": int(n_on - np.count_nonzero(dips)), "extrema": int(n_ext),
             "stage_b_extrema": int(np.count_nonzero(eqs.stage_b) * use_ext),
@@ -343,6 +351,9 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
                     used=used, gain=gain, tau=tau[:rows], scatter=scatter)
 
 
+#: a model at the edge of its range (a set or a lag at its bound) is taken only where the other reading of the gaps
+#: scatters this many times more beyond its noise (model-error variance over noise variance) [-]
+BOUNDED_SCATTER = 4.0
 #: turning points in stage B from which its own estimate judges the gaps before the onsets are used [-]
 STAGE_B_ROWS = 3
 #: a gap is surely a flight (or surely not) when its least overlap is negative (positive) by this many standard
