@@ -13,9 +13,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from .errors import OutputError, ParameterError
+from .validation import check_flag
 
 
 def as_path(value: Any, field: str = "path", *, error: type[Exception] = ParameterError) -> Path:
@@ -49,8 +48,7 @@ def check_file(path: str | Path, field: str | None = None, *, overwrite: bool = 
     ``flag`` is what the message tells the caller to pass to replace an existing file.
     """
     path = as_path(path, field or "path", error=error)
-    if not isinstance(overwrite, (bool, np.bool_)):
-        raise error(f"overwrite must be True or False, got {type(overwrite).__name__}")
+    check_flag("overwrite", overwrite, error=error)
     prefix = f"{field}: " if field else ""
     if path.is_dir():
         raise error(f"{prefix}{str(path)!r} is a folder; expected a file name")

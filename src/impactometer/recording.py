@@ -17,7 +17,7 @@ import numpy as np
 from .errors import RecordingError, UnitError, shown
 from .stands import MASS_RANGE, VELOCITY_RANGE
 from .units import parse_quantity
-from .validation import is_real
+from .validation import check_real, is_real
 
 FORCE = "contact_force"
 ACCELERATION = "piston_acceleration"
@@ -40,9 +40,7 @@ SAMPLE_RATE_RANGE = (1.0, 1e8)
 def check_sample_rate(value: Any, field: str = "sample_rate", *, error: type[Exception] = RecordingError) -> float:
     """``value`` as a sample rate [Hz] within :data:`SAMPLE_RATE_RANGE`; ``error`` naming ``field`` otherwise."""
     low, high = SAMPLE_RATE_RANGE
-    if not is_real(value) or not math.isfinite(value) or not low <= value <= high:
-        raise error(f"{field} must be a number within [{low:g}, {high:g}] Hz, got {shown(value)}")
-    return float(value)
+    return check_real(field, value, low=low, high=high, unit=" Hz", state_range=True, error=error)
 
 
 def truth_value(key: str, value: Any, where: str = "") -> float:

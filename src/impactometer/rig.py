@@ -17,7 +17,6 @@ import dataclasses
 import hashlib
 import json
 import math
-import numbers
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,7 +40,7 @@ from .constants import STANDARD_GRAVITY
 from .errors import ParameterError
 from .outputs import check_file, write_failed
 from .stands import MASS_RANGE, VELOCITY_RANGE, check_stops
-from .validation import check_real
+from .validation import check_real, is_real
 
 if TYPE_CHECKING:  # annotations only: recording.py is a layer above the stand
     from .recording import Recording
@@ -251,7 +250,7 @@ def fingerprint(rig: Rig | dict[str, Any]) -> str:
     def plain(value: Any) -> Any:
         if isinstance(value, dict):
             return {k: plain(v) for k, v in value.items()}
-        return float(value) if isinstance(value, numbers.Real) and not isinstance(value, bool) else value
+        return float(value) if is_real(value) else value
 
     data = plain({k: v for k, v in to_dict(stand).items() if k != "name"})
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]

@@ -34,7 +34,7 @@ from .model import simulate_batch
 from .model.dynamics import CHANNELS as MODEL_CHANNELS
 from .recording import ACCELERATION, FORCE, Recording, check_sample_rate
 from .rig import Rig, Scenario, fingerprint, get_rig
-from .validation import check_integer, check_real
+from .validation import check_integer, check_real, is_real
 
 #: model channel -> recording channel name
 MODEL_TO_RECORDING = {"contact_force": FORCE, "a2": ACCELERATION, "u2": "piston_displacement"}
@@ -114,7 +114,7 @@ def _adc_ranges(adc_range, channels: Mapping[str, np.ndarray]) -> dict[str, tupl
     def pair(value, name):
         if isinstance(value, (tuple, list)) and len(value) == 2:
             low, high = (float(v) for v in value)
-        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+        elif is_real(value):
             low, high = -abs(float(value)), abs(float(value))
         else:
             raise ParameterError(f"adc_range[{name!r}] must be a number (±range) or a (low, high) pair, got {value!r}")

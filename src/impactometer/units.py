@@ -12,6 +12,7 @@ import re
 
 from .constants import STANDARD_GRAVITY
 from .errors import UnitError
+from .validation import check_real, is_real
 
 #: dimension -> unit symbol (as written) -> factor to SI
 UNITS: dict[str, dict[str, float]] = {
@@ -83,12 +84,8 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
     """
     if not isinstance(dimension, str) or (dimension not in UNITS and dimension != "number"):
         raise UnitError(f"dimension must be one of {sorted(UNITS)} or 'number', got {dimension!r}")
-    if isinstance(text, bool):
-        raise UnitError(f"{field} must be a number with an optional {dimension} unit, got {text!r}")
-    if isinstance(text, (int, float)):
-        if not math.isfinite(text):
-            raise UnitError(f"{field} must be a finite number, got {float(text)!r}")
-        return float(text)
+    if is_real(text):
+        return check_real(field, text, error=UnitError)
     if not isinstance(text, str):
         raise UnitError(f"{field} must be a number with an optional {dimension} unit, got {text!r}")
     match = _NUMBER.match(text)

@@ -1,8 +1,9 @@
 """The one parameter check of the package: is a value a real number (or an integer) within bounds?
 
-Every public function validates its numeric arguments through :func:`check_real` or :func:`check_integer`, so a
-``bool`` (which Python counts as an ``int``), a string, a NaN or an out-of-range value is refused the same way
-everywhere, with a message naming the field, the value and what was expected.
+Every public function validates its numeric arguments through :func:`check_real` or :func:`check_integer` (its
+flags through :func:`check_flag`), so a ``bool`` (which Python counts as an ``int``), a string, a NaN or an
+out-of-range value is refused the same way everywhere, with a message naming the field, the value and what was
+expected.
 """
 
 from __future__ import annotations
@@ -10,6 +11,8 @@ from __future__ import annotations
 import math
 import numbers
 from typing import Any
+
+import numpy as np
 
 from .errors import ParameterError, shown
 
@@ -24,9 +27,18 @@ def is_integer(value: Any) -> bool:
     return isinstance(value, numbers.Integral) and not isinstance(value, bool)
 
 
+def _bounds(low: float | None, high: float | None, low_open: bool, high_open: bool, spec: str) -> str:
+    """The range part of an expectation, with its leading space: `` within [0, 1]``, `` > 0``, `` <= 5`` or ``""``."""
+    if low is not None and high is not None:
+        return f" within {'(' if low_open else '['}{low:{spec}}, {high:{spec}}{')' if high_open else ']'}"
+    if low is not None:
+        return f" {'>' if low_open else '>='} {low:{spec}}"
+    return "" if high is None else f" {'<' if high_open else '<='} {high:{spec}}"
+
+
 def check_real(name: str, value: Any, *, low: float | None = None, high: float | None = None,
                low_open: bool = False, high_open: bool = False, unit: str = "", finite: bool = True,
-               error: type[Exception] = ParameterError) -> float:
+               state_range: bool = False, error: type[Exception] = ParameterError) -> float:
     """``value`` as a float, or ``error`` naming ``name``, the value and the bound it misses.
 
     Parameters
@@ -36,30 +48,47 @@ def check_real(name: str, value: Any, *, low: float | None = None, high: float |
     low, high : Bounds (None: unbounded); ``low_open``/``high_open`` exclude the bound itself.
     unit : Unit shown in the message after the bound, with its leading space, e.g. ``" [kg]"``.
     finite : Refuse infinities (NaN is always refused).
+    state_range : Every message states the whole expectation (``must be a finite number > 0 [s]``, ``must be a
+        number within [0, 1]``: a closed range needs no "finite") instead of the one part the value misses.
     error : Exception class raised (a subclass of :class:`~impactometer.errors.ImpactometerError`).
     """
-    if not is_real(value) or math.isnan(value) or (finite and not math.isfinite(value)):
+    number = is_real(value) and not math.isnan(value) and (not finite or math.isfinite(value))
+    v = float(value) if number else math.nan  # numpy scalars print as plain numbers below
+    below = low is not None and (v <= low if low_open else v < low)
+    above = high is not None and (v >= high if high_open else v > high)
+    if state_range and not (number and not below and not above):
+        finite_word = "finite " if finite and (low is None or high is None) else ""
+        raise error(f"{name} must be a {finite_word}number{_bounds(low, high, low_open, high_open, 'g')}{unit}, "
+                    f"got {shown(value)}")
+    if not number:
         raise error(f"{name} must be a {'finite ' if finite else ''}number{unit}, got {shown(value)}")
-    v = float(value)  # numpy scalars print as plain numbers below
-    if low is not None and (v <= low if low_open else v < low):
+    if below:
         raise error(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {v!r}")
-    if high is not None and (v >= high if high_open else v > high):
+    if above:
         raise error(f"{name} must be {'<' if high_open else '<='} {high:g}{unit}, got {v!r}")
     return v
 
 
 def check_integer(name: str, value: Any, *, low: int | None = None, high: int | None = None, unit: str = "",
-                  error: type[Exception] = ParameterError) -> int:
-    """``value`` as an int, or ``error`` naming ``name``, the value and the expected range."""
-    if not is_integer(value):
-        bounds = (f" within [{low}, {high}]" if low is not None and high is not None else
-                  f" >= {low}" if low is not None else f" <= {high}" if high is not None else "")
-        raise error(f"{name} must be an integer{bounds}{unit}, got {shown(value)}")
+                  state_range: bool = False, error: type[Exception] = ParameterError) -> int:
+    """``value`` as an int, or ``error`` naming ``name``, the value and the expected range (in every message with
+    ``state_range``, as :func:`check_real`)."""
+    outside = is_integer(value) and ((low is not None and value < low) or (high is not None and value > high))
+    if not is_integer(value) or (state_range and outside):
+        raise error(f"{name} must be an integer{_bounds(low, high, False, False, '')}{unit}, got {shown(value)}")
     if low is not None and value < low:
         raise error(f"{name} must be an integer >= {low}{unit}, got {int(value)!r}")
     if high is not None and value > high:
         raise error(f"{name} must be an integer <= {high}{unit}, got {int(value)!r}")
     return int(value)
+
+
+def check_flag(name: str, value: Any, *, error: type[Exception] = ParameterError) -> bool:
+    """``value`` as a bool (Python or numpy), or ``error`` saying ``name`` must be True or False: no 0, 1 or
+    "yes" taken for one."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise error(f"{name} must be True or False, got {shown(value)}")
+    return bool(value)
 
 
 def is_finite(value: Any) -> bool:

@@ -58,7 +58,11 @@ VERTEX_HALF_WIDTH = 16
 SLOW_VELOCITY_TIME = 5e-3
 #: bandwidth of the correction of the mass velocity (momentum balance) towards the observer's in stage B [rad/s]
 VELOCITY_CORRECTION = 2.0 * math.pi * 5.0
-#: sustained contact: a contact after the first one that has lasted this multiple of the first pulse [-]
+#: sustained contact: a contact after the first one that has lasted this multiple of the first pulse [-]. The rule
+#: of ``identify.pulses.is_sustained`` (measured against the first pulse), compiled here because the loop cannot
+#: call that Python function, and judged sample by sample while the contact runs (>=). Lower than
+#: ``pulses.SUSTAINED_FACTOR`` (2 × the longest pulse before) on purpose: the loop needs the instant the collision
+#: that starts the contact is over and the bodies move together, not the identification's stricter test of a bounce
 SUSTAIN_FACTOR = 1.5
 #: samples of sustained contact before the stage-B mass estimate is used
 MIN_SAMPLES = 25
@@ -120,6 +124,7 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
             e[ABOVE] = 0.0
             if math.isnan(e[FIRST_PULSE]):
                 e[FIRST_PULSE] = t - (HOLD - 1) * dt - e[CONTACT_START]
+    # pulses.is_sustained for the running contact (NaN FIRST_PULSE: still the first pulse, never sustained)
     e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and t - e[CONTACT_START] >= SUSTAIN_FACTOR * e[FIRST_PULSE] else 0.0
     if ctrl[s.REFINE_MASS] != 0.0:
         _regress(e, t, force, gravity - acceleration, DETECT_SIGMAS * sigma)

@@ -23,7 +23,7 @@ from ..errors import ParameterError, shown
 from ..identify.pulses import contact_pulses
 from ..identify.result import Identification
 from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
-from ..validation import check_integer, check_real, finite_or_none
+from ..validation import check_flag, check_integer, check_real, finite_or_none
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
 from .identified import (
@@ -199,8 +199,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     """
     absorber = Absorber() if absorber is None else absorber
     _check(scenario, noise, seed, identification, absorber, control_start)
-    if not isinstance(reference, bool):
-        raise ParameterError(f"reference must be True or False, got {reference!r}")
+    check_flag("reference", reference)
     names = strategy_names(strategy)
     rig = get_rig(ABSORPTION_RIG if rig is None else rig)
     scenario.check_against(rig)

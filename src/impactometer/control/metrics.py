@@ -5,9 +5,10 @@ Stage B and the force ratio (from the truth channels of the simulation):
 
 - the deepest point of the mass is the largest u1 of the record; stage B is the contact pulse that holds it, when
   that pulse is not the first one and has lasted, from its start to the deepest point, longer than 4 × the first
-  pulse (the rule of ``identify.pulses.contact_pulses``); ``stage_b_start`` t_B is its start. A run whose deepest
-  point lies in a collision (for example a light mass stopped by the gas spring during stage A) has no stage B: it
-  is counted apart, never dropped;
+  pulse (the stage-B rule ``identify.pulses.is_sustained``, with this module's ``SUSTAINED_FACTOR`` and the first
+  pulse as the bounce it is measured against); ``stage_b_start`` t_B is its start. A run whose deepest point lies
+  in a collision (for example a light mass stopped by the gas spring during stage A) has no stage B: it is counted
+  apart, never dropped;
 - t_s = max(t_B, control start); the remaining usable stroke s_rem = usable stroke − u1(t_s), and the reference
   force F_ref = M1·(v1(t_s)²/(2·s_rem) + g): the lowest constant force on the mass that stops it within s_rem;
 - the stage-B force ratio R = peak of the CFC 60 filtered contact force over [t_s, deepest point] / F_ref (ideal 1;
@@ -32,7 +33,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..filters import cfc_filter
-from ..identify.pulses import contact_pulses
+from ..identify.pulses import contact_pulses, is_sustained
+from ..validation import finite_or_none
 
 #: upward travel of the mass after it stopped that counts as a rebound [m]
 REBOUND_THRESHOLD = 1e-3
@@ -40,7 +42,11 @@ REBOUND_THRESHOLD = 1e-3
 STOPPED_FRACTION = 0.01
 #: channel frequency class of the filtered (body-load) contact force
 BODY_CFC = 60
-#: stage B: the pulse holding the deepest point lasts this multiple of the first pulse (as ``contact_pulses``)
+#: stage B of the metric: the pulse holding the deepest point has lasted longer than this multiple of the first
+#: pulse (the rule ``pulses.is_sustained``, measured against the first pulse). It differs from
+#: ``pulses.SUSTAINED_FACTOR`` (2 × the longest pulse before) because it answers another question: which pulse of a
+#: finished, noise-free controlled run opens the window of R, not when the identification may take a detected pulse
+#: for stage B. The absorption figures (README, docs/absorption.md) were computed with it.
 SUSTAINED_FACTOR = 4.0
 
 
@@ -80,8 +86,8 @@ class AbsorptionMetrics:
                  "rebound": "m"}
         out = {}
         for key, value in asdict(self).items():
-            if isinstance(value, float) and not math.isfinite(value):
-                value = None
+            if isinstance(value, float):
+                value = finite_or_none(value)
             out[f"{key}_{units[key]}" if key in units else key] = value
         return out
 
@@ -113,12 +119,12 @@ def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.
     pulses = contact_pulses(t, force, sustained_factor=math.inf)  # every contact pulse, none marked
     deepest = int(np.argmax(u1))
     held = [i for i, p in enumerate(pulses) if p.start <= t[deepest] <= p.end]
-    if not held or held[0] == 0:
+    if not held:
         return none
     first = pulses[0].end - pulses[0].start
     pulse = pulses[held[0]]
-    if t[deepest] - pulse.start <= SUSTAINED_FACTOR * first:
-        return none
+    if not is_sustained(held[0], t[deepest] - pulse.start, first, SUSTAINED_FACTOR):
+        return none  # the first pulse or a bounce holds the deepest point
     body = cfc_filter(force, 1.0 / (t[1] - t[0]), BODY_CFC) if filtered is None else filtered
 
     def judged(onset: float) -> tuple[float, float, float, float]:
@@ -134,8 +140,8 @@ def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.
         return float(reference), peak, float(peak / reference), float(work / (peak * remaining))
 
     reference, peak, ratio, efficiency = judged(pulse.start)
-    onset = next(p.start for p in pulses[1:held[0] + 1]
-                 if min(p.end, t[deepest]) - p.start > SUSTAINED_FACTOR * first)
+    onset = next(p.start for k, p in enumerate(pulses[:held[0] + 1])
+                 if is_sustained(k, min(p.end, t[deepest]) - p.start, first, SUSTAINED_FACTOR))
     return StageB(start=float(pulse.start), reference_force=reference, peak_force=peak, force_ratio=ratio,
                   efficiency=efficiency, first_force_ratio=judged(onset)[2])
 

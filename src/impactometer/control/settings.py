@@ -11,7 +11,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, shown
+from ..validation import check_flag, check_real, is_real
 
 #: strategy name -> code of the compiled controller
 STRATEGY_CODES = {"closed": 0, "constant": 1, "realtime": 2, "predictive": 3, "level": 4}
@@ -83,21 +84,14 @@ class ControlSettings:
             if f.name == "strategy":
                 continue
             if f.type in ("bool", bool):
-                if not isinstance(value, bool):
-                    raise ParameterError(f"control.{f.name} must be True or False, got {value!r}")
-                continue
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-                raise ParameterError(f"control.{f.name} must be a number, got {value!r}")
-        checks = {"start": (0.0, True), "usable_stroke": (0.0, False), "tau_control": (0.0, False),
-                  "tau_filter": (0.0, False), "charge_pressure": (0.0, False), "charge_temperature": (0.0, False),
-                  "force_noise": (0.0, False), "observer_bandwidth": (0.0, False)}
-        for name, (low, inf_ok) in checks.items():
-            value = float(getattr(self, name))
-            if math.isnan(value) or value < low or (math.isinf(value) and not inf_ok) \
-                    or (value == low and name in ("tau_control", "tau_filter", "charge_pressure",
-                                                  "charge_temperature", "observer_bandwidth")):
-                raise ParameterError(f"control.{name} must be a {'' if inf_ok else 'finite '}number "
-                                     f"{'>' if value == low else '>='} {low:g}, got {value!r}")
+                check_flag(f"control.{f.name}", value)
+            elif not is_real(value):
+                raise ParameterError(f"control.{f.name} must be a number, got {shown(value)}")
+        for name in ("start", "usable_stroke", "tau_control", "tau_filter", "charge_pressure", "charge_temperature",
+                     "force_noise", "observer_bandwidth"):
+            check_real(f"control.{name}", getattr(self, name), low=0.0, finite=name != "start", state_range=True,
+                       low_open=name in ("tau_control", "tau_filter", "charge_pressure", "charge_temperature",
+                                         "observer_bandwidth"))
         if not 0.0 <= self.opening <= 1.0:
             raise ParameterError(f"control.opening must be a fraction within [0, 1], got {self.opening!r}")
         if not (math.isnan(self.mass) or (math.isfinite(self.mass) and self.mass > 0.0)):

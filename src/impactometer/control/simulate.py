@@ -23,6 +23,7 @@ from ..model import dynamics as d
 from ..model.setup import initial_state, pack
 from ..model.simulate import absolute_tolerance, sample_times, simulation_result
 from ..rig import Rig, Scenario, get_rig
+from ..validation import check_real
 from . import controller as ctl
 from . import estimator as est
 from .settings import T_START as STARTS
@@ -158,8 +159,7 @@ def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, con
         raise ParameterError(f"control must be a ControlSettings, got {control!r}")
     if not isinstance(drive, ValveDrive):
         raise ParameterError(f"drive must be a ValveDrive, got {drive!r}")
-    if isinstance(rtol, bool) or not isinstance(rtol, float) or not 1e-13 <= rtol <= 1e-3:
-        raise ParameterError(f"rtol must be a number within [1e-13, 1e-3], got {rtol!r}")
+    rtol = check_real("rtol", rtol, low=1e-13, high=1e-3, state_range=True)
     t = sample_times(duration, sample_rate)
     p = pack(rig, scenario)
     p[d.VALVE_AREA] = 0.0
@@ -170,10 +170,10 @@ def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, con
     atol = np.append(absolute_tolerance(rtol), rtol * 1e-3)  # the opening: a fraction of the open valve
     chans = np.empty((d.N_CHANNEL, t.size))
     extra = np.empty((len(HISTORIES), t.size))
-    if isinstance(stop_after, bool) or not isinstance(stop_after, (int, float)) or not stop_after >= 0.0:
-        raise ParameterError(f"stop_after must be a time >= 0 [s] or inf, got {stop_after!r}")
+    stop_after = check_real("stop_after", stop_after, low=0.0, finite=False, unit=" [s] (inf: never)",
+                            state_range=True)
     status, last = run_loop(p, y0, control.packed(), ctl.drive_vector(drive), noise, float(sample_rate), rtol, atol,
-                            chans, extra, float(stop_after))
+                            chans, extra, stop_after)
     note = {}
     if status == stepper.OK and last < t.size - 1:
         t, chans, extra = t[:last + 1], chans[:, :last + 1], extra[:, :last + 1]

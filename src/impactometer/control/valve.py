@@ -26,18 +26,14 @@ from ..model.actuated import ROUTES
 from ..model.forces import ISO_REFERENCE_DENSITY, ISO_REFERENCE_TEMPERATURE
 from ..model.setup import pack
 from ..rig import Rig, Scenario, get_rig
+from ..validation import check_flag, check_real
 
 #: largest dead time of a valve drive [s]
 MAX_DEAD_TIME = 0.05
 
 
 def _positive(name: str, value, *, allow_zero: bool = False, allow_inf: bool = False, unit: str = "") -> None:
-    ok_type = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if not ok_type or math.isnan(value) or (math.isinf(value) and not allow_inf) \
-            or (value < 0 if allow_zero else value <= 0):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ParameterError(f"{name} must be a {'' if allow_inf else 'finite '}number {bound}{unit}, got "
-                             f"{shown(value)}")
+    check_real(name, value, low=0.0, low_open=not allow_zero, finite=not allow_inf, unit=unit, state_range=True)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -109,8 +105,7 @@ class Absorber:
         _positive("absorber.rated_force", self.rated_force, unit=" [N]")
         if not isinstance(self.drive, ValveDrive):
             raise ParameterError(f"absorber.drive must be a ValveDrive, got {self.drive!r}")
-        if not isinstance(self.bounce_gate, bool):
-            raise ParameterError(f"absorber.bounce_gate must be True or False, got {self.bounce_gate!r}")
+        check_flag("absorber.bounce_gate", self.bounce_gate)
 
     def usable_stroke(self, rig: Rig) -> float:
         """Largest displacement of the mass the absorber may use on ``rig`` [m]."""

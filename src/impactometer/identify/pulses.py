@@ -39,7 +39,9 @@ def is_sustained(k: int, length: float, longest: float, factor: float = SUSTAINE
 
     A bounce lasts as long as the contact's stiffness makes it, whatever the law; sustained contact lasts as long
     as the gas spring holds the bodies together, many bounces long. The one rule of stage B for the simulation's
-    pulses (:func:`contact_pulses`), the detected ones (:func:`sustained_index`) and ``inspect``.
+    pulses (:func:`contact_pulses`), the detected ones (:func:`sustained_index`), ``inspect`` and the absorption
+    metric (``control.metrics``, with its own factor and the first pulse as ``longest``); the controller's compiled
+    estimator (``control.estimator.SUSTAIN_FACTOR``) mirrors it.
     """
     return k > 0 and length > factor * longest
 

@@ -17,6 +17,7 @@ from typing import Any
 from ..errors import ImpactometerError, RecordingError
 from ..outputs import as_path, check_file, write_failed
 from ..recording import TRUTH_KEYS, Recording, truth_value
+from ..validation import check_flag
 from . import csv, hdf5, mat, tdms
 from .channels import RawData, assemble, merge_metadata
 
@@ -91,8 +92,7 @@ def read_recording(path: str | Path, *, force_channel: str | None = None, accele
     """
     for name, flag in (("flip_force", flip_force), ("flip_acceleration", flip_acceleration),
                        ("acceleration_includes_gravity", acceleration_includes_gravity)):
-        if not isinstance(flag, bool):
-            raise RecordingError(f"{name} must be True or False, got {flag!r}")
+        check_flag(name, flag, error=RecordingError)
     raw = read_raw(path, group=group)
     try:
         return assemble(raw, force_channel=force_channel, acceleration_channel=acceleration_channel,

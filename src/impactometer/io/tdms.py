@@ -18,6 +18,7 @@ from nptdms import ChannelObject, GroupObject, RootObject, TdmsFile, TdmsWriter
 
 from ..errors import RecordingError
 from ..recording import FORCE, Recording
+from ..validation import is_real
 from .channels import (
     RawData,
     merge_metadata,
@@ -123,7 +124,7 @@ def _read(tdms, group: str | None, source: str) -> RawData:
 def write(recording: Recording, path: Path, *, group: str = GROUP) -> None:
     """Write ``recording`` as a LabVIEW-style waveform group."""
     truth = {k: float(v) for k, v in recording.metadata.items()
-             if k in ("mass_kg", "velocity_m_s", "pressure_gauge_Pa") and isinstance(v, (int, float))}
+             if k in ("mass_kg", "velocity_m_s", "pressure_gauge_Pa") and is_real(v)}
     root = RootObject(properties={"name": Path(path).stem, METADATA_PROPERTY: metadata_to_json(recording)} | truth)
     objects = [root, GroupObject(group, properties={})]
     for name, values in recording.channels.items():

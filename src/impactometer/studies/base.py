@@ -12,7 +12,6 @@ import dataclasses
 import hashlib
 import importlib.util
 import json
-import math
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -21,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError, shown
+from ..errors import ParameterError
 from ..rig import Rig, get_rig, to_dict
 from ..units import parse_quantity
-from ..validation import is_integer, is_real
+from ..validation import check_flag, check_integer, check_real, is_integer
 from .registry import STUDIES, get_study, load_studies, register
 
 __all__ = ["MAX_GRID", "MAX_SCENARIOS", "MAX_SEEDS", "PAPER_HEIGHTS", "PAPER_RANGES", "STUDIES", "Row", "Setting",
@@ -163,24 +162,20 @@ class StudyOptions:
     rig_is_default: bool = False
 
     def __post_init__(self) -> None:
-        if not isinstance(self.rig_is_default, bool):
-            raise ParameterError(f"rig_is_default must be True or False, got {self.rig_is_default!r}")
+        check_flag("rig_is_default", self.rig_is_default)
         if not isinstance(self.rig, Rig):
             raise ParameterError(f"rig must be a Rig, got {self.rig!r}")
         for name, least, most in (("seed", 0, 2**63 - 1), ("grid", 2, MAX_GRID), ("seeds", 1, MAX_SEEDS)):
             value = getattr(self, name)
             if name == "grid" and value is None:
                 continue
-            if not is_integer(value) or not least <= value <= most:
-                raise ParameterError(f"{name} must be an integer within [{least}, {most}], got {shown(value)}")
+            check_integer(name, value, low=least, high=most, state_range=True)
         if (self.grid or 5) ** 3 * self.seeds > MAX_SCENARIOS:
             raise ParameterError(f"grid³ × seeds must be at most {MAX_SCENARIOS} scenarios, got "
                                  f"{self.grid or 5}³ × {self.seeds} = {(self.grid or 5) ** 3 * self.seeds}")
         for name, low, high in (("noise", 0.0, 1.0), ("sample_rate", 1e3, 1e7), ("duration", 1e-3, 1.0),
                                 ("pre_trigger", 0.0, 0.1)):
-            value = getattr(self, name)
-            if not is_real(value) or not math.isfinite(value) or not low <= value <= high:
-                raise ParameterError(f"{name} must be a number within [{low:g}, {high:g}], got {shown(value)}")
+            check_real(name, getattr(self, name), low=low, high=high, state_range=True)
         if not isinstance(self.params, Mapping):
             raise ParameterError(f"params must be a mapping of setting -> value, got {self.params!r}")
         object.__setattr__(self, "params", check_params(self.params))

@@ -13,6 +13,7 @@ from scipy.interpolate import CubicSpline
 from ...errors import ParameterError, ResponseMapError
 from ...recording import check_sample_rate
 from ...rig import Rig, from_dict
+from ...validation import is_integer
 from .features import get_feature_set
 
 SCHEMA_VERSION = 1
@@ -144,7 +145,7 @@ def _check_size(n_features: int, n_p: int, n_m: int, n_v: int) -> None:
 def grid_size(n: int | tuple[int, int], field: str) -> tuple[int, int]:
     """N -> (N, N); (n_m, n_v) checked: integers >= 2."""
     sizes = (n, n) if isinstance(n, (int, np.integer)) else tuple(n) if isinstance(n, (tuple, list)) else (n,)
-    if len(sizes) != 2 or any(isinstance(k, bool) or not isinstance(k, (int, np.integer)) or k < 2 for k in sizes):
+    if len(sizes) != 2 or any(not is_integer(k) or k < 2 for k in sizes):
         raise ParameterError(f"{field}: grid size must be an integer >= 2 or a pair of them, got {n!r}")
     return int(sizes[0]), int(sizes[1])
 

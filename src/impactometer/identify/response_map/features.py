@@ -16,7 +16,6 @@ signals that do not give the features, and register a :class:`FeatureSet`.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -25,6 +24,7 @@ import numpy as np
 from numba import njit
 
 from ...errors import ParameterError, ResponseMapError, shown
+from ...validation import check_real
 
 #: every extractor takes ``time`` ((samples,) array: sample instants [s], t = 0 at first contact) and ``forces``
 #: ((n, samples) or (samples,) array: contact force [N])
@@ -69,11 +69,7 @@ class FeatureSet:
         out = dict(self.defaults)
         for key, value in given.items():
             low, high = self.limits[key]
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-                    or not math.isfinite(value) or not low <= value <= high:
-                raise ParameterError(f"feature set {self.name!r}: {key} must be a number within [{low:g}, {high:g}]"
-                                     f", got {shown(value)}")
-            out[key] = float(value)
+            out[key] = check_real(f"feature set {self.name!r}: {key}", value, low=low, high=high, state_range=True)
         return out
 
 
@@ -317,11 +313,10 @@ def recording_signal(recording) -> tuple[np.ndarray, np.ndarray]:
     """(time [s], contact force [N]) of a :class:`~impactometer.recording.Recording`, with the delay its
     anti-alias filter added (metadata ``anti_alias_delay_s``) taken out of the time base, so that fixed windows
     after first contact see the same part of the signal as in a simulation."""
-    delay = recording.metadata.get("anti_alias_delay_s") or 0.0
-    if isinstance(delay, bool) or not isinstance(delay, (int, float)) or not math.isfinite(delay) or delay < 0:
-        raise ResponseMapError(f"{recording.source}: metadata anti_alias_delay_s must be a number >= 0 [s], got "
-                               f"{delay!r}")
-    return recording.time - float(delay), recording.contact_force
+    delay = check_real(f"{recording.source}: metadata anti_alias_delay_s",
+                       recording.metadata.get("anti_alias_delay_s") or 0.0, low=0.0, unit=" [s]", state_range=True,
+                       error=ResponseMapError)
+    return recording.time - delay, recording.contact_force
 
 
 def extract_features(time, force, name: str = "max-impulse",
