@@ -10,6 +10,7 @@ from impactometer.identify.peak_to_peak import identify, identify_arrays
 from impactometer.model import simulate
 from impactometer.recording import Recording
 from impactometer.rig import Scenario, get_rig
+from impactometer.sensors import record
 
 FS = 50e3
 PRE = 1000  # pre-trigger samples (20 ms)
@@ -127,8 +128,6 @@ def test_contact_phase_option_round_trip(contact):
 def test_sensor_recording_with_five_percent_noise(contact, seed):
     """Recorded by the sensor model (anti-alias, 5 % noise on both channels, 50 ms pre-trigger): the truth lies
     within 3 standard errors, and the errors are below 5 % (mass) and 2 % (velocity)."""
-    from impactometer.sensors import record
-
     rec = record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3), get_rig(None, contact=contact),
                  duration=0.1, noise=0.05, seed=seed, pre_trigger=0.05)
     res = identify(rec)
@@ -141,8 +140,6 @@ def test_sensor_recording_with_five_percent_noise(contact, seed):
 def test_quantised_peaks_are_not_clipping_but_a_low_range_is(contact):
     """12-bit ADC: flat quantised peaks pass and the answer stays within 0.5 %; a range below the peak force is
     refused as saturated."""
-    from impactometer.sensors import record
-
     kwargs = dict(duration=0.1, pre_trigger=0.05, adc_bits=12, seed=3)
     rig = get_rig(None, contact=contact)
     scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3)
@@ -162,3 +159,25 @@ def test_quantum_finds_adc_steps_and_ignores_continuous_data():
     assert quantum(rng.normal(0, 10, 500)) == 0.0
     # exact zeros next to a denormal-size value: no overflow warning, continuous
     assert quantum(np.array([0.0, 5e-324, 1.0, 2.5, 7.0])) == 0.0
+
+
+def test_a_record_that_ends_inside_the_first_contact_is_refused_by_name():
+    """A record that stops before the first contact is over holds one running contact and one turning point: the
+    refusal says so (no rebound seen, at least 4 turning points needed), instead of counting complete pulses."""
+    rec = record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3), get_rig(), sample_rate=50e3,
+                 duration=0.05, noise=0.01, seed=0, pre_trigger=0.02)
+    first_contact = int(np.argmax(rec.time >= 0.0))
+    cut = slice(0, first_contact + 220)  # 4.4 ms: past the first force peak, before the rod lets go
+    with pytest.raises(IdentificationError, match="one contact that never ended"):
+        identify_arrays(rec.contact_force[cut], rec.piston_acceleration[cut], rec.sample_rate, rec.start_time)
+
+
+def test_robust_rejects_a_pad_set_read_as_flights():
+    """A light mass on the pad stand at a middle charge: the rod's pad unloads to zero force and loads again
+    before the bodies part, so the gaps are no flights. Reading them as flights gave 12.8 ± 0.1 kg for 10 kg
+    (noise-free); the reading whose turning points fit within their noise must win (within 1 %)."""
+    rec = record(Scenario(mass=10.0, velocity=1.0, pressure_gauge=210e3), get_rig(), sample_rate=50e3,
+                 duration=0.05, noise=0.0, pre_trigger=0.02)
+    answer = identify(rec)
+    assert answer.mass == pytest.approx(10.0, rel=0.01)
+    assert answer.velocity == pytest.approx(1.0, rel=0.01)

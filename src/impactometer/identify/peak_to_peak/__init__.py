@@ -224,7 +224,8 @@ def check_white_noise(seg: Segment) -> None:
 def equations(seg: Segment) -> tuple[Equations, float, float]:
     """Every row the segment holds: (equations, t00 and its standard error [samples])."""
     sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
-    pulses = [p for k, p in enumerate(seg.pulses) if p.complete or k == sustained or (k == 1 and early_ready(seg))]
+    pulses = [p for k, p in enumerate(seg.pulses)
+              if p.complete or k == sustained or (k == 1 and early_ready(seg)) or single_contact(seg)]
     onsets, stds = edges(seg, pulses)
     gaps = np.array([[max(prev.end, prev.peak), int(o)] for prev, o in zip(seg.pulses, onsets[1:], strict=False)],
                     dtype=int)
@@ -236,6 +237,12 @@ def equations(seg: Segment) -> tuple[Equations, float, float]:
                     peaks=np.array([float(p.peak) for p in complete]), stage_b_samples=span,
                     gaps=gaps.reshape(-1, 2))
     return eqs, float(onsets[0]), float(stds[0])
+
+
+def single_contact(seg: Segment) -> bool:
+    """Whether the segment holds one contact that has not ended: the mass never left the rod (no rebound, stage B
+    from first contact, as a heavy mass on a soft charge does), so the force's turning points are all there is."""
+    return len(seg.pulses) == 1 and not seg.pulses[0].complete
 
 
 def _determined(eqs: Equations, dof: int = 1) -> bool:
@@ -258,24 +265,30 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     family.
     """
     check_white_noise(seg)
-    if not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2:
+    single = single_contact(seg)
+    if not single and (not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2):
         _need_pulses(seg, 2, "the robust variant")
     eqs, t00, std0 = equations(seg)
     agnostic = stage == "final" and _determined(eqs)
+    if single and not agnostic:
+        raise IdentificationError(
+            "the record holds one contact that never ended (the mass did not rebound off the rod) with "
+            f"{eqs.extrema.size} turning points of the force; without a second pulse the robust variant needs at "
+            "least 4 turning points in that contact (a longer record), or use the response-map method")
     if not agnostic and not (seg.pulses[1].complete or early_ready(seg)):
         _need_pulses(seg, 2, "the robust variant")
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity, onset_std0=std0)
     noise: dict[str, Any] = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                                  pre_samples=seg.pre_samples)
-    second = seg.pulses[1]
-    peak2 = second_peak(seg) or second.peak
+    second = seg.pulses[1] if len(seg.pulses) > 1 else None
+    peak2 = second_peak(seg) or (second.peak if second is not None else None)
     used: dict = {}
     if agnostic:
         lag_max = LAG_FRACTION * (seg.pulses[0].end - seg.pulses[0].zero) / seg.sample_rate
         sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
         theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
         used = {**sol.used, **sol.nuisances}
-        if contact_phase:
+        if contact_phase and second is not None and peak2 is not None:
             contact = _contact_phase(seg, kin, peak2, noise)
             theta, cov = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
                                  noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples,
@@ -284,6 +297,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
         last = max([p.end if p.complete else seg.force.size - 1 for p in seg.pulses])
     else:
         stage = "early" if stage == "early" else "final"
+        assert second is not None and peak2 is not None  # a single contact is answered above or refused
         theta, cov, chi2, dof, _, info = _contact_phase(seg, kin, peak2, noise)
         if info["branches"] == "none":
             raise IdentificationError("the contact phase does not determine the mass here: the second pulse is "
@@ -307,7 +321,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
         velocity_std=float(np.sqrt(cov[0, 0])), early=early, available_at=seg.time_of(last),
         method="peak-to-peak/robust",
         details={"t00": seg.time_of(t00), "t01": seg.time_of(seg.pulses[0].peak),
-                 "t11": seg.time_of(second_peak(seg) or second.peak),
+                 "t11": math.nan if peak2 is None else seg.time_of(peak2),
                  "onsets": tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), "stage": stage,
                  "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
                  "noise_acceleration_m_s2": seg.noise_acceleration, "pre_trigger_samples": seg.pre_samples})
