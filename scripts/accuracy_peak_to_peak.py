@@ -93,7 +93,7 @@ def summarise(key, rows) -> list[str]:
         cover = "-" if name == "paper" or noise == 0 else \
             f"{np.mean([r[5] for r in ok]):.0%} / {np.mean([r[6] for r in ok]):.0%}"
         out.append(f"| {stand} | {law} | {noise:.0%} | {name} | {dm.mean():.2f} | {dm.max():.2f} | {dv.mean():.3f} | "
-                   f"{dv.max():.3f} | {when:.1f} | {np.median(after):.1f} / {after.max():.1f} | {cover} | "
+                   f"{dv.max():.3f} | {when:.1f} | {np.nanmedian(after):.1f} / {np.nanmax(after):.1f} | {cover} | "
                    f"{missing} |")
     return out
 

@@ -284,7 +284,8 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     peak2 = second_peak(seg) or (second.peak if second is not None else None)
     used: dict = {}
     if agnostic:
-        lag_max = LAG_FRACTION * (seg.pulses[0].end - seg.pulses[0].zero) / seg.sample_rate
+        first = seg.pulses[0]
+        lag_max = LAG_FRACTION * ((first.end if first.complete else seg.force.size) - first.zero) / seg.sample_rate
         sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
         theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
         used = {**sol.used, **sol.nuisances}

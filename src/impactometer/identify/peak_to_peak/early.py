@@ -34,10 +34,10 @@ def _law(delta, rate, k, c, n, m, dscale):
 #: the law fits the whole pulses when their chi-square exceeds its degrees of freedom ν by at most this many
 #: standard deviations √(2ν) of it [-]
 FIT_SIGMAS = 4.0
-#: a fit that fails the chi-square test is refused when its force residual is also this fraction of the force
-#: (RMS over the fitted samples) or more: the law family does not describe the contact, which noise-free records
-#: (whose chi-square fails on any model error) must not be refused for [-]
-MISFIT_LIMIT = 0.05
+#: a fit that fails the chi-square test is refused when its force residual beyond the noise is also this fraction
+#: of the force (RMS over the fitted samples) or more: the law family does not describe the contact; below it the
+#: model error is too small to matter, as in noise-free records, whose chi-square fails on any model error [-]
+MISFIT_LIMIT = 0.01
 #: the overlap in the gap counts as positive throughout when its least value is this many standard errors above
 #: zero [-]
 DIP_SIGMAS = 2.0
@@ -51,10 +51,11 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     a hysteretic contact does not, but it still loads along one. So the law is fitted to the whole pulses, and
     where it does not fit them (a chi-square more than ``FIT_SIGMAS`` standard deviations above its degrees of
     freedom) to their loading parts alone (each onset to its peak); where these do not fit either, and miss by
-    ``MISFIT_LIMIT`` of the force or more, there is no answer (the contact is not one of the family, or the pulses
-    found are not whole contacts). Where the overlap stayed positive throughout the gap (by ``DIP_SIGMAS``
-    standard errors: a pad that unloaded to zero force and loaded again, so the second pulse is not a fresh
-    contact) there is no answer either: the first pulse alone determines V0 but hardly the mass (theta is NaN).
+    ``MISFIT_LIMIT`` of the force or more beyond the noise, there is no answer (the contact is not one of the
+    family, or the pulses found are not whole contacts). Where the overlap stayed positive throughout the gap (by
+    ``DIP_SIGMAS`` standard errors: a pad that unloaded to zero force and loaded again, so the second pulse is not
+    a fresh contact) there is no answer either: the first pulse alone determines V0 but hardly the mass (theta is
+    NaN).
 
     Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
     the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
@@ -191,7 +192,9 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     except np.linalg.LinAlgError:
         return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0)), None, None
     cov = bread * max(1.0, chi2 / max(dof, 1))
-    info = {"misfit": float(np.sqrt(np.mean((fit.fun[:-2] * sigma_f) ** 2) / max(np.mean(f ** 2), 1e-300)))}
+    # the residual beyond the noise, as a fraction of the force (RMS over the fitted samples)
+    excess = max(float(np.mean((fit.fun[:-2] * sigma_f) ** 2)) - noise_force ** 2, 0.0)
+    info = {"misfit": float(np.sqrt(excess / max(float(np.mean(f ** 2)), 1e-300)))}
     # correlated part: the double-integrated acceleration noise and residual offset shift δ at every sample
     v0, w, d0, k, c, n, m = fit.x
     delta, rate = kinematics(v0, w, d0)
