@@ -4,6 +4,7 @@ aggregate, summary and figure from the rows. Tiny sizes: one or two work units p
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import pytest
 
@@ -44,6 +45,13 @@ def _ready(name):
 
 def test_every_study_is_covered_here():
     assert set(STUDIES) == set(TINY)
+
+
+def test_every_figure_a_study_names_is_drawn_by_the_plotting_module():
+    from impactometer.plotting import studies as figures
+
+    named = [study.plot.args[0] for study in STUDIES.values() if isinstance(study.plot, partial)]
+    assert named and all(callable(getattr(figures, name, None)) for name in named)
 
 
 @pytest.mark.parametrize("name", list(TINY))

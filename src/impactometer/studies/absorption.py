@@ -19,7 +19,7 @@ from ..control import absorb
 from ..control.strategies import ALL as ALL_STRATEGIES
 from ..rig import ABSORPTION_RIG, Scenario
 from ..validation import finite_or_none
-from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
 from .tables import finite_values, flag, number
 
 NAME = "absorption"
@@ -172,11 +172,7 @@ def _summary(rows: list[Row]) -> list[Row]:
          "ours": f"{a['median R / achievable R']:.3g}", "paper": "1 = all the valve allows"}]
 
 
-def _plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_absorption_study
-    return plot_absorption_study(rows)
-
-
 STUDY = register(Study(name=NAME, title="Adaptive absorption judged on stage B: strategies, oracle, achievable R",
                        figure="Fig. 10b", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=_plot, chunk_size=1, defaults=DEFAULTS, settings=SETTINGS, rig=ABSORPTION_RIG))
+                       plot=plotted_by("plot_absorption_study"), chunk_size=1, defaults=DEFAULTS, settings=SETTINGS,
+                       rig=ABSORPTION_RIG))

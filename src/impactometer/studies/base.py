@@ -15,6 +15,7 @@ import json
 import zlib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from types import MappingProxyType
 from typing import Any
 
@@ -28,7 +29,7 @@ from .registry import STUDIES, get_study, load_studies, register
 
 __all__ = ["MAX_GRID", "MAX_SCENARIOS", "MAX_SEEDS", "PAPER_HEIGHTS", "PAPER_RANGES", "STUDIES", "Row", "Setting",
            "Study", "StudyOptions", "case_seed", "check_params", "get_study", "grid_size", "hashed_seed",
-           "indexed_cases", "options_for", "paper_grid", "register", "relative_error", "scenario_grid"]
+           "indexed_cases", "options_for", "paper_grid", "plotted_by", "register", "relative_error", "scenario_grid"]
 
 Row = dict[str, Any]
 
@@ -259,6 +260,18 @@ class Study:
             raise ParameterError(f"options must be StudyOptions, got {options!r}")
         options = options_for(self, options)
         return self.evaluate(indexed_cases(self, options), options)
+
+
+def _draw(function: str, rows: list[Row], options: StudyOptions) -> Any:
+    from ..plotting import studies as figures
+
+    return getattr(figures, function)(rows)
+
+
+def plotted_by(function: str) -> Callable[[list[Row], StudyOptions], Any]:
+    """A study's ``plot`` that draws the rows alone with ``function`` of :mod:`impactometer.plotting.studies`,
+    imported when the figure is drawn (running a study does not import matplotlib)."""
+    return partial(_draw, function)
 
 
 def options_for(study: Study, options: StudyOptions) -> StudyOptions:

@@ -12,7 +12,7 @@ from functools import partial
 import numpy as np
 
 from ..rig import VELOCITY_RANGE
-from .base import PAPER_RANGES, Row, Setting, Study, StudyOptions, grid_size, register
+from .base import PAPER_RANGES, Row, Setting, Study, StudyOptions, grid_size, plotted_by, register
 from .identification import REQUIRES, by_method, evaluate_noisy, max_abs, pct, per_method, seeded_grid, with_failures
 
 NAME = "cases"
@@ -43,13 +43,7 @@ def _summary(rows: list[Row]) -> list[Row]:
              "paper": "large diversity; worst at low pressure and large mass"}]
 
 
-def _plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_case_bars
-    return plot_case_bars(rows)
-
-
 STUDY = register(Study(name=NAME, title="Per-case mass and velocity error at chosen pressures",
                        figure="Figs. 3-4", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
-                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=5,
-                       requires=REQUIRES,
-                       defaults=DEFAULTS, settings=SETTINGS))
+                       aggregate=_aggregate, summary=with_failures(_summary), plot=plotted_by("plot_case_bars"),
+                       chunk_size=5, requires=REQUIRES, defaults=DEFAULTS, settings=SETTINGS))

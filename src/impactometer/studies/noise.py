@@ -7,7 +7,7 @@ and the realisation only. The paper finds force noise more harmful than accelera
 
 from __future__ import annotations
 
-from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
 from .identification import (
     REQUIRES,
     by_method,
@@ -70,12 +70,7 @@ def _summary(rows: list[Row]) -> list[Row]:
              "paper": "needs almost noise-free data"}]
 
 
-def _plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_noise
-    return plot_noise(rows)
-
-
 STUDY = register(Study(name=NAME, title="Identification error vs Gaussian noise on force, acceleration, both",
                        figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate,
-                       summary=with_failures(_summary), plot=_plot, chunk_size=2, requires=REQUIRES, defaults=DEFAULTS,
-                       settings=SETTINGS))
+                       summary=with_failures(_summary), plot=plotted_by("plot_noise"), chunk_size=2, requires=REQUIRES,
+                       defaults=DEFAULTS, settings=SETTINGS))

@@ -18,7 +18,7 @@ from ..identify.pulses import contact_pulses
 from ..model import simulate_batch
 from ..rig import Rig
 from ..sensors import record_batch
-from .base import Row, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
 from .tables import finite_values, group_stats, percent_labels
 
 NAME = "peak-force"
@@ -116,11 +116,6 @@ def _summary(rows: list[Row]) -> list[Row]:
              "paper": "not stated (the response map's peaks feature depends on it)"}]
 
 
-def _plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_peak_force
-    return plot_peak_force(rows)
-
-
 STUDY = register(Study(name=NAME, title="First-pulse peak force: simulator vs two-body closed form", figure="",
-                       cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary, plot=_plot,
-                       chunk_size=25))
+                       cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
+                       plot=plotted_by("plot_peak_force"), chunk_size=25))

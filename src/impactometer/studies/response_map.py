@@ -14,7 +14,7 @@ import numpy as np
 
 from ..identify.response_map.features import FEATURE_SETS
 from ..identify.response_map.search import SEARCHES
-from .base import MAX_GRID, Row, Setting, Study, StudyOptions, register
+from .base import MAX_GRID, Row, Setting, Study, StudyOptions, plotted_by, register
 from .map_tables import CASES, PAPER_SIZES, map_size_table, recordings_table, window_table
 from .tables import pick
 
@@ -191,11 +191,6 @@ def _recordings_summary(rows: list[Row]) -> list[Row]:
              "paper": "not studied (acceptance here: mass <= 1 %, velocity <= 0.5 %)"}]
 
 
-def _recordings_plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_map_recordings
-    return plot_map_recordings(rows)
-
-
 STUDY_MAP = register(Study(name=MAP_SIZE, title="Response map: error and time per identification vs database size",
                            figure="Fig. 8", cases=_map_cases, evaluate=_map_evaluate, aggregate=_map_aggregate,
                            summary=_map_summary, plot=_map_plot, chunk_size=1, requires=REQUIRES,
@@ -208,5 +203,5 @@ STUDY_WINDOW = register(Study(name=WINDOW, title="Response map: error vs integra
 STUDY_RECORDINGS = register(Study(name=RECORDINGS, title="Response map from noisy calibration recordings: error on "
                                                         "held-back recordings", figure="", cases=_recordings_cases,
                                   evaluate=_recordings_evaluate, aggregate=_recordings_aggregate,
-                                  summary=_recordings_summary, plot=_recordings_plot, chunk_size=1,
+                                  summary=_recordings_summary, plot=plotted_by("plot_map_recordings"), chunk_size=1,
                                   requires=REQUIRES, defaults=RECORDINGS_DEFAULTS, settings=RECORDINGS_SETTINGS))

@@ -18,7 +18,7 @@ from ..control import Absorber, ValveDrive, absorb
 from ..control.valve import iso6358_valve
 from ..rig import ABSORPTION_RIG, Scenario
 from ..validation import finite_or_none
-from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
 from .tables import finite_values, flag
 
 NAME = "valve-design"
@@ -111,11 +111,7 @@ def _summary(rows: list[Row]) -> list[Row]:
              "ours": f"{verdict}; over {impacts} impacts", "paper": "beyond the paper"}]
 
 
-def _plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_valve_design
-    return plot_valve_design(rows)
-
-
 STUDY = register(Study(name=NAME, title="Valve design: stage-B force ratio over valve size and response time",
                        figure="", cases=_cases, evaluate=_evaluate, aggregate=_valves, summary=_summary,
-                       plot=_plot, chunk_size=5, defaults=DEFAULTS, settings=SETTINGS, rig=ABSORPTION_RIG))
+                       plot=plotted_by("plot_valve_design"), chunk_size=5, defaults=DEFAULTS, settings=SETTINGS,
+                       rig=ABSORPTION_RIG))
