@@ -21,6 +21,7 @@ from impactometer.identify.response_map import (
 from impactometer.identify.response_map.features import extract_batch
 from impactometer.rig import get_rig, to_dict
 
+#: the grid of the response-map tests: 8 masses × 8 drop heights (5 cm to 50 cm) on the built-in stand
 RIG = get_rig()
 MASSES = np.linspace(10.0, 50.0, 8)
 VELOCITIES = np.sqrt(2 * RIG.gravity * np.linspace(0.05, 0.5, 8))
@@ -145,7 +146,8 @@ def test_invalid_maps_are_refused():
         ResponseMap(**{**kwargs, "rig": {"cylinder": {"bore": -1.0}}})
 
 
-def _test_impacts(n, seed):
+def random_impacts(n, seed):
+    """``n`` (masses, velocities) drawn at random inside the grid, away from its edges."""
     rng = np.random.default_rng(seed)
     return rng.uniform(12.0, 48.0, n), np.sqrt(2 * RIG.gravity * rng.uniform(0.07, 0.48, n))
 
@@ -159,7 +161,7 @@ ROUND_TRIP_TOLERANCE = {"peaks": (0.01, 0.001), "impulse-profile": (0.01, 0.002)
 @pytest.mark.parametrize("features", sorted(ROUND_TRIP_TOLERANCE))
 def test_round_trip_identification_of_simulated_impacts(features):
     rmap = build_map_simulated(RIG, 200e3, masses=MASSES, velocities=VELOCITIES, features=features)
-    masses, velocities = _test_impacts(12, seed=5)
+    masses, velocities = random_impacts(12, seed=5)
     batch = simulate_batch(masses, velocities, 200e3, RIG, duration=0.06, channels=("contact_force",))
     ys, available = extract_batch(batch.time, batch.data["contact_force"], features, rmap.feature_params)
     results = [identify_features(y, rmap, available_at=a) for y, a in zip(ys, available, strict=False)]

@@ -14,12 +14,9 @@ from impactometer.identify.response_map import (
     identify_recording,
     save_map,
 )
-from impactometer.rig import fingerprint, get_rig, to_dict
+from impactometer.rig import fingerprint, to_dict
 from impactometer.sensors import record_batch
-
-RIG = get_rig()
-MASSES = np.linspace(10.0, 50.0, 8)
-VELOCITIES = np.sqrt(2 * RIG.gravity * np.linspace(0.05, 0.5, 8))
+from test_response_map import MASSES, RIG, VELOCITIES, random_impacts
 
 
 def calibration(noise, seed=0, pressure=200e3, masses=MASSES, velocities=VELOCITIES):
@@ -28,9 +25,7 @@ def calibration(noise, seed=0, pressure=200e3, masses=MASSES, velocities=VELOCIT
 
 
 def held_back(n, noise, seed=1, pressure=200e3):
-    rng = np.random.default_rng(seed)
-    m = rng.uniform(12.0, 48.0, n)
-    v = np.sqrt(2 * RIG.gravity * rng.uniform(0.07, 0.48, n))
+    m, v = random_impacts(n, seed)
     return m, v, record_batch(m, v, pressure, RIG, duration=0.06, noise=noise, seed=seed + 100)
 
 
