@@ -24,9 +24,9 @@ from ...recording import Recording
 from ..plausibility import SLIP_CHI2, SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
 from ..pulses import detection_levels, first_peak, sustained_index
 from ..result import Identification
-from .early import solve_early
-from .options import check_options, check_unfiltered
-from .robust import Equations, Kinematics, combine, solve_rows
+from .early import combine, solve_early
+from .options import check_options, check_unfiltered, check_white_noise
+from .robust import Equations, Kinematics, solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
     PRE_SAMPLES,
@@ -45,11 +45,10 @@ from .segment import (  # noqa: F401 - re-exported: the streaming identifier and
     segment_of,
     segment_onset,
     segment_separation,
+    single_contact,
 )
 
 GRAVITY = STANDARD_GRAVITY
-#: lag-1 autocorrelation of the pre-trigger noise above which a channel counts as low-pass filtered [-]
-COLOURED_LIMIT = 0.5
 #: the separation lag λ is at most this fraction of the first pulse's duration [-]
 LAG_FRACTION = 0.5
 #: turning points that scatter more than this fraction of V0 beyond their noise (model error, m/s) make the answer
@@ -206,21 +205,6 @@ def paper_caution(seg: Segment) -> str | None:
 
 
 
-def check_white_noise(seg: Segment) -> None:
-    """IdentificationError when the pre-trigger noise of a channel is correlated from sample to sample.
-
-    A low-pass filter (CFC, a smoothing DAQ setting) colours the noise and spreads every contact onset ahead of
-    the contact: the robust variant's noise model and onset times would then be wrong and its standard errors far
-    too small, so it refuses rather than answer.
-    """
-    if seg.noise_correlation > COLOURED_LIMIT:
-        raise IdentificationError(
-            f"the channels look low-pass filtered: their pre-trigger noise has a sample-to-sample correlation of "
-            f"{seg.noise_correlation:.2f} (white noise: about 0, limit {COLOURED_LIMIT}); the robust variant needs "
-            "the unfiltered channels (a filter colours the noise and moves the contact onsets ahead of the "
-            "contact) -- identify the record without --cfc, or use --variant paper")
-
-
 def equations(seg: Segment) -> tuple[Equations, float, float]:
     """Every row the segment holds: (equations, t00 and its standard error [samples])."""
     sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
@@ -237,12 +221,6 @@ def equations(seg: Segment) -> tuple[Equations, float, float]:
                     peaks=np.array([float(p.peak) for p in complete]), stage_b_samples=span,
                     gaps=gaps.reshape(-1, 2))
     return eqs, float(onsets[0]), float(stds[0])
-
-
-def single_contact(seg: Segment) -> bool:
-    """Whether the segment holds one contact that has not ended: the mass never left the rod (no rebound, stage B
-    from first contact, as a heavy mass on a soft charge does), so the force's turning points are all there is."""
-    return len(seg.pulses) == 1 and not seg.pulses[0].complete
 
 
 def _determined(eqs: Equations, dof: int = 1) -> bool:

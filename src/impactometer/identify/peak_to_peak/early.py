@@ -208,3 +208,32 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
         shift = weights @ (taus ** 2 / 2.0)
         cov = cov + noise_acceleration ** 2 / pre_samples * np.outer(shift, shift)
     return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus), info, (fit.x, dscale)
+
+
+def combine(first, second, *, noise_acceleration, pre_samples, dt):
+    """Best linear unbiased combination of two estimates of (V0, w) that share the acceleration noise.
+
+    ``first`` and ``second`` are (theta, cov, (gain, tau)) with ``gain`` = d theta / d(error of D2 at the times
+    ``tau``); their cross-covariance follows from the double-integrated acceleration noise and the residual
+    offset. Returns (theta, cov).
+    """
+    (t1, c1, (g1, tau1)), (t2, c2, (g2, tau2)) = first, second
+    weights = np.zeros((4, tau1.size + tau2.size))
+    weights[:2, :tau1.size] = g1
+    weights[2:, tau1.size:] = g2
+    cross = noise_acceleration ** 2 * kernel_form(weights, np.concatenate([tau1, tau2]), dt)[:2, 2:]
+    if pre_samples > 0:
+        cross = cross + noise_acceleration ** 2 / pre_samples * np.outer(g1 @ (tau1 ** 2 / 2), g2 @ (tau2 ** 2 / 2))
+    sigma = np.block([[c1, cross], [cross.T, c2]])
+    h = np.vstack([np.eye(2), np.eye(2)])
+    try:
+        # the two must agree within their errors; where they do not, both are less certain than stated (Birge)
+        diff = t1 - t2
+        spread = np.linalg.solve(c1 + c2 - cross - cross.T, diff) @ diff / 2.0
+        sigma = sigma * max(1.0, float(spread))
+        info = h.T @ np.linalg.solve(sigma, h)
+        cov = np.linalg.inv(info)
+        theta = cov @ (h.T @ np.linalg.solve(sigma, np.concatenate([t1, t2])))
+    except np.linalg.LinAlgError:
+        return t1, c1
+    return theta, cov

@@ -9,6 +9,7 @@ from ...errors import IdentificationError, shown
 from ...recording import START_TIME_LIMIT, Recording
 from ...validation import check_real
 from ..result import VARIANTS
+from .segment import Segment
 
 
 def check_options(variant: Any, gravity: Any, start_time: Any, *,
@@ -57,3 +58,22 @@ def check_unfiltered(recording: Recording, variant: str) -> None:
                                   "unfiltered channels (a zero-phase filter moves the contact onsets ahead of the "
                                   "contact and colours the noise, so its answers and standard errors would be "
                                   "wrong) -- identify without --cfc, or use --variant paper")
+
+
+#: lag-1 autocorrelation of the pre-trigger noise above which a channel counts as low-pass filtered [-]
+COLOURED_LIMIT = 0.5
+
+
+def check_white_noise(seg: Segment) -> None:
+    """IdentificationError when the pre-trigger noise of a channel is correlated from sample to sample.
+
+    A low-pass filter (CFC, a smoothing DAQ setting) colours the noise and spreads every contact onset ahead of
+    the contact: the robust variant's noise model and onset times would then be wrong and its standard errors far
+    too small, so it refuses rather than answer.
+    """
+    if seg.noise_correlation > COLOURED_LIMIT:
+        raise IdentificationError(
+            f"the channels look low-pass filtered: their pre-trigger noise has a sample-to-sample correlation of "
+            f"{seg.noise_correlation:.2f} (white noise: about 0, limit {COLOURED_LIMIT}); the robust variant needs "
+            "the unfiltered channels (a filter colours the noise and moves the contact onsets ahead of the "
+            "contact) -- identify the record without --cfc, or use --variant paper")

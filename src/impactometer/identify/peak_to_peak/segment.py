@@ -264,3 +264,9 @@ def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     inside = np.array(times)[stage_arr] if stage_arr.any() else np.zeros(0)
     span = int(inside[-1] - inside[0]) if inside.size > 1 else 0
     return np.array(times), np.array(stds), stage_arr, span
+
+
+def single_contact(seg: Segment) -> bool:
+    """Whether the segment holds one contact that has not ended: the mass never left the rod (no rebound, stage B
+    from first contact, as a heavy mass on a soft charge does), so the force's turning points are all there is."""
+    return len(seg.pulses) == 1 and not seg.pulses[0].complete
