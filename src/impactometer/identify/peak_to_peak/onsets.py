@@ -15,6 +15,7 @@ scatter of the minimum, and its standard error half the width of that set (at le
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ..pulses import PulseSpan, detection_levels
 
@@ -144,6 +145,39 @@ def turning_points(force: np.ndarray, lo: int, hi: int, noise: float, width: int
     return out
 
 
+@njit(cache=True)
+def _vertex_profile(t: np.ndarray, y: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Least squares of y(t) by F_E + a±·s² + c±·s³ (s = t − E, coefficients apart on each side of E) at every
+    trial E of ``grid``: (sum of squared residuals, coefficients (F_E, a−, a+, c−, c+)) per trial."""
+    sse = np.empty(grid.size)
+    coef = np.empty((grid.size, 5))
+    basis = np.zeros(5)
+    for g in range(grid.size):
+        gram = 1e-12 * np.eye(5)
+        rhs = np.zeros(5)
+        for i in range(t.size):
+            s = t[i] - grid[g]
+            basis[:] = 0.0
+            basis[0] = 1.0
+            side = 1 if s < 0.0 else 2
+            basis[side] = s * s
+            basis[side + 2] = s * s * s
+            for j in range(5):
+                rhs[j] += basis[j] * y[i]
+                for k in range(5):
+                    gram[j, k] += basis[j] * basis[k]
+        c = np.linalg.solve(gram, rhs)
+        coef[g] = c
+        total = 0.0
+        for i in range(t.size):
+            s = t[i] - grid[g]
+            side = 1 if s < 0.0 else 2
+            r = y[i] - c[0] - c[side] * s * s - c[side + 2] * s * s * s
+            total += r * r
+        sse[g] = total
+    return sse, coef
+
+
 def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float,
            width: int = 1) -> tuple[float, float, float] | None:
     """Sub-sample time [samples], its standard error [samples] and the force [N] of a turning point.
@@ -172,13 +206,7 @@ def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float
     y = f[centre - left:centre + right + 1]
 
     def profile(grid):
-        s = t[None, :] - grid[:, None]
-        before, after = s < 0, s >= 0
-        basis = np.stack([np.ones_like(s), np.where(before, s * s, 0), np.where(after, s * s, 0),
-                          np.where(before, s ** 3, 0), np.where(after, s ** 3, 0)], axis=-1)
-        gram = np.matmul(basis.transpose(0, 2, 1), basis) + 1e-12 * np.eye(5)
-        coef = np.linalg.solve(gram, (basis.transpose(0, 2, 1) @ y)[..., None])[..., 0]
-        return np.sum((y[None, :] - (basis @ coef[..., None])[..., 0]) ** 2, axis=1), coef
+        return _vertex_profile(t, np.ascontiguousarray(y, dtype=float), np.asarray(grid, dtype=float))
 
     step = max(1.0, float((left + right) // 64))
     coarse = np.arange(-(left // 2), right // 2 + 1e-9, step)
