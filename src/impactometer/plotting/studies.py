@@ -255,7 +255,10 @@ def plot_valve_design(rows: Sequence[Row]):
     for ax, (key, title) in zip(axes, (("median", "median R"), ("p90", "90th percentile R"),
                                        ("bottomed", "runs bottomed out")), strict=True):
         grid = grids[key]
-        image = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis_r" if key != "bottomed" else "Reds")
+        # the count map starts white at zero (a map of zeros is good news, not a colour of alarm)
+        limits = {} if key != "bottomed" else {"vmin": 0.0, "vmax": max(1.0, float(np.nanmax(grid)))}
+        image = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis_r" if key != "bottomed" else "Reds",
+                          **limits)
         for i in range(len(times)):
             for j in range(len(areas)):
                 if np.isfinite(grid[i, j]):
