@@ -37,26 +37,51 @@ COARSE_STEP, GRID_STEP = 0.25, 1.0 / 32.0
 
 def _profile(t: np.ndarray, f: np.ndarray, grid: np.ndarray, curved: bool) -> np.ndarray:
     """Least squares of the best foot at each trial time of ``grid`` (minimum over the exponents and A, q)."""
-    s = t[None, None, :] - grid[:, None, None]
-    on = s > 0.0
-    ss = np.where(on, s, 0.0)
-    p = EXPONENTS[None, :, None]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b1 = np.where(on, np.where(p == 0.0, 1.0, ss ** p), 0.0)
-    ff = float(f @ f)
-    g11, r1 = (b1 * b1).sum(-1), (b1 * f).sum(-1)
-    if not curved:
-        amp = r1 / np.where(g11 > 0, g11, 1.0)
-        return np.where((g11 > 0) & (amp > 0), ff - amp * r1, np.inf).min(1)
-    b2 = b1 * ss
-    g12, g22, r2 = (b1 * b2).sum(-1), (b2 * b2).sum(-1), (b2 * f).sum(-1)
-    det = g11 * g22 - g12 ** 2
-    ok = det > 1e-12 * np.maximum(g11 * g22, 1e-300)
-    det = np.where(ok, det, 1.0)
-    amp = (g22 * r1 - g12 * r2) / det
-    bend = (g11 * r2 - g12 * r1) / det
-    sse = ff - 2.0 * (amp * r1 + bend * r2) + amp * amp * g11 + 2.0 * amp * bend * g12 + bend * bend * g22
-    return np.where(ok & (amp > 0), sse, np.inf).min(1)
+    return _foot_profile(np.asarray(t, dtype=float), np.ascontiguousarray(f, dtype=float),
+                         np.asarray(grid, dtype=float), bool(curved), EXPONENTS)
+
+
+@njit(cache=True)
+def _foot_profile(t: np.ndarray, f: np.ndarray, grid: np.ndarray, curved: bool,
+                  exponents: np.ndarray) -> np.ndarray:
+    """:func:`_profile` as a compiled loop: for every trial time and exponent the normal equations of A (and q)
+    are summed over the samples, solved in closed form, and the least sum of squares kept."""
+    ff = 0.0
+    for i in range(f.size):
+        ff += f[i] * f[i]
+    best = np.full(grid.size, np.inf)
+    for g in range(grid.size):
+        for k in range(exponents.size):
+            p = exponents[k]
+            g11 = r1 = g12 = g22 = r2 = 0.0
+            for i in range(t.size):
+                s = t[i] - grid[g]
+                if s <= 0.0:
+                    continue
+                b1 = 1.0 if p == 0.0 else s ** p
+                g11 += b1 * b1
+                r1 += b1 * f[i]
+                if curved:
+                    b2 = b1 * s
+                    g12 += b1 * b2
+                    g22 += b2 * b2
+                    r2 += b2 * f[i]
+            if not curved:
+                if g11 > 0.0:
+                    amp = r1 / g11
+                    if amp > 0.0:
+                        best[g] = min(best[g], ff - amp * r1)
+                continue
+            det = g11 * g22 - g12 * g12
+            if not det > 1e-12 * max(g11 * g22, 1e-300):
+                continue
+            amp = (g22 * r1 - g12 * r2) / det
+            bend = (g11 * r2 - g12 * r1) / det
+            if amp > 0.0:
+                sse = ff - 2.0 * (amp * r1 + bend * r2) + amp * amp * g11 + 2.0 * amp * bend * g12 \
+                    + bend * bend * g22
+                best[g] = min(best[g], sse)
+    return best
 
 
 def onset_index(force: np.ndarray, span: PulseSpan, noise: float, *, earliest: int = 0) -> tuple[float, float]:
