@@ -208,8 +208,8 @@ def paper_caution(seg: Segment) -> str | None:
 def equations(seg: Segment) -> tuple[Equations, float, float]:
     """Every row the segment holds: (equations, t00 and its standard error [samples])."""
     sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
-    pulses = [p for k, p in enumerate(seg.pulses)
-              if p.complete or k == sustained or (k == 1 and early_ready(seg)) or single_contact(seg)]
+    ready, single = early_ready(seg), single_contact(seg)
+    pulses = [p for k, p in enumerate(seg.pulses) if p.complete or k == sustained or (k == 1 and ready) or single]
     onsets, stds = edges(seg, pulses)
     gaps = np.array([[max(prev.end, prev.peak), int(o)] for prev, o in zip(seg.pulses, onsets[1:], strict=False)],
                     dtype=int)

@@ -7,6 +7,9 @@ unknowns -- Kelvin-Voigt is n = 1, m = 0 and Hunt-Crossley n = m = 3/2 -- and fi
 pulses together with the onset row of the second pulse (δ = 0 there), by nonlinear least squares in units of the
 force noise. The covariance adds the propagated double-integrated acceleration noise and residual offsets to the
 force-noise part (sandwich form), inflated by the reduced chi-square when it exceeds 1.
+
+:func:`combine` joins this fit with the agnostic answer (the ``contact_phase`` option), with the acceleration
+noise the two share.
 """
 
 from __future__ import annotations

@@ -228,10 +228,10 @@ def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float
     if centre - left < 0 or centre + right >= f.size or c - left < width // 2 or c + right >= x.size - width // 2:
         return None
     t = np.arange(-left, right + 1, dtype=float)
-    y = f[centre - left:centre + right + 1]
+    y = np.ascontiguousarray(f[centre - left:centre + right + 1], dtype=float)
 
     def profile(grid):
-        return _vertex_profile(t, np.ascontiguousarray(y, dtype=float), np.asarray(grid, dtype=float))
+        return _vertex_profile(t, y, np.asarray(grid, dtype=float))
 
     step = max(1.0, float((left + right) // 64))
     coarse = np.arange(-(left // 2), right // 2 + 1e-9, step)

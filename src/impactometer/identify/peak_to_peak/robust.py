@@ -202,7 +202,7 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
                    if isinstance(value := sol.nuisances.get(name), float))
 
     # the one that scatters less wins, unless it needs a model at the edge of its range and the other, without
-    # one, scatters less than BOUNDED_SCATTER times as much (and fits within its noise, or does so)
+    # one, scatters within its noise or less than BOUNDED_SCATTER times as much
     best, other = (judged, flights) if judged.scatter < flights.scatter else (flights, judged)
     near = other.scatter <= max(1.0, BOUNDED_SCATTER * best.scatter)
     return other if bounded(best) and not bounded(other) and near else best
