@@ -3,10 +3,10 @@
 Streaming: an endless-stream stand-in of 20 s at 50 kHz holding one noisy impact (0.1 s) every 2 s, pushed in
 chunks of 1, 64 and 4096 samples; printed as samples per second (the goal is >= 1e6 samples/s with 64-sample
 chunks on one core). Two stands: the stiff stand (the rod bounces on the mass throughout) and the pad stand (a
-rebound or two, then sustained contact, where the answer is updated every 10 ms). Per push call (64-sample chunks
-over the impacts): the distribution of wall times, all calls and the calls that returned an answer (at 50 kHz a
-64-sample chunk arrives every 1.28 ms; one sample every 20 µs). Batch: time per 0.15-s recording for both
-variants.
+rebound or two, then sustained contact, where the answer is updated each time the impact has doubled in length).
+Per push call (64-sample chunks over the impacts): the distribution of wall times, all calls and the calls that
+returned an answer (at 50 kHz a 64-sample chunk arrives every 1.28 ms; one sample every 20 µs). Batch: time per
+0.15-s recording for both variants.
 
     python benchmarks/bench_identify.py
 """

@@ -50,6 +50,29 @@ def test_streaming_equals_batch_on_the_pad_stand(chunk):
     assert [e.available_at for e in got] == sorted(e.available_at for e in got)
 
 
+def test_stage_b_updates_keep_coming_at_a_growing_spacing():
+    """In sustained contact the answer is refined at UPDATE_INTERVAL at most, and each update comes when the impact
+    has lasted UPDATE_GROWTH times as long as at the one before (seen from the first contact)."""
+    from impactometer.identify.peak_to_peak.streaming import UPDATE_GROWTH, UPDATE_INTERVAL
+    r = simulate(Scenario(mass=30.0, velocity=2.0, pressure_gauge=2e5), "drop-stand", duration=0.3, sample_rate=FS)
+    rng = np.random.default_rng(4)
+    pre = 2000
+    f = np.r_[np.zeros(pre), r.contact_force] + 20.0 * rng.standard_normal(pre + r.time.size)
+    a = np.r_[np.zeros(pre), r.a2] + 5.0 * rng.standard_normal(pre + r.time.size)
+    ident = StreamingIdentifier(FS, start_time=-pre / FS)
+    got = []
+    for k in range(0, f.size, 64):
+        got.extend(ident.push(f[k:k + 64], a[k:k + 64]))
+    updates = [e.available_at for e in got if e.available_at > 0.04]  # well inside stage B
+    assert len(updates) >= 2, updates
+    chunk = 64 / FS
+    for before, after in zip(updates, updates[1:], strict=False):
+        assert after - before >= UPDATE_INTERVAL - chunk
+        assert after >= UPDATE_GROWTH * before - 2 * chunk
+        assert after <= UPDATE_GROWTH * before + 0.01  # no update is skipped: the answer keeps improving
+    assert got[-1].mass_std <= got[0].mass_std
+
+
 def test_rearms_for_the_next_impact_with_constant_memory():
     f1, a1 = impact(20.0, 1.5, seed=1)
     f2, a2 = impact(40.0, 2.5, seed=2)

@@ -235,15 +235,14 @@ def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float
 
     step = max(1.0, float((left + right) // 64))
     coarse = np.arange(-(left // 2), right // 2 + 1e-9, step)
-    sse, _ = profile(coarse)
-    k = int(np.argmin(sse))
+    full, _ = profile(coarse)
+    k = int(np.argmin(full))
     fine = np.arange(coarse[max(k - 1, 0)], coarse[min(k + 1, coarse.size - 1)] + 1e-9, GRID_STEP * step)
     sse, coef = profile(fine)
     k = int(np.argmin(sse))
     if not (0 < k < fine.size - 1 or coarse[0] < fine[k] < coarse[-1]) or np.any(sign * coef[k, 1:3] > 0):
         return None
     scatter2 = max(float(noise) ** 2, float(sse[k]) / max(t.size - 6, 1))
-    full, _ = profile(coarse)
     inside = coarse[full <= sse[k] + scatter2]
     inside_fine = fine[sse <= sse[k] + scatter2]
     first = min(inside.min(), inside_fine.min()) if inside.size else inside_fine.min()
