@@ -32,7 +32,9 @@ PREDICTION_STEPS = 20
 STOP_TIME = 0.4
 MIN_DECELERATION = 0.5
 #: in stage B the force strategies close the valve for good once the mass is this slow [m/s]: the closed gas
-#: spring takes the rest (a few millijoules), so the mass comes to rest instead of creeping on the smoothed friction
+#: spring takes the rest (a few millijoules), so the mass comes to rest instead of creeping on the smoothed friction;
+#: should the gas then lift the bodies faster than this, the rebound brake vents it while they rise (the target is
+#: the weight, and a rise uses no stroke)
 REST_VELOCITY = 0.02
 
 
@@ -193,11 +195,15 @@ def command_of(t, dt, p, ctrl, drive, e, history, newest, delay):
     velocity, x = e[est.VELOCITY], e[est.X_HAT]
     v2 = velocity if e[est.STAGE_B] != 0.0 else e[est.V_SLOW]  # the mean motion of the piston
     waits = strategy in (s.CONSTANT, s.LEVEL)  # the force strategies act as soon as they know M1 and v1
-    if strategy == s.CLOSED or (waits and t < ctrl[s.T_START]) or e[est.LATCHED] != 0.0 or not mass > 0.0 \
-            or not math.isfinite(velocity):
+    if not mass > 0.0 or not math.isfinite(velocity):
+        return 0.0
+    # the rebound brake: after the stop, the gas the stroke compressed throws the bodies back up; the force
+    # strategies let it out while they rise (the stroke below is not used, so the supervisor has nothing to guard)
+    braking = e[est.STAGE_B] != 0.0 and strategy in (s.REALTIME, s.PREDICTIVE) and velocity < -REST_VELOCITY
+    if strategy == s.CLOSED or (waits and t < ctrl[s.T_START]) or (e[est.LATCHED] != 0.0 and not braking):
         return 0.0
     p_lower, p_upper = e[est.P_LOWER_F], e[est.P_UPPER_F]
-    if ctrl[s.SUPERVISE] != 0.0 and strategy != s.LEVEL \
+    if ctrl[s.SUPERVISE] != 0.0 and strategy != s.LEVEL and not braking \
             and must_close(p, ctrl, mass, velocity, v2, x, p_lower, p_upper):
         return 0.0
     if strategy == s.CONSTANT:
@@ -205,7 +211,7 @@ def command_of(t, dt, p, ctrl, drive, e, history, newest, delay):
             e[est.LATCHED] = 1.0
             return 0.0
         return ctrl[s.OPENING]
-    if strategy != s.LEVEL and e[est.STAGE_B] != 0.0 and velocity < REST_VELOCITY:
+    if strategy != s.LEVEL and e[est.STAGE_B] != 0.0 and abs(velocity) < REST_VELOCITY:
         e[est.LATCHED] = 1.0
         return 0.0
     target = force_target(p, ctrl, mass, velocity, x)

@@ -17,7 +17,8 @@ settings of the controller (:class:`~impactometer.control.settings.ControlSettin
 - ``auto``: the better of ``realtime`` and ``predictive`` on the acceptance grid (``predictive``).
 
 Every valve strategy closes the valve for good when the closed gas spring is needed to stop the bodies within the
-remaining stroke (``control.controller.must_close``).
+remaining stroke (``control.controller.must_close``). After the stop, ``realtime`` and ``predictive`` brake the
+rebound: while the gas the stroke compressed lifts the bodies, they vent it towards the weight.
 """
 
 from __future__ import annotations
