@@ -34,6 +34,8 @@ def test_stage_b_refines_the_mass_from_nothing(mass, velocity, pressure):
     assert first < 0.05  # within tens of milliseconds of first contact
     assert estimate[-1] == pytest.approx(mass, rel=0.03)
     assert abs(estimate[-1] - mass) < 4.0 * std[-1] + 0.005 * mass
+    # the controller acts on it only once its standard error is below MASS_TRUST of it
+    assert np.all(std[known] < est.MASS_TRUST * estimate[known])
 
 
 def test_windows_between_equal_velocity_instants_remove_the_oscillation_bias():
@@ -51,6 +53,25 @@ def test_windows_between_equal_velocity_instants_remove_the_oscillation_bias():
     cuts = np.arange(0.022, 0.04, 0.002)
     ratios = [fc[stage_b & (t < c)].sum() / (STANDARD_GRAVITY - a2[stage_b & (t < c)]).sum() for c in cuts]
     assert np.max(np.abs(np.array(ratios) / 30.0 - 1.0)) > 0.05
+
+
+@pytest.mark.parametrize("spread, trusted", [(10.0, True), (3000.0, False)])
+def test_an_own_estimate_is_acted_on_only_once_it_can_be_trusted(spread, trusted):
+    """Without a prior the stage-B ratio is the mass only while its standard error is below MASS_TRUST of it;
+    before, the mass stays unknown (NaN) and the controller keeps the valve closed."""
+    e = np.zeros(est.N_ESTIMATOR)
+    rng = np.random.default_rng(0)
+    shared = 1.0 + 0.1 * rng.standard_normal(200)  # g − a2 [m/s²]
+    force = 30.0 * shared + spread * rng.standard_normal(200)  # Fc [N] of a 30 kg mass, with scatter
+    sums = [force.sum(), shared.sum(), (force ** 2).sum(), (shared ** 2).sum(), (force * shared).sum(), 200.0]
+    e[est.BANK:est.BANK + est.N_SUMS] = sums
+    ctrl = ControlSettings(strategy="predictive").packed()
+    est._combine(e, ctrl, False)
+    ratio = sums[0] / sums[1]
+    if trusted:
+        assert e[est.MASS] == pytest.approx(ratio) and e[est.MASS_STD] < est.MASS_TRUST * ratio
+    else:
+        assert math.isnan(e[est.MASS]) and math.isinf(e[est.MASS_STD])
 
 
 def test_prior_and_stage_b_are_weighted_by_their_errors():

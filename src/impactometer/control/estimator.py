@@ -72,6 +72,9 @@ COMMIT_TIME = 10e-3
 PRIOR_FLOOR = 0.25
 #: the prior is dropped when it and the stage-B estimate differ by more than this many combined standard errors
 CONSISTENCY = 3.0
+#: a mass estimate is acted on only when its standard error is below this fraction of it [-]: the identified one
+#: (``control.identified.usable_mass``) and the controller's own stage-B estimate alike
+MASS_TRUST = 1.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -260,8 +263,10 @@ def _combine(e, ctrl, known):
     stage_b_std = max(math.sqrt(n * variance) / sum_a, 1e-9 * stage_b)
     if not (prior > 0.0 and math.isfinite(prior_std)) \
             or abs(prior - stage_b) > CONSISTENCY * math.sqrt(prior_std * prior_std + stage_b_std * stage_b_std):
-        e[MASS] = stage_b  # no prior, or one the stage-B data contradict: the data alone
-        e[MASS_STD] = stage_b_std
+        # no prior, or one the stage-B data contradict: the data alone, once they can be trusted
+        trusted = stage_b > 0.0 and stage_b_std < MASS_TRUST * stage_b
+        e[MASS] = stage_b if trusted else math.nan
+        e[MASS_STD] = stage_b_std if trusted else math.inf
         return
     w_prior = 1.0 / (prior_std * prior_std)
     w_b = 1.0 / (stage_b_std * stage_b_std)

@@ -18,6 +18,7 @@ from ..identify.result import Identification
 from ..rig import Rig, Scenario
 from ..sensors import record
 from ..validation import finite_or_none
+from .estimator import MASS_TRUST
 
 #: length of the closed-valve record given to the identification [s], and the quiet record before first contact
 #: [s] (a streaming DAQ has it; the identification takes the offsets and the noise level from its last ~1000
@@ -26,9 +27,9 @@ IDENTIFICATION_WINDOW = 0.1
 PRE_TRIGGER = 0.025
 #: samples per chunk pushed into the streaming identifier (a DAQ block)
 STREAM_CHUNK = 16
-#: the controller trusts an identified mass whose standard error is below this fraction of it, and a velocity
-#: whose standard error is below this fraction of it [-]
-MASS_TRUST, VELOCITY_TRUST = 1.0, 0.5
+#: the controller trusts an identified velocity whose standard error is below this fraction of it [-] (and a mass
+#: by the estimator's ``MASS_TRUST``)
+VELOCITY_TRUST = 0.5
 
 
 def usable_mass(found: Identification) -> float:

@@ -37,7 +37,10 @@ def _store(force, acceleration, ring_force, ring_acceleration, seen):
     return -1
 
 
-#: while the contact is sustained (stage B), the answer is updated at most this often [s] ...
+#: while the contact is sustained (stage B) and the impact has no answer yet, one is tried this often [s]: a
+#: controller waits for it
+FIRST_INTERVAL = 0.002
+#: once it has one, the answer is updated at most this often [s] ...
 UPDATE_INTERVAL = 0.01
 #: ... and when the impact has lasted this multiple of its length at the last update: the stage-B rows grow with
 #: the record, so each update lowers the standard error by a similar fraction (about 30 % at 2, as 1/√N), and
@@ -100,6 +103,7 @@ class StreamingIdentifier:
         # stage B: the running pulse's start, the longest pulse so far, the last update [samples]
         self._inside_since = self._longest = self._last_update = 0
         self._update_samples = max(int(UPDATE_INTERVAL * sample_rate), 1)
+        self._first_samples = max(int(FIRST_INTERVAL * sample_rate), 1)
 
     @property
     def armed(self) -> bool:
@@ -152,8 +156,11 @@ class StreamingIdentifier:
         return is_sustained(int(self._longest > 0), self.seen - self._inside_since, self._longest)
 
     def _update_due(self) -> bool:
-        """Whether a stage-B update is due: ``UPDATE_INTERVAL`` since the last one, and the impact (counted from its
-        trigger) ``UPDATE_GROWTH`` times as long as then."""
+        """Whether a stage-B update is due: ``FIRST_INTERVAL`` since the last try while the impact has no answer;
+        then ``UPDATE_INTERVAL`` since the last update, and the impact (counted from its trigger) ``UPDATE_GROWTH``
+        times as long as then."""
+        if not self.estimates:
+            return self.seen - self._last_update >= self._first_samples
         since_trigger = self._start + self._pre if self._start is not None else self.seen
         return self.seen - self._last_update >= self._update_samples \
             and self.seen - since_trigger >= UPDATE_GROWTH * (self._last_update - since_trigger)
