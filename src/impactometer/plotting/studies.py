@@ -213,6 +213,8 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
     axes[0].axhline(1.3, color="tab:green", ls="--", lw=0.8, label="target median R 1.3")
     axes[0].axhline(1.6, color="tab:olive", ls=":", lw=0.8, label="target 90th percentile R 1.6")
     axes[0].set(ylabel="stage-B force ratio R [-] (ideal 1)", yscale="log")
+    axes[0].set_yticks([1, 1.3, 1.6, 2, 3, 4, 6], ["1", "1.3", "1.6", "2", "3", "4", "6"])
+    axes[0].yaxis.set_minor_formatter("")
     axes[0].grid(alpha=0.3, which="both")
     figure_legend(fig, axes[0])
     by = {(r["case"], r["strategy"]): r for r in rows}
