@@ -47,8 +47,9 @@ SWING_FRACTION, SWING_SIGMAS = 0.05, 10.0
 VELOCITY_SLIPS = {1e3: "an acceleration in mm/s² read as m/s²", 1e-3: "an acceleration in m/s² read as mm/s²",
                   STANDARD_GRAVITY: "an acceleration in m/s² read as g",
                   1 / STANDARD_GRAVITY: "an acceleration in g read as m/s²"}
-#: reduced χ² above which an acceleration unit slip is looked for, and how much better a slip must fit to be named
-SLIP_CHI2, SLIP_GAIN = 4.0, 25.0
+#: how much better (in reduced χ²) an acceleration unit slip must fit to be named; as the better fit's reduced χ² is
+#: taken as at least 1, a slip is looked for only where the answer's own reduced χ² reaches this
+SLIP_GAIN = 25.0
 #: unit slips: factor by which the identified mass comes out too large -> how it happens
 MASS_SLIPS = {1e3: "a force in N read as kN", 1e-3: "a force in kN read as N"}
 

@@ -21,7 +21,7 @@ import numpy as np
 from ...constants import STANDARD_GRAVITY
 from ...errors import IdentificationError, RecordingError
 from ...recording import Recording
-from ..plausibility import SLIP_CHI2, SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
+from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
 from ..pulses import detection_levels, first_peak, sustained_index
 from ..result import Identification
 from .early import combine, solve_early
@@ -87,7 +87,7 @@ def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tup
                          noise_force=seg.noise_force, acceleration=seg.acceleration,
                          noise_acceleration=seg.noise_acceleration, reduced_chi2=chi2, mass_std=result.mass_std,
                          velocity_std=result.velocity_std)
-    if chi2 is not None and chi2 > SLIP_CHI2:
+    if chi2 is not None and chi2 >= SLIP_GAIN:  # below, no slip can fit SLIP_GAIN times better
         found += _unit_slip(seg, gravity, chi2)
     scatter = ((details.get("equations") or {}).get("model_error") or {}).get("extrema_m_s", 0.0)
     if fitted and scatter > TURNING_SCATTER_LIMIT * abs(result.velocity):

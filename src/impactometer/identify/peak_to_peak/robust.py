@@ -35,8 +35,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-#: Gauss-Newton / reweighting iterations
+#: Gauss-Newton / reweighting iterations, at most: fewer once the solution changes by less than CONVERGED
+#: (relative) from one to the next
 ITERATIONS = 10
+CONVERGED = 1e-6
 
 
 def cumulative_integrals(signal: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -284,6 +286,7 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
     theta: np.ndarray = np.zeros(n_lin)
     aw: np.ndarray = np.zeros((0, n_lin + len(nonlinear)))
     model = np.zeros(3)  # model-error variance of each group [m², (m/s)² for extrema]
+    previous = np.zeros(0)
     for it in range(ITERATIONS):
         cd, cv, ca = coefficients()
         design = mixer @ ((cd[:, None] * basis["d"][0] + cv[:, None] * basis["v"][0]
@@ -321,6 +324,9 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
             aw = np.vstack([aw, prior])
             yw = np.append(yw, 0.0)
         sol = np.linalg.lstsq(aw, yw, rcond=None)[0]
+        if it > 4 and np.allclose(sol, previous, rtol=CONVERGED, atol=0.0):
+            break  # settled (the gaps were judged at iterations 2 and 4): another pass would repeat it
+        previous = sol
         theta = sol[:n_lin]
         for k, name in enumerate(nonlinear):
             phi[name] = float(np.clip(sol[n_lin + k], *bounds[name]))
