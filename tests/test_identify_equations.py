@@ -152,3 +152,29 @@ def test_standard_errors_are_calibrated():
     z = np.abs(np.array(z))
     assert np.mean(z < 2, axis=0).min() >= 0.8
     assert 0.4 < float(np.median(z)) < 1.2
+
+
+@pytest.mark.parametrize("judged_scatter, inflated", [(0.0, True), (5.0, False)])
+def test_readings_the_data_cannot_tell_apart_widen_the_answer(monkeypatch, judged_scatter, inflated):
+    """The flights reading keeps an onset the stage-B reading drops; where both fit the turning points as well,
+    the flights' estimate is kept and the difference of the two readings joins its covariance (whether that gap
+    was a flight, or a pad that kept a set, is not in the data); where the stage-B reading fits worse, nothing."""
+    from impactometer.identify.peak_to_peak import robust
+
+    def solution(theta, std, onsets, scatter):
+        return robust.Solution(theta=np.array(theta), cov=np.diag(np.square(std)), chi2=1.0, dof=3, nuisances={},
+                               used={"onsets": onsets}, gain=np.zeros((2, 0)), tau=np.zeros(0), scatter=scatter)
+
+    flights = solution([1.43, 0.045], [0.011, 0.002], 1, 0.0)
+    judged = solution([1.50, 0.050], [0.095, 0.006], 0, judged_scatter)
+    monkeypatch.setattr(robust, "_solve_rows", lambda *a, judge_by_stage_b, **k: judged if judge_by_stage_b
+                        else flights)
+    eqs = robust.Equations(onsets=np.array([500.0]), onset_std=np.array([1.0]), extrema=np.arange(5.0) * 100,
+                           extremum_std=np.ones(5), stage_b=np.array([False, False, False, True, True]))
+    got = robust.solve_rows(None, eqs, noise_force=1.0, noise_acceleration=1.0, pre_samples=100, lag_max=1e-4)
+    np.testing.assert_array_equal(got.theta, flights.theta)
+    diff = flights.theta - judged.theta
+    expected = flights.cov + np.outer(diff, diff) if inflated else flights.cov
+    np.testing.assert_allclose(got.cov, expected)
+    if inflated:  # the truth of the stage-B reading now lies within 2 standard errors of the answer
+        assert abs(got.theta[0] - judged.theta[0]) <= 2.0 * np.sqrt(got.cov[0, 0])

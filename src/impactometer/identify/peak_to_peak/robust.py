@@ -30,7 +30,7 @@ estimated from their own scatter. It depends on the estimate, so the solution is
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -190,7 +190,9 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     that estimate first (a pad with a set may never let the mass fly), and of the two answers the one whose
     turning points and separations scatter less beyond their noise is kept -- unless that one needs a contact
     model at the edge of its range (a set or a lag at its bound) and the other, inside its range, scatters less
-    than ``BOUNDED_SCATTER`` times as much.
+    than ``BOUNDED_SCATTER`` times as much. Where the flights are kept with onsets the other reading drops, and
+    that reading fits as well, the difference of the two readings is added to the covariance: whether those gaps
+    were flights is not in the data.
     """
     options: dict = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples,
                          lag_max=lag_max)
@@ -207,7 +209,15 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     # one, scatters within its noise or less than BOUNDED_SCATTER times as much
     best, other = (judged, flights) if judged.scatter < flights.scatter else (flights, judged)
     near = other.scatter <= max(1.0, BOUNDED_SCATTER * best.scatter)
-    return other if bounded(best) and not bounded(other) and near else best
+    chosen = other if bounded(best) and not bounded(other) and near else best
+    if chosen is flights and flights.used["onsets"] > judged.used["onsets"] \
+            and judged.scatter <= max(1.0, flights.scatter):
+        # the flights keep onsets the judged reading doubts, and the data fit both readings as well: whether those
+        # gaps were flights (a pad that kept no set) is not in the data, so the readings' difference is part of
+        # the answer's uncertainty
+        diff = flights.theta - judged.theta
+        chosen = replace(flights, cov=flights.cov + np.outer(diff, diff))
+    return chosen
 
 
 def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
@@ -360,8 +370,9 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
 #: a model at the edge of its range (a set or a lag at its bound) is taken only where the other reading of the gaps
 #: scatters this many times more beyond its noise (model-error variance over noise variance) [-]
 BOUNDED_SCATTER = 4.0
-#: turning points in stage B from which its own estimate judges the gaps before the onsets are used [-]
-STAGE_B_ROWS = 3
+#: turning points in stage B from which its own estimate judges the gaps before the onsets are used [-]: two
+#: consecutive ones bound one window of M1·∫(g − a2) dt = ∫Fc dt, the least that gives stage B a mass of its own
+STAGE_B_ROWS = 2
 #: a gap is surely a flight (or surely not) when its least overlap is negative (positive) by this many standard
 #: errors of the estimate from the other rows [-]
 DIP_SIGMAS = 2.0
