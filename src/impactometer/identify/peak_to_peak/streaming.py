@@ -161,9 +161,10 @@ class StreamingIdentifier:
         times as long as then."""
         if not self.estimates:
             return self.seen - self._last_update >= self._first_samples
-        since_trigger = self._start + self._pre if self._start is not None else self.seen
+        assert self._start is not None  # called only while an impact runs
+        trigger_at = self._start + self._pre
         return self.seen - self._last_update >= self._update_samples \
-            and self.seen - since_trigger >= UPDATE_GROWTH * (self._last_update - since_trigger)
+            and self.seen - trigger_at >= UPDATE_GROWTH * (self._last_update - trigger_at)
 
     def _segment(self, stop: int) -> p2p.Segment:
         assert self._start is not None  # called only while an impact runs
