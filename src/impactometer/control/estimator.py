@@ -9,13 +9,14 @@ Sensors (with noise): contact force Fc, piston acceleration a2, chamber pressure
 - Contact: on above 5 σ of the force sensor for 3 samples, off below 2 σ for 3 samples (the levels of the
   identification's pulse detector). Sustained contact (stage B) is a contact after the first that has lasted 1.5 ×
   the first contact pulse: the collision that starts it is over and the two bodies move together.
-- Mass refinement: the bodies share one acceleration at the instants they have the same velocity, so
-  M1·(g − a2) = Fc integrates exactly between them; the estimate is the ratio of the sums, Σ Fc / Σ (g − a2), over
-  windows between such instants (:func:`_regress`), with the standard error sqrt(n·s²)/Σ (g − a2) from the residual
-  variance s². It is combined with the mass known at the control start by inverse-variance weighting (that one's
-  standard error never taken below 25 % of the value: the early answer rests on a few contact pulses, and on a
-  stand that reaches stage B early its error is often larger than stated), and dropped when the two differ by more
-  than 3 combined standard errors (an early answer of 5 kg for a 40 kg mass happens).
+- Mass refinement: between two instants at which the bodies have the same velocity M1·(g − a2) = Fc integrates
+  exactly, whatever happens between them; the estimate is Σ Fc / Σ (g − a2) between two such instants (the
+  force's maxima, and its minima within a contact), chosen for the smallest error, with its standard error from
+  the timing of those two instants and the sensor noise (:mod:`.windows`). It is combined with the mass known at
+  the control start by inverse-variance weighting (that one's standard error never taken below 25 % of the value:
+  the early answer rests on a few contact pulses, and on a stand that reaches stage B early its error is often
+  larger than stated), and dropped when the two differ by more than 3 combined standard errors (an early answer
+  of 5 kg for a 40 kg mass happens).
 - What the identification answered (M1, V0 and M1's standard error) is known from the control start on; before,
   only the controller's own stage-B estimates exist.
 - Mass velocity: before mass and piston move together, the momentum balance of the mass,
@@ -37,22 +38,12 @@ from numba import njit
 from ..identify.pulses import DETECT_SIGMAS, HOLD, RELEASE_SIGMAS
 from ..model import dynamics as d
 from . import settings as s
+from . import windows
 
-# slots of the estimator state
+# slots of the estimator state, then the state of the stage-B windows (:mod:`.windows`) from slot WINDOWS on
 (IMPULSE, FORCE_PREV, P_LOWER_F, P_UPPER_F, X_HAT, V_HAT, ABOVE, BELOW, IN_CONTACT, CONTACT_START, FIRST_PULSE,
- MASS, MASS_STD, VELOCITY, SUSTAINED, LATCHED, OPENING_MODEL, TARGET, V_SLOW, STAGE_B, LOOKING, EXTREME,
- LAST_COMMIT, HAS_FIRST, COUNT, EXTREME_AT) = range(26)
-#: blocks of the sums of the stage-B regression (Σ Fc, Σ (g − a2), Σ Fc², Σ (g − a2)², Σ Fc·(g − a2), n): running
-#: within the current contact, at the first and the last window end of the current contact, and banked from
-#: earlier contacts; then rings of the last RING samples' force and running sums
-N_SUMS = 6
-RING = 64
-RUNNING, FIRST, LAST, BANK = (26 + N_SUMS * i for i in range(4))
-FORCE_RING = 26 + 4 * N_SUMS
-SUMS_RING = FORCE_RING + RING
-N_ESTIMATOR = SUMS_RING + RING * N_SUMS
-#: half width of the parabola fitted around a force extremum to time it [samples]
-VERTEX_HALF_WIDTH = 16
+ MASS, MASS_STD, VELOCITY, SUSTAINED, LATCHED, OPENING_MODEL, TARGET, V_SLOW, STAGE_B, WINDOWS) = range(21)
+N_ESTIMATOR = WINDOWS + windows.N_STATE
 #: time constant of the slow piston velocity [s]: the mean motion of mass and piston, without the oscillation of the
 #: mass on the contact element (above 100 Hz on the built-in stands) that a valve must not feed
 SLOW_VELOCITY_TIME = 5e-3
@@ -64,10 +55,6 @@ VELOCITY_CORRECTION = 2.0 * math.pi * 5.0
 #: ``pulses.SUSTAINED_FACTOR`` (2 × the longest pulse before) on purpose: the loop needs the instant the collision
 #: that starts the contact is over and the bodies move together, not the identification's stricter test of a bounce
 SUSTAIN_FACTOR = 1.5
-#: samples of sustained contact before the stage-B mass estimate is used
-MIN_SAMPLES = 25
-#: a window end is placed at least this often in sustained contact without force extrema [s]
-COMMIT_TIME = 10e-3
 #: floor of the relative standard error of the mass known at the control start [-]
 PRIOR_FLOOR = 0.25
 #: the prior is dropped when it and the stage-B estimate differ by more than this many combined standard errors
@@ -92,6 +79,7 @@ def initial(y0, ctrl):
     e[MASS] = math.nan
     e[MASS_STD] = math.inf
     e[VELOCITY] = math.nan
+    e[WINDOWS:] = windows.initial()
     return e
 
 
@@ -129,11 +117,12 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
                 e[FIRST_PULSE] = t - (HOLD - 1) * dt - e[CONTACT_START]
     # pulses.is_sustained for the running contact (NaN FIRST_PULSE: still the first pulse, never sustained)
     e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and t - e[CONTACT_START] >= SUSTAIN_FACTOR * e[FIRST_PULSE] else 0.0
-    if ctrl[s.REFINE_MASS] != 0.0:
-        _regress(e, t, force, gravity - acceleration, DETECT_SIGMAS * sigma)
-    if e[STAGE_B] == 0.0 and (e[SUSTAINED] != 0.0 or (e[IN_CONTACT] != 0.0 and e[HAS_FIRST] != 0.0
-                                                      and e[LAST + 5] > e[FIRST + 5])):
-        e[STAGE_B] = 1.0  # sustained, or a contact that has held a whole window: the bodies move together
+    together = e[SUSTAINED] != 0.0
+    if ctrl[s.REFINE_MASS] != 0.0:  # a window within one contact also shows the bodies moving together
+        together |= windows.push(e[WINDOWS:], t, force, gravity - acceleration, DETECT_SIGMAS * sigma,
+                                 e[IN_CONTACT] != 0.0, e[SUSTAINED] != 0.0, sigma, ctrl[s.ACCELERATION_NOISE])
+    if e[STAGE_B] == 0.0 and together:
+        e[STAGE_B] = 1.0
     known = t >= ctrl[s.T_START]  # the identification's answer exists from the control start on
     _combine(e, ctrl, known)
     if e[STAGE_B] != 0.0:  # momentum balance of the mass, pulled slowly towards the observer's velocity
@@ -151,116 +140,15 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
 
 
 @njit(cache=True, error_model="numpy")
-def _commit(e, t, source):
-    """Make the sums at slot ``source`` the last window end of the current contact (and its first, if none)."""
-    if e[HAS_FIRST] == 0.0:
-        for i in range(N_SUMS):
-            e[FIRST + i] = e[source + i]
-        e[HAS_FIRST] = 1.0
-    for i in range(N_SUMS):
-        e[LAST + i] = e[source + i]
-    e[LAST_COMMIT] = t
-
-
-@njit(cache=True, error_model="numpy")
-def _vertex(e, at, count):
-    """Sample count of the force extremum found near ``at``: the vertex of the least-squares parabola through the
-    force samples within VERTEX_HALF_WIDTH of it (those still in the ring), rounded and kept within them. Noise
-    moves the largest sample by several samples along a flat top; the vertex, far less."""
-    low = max(at - VERTEX_HALF_WIDTH, count - RING + 1, 1.0)
-    high = min(at + VERTEX_HALF_WIDTH, count)
-    s0 = s1 = s2 = s3 = s4 = f0 = f1 = f2 = 0.0
-    k = low
-    while k <= high:
-        x = k - at
-        f = e[FORCE_RING + int(k) % RING]
-        s0 += 1.0
-        s1 += x
-        s2 += x * x
-        s3 += x * x * x
-        s4 += x * x * x * x
-        f0 += f
-        f1 += f * x
-        f2 += f * x * x
-        k += 1.0
-    # normal equations of f ≈ a + b·x + c·x², solved by Cramer's rule for b and c
-    det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2)
-    if s0 < 5.0 or det == 0.0:
-        return at
-    b = (s0 * (f1 * s4 - s3 * f2) - f0 * (s1 * s4 - s3 * s2) + s2 * (s1 * f2 - f1 * s2)) / det
-    c = (s0 * (s2 * f2 - f1 * s3) - s1 * (s1 * f2 - f1 * s2) + f0 * (s1 * s3 - s2 * s2)) / det
-    if c == 0.0:
-        return at
-    return min(max(at + round(-b / (2.0 * c)), low), high)
-
-
-@njit(cache=True, error_model="numpy")
-def _regress(e, t, force, shared, drop):
-    """Stage-B regression of M1·(g − a2) = Fc over windows between equal-velocity instants.
-
-    M1·∫(g − a2) dt = ∫Fc dt holds exactly only between instants where mass and piston have the same velocity (the
-    paper's eq. 4): in contact the mass oscillates on the contact element, and a window cut elsewhere carries the
-    relative velocity at its ends. Its extremes of compression are the extremes of the contact force, so the window
-    ends are the force's extrema within one contact (confirmed once it has moved ``drop`` [N] away from them, timed
-    by :func:`_vertex`), and, in a sustained contact without oscillation, an end every ``COMMIT_TIME``. A contact
-    that ends banks its windows; a collision (one maximum) gives none.
-    """
-    if e[IN_CONTACT] == 0.0:
-        for i in range(N_SUMS):  # the contact ended (or none yet): bank its windows, start afresh
-            if e[HAS_FIRST] != 0.0:
-                e[BANK + i] += e[LAST + i] - e[FIRST + i]
-            e[RUNNING + i] = 0.0
-        e[HAS_FIRST] = 0.0
-        e[LOOKING] = 0.0
-        e[COUNT] = 0.0
-        return
-    e[RUNNING] += force
-    e[RUNNING + 1] += shared
-    e[RUNNING + 2] += force * force
-    e[RUNNING + 3] += shared * shared
-    e[RUNNING + 4] += force * shared
-    e[RUNNING + 5] += 1.0
-    e[COUNT] += 1.0
-    count = e[COUNT]
-    slot = int(count) % RING
-    e[FORCE_RING + slot] = force
-    for i in range(N_SUMS):
-        e[SUMS_RING + slot * N_SUMS + i] = e[RUNNING + i]
-    if e[LOOKING] == 0.0:  # first sample of the contact
-        e[LOOKING] = 1.0
-        e[EXTREME] = force
-        e[EXTREME_AT] = count
-        e[LAST_COMMIT] = t
-        return
-    if (e[LOOKING] > 0.0 and force > e[EXTREME]) or (e[LOOKING] < 0.0 and force < e[EXTREME]):
-        e[EXTREME] = force
-        e[EXTREME_AT] = count
-    elif abs(force - e[EXTREME]) > drop:  # the extremum is confirmed: a window end at its vertex
-        vertex = _vertex(e, e[EXTREME_AT], count)
-        _commit(e, t, SUMS_RING + (int(vertex) % RING) * N_SUMS)
-        e[LOOKING] = -e[LOOKING]
-        e[EXTREME] = force
-        e[EXTREME_AT] = count
-    if e[SUSTAINED] != 0.0 and t - e[LAST_COMMIT] > COMMIT_TIME:
-        _commit(e, t, RUNNING)
-
-
-@njit(cache=True, error_model="numpy")
 def _combine(e, ctrl, known):
-    """Mass estimate [kg] and its standard error from the prior (once ``known``) and the stage-B sums."""
+    """Mass estimate [kg] and its standard error from the prior (once ``known``) and the stage-B windows."""
     prior = ctrl[s.MASS_HAT] if known else math.nan
     prior_std = max(ctrl[s.MASS_STD], PRIOR_FLOOR * prior) if prior > 0.0 else math.inf
-    sums = np.empty(N_SUMS)
-    for i in range(N_SUMS):
-        sums[i] = e[BANK + i] + (e[LAST + i] - e[FIRST + i] if e[HAS_FIRST] != 0.0 else 0.0)
-    sum_f, sum_a, sum_ff, sum_aa, sum_fa, n = sums[0], sums[1], sums[2], sums[3], sums[4], sums[5]
-    if n < MIN_SAMPLES or sum_a <= 0.0:
+    stage_b, stage_b_std = e[WINDOWS + windows.MASS], e[WINDOWS + windows.STD]
+    if not (stage_b > 0.0 and math.isfinite(stage_b_std)):
         e[MASS] = prior
         e[MASS_STD] = prior_std
         return
-    stage_b = sum_f / sum_a
-    variance = max(sum_ff - 2.0 * stage_b * sum_fa + stage_b * stage_b * sum_aa, 0.0) / (n - 1.0)
-    stage_b_std = max(math.sqrt(n * variance) / sum_a, 1e-9 * stage_b)
     if not (prior > 0.0 and math.isfinite(prior_std)) \
             or abs(prior - stage_b) > CONSISTENCY * math.sqrt(prior_std * prior_std + stage_b_std * stage_b_std):
         # no prior, or one the stage-B data contradict: the data alone, once they can be trusted

@@ -241,7 +241,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              and not math.isnan(found.mass_std) else math.inf,
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
                              sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),
-                             charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]))
+                             charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]),
+                             acceleration_noise=float(sigma[1]))
     simulated = {}
     for name in names:
         control = get_strategy(name)(context)

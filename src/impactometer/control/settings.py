@@ -21,8 +21,8 @@ CLOSED, CONSTANT, REALTIME, PREDICTIVE, LEVEL = range(5)
 # slots of the packed settings, in the order of the dataclass fields
 (STRATEGY, T_START, OPENING, MASS_HAT, MASS_STD, VELOCITY_HAT, U_END, TAU_CONTROL, TAU_FILTER, P_CHARGE, T_CHARGE,
  CLOSE_ON_STOP, F_MAX, BOUNCE_GATE, BOUNCE_THRESHOLD, REFINE_MASS, FORCE_LEVEL, FORCE_NOISE, SUPERVISE,
- OBSERVER_BANDWIDTH) = range(20)
-N_SETTINGS = 20
+ OBSERVER_BANDWIDTH, ACCELERATION_NOISE) = range(21)
+N_SETTINGS = 21
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -53,6 +53,8 @@ class ControlSettings:
     force_noise : Standard deviation of the force sensor's noise [N] (sets the contact detection levels).
     supervise : Close the valve for good when the closed gas spring is needed to stop the bodies in the stroke.
     observer_bandwidth : Bandwidth of the piston position/velocity observer [rad/s].
+    acceleration_noise : Standard deviation of the accelerometer's noise [m/s²] (the noise floor of the stage-B
+        mass estimate's standard error).
     """
 
     strategy: str = "closed"
@@ -75,6 +77,7 @@ class ControlSettings:
     force_noise: float = 0.0
     supervise: bool = True
     observer_bandwidth: float = 2.0 * math.pi * 40.0
+    acceleration_noise: float = 0.0
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGY_CODES:
@@ -88,7 +91,7 @@ class ControlSettings:
             elif not is_real(value):
                 raise ParameterError(f"control.{f.name} must be a number, got {shown(value)}")
         for name in ("start", "usable_stroke", "tau_control", "tau_filter", "charge_pressure", "charge_temperature",
-                     "force_noise", "observer_bandwidth"):
+                     "force_noise", "observer_bandwidth", "acceleration_noise"):
             check_real(f"control.{name}", getattr(self, name), low=0.0, finite=name != "start", state_range=True,
                        low_open=name in ("tau_control", "tau_filter", "charge_pressure", "charge_temperature",
                                          "observer_bandwidth"))

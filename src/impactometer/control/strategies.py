@@ -51,7 +51,8 @@ class ControlContext:
     start : Time the control starts [s] (the identification's ``available_at``).
     duration, sample_rate : Simulated time [s] and controller rate [Hz].
     charge_pressure, charge_temperature : Lower chamber pressure [Pa] and gas temperature [K] at first contact.
-    force_noise : Standard deviation of the force sensor's noise [N].
+    force_noise, acceleration_noise : Standard deviations of the force sensor's [N] and the accelerometer's
+        [m/s²] noise.
     """
 
     rig: Rig
@@ -66,6 +67,7 @@ class ControlContext:
     charge_temperature: float
     mass_std: float = math.inf
     force_noise: float = 0.0
+    acceleration_noise: float = 0.0
 
     def base(self, strategy: str, **extra) -> ControlSettings:
         """Controller settings with the common fields filled."""
@@ -73,7 +75,8 @@ class ControlContext:
         return ControlSettings(strategy=strategy, start=self.start, mass=self.mass, mass_std=self.mass_std,
                                velocity=self.velocity, usable_stroke=self.absorber.usable_stroke(self.rig),
                                charge_pressure=self.charge_pressure, charge_temperature=self.charge_temperature,
-                               force_noise=self.force_noise, refine_mass=not oracle, **extra)
+                               force_noise=self.force_noise, acceleration_noise=self.acceleration_noise,
+                               refine_mass=not oracle, **extra)
 
 
 def plan_closed(context: ControlContext) -> ControlSettings:

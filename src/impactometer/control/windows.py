@@ -1,0 +1,291 @@
+"""The mass from windows between equal-velocity instants, sample by sample (compiled; the controller's stage-B
+refinement, :mod:`.estimator`).
+
+Between two instants at which mass and piston have the same velocity, M1·∫(g − a2) dt = ∫Fc dt holds exactly,
+whatever happens between them -- a flight, a collision, the mass oscillating on the contact element (the paper's
+eq. 4) -- and at no other: a window cut elsewhere carries the relative velocity at its ends. The extremes of
+compression are the extremes of the contact force, so the ends are the force's maxima (the peak of every pulse)
+and, while the contact has not opened since the last maximum, its minima (a minimum at zero force is no such
+instant: the bodies may be apart, or the contact element slack); in a sustained contact without oscillation an end
+comes every ``COMMIT_TIME``. The sums run over every sample from first contact on, so the windows between a first
+and a last end add up to one: the estimate is M1 = (ΣFc)/(Σ(g − a2)) between two ends, and only the timing of those
+two ends and the sensor noise matter, not the ends between them.
+
+An end timed δ samples late adds δ·(Fc − M1·(g − a2)) there to the window's force sum: the relative acceleration of
+the bodies times M1, largest at a collision's peak (thousands of N per sample on the built-in pad) and ten times
+smaller at the peaks of stage B. Each end is timed by the vertex of a parabola with a curvature of its own on each
+side (:func:`vertex`), with the timing's standard error from its least-squares curve, so each end has an error
+e_j = |Fc − M1·(g − a2)|·σ_t; the estimate starts at the stored end that gives it the smallest variance
+(e_first² + e_last² + n·(σ_F² + M1²·σ_a²)) / (Σ(g − a2))², which skips the collisions of stage A as soon as stage B
+has a few ends of its own, and that variance is scaled up by the windows' own scatter about the estimate (their
+reduced chi-square, where above 1).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# slots of the state
+(LOOKING, EXTREME, EXTREME_AT, COUNT, OPENED, LAST_COMMIT, N_ENDS, MASS, STD, BEYOND) = range(10)
+#: running sums (Σ Fc, Σ (g − a2), samples) from first contact on
+N_SUMS = 3
+RUNNING = 10
+#: rings of the last RING samples' force and running sums
+RING = 256
+FORCE_RING = RUNNING + N_SUMS
+SUMS_RING = FORCE_RING + RING
+#: per stored end: the running sums there, Fc and g − a2 there, the timing's standard error [samples]
+END_SLOTS = N_SUMS + 3
+_FORCE_AT, _SHARED_AT, _TIMING = N_SUMS, N_SUMS + 1, N_SUMS + 2
+#: ends stored; when full, the last slot holds the newest end (the others remain candidates for the first)
+MAX_ENDS = 256
+ENDS = SUMS_RING + RING * N_SUMS
+N_STATE = ENDS + MAX_ENDS * END_SLOTS
+#: least and largest reach of the parabolas fitted before a force extremum to time it [samples]
+MIN_HALF_WIDTH = 8.0
+MAX_HALF_WIDTH = 120.0
+#: samples beyond the confirmation level that confirm an extremum (the pulse detector's hold)
+HOLD = 3
+#: samples the vertex keeps on each side within its fit
+EDGE = HOLD + 1
+#: samples either side of an end over which Fc and g − a2 there are averaged
+AT_HALF_WIDTH = 2
+#: an end is placed at least this often in sustained contact without force extrema [s]
+COMMIT_TIME = 10e-3
+
+
+@njit(cache=True, error_model="numpy")
+def initial():
+    """State before first contact: looking for the first force maximum, no estimate."""
+    w = np.zeros(N_STATE)
+    w[LOOKING] = 1.0
+    w[EXTREME] = -math.inf
+    w[MASS] = math.nan
+    w[STD] = math.inf
+    return w
+
+
+@njit(cache=True, error_model="numpy")
+def _side(s0, s1, s2, s3, s4, f0, f1, f2, apex):
+    """Σ x², Σ x⁴ and Σ f·x² of one side from its power sums (Σ k^p, Σ f·k^p), x = k − apex."""
+    x2 = s2 - 2.0 * apex * s1 + apex * apex * s0
+    x4 = s4 - 4.0 * apex * s3 + 6.0 * apex * apex * s2 - 4.0 * apex ** 3 * s1 + apex ** 4 * s0
+    fx2 = f2 - 2.0 * apex * f1 + apex * apex * f0
+    return x2, x4, fx2
+
+
+@njit(cache=True, error_model="numpy")
+def _fit(n, f0, ff, left, right, sign):
+    """Least squares of F_E + a±·x² given each side's (Σ x², Σ x⁴, Σ f·x²), with a± of the extremum's ``sign``
+    (−1: a maximum) or zero: its residual sum of squares."""
+    best = ff - f0 * f0 / n  # both sides flat
+    for use_left in (False, True):
+        for use_right in (False, True):
+            if not (use_left or use_right):
+                continue
+            l2, l4, lf = left if use_left else (0.0, 0.0, 0.0)
+            r2, r4, rf = right if use_right else (0.0, 0.0, 0.0)
+            if (use_left and l4 <= 0.0) or (use_right and r4 <= 0.0):
+                continue
+            ll = l2 / l4 if use_left else 0.0
+            rr = r2 / r4 if use_right else 0.0
+            denominator = n - ll * l2 - rr * r2
+            if denominator <= 1e-9 * n:
+                continue
+            c0 = (f0 - ll * lf - rr * rf) / denominator
+            if (use_left and (lf - c0 * l2) * sign < 0.0) or (use_right and (rf - c0 * r2) * sign < 0.0):
+                continue  # a curvature of the wrong sign: not this extremum
+            cost = ff - 2.0 * c0 * f0 + n * c0 * c0
+            if use_left:
+                cost -= (lf - c0 * l2) ** 2 / l4
+            if use_right:
+                cost -= (rf - c0 * r2) ** 2 / r4
+            best = min(best, cost)
+    return best
+
+
+@njit(cache=True, error_model="numpy")
+def vertex(w, at, count, sigma, sign, drop):
+    """Sample count of the force extremum near ``at`` (``sign`` −1: a maximum, +1: a minimum) and the standard
+    error of that timing [samples].
+
+    The vertex E of F_E + a±·(t − E)², a curvature of its own on each side, of the extremum's sign or zero (a
+    contact loads and unloads along different lines, so its turning points are cusps), fitted by least squares to
+    the force samples from where it was last ``drop`` [N] away from the extremum before ``at`` (as the confirmation
+    after it; at least MIN_HALF_WIDTH and as far as the confirmation came after it) to the newest, E scanned over
+    them: the fit brackets the extremum on both sides, over a long stretch where it is flat. The
+    standard error is half the width of the set of E whose squares lie within ``sigma``² [N²] (one noise
+    variance) of the least, at least half a sample; where E sits within EDGE samples of the edge of the fit, the
+    fit's length. One
+    parabola through a cusp leans to its flatter side (13 samples on the first peak of the built-in pad)."""
+    # back from ``at`` as far as the force had to move to confirm it (HOLD samples beyond ``drop``), and as far as
+    # the confirmation came after it
+    extreme = w[FORCE_RING + int(at) % RING]
+    oldest = max(count - RING + 1, 1.0, at - MAX_HALF_WIDTH)
+    low, beyond = at, 0
+    while low > oldest and beyond < HOLD:
+        low -= 1.0
+        beyond = beyond + 1 if abs(w[FORCE_RING + int(low) % RING] - extreme) > drop else 0
+    low = max(min(low, at - (count - at), at - MIN_HALF_WIDTH), oldest)
+    size = int(count - low) + 1
+    if size < 2 * EDGE + 3:
+        return at, float(size)
+    # power sums over the window, k counted from its start
+    c = np.zeros((8, size + 1))
+    for j in range(size):
+        f = w[FORCE_RING + int(low + j) % RING]
+        k = float(j)
+        c[0, j + 1] = c[0, j] + 1.0
+        c[1, j + 1] = c[1, j] + k
+        c[2, j + 1] = c[2, j] + k * k
+        c[3, j + 1] = c[3, j] + k ** 3
+        c[4, j + 1] = c[4, j] + k ** 4
+        c[5, j + 1] = c[5, j] + f
+        c[6, j + 1] = c[6, j] + f * k
+        c[7, j + 1] = c[7, j] + f * k * k
+    ff = 0.0
+    for j in range(size):
+        ff += w[FORCE_RING + int(low + j) % RING] ** 2
+    n, f0 = c[0, size], c[5, size]
+    # the apex keeps EDGE samples on each side: a side of one or two samples fits them exactly, whatever E is
+    costs = np.full(size, np.inf)
+    for i in range(EDGE, size - EDGE):
+        apex = float(i)
+        left = _side(c[0, i], c[1, i], c[2, i], c[3, i], c[4, i], c[5, i], c[6, i], c[7, i], apex)
+        right = _side(c[0, size] - c[0, i], c[1, size] - c[1, i], c[2, size] - c[2, i], c[3, size] - c[3, i],
+                      c[4, size] - c[4, i], c[5, size] - c[5, i], c[6, size] - c[6, i], c[7, size] - c[7, i], apex)
+        costs[i] = _fit(n, f0, ff, left, right, sign)
+    best = int(np.argmin(costs))
+    if best <= EDGE or best >= size - 1 - EDGE:
+        return low + best, float(size)
+    within = 0
+    for i in range(size):
+        if costs[i] <= costs[best] + sigma * sigma:
+            within += 1
+    return low + best, max(0.5 * within, 0.5)
+
+
+@njit(cache=True, error_model="numpy")
+def _at(w, ring_count, count):
+    """Mean Fc and g − a2 over the samples within AT_HALF_WIDTH of ``ring_count`` (those in the ring)."""
+    low = max(ring_count - AT_HALF_WIDTH, count - RING + 2, 2.0)
+    high = min(ring_count + AT_HALF_WIDTH, count)
+    force = 0.0
+    k = low
+    while k <= high:
+        force += w[FORCE_RING + int(k) % RING]
+        k += 1.0
+    first = SUMS_RING + (int(low - 1.0) % RING) * N_SUMS
+    last = SUMS_RING + (int(high) % RING) * N_SUMS
+    samples = high - low + 1.0
+    return force / samples, (w[last + 1] - w[first + 1]) / samples
+
+
+@njit(cache=True, error_model="numpy")
+def _store(w, t, source, force_at, shared_at, timing, sigma_f, sigma_a):
+    """An end at the running sums in slot ``source``; then the estimate from the stored ends."""
+    slot = min(int(w[N_ENDS]), MAX_ENDS - 1)
+    base = ENDS + slot * END_SLOTS
+    for i in range(N_SUMS):
+        w[base + i] = w[source + i]
+    w[base + _FORCE_AT] = force_at
+    w[base + _SHARED_AT] = shared_at
+    w[base + _TIMING] = timing
+    w[N_ENDS] = slot + 1.0
+    w[OPENED] = 0.0
+    w[LAST_COMMIT] = t
+    _estimate(w, sigma_f, sigma_a)
+
+
+@njit(cache=True, error_model="numpy")
+def _error(w, end, mass):
+    """Standard error of the force sum that the timing of stored end ``end`` brings [N·samples]."""
+    base = ENDS + end * END_SLOTS
+    return abs(w[base + _FORCE_AT] - mass * w[base + _SHARED_AT]) * w[base + _TIMING]
+
+
+@njit(cache=True, error_model="numpy")
+def _estimate(w, sigma_f, sigma_a):
+    """M1 and its standard error from the first end that gives the smallest variance to the newest."""
+    last = int(w[N_ENDS]) - 1
+    best_var, mass, first = math.inf, math.nan, -1
+    lb = ENDS + last * END_SLOTS
+    for j in range(last - 1):  # at least two windows, so that their scatter can check the estimate
+        jb = ENDS + j * END_SLOTS
+        shared = w[lb + 1] - w[jb + 1]
+        if shared <= 0.0:
+            continue
+        m = (w[lb] - w[jb]) / shared
+        if m <= 0.0:
+            continue
+        noise = (w[lb + 2] - w[jb + 2]) * (sigma_f * sigma_f + m * m * sigma_a * sigma_a)
+        var = (_error(w, j, m) ** 2 + _error(w, last, m) ** 2 + noise) / (shared * shared)
+        if var < best_var:
+            best_var, mass, first = var, m, j
+    if first < 0:
+        w[MASS] = math.nan
+        w[STD] = math.inf
+        return
+    # the windows' scatter about the estimate, against what the model of the ends and the noise expects
+    chi2, windows = 0.0, 0.0
+    for k in range(first + 1, last + 1):
+        kb, pb = ENDS + k * END_SLOTS, ENDS + (k - 1) * END_SLOTS
+        residual = (w[kb] - w[pb]) - mass * (w[kb + 1] - w[pb + 1])
+        expected = _error(w, k, mass) ** 2 + _error(w, k - 1, mass) ** 2 \
+            + (w[kb + 2] - w[pb + 2]) * (sigma_f * sigma_f + mass * mass * sigma_a * sigma_a)
+        if expected > 0.0:
+            chi2 += residual * residual / expected
+            windows += 1.0
+    if windows >= 2.0:
+        best_var *= max(1.0, chi2 / (windows - 1.0))
+    w[MASS] = mass
+    w[STD] = math.sqrt(best_var)
+
+
+@njit(cache=True, error_model="numpy")
+def push(w, t, force, shared, drop, in_contact, sustained, sigma_f, sigma_a):
+    """One sample: Fc [N] and g − a2 [m/s²] at ``t`` [s]; ``drop`` [N] confirms an extremum; the contact state of
+    the estimator; the sensors' noise σ_F [N] and σ_a [m/s²]. Returns True when a window within one contact (no
+    opening between its ends) has just closed: the bodies move together."""
+    if w[COUNT] == 0.0 and not in_contact:
+        return False  # before first contact
+    w[RUNNING] += force
+    w[RUNNING + 1] += shared
+    w[RUNNING + 2] += 1.0
+    w[COUNT] += 1.0
+    count = w[COUNT]
+    slot = int(count) % RING
+    w[FORCE_RING + slot] = force
+    for i in range(N_SUMS):
+        w[SUMS_RING + slot * N_SUMS + i] = w[RUNNING + i]
+    if not in_contact:  # open: the next end is the next contact's maximum
+        w[OPENED] = 1.0
+        w[LOOKING] = 1.0
+        w[EXTREME] = -math.inf
+        w[BEYOND] = 0.0
+        return False
+    together = False
+    if (w[LOOKING] > 0.0 and force > w[EXTREME]) or (w[LOOKING] < 0.0 and force < w[EXTREME]):
+        w[EXTREME] = force
+        w[EXTREME_AT] = count
+        w[BEYOND] = 0.0
+    elif abs(force - w[EXTREME]) <= drop:
+        w[BEYOND] = 0.0
+    else:
+        w[BEYOND] += 1.0
+    if w[BEYOND] >= HOLD:  # the extremum is confirmed: an end at its vertex
+        w[BEYOND] = 0.0
+        at, timing = vertex(w, w[EXTREME_AT], count, sigma_f, -w[LOOKING], drop)
+        together = w[OPENED] == 0.0 and w[N_ENDS] > 0.0
+        force_at, shared_at = _at(w, at, count)
+        _store(w, t, SUMS_RING + (int(at) % RING) * N_SUMS, force_at, shared_at, timing, sigma_f, sigma_a)
+        w[LOOKING] = -w[LOOKING]
+        w[EXTREME] = force
+        w[EXTREME_AT] = count
+    if sustained and t - w[LAST_COMMIT] > COMMIT_TIME:
+        force_at, shared_at = _at(w, count, count)
+        _store(w, t, RUNNING, force_at, shared_at, MAX_HALF_WIDTH, sigma_f, sigma_a)
+    return together
