@@ -44,7 +44,7 @@ def cli(argv: list[str], *, prefix: tuple[str, ...] = (), timeout: float = 300) 
                               timeout=timeout)
     except subprocess.TimeoutExpired:
         return Outcome(code=None, output="", crash=f"ran past {timeout:g} s")
-    return Outcome(code=done.returncode, output=done.stdout + done.stderr)
+    return Outcome(code=done.returncode, output=done.stdout + done.stderr, stdout=done.stdout)
 
 
 def concurrent_studies(folder: Path, attempts: int = 3) -> list[tuple[Case, str, str]]:

@@ -9,8 +9,9 @@ and heavier ones, with the acceptance table). A case is a command line with what
 - ``either``: one of the two.
 
 A run is judged ``handled``, ``unhandled`` (a traceback, another exit status, an error of several lines or with a
-numpy repr), ``silent-wrong`` (exit 0 with a wrong answer and no warning, or where a refusal was due), ``data-loss``
-(a protected file changed, a half-written file left) or ``over-refused`` (a valid input refused).
+numpy repr, an error line on standard output instead of standard error), ``silent-wrong`` (exit 0 with a wrong
+answer and no warning, or where a refusal was due), ``data-loss`` (a protected file changed, a half-written file
+left) or ``over-refused`` (a valid input refused).
 """
 
 from __future__ import annotations
@@ -52,9 +53,10 @@ class Case:
 @dataclass
 class Outcome:
     code: int | None
-    output: str
+    output: str  # standard output, then standard error (where the error line goes)
     crash: str = ""
     changed: list[str] = field(default_factory=list)
+    stdout: str | None = None  # standard output alone, where it was captured apart from standard error
 
 
 def _sha(path: Path) -> str | None:
@@ -76,7 +78,8 @@ def run(case: Case) -> Outcome:
     changed = [str(p) for p in case.protect if _sha(p) != before[p]]
     for p in case.protect:  # a half-written file left next to a target
         changed += [str(q) for q in p.parent.glob(f".{p.stem}*") if ".partial-" in q.name or q.suffix == ".tmp"]
-    return Outcome(code=code, output=out.getvalue() + err.getvalue(), crash=crash, changed=changed)
+    return Outcome(code=code, output=out.getvalue() + err.getvalue(), crash=crash, changed=changed,
+                   stdout=out.getvalue())
 
 
 def answer(outcome: Outcome) -> tuple[float, float, list[str]] | None:
@@ -100,6 +103,8 @@ def judge(case: Case, outcome: Outcome, peer: Outcome | None = None) -> tuple[st
         return "data-loss", f"changed or left behind: {outcome.changed}"
     if outcome.crash or outcome.code not in (0, 2) or "Traceback" in text or "Exception ignored" in text:
         return "unhandled", (outcome.crash.strip().splitlines() or [f"exit {outcome.code}"])[-1][:200]
+    if outcome.stdout is not None and any(line.startswith("error:") for line in outcome.stdout.splitlines()):
+        return "unhandled", "an error line on standard output (errors go to standard error)"
     if outcome.code == 2:
         errors = [line for line in text.splitlines() if line.startswith("error:")]
         if len(errors) != 1 or _NUMPY_REPR.search(errors[0]):

@@ -44,18 +44,19 @@ def test_identify_table_plot_and_stream(rec_file, tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["identify", str(rec_file), "--plot", str(out)])  # exists, no --force
     assert exc.value.code == 2
+    _assert_error_line(capsys.readouterr(), "--force")
     main(["stream", str(rec_file), "--json", "--chunk", "64"])
     lines = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
     assert lines[0]["kind"] == "early" and lines[-1]["mass_kg"] == pytest.approx(25.0, rel=5e-3)
 
 
 def test_errors_exit_2(rec_file, tmp_path, capsys):
-    for argv in (["identify", str(rec_file), "--method", "magic"], ["identify", str(rec_file), "--method",
-                                                                     "response-map"]):
+    for argv, message in ((["identify", str(rec_file), "--method", "magic"], "--method"),
+                          (["identify", str(rec_file), "--method", "response-map"], "--map")):
         with pytest.raises(SystemExit) as exc:
             main(argv)
         assert exc.value.code == 2
-    assert "--map" in capsys.readouterr().out
+        _assert_error_line(capsys.readouterr(), message)
 
 
 def test_identify_with_a_response_map(rec_file, tmp_path, capsys):
@@ -79,7 +80,9 @@ def test_lab_csv_without_time_and_a_flipped_load_cell(tmp_path, capsys):
     rows = np.column_stack([np.r_[np.zeros(1000), -r.contact_force] / 1e3, np.r_[np.zeros(1000), r.a2]])
     np.savetxt(path, rows, delimiter=",", header="Force [kN],Acceleration [m/s^2]", comments="")
     status = _exit(["identify", str(path), "--json"])
-    assert status == 2 and "error" in capsys.readouterr().out  # no time base: says so
+    captured = capsys.readouterr()
+    assert status == 2 and captured.out == ""  # --json: nothing but JSON on stdout
+    _assert_error_line(captured, "error")  # no time base: says so
     main(["identify", str(path), "--json", "--sample-rate", "50kHz", "--flip-force"])
     data = json.loads(capsys.readouterr().out)
     assert data["mass_kg"] == pytest.approx(25.0, rel=5e-3)
@@ -106,7 +109,8 @@ def test_record_that_starts_at_first_contact(tmp_path, capsys):
 
 def test_bare_noise_is_a_fraction(tmp_path, capsys):
     status = _exit(["record", "--out", str(tmp_path / "a.tdms"), "--noise", "2"])
-    assert status == 2 and "2%" in capsys.readouterr().out
+    assert status == 2
+    _assert_error_line(capsys.readouterr(), "2%")
     assert not (tmp_path / "a.tdms").exists()
 
 
@@ -116,6 +120,15 @@ def _exit(argv) -> int:
     except SystemExit as exc:
         return exc.code
     return 0
+
+
+def _assert_error_line(captured, *words):
+    """One line on stderr that starts with "error:" and holds ``words``; no traceback, no error on stdout."""
+    err = captured.err
+    assert err.count("\n") == 1 and err.startswith("error:") and "Traceback" not in err, err
+    assert "error:" not in captured.out, captured.out
+    for word in words:
+        assert word in err, (word, err)
 
 
 def test_paper_variant_cautions_on_noise(tmp_path, capsys):
@@ -146,7 +159,8 @@ def test_json_names_the_equations_and_cfc_is_refused(rec_file, capsys):
         with pytest.raises(SystemExit) as exc:
             main([command, str(rec_file), "--cfc", "1000"])
         assert exc.value.code == 2
-        out = capsys.readouterr().out
-        assert "unfiltered" in out and "--cfc" in out and len(out.strip().splitlines()) == 1
+        captured = capsys.readouterr()
+        _assert_error_line(captured, "unfiltered", "--cfc")
+        assert len(captured.err.strip().splitlines()) == 1 and captured.out == ""
     main(["identify", str(rec_file), "--cfc", "1000", "--variant", "paper", "--json"])
     assert json.loads(capsys.readouterr().out)["variant"] == "paper"

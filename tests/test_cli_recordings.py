@@ -44,7 +44,9 @@ def test_record_refuses_to_overwrite_without_force(tmp_path, capsys):
     before = out.read_bytes()
     with pytest.raises(SystemExit) as exc:
         main(["record", "--duration", "5ms", "--mass", "40kg", "--out", str(out)])
-    assert exc.value.code == 2 and "exists; pass --force" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert exc.value.code == 2 and "exists; pass --force" in captured.err
+    assert captured.err.startswith("error:") and captured.err.count("\n") == 1 and "error:" not in captured.out
     assert out.read_bytes() == before
     main(["record", "--duration", "5ms", "--mass", "40kg", "--out", str(out), "--force"])
     assert read_recording(out).truth("mass_kg") == 40.0
@@ -68,9 +70,11 @@ def test_errors_print_one_line_and_exit_2(tmp_path, monkeypatch, capsys, argv, m
     write_recording(Recording(sample_rate=20e3, channels={"contact_force": np.zeros(50)}), tmp_path / "good.csv")
     with pytest.raises(SystemExit) as exc:
         main(argv)
-    out = capsys.readouterr().out
-    assert exc.value.code == 2 and message in out and "Traceback" not in out
-    assert out.startswith("error:")
+    captured = capsys.readouterr()
+    err = captured.err
+    assert exc.value.code == 2 and message in err and "Traceback" not in err
+    assert err.startswith("error:") and err.count("\n") == 1  # one line, on stderr
+    assert captured.out == ""  # nothing on stdout
     assert not (tmp_path / "x.csv").exists()
 
 

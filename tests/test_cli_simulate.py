@@ -15,21 +15,37 @@ from impactometer.rig import get_rig
 
 
 def run(args, capsys):
-    """Run the CLI; return (exit status, stdout)."""
+    """Run the CLI; return (exit status, stdout, stderr)."""
     try:
         main(args)
         status = 0
     except SystemExit as exc:
         status = exc.code
-    return status, capsys.readouterr().out
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def assert_error_line(status, out, err, *, alone=True):
+    """A refusal: exit status 2, one line on stderr that starts with "error:", no traceback, no error on stdout.
+
+    ``alone=False``: progress lines (on stderr) may come before the error line, which is then the last line.
+    """
+    assert status == 2, (out, err)
+    if alone:
+        assert err.count("\n") == 1 and err.startswith("error:"), err
+    else:
+        lines = err.splitlines()
+        assert err.endswith("\n") and lines and lines[-1].startswith("error:"), err
+        assert sum(line.startswith("error:") for line in lines) == 1, err
+    assert "Traceback" not in err and "error:" not in out, out
 
 
 def test_simulate_writes_histories_and_figure(tmp_path, capsys):
     out, fig = tmp_path / "run.h5", tmp_path / "run.png"
-    status, text = run(["simulate", "--mass", "30kg", "--height", "0.2m", "--pressure", "200kPa",
-                        "--duration", "20ms", "--sample-rate", "50kHz", "--out", str(out), "--plot", str(fig)],
-                       capsys)
-    assert status == 0
+    status, text, err = run(["simulate", "--mass", "30kg", "--height", "0.2m", "--pressure", "200kPa",
+                             "--duration", "20ms", "--sample-rate", "50kHz", "--out", str(out), "--plot", str(fig)],
+                            capsys)
+    assert status == 0, err
     assert "peak contact force" in text and "energy balance error" in text
     assert fig.stat().st_size > 10_000 and fig.read_bytes()[:4] == b"\x89PNG"
     with h5py.File(out) as f:
@@ -47,9 +63,9 @@ def test_simulate_options_velocity_contact_and_rig_file(tmp_path, capsys):
     stand = tmp_path / "stand.toml"
     get_rig().replace(**{"friction.force": 0.0}).to_toml(stand)
     out = tmp_path / "hunt.h5"
-    status, _ = run(["simulate", "--mass", "20", "--velocity", "1.5m/s", "--pressure", "1bar", "--contact",
-                     "hunt", "--rig", str(stand), "--duration", "0.01", "--out", str(out)], capsys)
-    assert status == 0
+    status, _, err = run(["simulate", "--mass", "20", "--velocity", "1.5m/s", "--pressure", "1bar", "--contact",
+                          "hunt", "--rig", str(stand), "--duration", "0.01", "--out", str(out)], capsys)
+    assert status == 0, err
     with h5py.File(out) as f:
         rig = json.loads(f.attrs["rig"])
         assert (rig["contact"]["law"], rig["friction"]["force"]) == ("hunt-crossley", 0.0)
@@ -61,11 +77,12 @@ def test_simulate_refuses_to_overwrite_without_force(tmp_path, capsys):
     out = tmp_path / "run.h5"
     out.write_bytes(b"precious")
     args = ["simulate", "--velocity", "1m/s", "--duration", "5ms", "--out", str(out)]
-    status, text = run(args, capsys)
-    assert status == 2 and "exists; pass --force" in text
+    status, text, err = run(args, capsys)
+    assert_error_line(status, text, err)
+    assert "exists; pass --force" in err
     assert out.read_bytes() == b"precious"
-    status, _ = run(args + ["--force"], capsys)
-    assert status == 0 and h5py.is_hdf5(out)
+    status, _, err = run(args + ["--force"], capsys)
+    assert status == 0 and h5py.is_hdf5(out), err
 
 
 @pytest.mark.parametrize("args, message", [
@@ -81,16 +98,16 @@ def test_simulate_refuses_to_overwrite_without_force(tmp_path, capsys):
     (["--rig", "stand.yaml"], "rig must be one of"),
 ])
 def test_bad_input_exits_2_with_one_line(args, message, capsys):
-    status, text = run(["simulate", *args], capsys)
-    assert status == 2
-    assert text.count("\n") == 1 and text.startswith("error:")
-    assert message in text
+    status, out, err = run(["simulate", *args], capsys)
+    assert_error_line(status, out, err)
+    assert out == ""
+    assert message in err
 
 
 def test_demo_runs_the_whole_chain(tmp_path, capsys):
     out = tmp_path / "demo"
-    status, text = run(["demo", "--out", str(out)], capsys)
-    assert status == 0
+    status, text, err = run(["demo", "--out", str(out)], capsys)
+    assert status == 0, err
     assert (out / "impact.png").read_bytes()[:4] == b"\x89PNG"
     assert (out / "absorb.png").read_bytes()[:4] == b"\x89PNG"
     assert "contact pulses" in text and "peak contact force" in text
@@ -103,15 +120,17 @@ def test_demo_replaces_its_folder_only_with_force(tmp_path, capsys):
     out = tmp_path / "demo"
     out.mkdir()
     (out / "impact.png").write_bytes(b"keep")
-    status, text = run(["demo", "--out", str(out), "--no-absorb"], capsys)
-    assert status == 2 and "--force" in text
+    status, text, err = run(["demo", "--out", str(out), "--no-absorb"], capsys)
+    assert_error_line(status, text, err)
+    assert "--force" in err
     assert (out / "impact.png").read_bytes() == b"keep"
-    status, _ = run(["demo", "--out", str(out), "--no-absorb", "--force"], capsys)
-    assert status == 0 and (out / "impact.png").read_bytes()[:4] == b"\x89PNG"
+    status, _, err = run(["demo", "--out", str(out), "--no-absorb", "--force"], capsys)
+    assert status == 0, err
+    assert (out / "impact.png").read_bytes()[:4] == b"\x89PNG"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demo"]  # nothing piles up beside it
 
 
 def test_error_line_keeps_bracketed_units(capsys):
-    status, text = run(["simulate", "--mass", "0kg"], capsys)
-    assert status == 2
-    assert "mass must be >= 0.1 [kg], got 0.0" in text
+    status, out, err = run(["simulate", "--mass", "0kg"], capsys)
+    assert_error_line(status, out, err)
+    assert "mass must be >= 0.1 [kg], got 0.0" in err

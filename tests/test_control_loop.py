@@ -172,7 +172,9 @@ def test_cli_absorb_json_and_plot(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["absorb", "--strategy", "closed", "--identify", "oracle", "--plot", str(figure)])
     assert exit_info.value.code == 2
-    assert "--force" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "--force" in captured.err and captured.err.startswith("error:") and captured.err.count("\n") == 1
+    assert "error:" not in captured.out
 
 
 def test_cli_absorb_table(capsys):
@@ -189,7 +191,9 @@ def test_cli_absorb_bad_input(args, match, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["absorb", *args])
     assert exit_info.value.code == 2
-    assert match in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert match in captured.err and captured.err.startswith("error:") and captured.err.count("\n") == 1
+    assert "Traceback" not in captured.err and captured.out == ""
 
 
 def test_loop_with_a_response_map():

@@ -178,3 +178,7 @@ def test_readings_the_data_cannot_tell_apart_widen_the_answer(monkeypatch, judge
     np.testing.assert_allclose(got.cov, expected)
     if inflated:  # the truth of the stage-B reading now lies within 2 standard errors of the answer
         assert abs(got.theta[0] - judged.theta[0]) <= 2.0 * np.sqrt(got.cov[0, 0])
+        # and the answer names both readings (V0, M1): a refusal, or --json, can say what the two gave
+        assert got.readings == {"flights": (1.43, pytest.approx(1 / 0.045)), "set": (1.50, pytest.approx(20.0))}
+    else:
+        assert got.readings is None

@@ -83,8 +83,10 @@ def test_a_second_study_into_a_locked_folder_is_refused(tmp_path, capsys):
         assert process.stdout.readline().strip() == "held"
         with pytest.raises(SystemExit) as exit_info:
             main(["study", "peak-force", "--out", str(tmp_path), "--grid", "2", "--workers", "1"])
-        out = capsys.readouterr().out
-        assert exit_info.value.code == 2 and "is being written by another study run (process" in out
+        captured = capsys.readouterr()
+        err = captured.err
+        assert exit_info.value.code == 2 and "is being written by another study run (process" in err
+        assert err.startswith("error:") and err.count("\n") == 1 and "error:" not in captured.out
         assert not (tmp_path / "peak-force.csv").exists()
     finally:
         process.kill()
@@ -107,9 +109,9 @@ def test_outputs_into_a_read_only_folder_are_refused_before_any_work(tmp_path):
                      ["study", "peak-force", "--out", str(folder / "s"), "--grid", "2"]):
             done = subprocess.run([*prefix, sys.executable, "-m", "impactometer", *argv], capture_output=True,
                                   text=True, env=env, timeout=120)
-            errors = [line for line in (done.stdout + done.stderr).splitlines() if line.startswith("error:")]
+            errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
             assert done.returncode == 2 and len(errors) == 1 and "permission denied" in errors[0], argv
-            assert "Traceback" not in done.stderr
+            assert "error:" not in done.stdout and "Traceback" not in done.stdout + done.stderr, argv
         assert list(folder.iterdir()) == []
     finally:
         folder.chmod(0o755)

@@ -12,20 +12,21 @@ from impactometer.identify.response_map import identify_recording, load_map
 from impactometer.io import write_recording
 from impactometer.rig import get_rig
 from impactometer.sensors import record_batch
-from test_cli_simulate import run
+from test_cli_simulate import assert_error_line, run
 
 
 def test_build_refine_and_info(tmp_path, capsys):
     out = tmp_path / "map.h5"
-    status, text = run(["map", "build", "--grid", "5x4", "--mass", "10kg:50kg", "--height", "5cm:50cm",
-                        "--pressure", "200kPa", "--features", "peaks", "--refine", "30x20", "--out", str(out)], capsys)
-    assert status == 0, text
+    status, text, err = run(["map", "build", "--grid", "5x4", "--mass", "10kg:50kg", "--height", "5cm:50cm",
+                             "--pressure", "200kPa", "--features", "peaks", "--refine", "30x20", "--out", str(out)],
+                            capsys)
+    assert status == 0, text + err
     rmap = load_map(out)
     assert rmap.shape == (30, 20) and rmap.feature_set == "peaks"
     assert rmap.provenance["base_grid"] == [5, 4]
     assert rmap.velocities[-1] == pytest.approx(np.sqrt(2 * get_rig().gravity * 0.5))
-    status, text = run(["map", "info", str(out), "--json"], capsys)
-    assert status == 0
+    status, text, err = run(["map", "info", str(out), "--json"], capsys)
+    assert status == 0, err
     summary = json.loads(text)
     assert summary["grid"] == [30, 20] and summary["pressures_gauge_Pa"] == [200e3]
     assert set(summary["features"]) == {"first_peak", "second_peak"}
@@ -33,9 +34,9 @@ def test_build_refine_and_info(tmp_path, capsys):
 
 def test_pressure_axis_window_and_velocity_range(tmp_path, capsys):
     out = tmp_path / "map.h5"
-    status, text = run(["map", "build", "--grid", "4", "--velocity", "1m/s:3m/s", "--pressure", "100kPa,300kPa",
-                        "--window", "10ms", "--out", str(out)], capsys)
-    assert status == 0, text
+    status, text, err = run(["map", "build", "--grid", "4", "--velocity", "1m/s:3m/s", "--pressure",
+                             "100kPa,300kPa", "--window", "10ms", "--out", str(out)], capsys)
+    assert status == 0, text + err
     rmap = load_map(out)
     np.testing.assert_allclose(rmap.pressures_gauge, [100e3, 300e3])
     assert rmap.feature_params["window"] == pytest.approx(0.01)
@@ -45,11 +46,13 @@ def test_pressure_axis_window_and_velocity_range(tmp_path, capsys):
 def test_existing_map_is_not_overwritten_without_force(tmp_path, capsys):
     out = tmp_path / "map.h5"
     out.write_bytes(b"precious")
-    status, text = run(["map", "build", "--grid", "4x4", "--out", str(out)], capsys)
-    assert status == 2 and "--force" in text
+    status, text, err = run(["map", "build", "--grid", "4x4", "--out", str(out)], capsys)
+    assert_error_line(status, text, err)
+    assert "--force" in err
     assert out.read_bytes() == b"precious"
-    status, _ = run(["map", "build", "--grid", "4x4", "--out", str(out), "--force"], capsys)
-    assert status == 0 and load_map(out).shape == (4, 4)
+    status, _, err = run(["map", "build", "--grid", "4x4", "--out", str(out), "--force"], capsys)
+    assert status == 0, err
+    assert load_map(out).shape == (4, 4)
 
 
 @pytest.mark.parametrize("args, message", [
@@ -62,18 +65,19 @@ def test_existing_map_is_not_overwritten_without_force(tmp_path, capsys):
     (["--height", "5cm:50cm", "--velocity", "1m/s:3m/s"], "at most one of --height and --velocity"),
 ])
 def test_bad_options_fail_in_one_line(tmp_path, capsys, args, message):
-    status, text = run(["map", "build", "--out", str(tmp_path / "m.h5"), *args], capsys)
-    assert status == 2
-    assert message in " ".join(text.split())
-    assert "Traceback" not in text
+    status, out, err = run(["map", "build", "--out", str(tmp_path / "m.h5"), *args], capsys)
+    assert_error_line(status, out, err, alone=False)  # "simulating N impacts ..." may come first
+    assert message in " ".join(err.splitlines()[-1].split())
+    assert "Traceback" not in out + err
     assert not (tmp_path / "m.h5").exists()
 
 
 def test_info_of_a_bad_file_fails_in_one_line(tmp_path, capsys):
     bad = tmp_path / "bad.h5"
     bad.write_text("not a map")
-    status, text = run(["map", "info", str(bad)], capsys)
-    assert status == 2 and "not an HDF5 file" in text
+    status, out, err = run(["map", "info", str(bad)], capsys)
+    assert_error_line(status, out, err)
+    assert out == "" and "not an HDF5 file" in err
 
 
 def test_build_from_a_calibration_folder_with_manifest(tmp_path, capsys):
@@ -93,9 +97,9 @@ def test_build_from_a_calibration_folder_with_manifest(tmp_path, capsys):
                                             metadata={"rig": "drop-stand"}), folder / name)
             writer.writerow([name, m[i], v[i], 200e3])
     out = tmp_path / "map.h5"
-    status, text = run(["map", "build", "--from-recordings", str(folder), "--grid", "12x12", "--out", str(out)],
-                       capsys)
-    assert status == 0, text
+    status, text, err = run(["map", "build", "--from-recordings", str(folder), "--grid", "12x12", "--out",
+                             str(out)], capsys)
+    assert status == 0, text + err
     rmap = load_map(out)
     assert rmap.provenance["source"] == "recordings" and rmap.provenance["recordings"] == 16
     probe = record_batch(30.0, 2.0, 200e3, rig, duration=0.03)[0]

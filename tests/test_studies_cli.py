@@ -8,9 +8,13 @@ from impactometer.cli import main
 
 
 def _run(argv, capsys):
+    """Run a command that must fail; return (exit status, its one error line from stderr), with stdout free of it."""
     with pytest.raises(SystemExit) as exc:
         main(argv)
-    return exc.value.code, capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "error:" not in captured.out and "Traceback" not in captured.out + captured.err, captured
+    assert captured.err.startswith("error:") and captured.err.count("\n") == 1, captured.err
+    return exc.value.code, captured.err
 
 
 def test_study_writes_table_figure_and_report(tmp_path, capsys):

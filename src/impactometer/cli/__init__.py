@@ -1,4 +1,5 @@
-"""Command-line interface: ``impactometer COMMAND``. Errors print in one line and exit with status 2."""
+"""Command-line interface: ``impactometer COMMAND``. Errors print in one line (on standard error) and exit with
+status 2."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from rich.markup import escape
 from ..errors import ImpactometerError
 from ..outputs import write_failed
 from . import control, demo, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
-from .app import app, console
+from .app import app, error_console
 
 __all__ = ["app", "main"]
 _NUMPY_SCALAR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool)\w*\(([^()]*)\)")
@@ -19,7 +20,7 @@ _NUMPY_SCALAR = re.compile(r"\bnp\.(?:float|int|uint|complex|bool)\w*\(([^()]*)\
 def _fail(message: str, code: int) -> None:
     line = " ".join(message.split())  # one line, whatever the message holds
     line = _NUMPY_SCALAR.sub(r"\1", line)  # np.float64(3.0) -> 3.0, wherever a message kept a numpy repr
-    console.print(f"[bold red]error:[/] {escape(line)}", highlight=False, soft_wrap=True)
+    error_console.print(f"[bold red]error:[/] {escape(line)}", highlight=False, soft_wrap=True)
     sys.exit(code)
 
 

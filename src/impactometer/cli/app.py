@@ -37,6 +37,8 @@ class App(typer.Typer):
 app = App(add_completion=False, pretty_exceptions_enable=False,
           help="On-line impact load identification and adaptive impact absorption.")
 console = Console(soft_wrap=True)  # paths and one-line messages are never broken (the terminal wraps)
+#: errors go to standard error, so that standard output holds only results (``--json`` pipes stay parsable)
+error_console = Console(soft_wrap=True, stderr=True)
 
 
 def _version(value: bool) -> None:

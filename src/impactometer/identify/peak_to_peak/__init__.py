@@ -261,12 +261,16 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     second = seg.pulses[1] if len(seg.pulses) > 1 else None
     peak2 = second_peak(seg) or (second.peak if second is not None else None)
     used: dict = {}
+    readings = None
     if agnostic:
         first = seg.pulses[0]
         lag_max = LAG_FRACTION * ((first.end if first.complete else seg.force.size) - first.zero) / seg.sample_rate
         sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
         theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
         used = {**sol.used, **sol.nuisances}
+        readings = sol.readings
+        if readings is not None:
+            used["gap_readings"] = readings
         if contact_phase and second is not None and peak2 is not None:
             contact = _contact_phase(seg, kin, peak2, noise)
             theta, cov = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
@@ -292,9 +296,15 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     _check_velocity(velocity, f"the {stage} equations")
     spread = max(float(np.sqrt(cov[1, 1])) / w, float(np.sqrt(cov[0, 0])) / max(abs(velocity), 1e-12))
     if spread > MAX_RELATIVE_STD:
+        why = "more of the record is needed"
+        if readings is not None:  # the spread is the two readings of the gaps
+            (v_f, m_f), (v_s, m_s) = readings["flights"], readings["set"]
+            why = (f"the gaps between the pulses read as flights give M1 = {m_f:.3g} kg, V0 = {v_f:.3g} m/s, read "
+                   f"as a contact that kept a set {m_s:.3g} kg, {v_s:.3g} m/s, and both fit the turning points "
+                   "alike; a longer stage B tells them apart")
         raise IdentificationError(f"the {stage} equations do not determine the impact: the standard error is "
                                   f"{spread:.0%} of the answer (at most {MAX_RELATIVE_STD:.0%} is an answer); "
-                                  "more of the record is needed")
+                                  f"{why}")
     return Identification(
         mass=1.0 / w, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
         velocity_std=float(np.sqrt(cov[0, 0])), early=early, available_at=seg.time_of(last),

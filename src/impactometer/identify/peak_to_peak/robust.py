@@ -174,6 +174,8 @@ class Solution:
     tau: np.ndarray
     #: largest model-error variance of a group over its noise variance [-]
     scatter: float = 0.0
+    #: where the gaps read as flights and as a contact that kept a set fit alike: (V0 [m/s], M1 [kg]) of each
+    readings: dict | None = None
 
 
 #: kinds of rows and atoms: onsets, extrema, separations, and the peak overlap of a separation
@@ -216,7 +218,9 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
         # gaps were flights (a pad that kept no set) is not in the data, so the readings' difference is part of
         # the answer's uncertainty
         diff = flights.theta - judged.theta
-        chosen = replace(flights, cov=flights.cov + np.outer(diff, diff))
+        readings = {name: (float(sol.theta[0]), 1.0 / float(sol.theta[1])) for name, sol in
+                    (("flights", flights), ("set", judged))}
+        chosen = replace(flights, cov=flights.cov + np.outer(diff, diff), readings=readings)
     return chosen
 
 
