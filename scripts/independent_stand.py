@@ -52,13 +52,12 @@ def draw_case(law: str, idx: int, seed: int) -> dict:
         gauge = rng.uniform(20e3, 400e3)
         if gauge * A > 1.2 * M2 * G:
             break
-    p = dict(law=law, idx=idx, seed=seed, M1=M1, V0=V0, M2=M2, A=A, L=L, Ff=Ff, gauge=gauge,
-             phase=rng.uniform(0, 1.0 / FS))
+    p: dict = dict(law=law, idx=idx, seed=seed, M1=M1, V0=V0, M2=M2, A=A, L=L, Ff=Ff, gauge=gauge,
+                   phase=rng.uniform(0, 1.0 / FS))
     if law == "KV":
-        p["k"] = rng.uniform(0.5e6, 2e6)
-        p["zeta"] = rng.uniform(0.05, 0.2)
+        k, zeta = rng.uniform(0.5e6, 2e6), rng.uniform(0.05, 0.2)
         mu = M1 * M2 / (M1 + M2)
-        p["c"] = 2 * p["zeta"] * math.sqrt(p["k"] * mu)
+        p.update(k=k, zeta=zeta, c=2 * zeta * math.sqrt(k * mu))
     else:
         p["k"] = rng.uniform(1e7, 5e7)
         p["alpha"] = rng.uniform(0.1, 0.4)
