@@ -19,6 +19,7 @@ import contextlib
 import numpy as np
 from scipy.optimize import least_squares
 
+from . import contact_law
 from .robust import kernel_form
 
 #: starting (n, m) exponents of the law: Kelvin-Voigt and Hunt-Crossley
@@ -27,11 +28,6 @@ LAW_STARTS = ((1.0, 0.0), (1.5, 1.5))
 START_INVERSE_MASSES = (1.0 / 20.0,)
 #: bounds of the exponents n and m
 N_BOUNDS, M_BOUNDS = (0.8, 2.5), (-0.5, 2.5)
-
-
-def _law(delta, rate, k, c, n, m, dscale):
-    x = np.maximum(delta / dscale, 1e-12)
-    return np.where(delta > 0, k * x ** n + c * x ** m * rate, 0.0)
 
 
 #: the law fits the whole pulses when their chi-square exceeds its degrees of freedom ν by at most this many
@@ -124,37 +120,15 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
         white = noise_acceleration ** 2 + (w * noise_force) ** 2
         return max(float(np.sqrt(white * kin.dt * t1[0] ** 3 / 3.0 + (closing * onset1_std * kin.dt) ** 2)), 1e-15)
 
-    def shift_sigma(v0):
-        return max(abs(v0) * kin.onset_std0 * kin.dt, 1e-15)
+    data = (tau, i_f, jf, da, va, f, float(g))
+    onset = np.array([t1[0], if1[0], da1[0]])
+    shift_time = kin.onset_std0 * kin.dt  # the standard error of t00 [s]: d0's is |V0| times it
 
     def residuals(x, dscale, s1):
-        v0, w, d0, k, c, n, m = x
-        delta, rate = kinematics(v0, w, d0)
-        model = _law(delta, rate, k, c, n, m, dscale)
-        onset = (v0 * t1[0] + g * t1[0] ** 2 / 2 - w * if1[0] - da1[0] + d0) / s1
-        return np.concatenate([(f - model) / sigma_f, [onset, d0 / shift_sigma(v0)]])
+        return contact_law.residuals(np.asarray(x, dtype=float), *data, dscale, sigma_f, onset, s1, shift_time)
 
     def jacobian(x, dscale, s1):
-        v0, w, d0, k, c, n, m = x
-        delta, rate = kinematics(v0, w, d0)
-        touch = delta > 0
-        xs = np.maximum(delta / dscale, 1e-12)
-        xn, xm = xs ** n, xs ** m
-        log_x = np.log(xs)
-        d_delta = np.where(touch, (k * n * xn + c * m * xm * rate) / xs / dscale, 0.0)
-        d_rate = np.where(touch, c * xm, 0.0)
-        jac = np.zeros((f.size + 2, 7))
-        jac[:-2, 0] = d_delta * tau + d_rate
-        jac[:-2, 1] = -d_delta * i_f - d_rate * jf
-        jac[:-2, 2] = d_delta
-        jac[:-2, 3] = np.where(touch, xn, 0.0)
-        jac[:-2, 4] = np.where(touch, xm * rate, 0.0)
-        jac[:-2, 5] = np.where(touch, k * xn * log_x, 0.0)
-        jac[:-2, 6] = np.where(touch, c * xm * rate * log_x, 0.0)
-        jac[:-2] /= -sigma_f
-        jac[-2, :3] = [t1[0] / s1, -if1[0] / s1, 1.0 / s1]
-        jac[-1, 2] = 1.0 / shift_sigma(v0)
-        return jac
+        return contact_law.jacobian(np.asarray(x, dtype=float), *data, dscale, sigma_f, onset, s1, shift_time)
 
     lower = [0.0, 0.0, -np.inf, 0.0, -np.inf, N_BOUNDS[0], M_BOUNDS[0]]
     upper = [np.inf, np.inf, np.inf, np.inf, np.inf, N_BOUNDS[1], M_BOUNDS[1]]
@@ -202,7 +176,8 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     v0, w, d0, k, c, n, m = fit.x
     delta, rate = kinematics(v0, w, d0)
     eps = 1e-6 * dscale
-    slope = (_law(delta + eps, rate, k, c, n, m, dscale) - _law(delta - eps, rate, k, c, n, m, dscale)) / (2 * eps)
+    slope = (contact_law.law(delta + eps, rate, k, c, n, m, dscale)
+             - contact_law.law(delta - eps, rate, k, c, n, m, dscale)) / (2 * eps)
     dr = np.append(-slope / sigma_f, 1.0 / s1)
     taus = np.append(tau, t1[0])
     weights = (bread @ jac[:-1].T) * dr[None, :]  # d theta / d(error of δ at each row)

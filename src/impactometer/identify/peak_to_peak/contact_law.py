@@ -1,0 +1,81 @@
+"""The contact-law family of the early answer and its least-squares residuals and Jacobian (compiled).
+
+Fc = k·x^n + c·x^m·δ' with x = δ/δ_s (δ_s a scale of the compression, so that k and c are forces), zero where
+the bodies do not overlap (δ <= 0); δ and δ' are linear in (V0, w) and the shift d0 of the compression
+(:mod:`.robust`): δ = V0·τ + g·τ²/2 − w·IF − D2 + d0, δ' = V0 + g·τ − w·JF − V2. The unknowns are
+x = (V0, w, d0, k, c, n, m). Residuals, in units of the force noise: the force samples, then the second onset's row
+(δ = 0 there, over its standard error) and the prior of d0 (0 over its standard error). Compiled, because the
+fit of :func:`~impactometer.identify.peak_to_peak.early.solve_early` evaluates them some hundred times per answer.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: smallest x = δ/δ_s the powers are taken of (x^m with m < 0 stays finite at the edge of contact)
+X_FLOOR = 1e-12
+
+
+@njit(cache=True, error_model="numpy")
+def law(delta, rate, k, c, n, m, dscale):
+    """Contact force [N] of the family at compressions ``delta`` [m] and rates ``rate`` [m/s] (arrays)."""
+    out = np.zeros(delta.size)
+    for i in range(delta.size):
+        if delta[i] > 0.0:
+            x = max(delta[i] / dscale, X_FLOOR)
+            out[i] = k * x ** n + c * x ** m * rate[i]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def residuals(x, tau, i_f, jf, da, va, f, gravity, dscale, sigma_f, onset, s1, shift_time):
+    """Residual vector of the fit (module notes). ``onset`` = (τ, IF, D2) at the second onset; ``s1`` its row's
+    standard error [m]; ``shift_time`` the standard error of t00 [s] (d0's is |V0| times it)."""
+    v0, w, d0, k, c, n, m = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+    out = np.empty(f.size + 2)
+    for i in range(f.size):
+        t = tau[i]
+        delta = v0 * t + gravity * t * t / 2.0 - w * i_f[i] - da[i] + d0
+        model = 0.0
+        if delta > 0.0:
+            rate = v0 + gravity * t - w * jf[i] - va[i]
+            xs = max(delta / dscale, X_FLOOR)
+            model = k * xs ** n + c * xs ** m * rate
+        out[i] = (f[i] - model) / sigma_f
+    t1 = onset[0]
+    out[f.size] = (v0 * t1 + gravity * t1 * t1 / 2.0 - w * onset[1] - onset[2] + d0) / s1
+    out[f.size + 1] = d0 / max(abs(v0) * shift_time, 1e-15)
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def jacobian(x, tau, i_f, jf, da, va, f, gravity, dscale, sigma_f, onset, s1, shift_time):
+    """Jacobian of :func:`residuals` with respect to x (same arguments)."""
+    v0, w, d0, k, c, n, m = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+    jac = np.zeros((f.size + 2, 7))
+    for i in range(f.size):
+        t = tau[i]
+        delta = v0 * t + gravity * t * t / 2.0 - w * i_f[i] - da[i] + d0
+        if delta <= 0.0:
+            continue
+        rate = v0 + gravity * t - w * jf[i] - va[i]
+        xs = max(delta / dscale, X_FLOOR)
+        xn, xm = xs ** n, xs ** m
+        log_x = math.log(xs)
+        d_delta = (k * n * xn + c * m * xm * rate) / xs / dscale
+        d_rate = c * xm
+        jac[i, 0] = -(d_delta * t + d_rate) / sigma_f
+        jac[i, 1] = -(-d_delta * i_f[i] - d_rate * jf[i]) / sigma_f
+        jac[i, 2] = -d_delta / sigma_f
+        jac[i, 3] = -xn / sigma_f
+        jac[i, 4] = -xm * rate / sigma_f
+        jac[i, 5] = -k * xn * log_x / sigma_f
+        jac[i, 6] = -c * xm * rate * log_x / sigma_f
+    jac[f.size, 0] = onset[0] / s1
+    jac[f.size, 1] = -onset[1] / s1
+    jac[f.size, 2] = 1.0 / s1
+    jac[f.size + 1, 2] = 1.0 / max(abs(x[0]) * shift_time, 1e-15)
+    return jac
