@@ -215,11 +215,9 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     if chosen is flights and flights.used["onsets"] > judged.used["onsets"] \
             and judged.scatter <= max(1.0, flights.scatter):
         # the flights keep onsets the judged reading doubts, and the data fit both readings as well: whether those
-        # gaps were flights (a pad that kept no set) is not in the data, so the readings' difference is part of
-        # the answer's uncertainty
+        # gaps were flights (a pad that kept no set) is not in the data, so their difference is in the answer's σ
         diff = flights.theta - judged.theta
-        readings = {name: (float(sol.theta[0]), 1.0 / float(sol.theta[1])) for name, sol in
-                    (("flights", flights), ("set", judged))}
+        readings = {k: (float(v.theta[0]), 1.0 / float(v.theta[1])) for k, v in (("flights", flights), ("set", judged))}
         chosen = replace(flights, cov=flights.cov + np.outer(diff, diff), readings=readings)
     return chosen
 
