@@ -24,7 +24,7 @@ def no_gpu(monkeypatch):
 ])
 def test_gpu_without_a_gpu_is_one_line_naming_the_extra_and_exit_2(argv, tmp_path, capsys, no_gpu):
     status, out, err = run([*argv, "--out", str(tmp_path / "x")], capsys)
-    assert_error_line(status, out, err, alone=False)  # map build says "simulating N impacts ..." first
+    assert_error_line(status, out, err)  # refused before any progress is printed
     line = err.splitlines()[-1]
     assert "impactometer[gpu]" in line and NO_GPU in line and "Traceback" not in out + err
     assert not (tmp_path / "x").exists()
@@ -36,7 +36,7 @@ def test_gpu_without_a_gpu_is_one_line_naming_the_extra_and_exit_2(argv, tmp_pat
 ])
 def test_unknown_device_is_exit_2(argv, tmp_path, capsys):
     status, out, err = run([*argv, "--out", str(tmp_path / "x")], capsys)
-    assert_error_line(status, out, err, alone=False)
+    assert_error_line(status, out, err)
     assert "device must be one of ['cpu', 'gpu', 'auto'], got 'tpu'" in err.splitlines()[-1]
 
 

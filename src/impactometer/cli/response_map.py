@@ -85,6 +85,8 @@ def build(
 
     from ..identify.response_map import build_map_from_recordings, build_map_simulated, refine, save_map
     from ..identify.response_map.build import MAX_SIMULATED
+    from ..identify.response_map.features import get_feature_set
+    from ..model.gpu import resolve_device
     from ..rig import get_rig
 
     output_path(out, force)
@@ -117,6 +119,8 @@ def build(
         if pressures[-1] > stand.cylinder.rated_pressure_gauge:
             raise ParameterError(f"--pressure: {pressures[-1]:g} Pa exceeds the rated "
                                  f"{stand.cylinder.rated_pressure_gauge:g} Pa of {stand.name!r}")
+        get_feature_set(features).params(params)  # bad features or a device the machine lacks: refused before
+        resolve_device(device)  # any progress is printed
         if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
             print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
                   "pressure(s)) ...", file=sys.stderr, flush=True)
