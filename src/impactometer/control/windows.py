@@ -28,6 +28,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ..identify.pulses import HOLD
+
 # slots of the state
 (LOOKING, EXTREME, EXTREME_AT, COUNT, OPENED, LAST_COMMIT, N_ENDS, MASS, STD, BEYOND) = range(10)
 #: running sums (Σ Fc, Σ (g − a2), samples) from first contact on
@@ -47,9 +49,8 @@ N_STATE = ENDS + MAX_ENDS * END_SLOTS
 #: least and largest reach of the parabolas fitted before a force extremum to time it [samples]
 MIN_HALF_WIDTH = 8.0
 MAX_HALF_WIDTH = 120.0
-#: samples beyond the confirmation level that confirm an extremum (the pulse detector's hold)
-HOLD = 3
-#: samples the vertex keeps on each side within its fit
+#: samples the vertex keeps on each side within its fit (an extremum is confirmed by the pulse detector's HOLD
+#: samples beyond the confirmation level)
 EDGE = HOLD + 1
 #: samples either side of an end over which Fc and g − a2 there are averaged
 AT_HALF_WIDTH = 2
@@ -116,11 +117,10 @@ def vertex(w, at, count, sigma, sign, drop):
     contact loads and unloads along different lines, so its turning points are cusps), fitted by least squares to
     the force samples from where it was last ``drop`` [N] away from the extremum before ``at`` (as the confirmation
     after it; at least MIN_HALF_WIDTH and as far as the confirmation came after it) to the newest, E scanned over
-    them: the fit brackets the extremum on both sides, over a long stretch where it is flat. The
-    standard error is half the width of the set of E whose squares lie within ``sigma``² [N²] (one noise
-    variance) of the least, at least half a sample; where E sits within EDGE samples of the edge of the fit, the
-    fit's length. One
-    parabola through a cusp leans to its flatter side (13 samples on the first peak of the built-in pad)."""
+    them: the fit brackets the extremum on both sides, over a long stretch where it is flat. The standard error is
+    half the width of the set of E whose squares lie within ``sigma``² [N²] (one noise variance) of the least, at
+    least half a sample; where E sits within EDGE samples of the edge of the fit, the fit's length. One parabola
+    through a cusp leans to its flatter side (13 samples on the first peak of the built-in pad)."""
     # back from ``at`` as far as the force had to move to confirm it (HOLD samples beyond ``drop``), and as far as
     # the confirmation came after it
     extreme = w[FORCE_RING + int(at) % RING]
@@ -135,8 +135,10 @@ def vertex(w, at, count, sigma, sign, drop):
         return at, float(size)
     # power sums over the window, k counted from its start
     c = np.zeros((8, size + 1))
+    ff = 0.0
     for j in range(size):
         f = w[FORCE_RING + int(low + j) % RING]
+        ff += f * f
         k = float(j)
         c[0, j + 1] = c[0, j] + 1.0
         c[1, j + 1] = c[1, j] + k
@@ -146,9 +148,6 @@ def vertex(w, at, count, sigma, sign, drop):
         c[5, j + 1] = c[5, j] + f
         c[6, j + 1] = c[6, j] + f * k
         c[7, j + 1] = c[7, j] + f * k * k
-    ff = 0.0
-    for j in range(size):
-        ff += w[FORCE_RING + int(low + j) % RING] ** 2
     n, f0 = c[0, size], c[5, size]
     # the apex keeps EDGE samples on each side: a side of one or two samples fits them exactly, whatever E is
     costs = np.full(size, np.inf)
@@ -207,6 +206,12 @@ def _error(w, end, mass):
     return abs(w[base + _FORCE_AT] - mass * w[base + _SHARED_AT]) * w[base + _TIMING]
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _noise(samples, mass, sigma_f, sigma_a):
+    """Variance [N²·samples²] of Σ (Fc − M1·(g − a2)) over ``samples`` samples from the sensors' white noise."""
+    return samples * (sigma_f * sigma_f + mass * mass * sigma_a * sigma_a)
+
+
 @njit(cache=True, error_model="numpy")
 def _estimate(w, sigma_f, sigma_a):
     """M1 and its standard error from the first end that gives the smallest variance to the newest."""
@@ -221,8 +226,8 @@ def _estimate(w, sigma_f, sigma_a):
         m = (w[lb] - w[jb]) / shared
         if m <= 0.0:
             continue
-        noise = (w[lb + 2] - w[jb + 2]) * (sigma_f * sigma_f + m * m * sigma_a * sigma_a)
-        var = (_error(w, j, m) ** 2 + _error(w, last, m) ** 2 + noise) / (shared * shared)
+        var = (_error(w, j, m) ** 2 + _error(w, last, m) ** 2 + _noise(w[lb + 2] - w[jb + 2], m, sigma_f, sigma_a)) \
+            / (shared * shared)
         if var < best_var:
             best_var, mass, first = var, m, j
     if first < 0:
@@ -235,7 +240,7 @@ def _estimate(w, sigma_f, sigma_a):
         kb, pb = ENDS + k * END_SLOTS, ENDS + (k - 1) * END_SLOTS
         residual = (w[kb] - w[pb]) - mass * (w[kb + 1] - w[pb + 1])
         expected = _error(w, k, mass) ** 2 + _error(w, k - 1, mass) ** 2 \
-            + (w[kb + 2] - w[pb + 2]) * (sigma_f * sigma_f + mass * mass * sigma_a * sigma_a)
+            + _noise(w[kb + 2] - w[pb + 2], mass, sigma_f, sigma_a)
         if expected > 0.0:
             chi2 += residual * residual / expected
             windows += 1.0

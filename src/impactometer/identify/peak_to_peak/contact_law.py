@@ -30,38 +30,41 @@ def law(delta, rate, k, c, n, m, dscale):
     return out
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _overlap(x, t, i_f, jf, da, va, gravity):
+    """δ [m] and δ' [m/s] at time ``t`` since first contact, for the unknowns ``x`` and the integrals there."""
+    v0, w, d0 = x[0], x[1], x[2]
+    return v0 * t + gravity * t * t / 2.0 - w * i_f - da + d0, v0 + gravity * t - w * jf - va
+
+
 @njit(cache=True, error_model="numpy")
 def residuals(x, tau, i_f, jf, da, va, f, gravity, dscale, sigma_f, onset, s1, shift_time):
     """Residual vector of the fit (module notes). ``onset`` = (τ, IF, D2) at the second onset; ``s1`` its row's
     standard error [m]; ``shift_time`` the standard error of t00 [s] (d0's is |V0| times it)."""
-    v0, w, d0, k, c, n, m = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+    k, c, n, m = x[3], x[4], x[5], x[6]
     out = np.empty(f.size + 2)
     for i in range(f.size):
-        t = tau[i]
-        delta = v0 * t + gravity * t * t / 2.0 - w * i_f[i] - da[i] + d0
+        delta, rate = _overlap(x, tau[i], i_f[i], jf[i], da[i], va[i], gravity)
         model = 0.0
         if delta > 0.0:
-            rate = v0 + gravity * t - w * jf[i] - va[i]
             xs = max(delta / dscale, X_FLOOR)
             model = k * xs ** n + c * xs ** m * rate
         out[i] = (f[i] - model) / sigma_f
-    t1 = onset[0]
-    out[f.size] = (v0 * t1 + gravity * t1 * t1 / 2.0 - w * onset[1] - onset[2] + d0) / s1
-    out[f.size + 1] = d0 / max(abs(v0) * shift_time, 1e-15)
+    out[f.size] = _overlap(x, onset[0], onset[1], 0.0, onset[2], 0.0, gravity)[0] / s1
+    out[f.size + 1] = x[2] / max(abs(x[0]) * shift_time, 1e-15)
     return out
 
 
 @njit(cache=True, error_model="numpy")
 def jacobian(x, tau, i_f, jf, da, va, f, gravity, dscale, sigma_f, onset, s1, shift_time):
     """Jacobian of :func:`residuals` with respect to x (same arguments)."""
-    v0, w, d0, k, c, n, m = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
+    k, c, n, m = x[3], x[4], x[5], x[6]
     jac = np.zeros((f.size + 2, 7))
     for i in range(f.size):
         t = tau[i]
-        delta = v0 * t + gravity * t * t / 2.0 - w * i_f[i] - da[i] + d0
+        delta, rate = _overlap(x, t, i_f[i], jf[i], da[i], va[i], gravity)
         if delta <= 0.0:
             continue
-        rate = v0 + gravity * t - w * jf[i] - va[i]
         xs = max(delta / dscale, X_FLOOR)
         xn, xm = xs ** n, xs ** m
         log_x = math.log(xs)
