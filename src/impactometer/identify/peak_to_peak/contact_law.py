@@ -38,6 +38,15 @@ def _overlap(x, t, i_f, jf, da, va, gravity):
 
 
 @njit(cache=True, error_model="numpy")
+def overlaps(x, tau, i_f, jf, da, va, gravity):
+    """δ [m] and δ' [m/s] at every sample (arrays of the times since first contact and the integrals there)."""
+    delta, rate = np.empty(tau.size), np.empty(tau.size)
+    for i in range(tau.size):
+        delta[i], rate[i] = _overlap(x, tau[i], i_f[i], jf[i], da[i], va[i], gravity)
+    return delta, rate
+
+
+@njit(cache=True, error_model="numpy")
 def residuals(x, tau, i_f, jf, da, va, f, gravity, dscale, sigma_f, onset, s1, shift_time):
     """Residual vector of the fit (module notes). ``onset`` = (τ, IF, D2) at the second onset; ``s1`` its row's
     standard error [m]; ``shift_time`` the standard error of t00 [s] (d0's is |V0| times it)."""

@@ -108,10 +108,8 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     sigma_f = max(noise_force, 1e-9 * float(np.max(f)))
     fpeak = float(np.max(f))
 
-    def kinematics(v0, w, d0):
-        delta = v0 * tau + g * tau ** 2 / 2 - w * i_f - da + d0
-        rate = v0 + g * tau - w * jf - va
-        return delta, rate
+    def kinematics(v0, w, d0):  # δ, δ' at the samples
+        return contact_law.overlaps(np.array([v0, w, d0]), tau, i_f, jf, da, va, float(g))
 
     def onset_sigma(v0, w):  # the second onset row: double-integrated noise and its time error
         if not use_onset:
