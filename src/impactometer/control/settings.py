@@ -51,7 +51,7 @@ class ControlSettings:
     refine_mass : Refine M1 in sustained contact from M1·(g − a2) = Fc.
     force_level : Contact force held by the ``level`` strategy [N].
     force_noise : Standard deviation of the force sensor's noise [N] (sets the contact detection levels).
-    supervise : Close the valve for good when the closed gas spring is needed to stop the bodies in the stroke.
+    supervise : Keep the valve closed while the closed gas spring is needed to stop the bodies in the stroke.
     observer_bandwidth : Bandwidth of the piston position/velocity observer [rad/s].
     acceleration_noise : Standard deviation of the accelerometer's noise [m/s²] (the noise floor of the stage-B
         mass estimate's standard error).

@@ -16,7 +16,7 @@ settings of the controller (:class:`~impactometer.control.settings.ControlSettin
   comes before stage B.
 - ``auto``: the better of ``realtime`` and ``predictive`` on the acceptance grid (``predictive``).
 
-Every valve strategy closes the valve for good when the closed gas spring is needed to stop the bodies within the
+Every valve strategy keeps the valve closed while the closed gas spring is needed to stop the bodies within the
 remaining stroke (``control.controller.must_close``). After the stop, ``realtime`` and ``predictive`` brake the
 rebound: while the gas the stroke compressed lifts the bodies, they vent it towards the weight.
 """
