@@ -182,3 +182,48 @@ def test_readings_the_data_cannot_tell_apart_widen_the_answer(monkeypatch, judge
         assert got.readings == {"flights": (1.43, pytest.approx(1 / 0.045)), "set": (1.50, pytest.approx(20.0))}
     else:
         assert got.readings is None
+
+
+def test_normal_inverse_keeps_a_parameter_beside_a_tight_prior():
+    """(JᵀJ)⁻¹ where one column is 1e13 times the others (a tight prior row): the equilibrated form keeps the
+    small parameters' variances, where the pseudo-inverse of JᵀJ cuts them to zero."""
+    from impactometer.identify.peak_to_peak.robust import normal_inverse
+
+    rng = np.random.default_rng(3)
+    scale = np.array([1.0, 2.0, 1e13])
+    unit = rng.standard_normal((50, 3))
+    jac = unit * scale
+    exact = np.linalg.inv(unit.T @ unit) / np.outer(scale, scale)
+    assert np.allclose(np.diag(normal_inverse(jac)), np.diag(exact), rtol=1e-8)
+    assert np.diag(np.linalg.pinv(jac.T @ jac))[0] < 1e-3 * exact[0, 0]  # what the old form gave
+
+
+def test_contact_phase_combination_never_extrapolates():
+    """Two estimates whose stated cross-covariance their own covariances cannot hold (correlation above 1) or
+    one that is not finite are not combined (None): the agnostic answer stands."""
+    from impactometer.identify.peak_to_peak.early import combine
+
+    tau = np.array([0.01, 0.02])
+    gain = np.array([[1.0, 0.0], [0.0, 1.0]])
+    cov = np.diag([1e-6, 1e-6])  # far smaller than the shared acceleration noise below implies
+    first, second = (np.array([1.0, 0.05]), cov, (gain, tau)), (np.array([1.01, 0.051]), cov, (gain, tau))
+    assert combine(first, second, noise_acceleration=1e4, pre_samples=0, dt=2e-5) is None
+    nan = (np.full(2, np.nan), np.full((2, 2), np.inf), (gain, tau))
+    assert combine(first, nan, noise_acceleration=1.0, pre_samples=0, dt=2e-5) is None
+    theta, _ = combine(first, second, noise_acceleration=1e-3, pre_samples=0, dt=2e-5)
+    assert np.all(theta >= np.minimum(first[0], second[0]) - 1e-12)
+    assert np.all(theta <= np.maximum(first[0], second[0]) + 1e-12)
+
+
+@pytest.mark.parametrize("law", ["kelvin-voigt", "hysteretic"])
+def test_contact_phase_option_answers_and_covers_on_noisy_pad_records(law):
+    """``contact_phase=True`` on noisy pad records: every record answered (a hysteretic pad, whose contact phase
+    gives no answer, keeps the agnostic one and says so), and the truth within 4 standard errors: no standard
+    error collapsed to nothing, no combination thrown far from both of its parts."""
+    for mass, velocity, pressure, seed in [(20.0, 1.0, 115e3, 1), (10.0, 1.0, 210e3, 3), (10.0, 1.0, 400e3, 3)]:
+        rec = record(Scenario(mass=mass, velocity=velocity, pressure_gauge=pressure),
+                     get_rig("drop-stand-pad", contact=law), duration=0.05, noise=0.05, seed=seed, pre_trigger=0.02)
+        res = identify(rec, contact_phase=True)
+        info = res.details["equations"]["contact_phase"]
+        assert info["combined"] is (info["branches"] != "none")
+        assert abs(res.mass - mass) < 4 * res.mass_std and abs(res.velocity - velocity) < 4 * res.velocity_std

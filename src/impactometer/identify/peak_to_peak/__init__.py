@@ -273,10 +273,12 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
             used["gap_readings"] = readings
         if contact_phase and second is not None and peak2 is not None:
             contact = _contact_phase(seg, kin, peak2, noise)
-            theta, cov = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
-                                 noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples,
-                                 dt=kin.dt)
-            used["contact_phase"] = contact[5]
+            joined = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
+                             noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples, dt=kin.dt)
+            if joined is not None:
+                theta, cov = joined
+            # without a contact-phase fit, or one whose covariance cannot be joined, the agnostic answer stands
+            used["contact_phase"] = {**contact[5], "combined": joined is not None}
         last = max([p.end if p.complete else seg.force.size - 1 for p in seg.pulses])
     else:
         stage = "early" if stage == "early" else "final"

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import contact_law
-from .robust import kernel_form
+from .robust import kernel_form, normal_inverse
 
 #: starting (n, m) exponents of the law: Kelvin-Voigt and Hunt-Crossley
 LAW_STARTS = ((1.0, 0.0), (1.5, 1.5))
@@ -163,7 +163,7 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     chi2 = float(fit.fun @ fit.fun)
     dof = fit.fun.size - 7
     try:
-        bread = np.linalg.pinv(jac.T @ jac)
+        bread = normal_inverse(jac)
     except np.linalg.LinAlgError:
         return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0)), None, None
     cov = bread * max(1.0, chi2 / max(dof, 1))
@@ -191,9 +191,13 @@ def combine(first, second, *, noise_acceleration, pre_samples, dt):
 
     ``first`` and ``second`` are (theta, cov, (gain, tau)) with ``gain`` = d theta / d(error of D2 at the times
     ``tau``); their cross-covariance follows from the double-integrated acceleration noise and the residual
-    offset. Returns (theta, cov).
+    offset. Returns (theta, cov), or None where the two cannot be combined: an estimate that is not finite, or a
+    cross-covariance the two covariances cannot hold (a joint covariance that is not positive definite, where the
+    weights of the combination would extrapolate far beyond both estimates).
     """
     (t1, c1, (g1, tau1)), (t2, c2, (g2, tau2)) = first, second
+    if not all(np.all(np.isfinite(x)) for x in (t1, c1, t2, c2)):
+        return None
     weights = np.zeros((4, tau1.size + tau2.size))
     weights[:2, :tau1.size] = g1
     weights[2:, tau1.size:] = g2
@@ -203,6 +207,7 @@ def combine(first, second, *, noise_acceleration, pre_samples, dt):
     sigma = np.block([[c1, cross], [cross.T, c2]])
     h = np.vstack([np.eye(2), np.eye(2)])
     try:
+        np.linalg.cholesky(sigma)
         # the two must agree within their errors; where they do not, both are less certain than stated (Birge)
         diff = t1 - t2
         spread = np.linalg.solve(c1 + c2 - cross - cross.T, diff) @ diff / 2.0
@@ -211,5 +216,5 @@ def combine(first, second, *, noise_acceleration, pre_samples, dt):
         cov = np.linalg.inv(info)
         theta = cov @ (h.T @ np.linalg.solve(sigma, np.concatenate([t1, t2])))
     except np.linalg.LinAlgError:
-        return t1, c1
+        return None
     return theta, cov

@@ -116,6 +116,16 @@ def atom_kernel(tau: np.ndarray, cd: np.ndarray, cv: np.ndarray, dt: float) -> n
                  + cv[:, None] * cd[None, :] * k_dv.T + cv[:, None] * cv[None, :] * m)
 
 
+def normal_inverse(jac: np.ndarray) -> np.ndarray:
+    """(JᵀJ)⁺, the covariance of a least-squares fit with whitened Jacobian ``jac``, from the singular values of J
+    with its columns scaled to unit norm: the condition number of J, not its square, and no parameter lost to the
+    cut-off of small singular values because another parameter's column is large (a tight prior row)."""
+    scale = np.linalg.norm(jac, axis=0)
+    scale[~(scale > 0.0)] = 1.0
+    half = np.linalg.pinv(jac / scale)
+    return (half @ half.T) / np.outer(scale, scale)
+
+
 def kernel_form(weights: np.ndarray, tau: np.ndarray, dt: float) -> np.ndarray:
     """``weights @ K @ weights.T`` in O(P·n) without forming the n×n kernel K of the double-integrated white
     noise (:func:`atom_kernel` with cd = 1, cv = 0).
@@ -310,7 +320,7 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
         if it in (2, 4) and gap_basis:
             # first judged by the estimate without the onsets: sure flights and sure dips; the unsure ones are
             # left out until the estimate from the other rows, sure flights included, settles them by sign
-            least, spread = _least_overlap(gap_basis, theta, np.linalg.pinv(aw.T @ aw)[:n_lin, :n_lin], g, fit_b)
+            least, spread = _least_overlap(gap_basis, theta, normal_inverse(aw)[:n_lin, :n_lin], g, fit_b)
             # without a stage-B estimate of its own the estimate leans on the onsets: only a sure dip loses its row
             threshold = (-DIP_SIGMAS * spread if it == 2 else 0.0) if strong else DIP_SIGMAS * spread
             dips = least > threshold
@@ -353,7 +363,7 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
     resid = yw - aw @ sol
     chi2 = float(resid @ resid)
     dof = int(rows - np.count_nonzero(dips) - (aw.shape[1] - fit_b))
-    bread = np.linalg.pinv(aw.T @ aw)
+    bread = normal_inverse(aw)
     gain = (bread @ aw.T)[:2, :rows] @ np.linalg.inv(chol)
     nuisances: dict = dict(phi)
     if fit_b:
