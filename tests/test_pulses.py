@@ -123,3 +123,17 @@ def test_incremental_detector_merges_a_gap_that_is_not_a_separation():
         for k in range(0, f.size, chunk):
             detector.push(f[k:k + chunk])
         assert _boundaries(detector.pulses) == _boundaries(batch)
+
+
+def test_a_force_free_flight_is_not_merged_by_a_noise_excursion():
+    """Two bounces with a force-free gap between them, 3000 noise draws: the gap is a separation in every draw (the
+    gap test's one-sided false-alarm rate is 3e-5 per gap; at 3 standard errors it merges 3 of these flights),
+    while a gap whose force stays at one noise σ (about 10 standard errors of its median) is one pulse."""
+    t = np.arange(700)
+    pulses = 100 * np.exp(-0.5 * ((t - 100) / 30) ** 2) + 100 * np.exp(-0.5 * ((t - 600) / 30) ** 2)
+    pulses[(t > 180) & (t < 520)] = 0.0
+    rng = np.random.default_rng(11)
+    merged = sum(len(detect_pulses(pulses + rng.normal(0.0, 1.0, t.size), 1.0)) != 2 for _ in range(3000))
+    assert merged == 0
+    held = np.where((t > 180) & (t < 520), 1.0, pulses) + rng.normal(0.0, 1.0, t.size)
+    assert len(detect_pulses(held, 1.0)) == 1
