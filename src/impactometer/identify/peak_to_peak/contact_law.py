@@ -19,14 +19,21 @@ from numba import njit
 X_FLOOR = 1e-12
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _force(delta, rate, k, c, n, m, dscale):
+    """Contact force [N] of the family at one compression ``delta`` [m] and rate ``rate`` [m/s]."""
+    if delta <= 0.0:
+        return 0.0
+    x = max(delta / dscale, X_FLOOR)
+    return k * x ** n + c * x ** m * rate
+
+
 @njit(cache=True, error_model="numpy")
 def law(delta, rate, k, c, n, m, dscale):
     """Contact force [N] of the family at compressions ``delta`` [m] and rates ``rate`` [m/s] (arrays)."""
     out = np.zeros(delta.size)
     for i in range(delta.size):
-        if delta[i] > 0.0:
-            x = max(delta[i] / dscale, X_FLOOR)
-            out[i] = k * x ** n + c * x ** m * rate[i]
+        out[i] = _force(delta[i], rate[i], k, c, n, m, dscale)
     return out
 
 
@@ -54,11 +61,7 @@ def residuals(x, tau, i_f, jf, da, va, f, gravity, dscale, sigma_f, onset, s1, s
     out = np.empty(f.size + 2)
     for i in range(f.size):
         delta, rate = _overlap(x, tau[i], i_f[i], jf[i], da[i], va[i], gravity)
-        model = 0.0
-        if delta > 0.0:
-            xs = max(delta / dscale, X_FLOOR)
-            model = k * xs ** n + c * xs ** m * rate
-        out[i] = (f[i] - model) / sigma_f
+        out[i] = (f[i] - _force(delta, rate, k, c, n, m, dscale)) / sigma_f
     out[f.size] = _overlap(x, onset[0], onset[1], 0.0, onset[2], 0.0, gravity)[0] / s1
     out[f.size + 1] = x[2] / max(abs(x[0]) * shift_time, 1e-15)
     return out
