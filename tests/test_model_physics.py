@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from impactometer.model import simulate
+from impactometer.model import simulate, simulate_batch
 from impactometer.rig import Scenario
 
 
@@ -42,23 +42,32 @@ def test_momentum_of_the_mass(stand, law, mass, velocity, pressure):
     assert np.max(np.abs(mass * r.v1 - expected)) < 1e-6 * mass * velocity
 
 
-@pytest.mark.parametrize("integrator, rtol, tolerance", [("fast", 1e-9, 1e-6), ("reference", 1e-11, 1e-8)])
+@pytest.mark.parametrize("integrator, rtol", [("fast", 1e-9), ("reference", 1e-11)])
 @pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley"])
 @pytest.mark.parametrize("pressure", [20e3, 400e3])
-def test_total_energy_is_conserved(stand, integrator, rtol, tolerance, law, pressure):
-    """Kinetic + potential + gas + elastic + dissipated energy stays constant.
+def test_total_energy_is_conserved(stand, integrator, rtol, law, pressure):
+    """Kinetic + potential + gas + elastic + dissipated energy stays constant to the integration error.
 
-    The gas holds ~pV/(γ−1) ≈ 10-25 × the impact energy E0 and every state carries a relative error ~rtol, so a
-    balance error of 1e-6·E0 (fast, rtol 1e-9) or 1e-8·E0 (reference, rtol 1e-11) is the integration error. (At
-    its default rtol 1e-10 the reference's DOP853 now and then steps across a contact onset with a balance error
-    up to ~2e-7·E0: without events, the kink is resolved only as well as the step that straddles it.)
+    An error-controlled integrator keeps each step's local error within about ``rtol`` of every state; the energy
+    terms are led by the gas, which holds U = Σ p·V/(γ−1) (10-25 × the impact energy E0), and over N steps the local
+    errors add up to at most N·rtol. So the balance error may reach N·rtol·(U + E0)/E0, with N the fast
+    integrator's accepted steps at the same ``rtol`` (the eighth-order reference takes fewer); a wrong energy term
+    or force shows as 1e-3 of E0 or more.
     """
+    rig = stand.with_contact(law)
     scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=pressure)
-    r = simulate(scenario, stand.with_contact(law), duration=0.05, integrator=integrator, rtol=rtol)
     e0 = 0.5 * scenario.mass * scenario.velocity**2
+    steps = int(simulate_batch(np.array([scenario.mass]), scenario.velocity, pressure, rig=rig, duration=0.05,
+                               rtol=rtol).steps[0])
+    c, absolute = rig.cylinder, pressure + rig.gas.atmospheric_pressure
+    volumes = c.area * c.lower_length + c.dead_volume_lower + c.annulus_area * c.upper_length + c.dead_volume_upper
+    gas = absolute * volumes / (rig.gas.gamma - 1.0)
+    bound = steps * rtol * (gas + e0) / e0
+    r = simulate(scenario, rig, duration=0.05, integrator=integrator, rtol=rtol)
     assert r.dissipated_energy[-1] > 0.05 * e0  # energy really moved between the terms
     assert np.ptp(r.gas_energy) > 0.5 * e0
-    assert r.energy_balance_error < tolerance
+    assert 5 < gas / e0 < 100 and 100 < steps < 10**4  # the bound's ingredients are what the docstring says
+    assert r.energy_balance_error < bound
 
 
 @pytest.mark.parametrize("pressure", [0.0, 210e3, 400e3])

@@ -177,6 +177,17 @@ class Recording:
             return CHANNEL_UNITS[name]
         return str(noted.get(name, "")) if isinstance(noted, dict) else ""
 
+    @property
+    def units_note(self) -> str | None:
+        """One sentence naming the channels read in SI units because the file stated none
+        (``metadata['units_assumed']``, as :func:`impactometer.io.read_recording` notes it), else None."""
+        assumed = self.metadata.get("units_assumed")
+        if not isinstance(assumed, dict) or not assumed:
+            return None
+        listed = ", ".join(f"{name!r} as {unit}" for name, unit in assumed.items())
+        return (f"{self.source}: the file states no units for {listed}, read so; if they are in other units (ms, "
+                f"kN, g), state them {unit_statement(self.source)}")
+
     def with_metadata(self, **changes: Any) -> Recording:
         """A copy with metadata keys added or replaced."""
         return replace(self, metadata={**self.metadata, **changes})
@@ -201,6 +212,13 @@ class Recording:
 TIME_JITTER = 0.05
 #: samples of a time column checked at a time
 TIME_BLOCK = 1 << 20
+
+
+def unit_statement(source: str) -> str:
+    """Where a file of ``source``'s format states the unit of a channel."""
+    if str(source).lower().endswith(".csv"):
+        return "in brackets after each column name ('force [kN]'), or as 'channel_units' in the JSON sidecar"
+    return "as a 'unit' (HDF5, MAT) or 'unit_string' (TDMS) attribute of each channel"
 
 
 def time_base(t: np.ndarray, source: str, *, scale: float = 1.0) -> tuple[float, float]:

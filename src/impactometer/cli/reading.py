@@ -46,6 +46,10 @@ class ReaderOptions:
                              group=self.group, flip_force=self.flip_force, flip_acceleration=self.flip_acceleration,
                              acceleration_includes_gravity=self.acceleration_includes_gravity,
                              sample_rate=quantity(self.sample_rate, "frequency", "--sample-rate"))
+        if rec.units_note:
+            from .app import error_console
+
+            error_console.print(f"note: {rec.units_note}", highlight=False, markup=False)
         if self.cfc is not None:
             from ..filters import filter_recording
 

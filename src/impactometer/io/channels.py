@@ -31,6 +31,7 @@ from ..recording import (
     samples,
     time_base,
     truth_value,
+    unit_statement,
 )
 from ..units import UNITS, find_unit
 
@@ -263,6 +264,10 @@ def merge_metadata(parts: Levels, source: str, *, tolerance: float = 1e-6) -> di
     return merged
 
 
+#: a time column without a unit whose step, read in seconds, gives a rate below this is refused [Hz]
+UNITLESS_RATE_FLOOR = 1e3
+
+
 def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_channel: str | None = None,
              flip_force: bool = False, flip_acceleration: bool = False,
              acceleration_includes_gravity: bool = False, sample_rate: float | None = None) -> Recording:
@@ -288,9 +293,13 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
     channels: dict[str, np.ndarray] = {}
     units_out: dict[str, str] = {}
     origin: dict[str, str] = {}
+    assumed: dict[str, str] = {}  # channel -> the SI unit it was read in for want of a stated one
     for name, (values, unit) in columns.items():
         bare, unit_in_name = split_unit(name)
         unit = unit if unit not in (None, "") else unit_in_name
+        if unit in (None, "") and name in (force_name, acc_name) and not units_in.get(FORCE if name == force_name
+                                                                                      else ACCELERATION):
+            assumed[name] = "N" if name == force_name else "m/s^2"
         target = FORCE if name == force_name else ACCELERATION if name == acc_name else bare
         if target in channels:
             raise RecordingError(f"{source}: two columns give channel {target!r}; rename one or pick channels "
@@ -324,6 +333,12 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
         rate = check_sample_rate(rate, f"{source}: sample rate stated in the file")
     if raw_time is not None:
         time_rate, time_start = time_base_of(raw_time[0], raw_time[1], source)
+        if raw_time[1] in (None, ""):
+            assumed["time"] = "s"
+            if time_rate < UNITLESS_RATE_FLOOR:
+                raise RecordingError(
+                    f"{source}: the time column states no unit; read in seconds its step gives {time_rate:g} Hz, "
+                    f"no sample rate for an impact record; expected the units stated {unit_statement(source)}")
         if rate is not None and abs(time_rate - rate) > 1e-3 * rate:
             raise RecordingError(f"{source}: time column gives {time_rate:g} Hz but the file states {rate:g} Hz")
         rate, start = rate or time_rate, time_start  # a stated rate is exact, a printed time column rounded
@@ -332,15 +347,18 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
                                  f"{next(iter(channels.values())).size}; expected equal lengths")
     if sample_rate is not None:
         given = check_sample_rate(sample_rate, f"{source}: sample_rate")
-        if raw_time is not None and rate is not None and abs(given - rate) > 1e-3 * given:
-            raise RecordingError(f"{source}: sample_rate={given:g} Hz disagrees with the time column "
-                                 f"({rate:g} Hz)")
+        if rate is not None and abs(given - rate) > 1e-3 * given:
+            stated = "time column" if raw_time is not None else "sample rate stated in the file"
+            raise RecordingError(f"{source}: sample_rate={given:g} Hz (--sample-rate) disagrees with the {stated} "
+                                 f"({rate:g} Hz); expected the file's own rate: leave the option out")
         rate = given
     if rate is None:
         raise RecordingError(f"{source}: no time column and no sample rate in the file; expected a time column "
                              f"or pass sample_rate")
     metadata = {k: v for k, v in raw.metadata.items() if k != "channel_units"}
     metadata["source_channels"] = origin
+    if assumed:
+        metadata["units_assumed"] = assumed
     if units_out:
         metadata["channel_units"] = units_out
     flags = {"flip_force": flip_force, "flip_acceleration": flip_acceleration,

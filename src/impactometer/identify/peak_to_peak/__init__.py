@@ -25,7 +25,7 @@ from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segmen
 from ..pulses import detection_levels, first_peak, sustained_index
 from ..result import Identification
 from .early import combine, solve_early
-from .options import check_options, check_unfiltered, check_white_noise
+from .options import check_options, check_unfiltered, check_white_noise, filtered_caution
 from .robust import Equations, Kinematics, solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
@@ -39,6 +39,7 @@ from .segment import (  # noqa: F401 - re-exported: the streaming identifier and
     early_ready,
     edges,
     extrema,
+    no_impact,
     prepare,
     quantum,
     segment_bounds,
@@ -129,8 +130,7 @@ def _unit_slip(seg: Segment, gravity: float, chi2: float) -> tuple[str, ...]:
 def _need_pulses(seg: Segment, needed: int, what: str) -> None:
     complete = [p for p in seg.pulses if p.complete]
     if not seg.pulses:
-        raise IdentificationError("no impact found: the contact force never leaves its noise "
-                                  f"(noise {seg.noise_force:.3g} N); expected at least one contact pulse")
+        raise no_impact(seg.force, seg.noise_force)
     if len(complete) < needed:
         last = seg.pulses[-1]
         span = (last.first - seg.pulses[0].first) / max(len(seg.pulses) - 1, 1) if len(seg.pulses) > 1 else None
@@ -395,5 +395,16 @@ def identify(recording: Recording, *, variant: str = "robust", gravity: float = 
             raise IdentificationError(f"{recording.source}: channel {name!r} is missing; peak-to-peak needs "
                                       f"contact_force and piston_acceleration, found {sorted(recording.channels)}"
                                       ) from None
-    return identify_arrays(channels["contact_force"], channels["piston_acceleration"], recording.sample_rate,
-                           recording.start_time, variant=variant, gravity=gravity, contact_phase=contact_phase)
+    note = recording.units_note
+    try:
+        answer = identify_arrays(channels["contact_force"], channels["piston_acceleration"], recording.sample_rate,
+                                 recording.start_time, variant=variant, gravity=gravity, contact_phase=contact_phase)
+    except IdentificationError as exc:
+        if note:
+            raise IdentificationError(f"{exc}; {note}") from None
+        raise
+    caution = filtered_caution(recording, variant)
+    if caution:
+        earlier = answer.details.get("caution")
+        answer = replace(answer, details={**answer.details, "caution": f"{caution}; {earlier}" if earlier else caution})
+    return replace(answer, warnings=(*answer.warnings, note)) if note else answer

@@ -60,6 +60,22 @@ def check_unfiltered(recording: Recording, variant: str) -> None:
                                   "wrong) -- identify without --cfc, or use --variant paper")
 
 
+def filtered_caution(recording: Recording, variant: str) -> str | None:
+    """A caution for the paper variant's answer from CFC-filtered channels, else None: the filter hides the noise
+    (so the noise caution of :func:`~impactometer.identify.peak_to_peak.paper_caution` stays silent) while it
+    flattens and delays the force peaks that eqs. (3)-(5) read."""
+    filtered = recording.metadata.get("cfc")
+    if variant != "paper" or not isinstance(filtered, dict):
+        return None
+    named = {name: cfc for name, cfc in filtered.items() if name in ("contact_force", "piston_acceleration")}
+    if not named:
+        return None
+    listed = ", ".join(f"{name} (CFC {cfc})" for name, cfc in named.items())
+    return (f"{listed} low-pass filtered: the filter hides the sensor noise but flattens and shifts the force peaks "
+            "that eqs. (3)-(5) read, so this answer may be far off (the robust variant on the unfiltered record "
+            "accounts for the noise)")
+
+
 #: lag-1 autocorrelation of the pre-trigger noise above which a channel counts as low-pass filtered [-]
 COLOURED_LIMIT = 0.5
 

@@ -154,13 +154,32 @@ def lag_correlation(x: np.ndarray) -> float:
     return float(y[1:] @ y[:-1]) / power if power > 0 else 0.0
 
 
+#: a force that dips this many times its noise below its level at the start of the record, and further than it
+#: rises, reads as inverted [-]
+INVERTED_SIGMAS = 10.0
+
+
+def no_impact(force: np.ndarray, noise: float | None = None) -> IdentificationError:
+    """The error for a record in which no contact pulse was found, naming the likely slip: a force channel of the
+    wrong sign (a load cell in tension) shows the impact as deep negative pulses."""
+    x = np.asarray(force, dtype=float)
+    noise = noise_std(x) if noise is None else noise
+    centre = float(np.median(x[: max(x.size // 10, 1)])) if x.size else 0.0  # the level before the impact
+    low, high = (float(np.min(x)) - centre, float(np.max(x)) - centre) if x.size else (0.0, 0.0)
+    text = f"no impact found: the contact force never leaves its noise (noise {noise:.3g} N)"
+    if -low > INVERTED_SIGMAS * noise and -low > 2.0 * max(high, 0.0):
+        return IdentificationError(f"{text} upwards, but it falls to {low:.4g} N ({-low / max(noise, 1e-300):.3g} "
+                                   "times its noise): the force channel reads the contact with the other sign (a "
+                                   "load cell in tension?); read it with --flip-force (flip_force=True)")
+    return IdentificationError(f"{text}; expected at least one contact pulse")
+
+
 def segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, list[int], int]:
     """First impact: (start, stop) sample indices of its segment and the pulse-end indices in it."""
     events = run_trigger(force, sample_rate, floor=TRIGGER_FLOOR)
     trig = [int(i) for c, i in events if c == trigger.EVENT_TRIGGER]
     if not trig:
-        raise IdentificationError("no impact found: the contact force never leaves its noise; expected at least "
-                                  "one contact pulse")
+        raise no_impact(force)
     if trig[0] <= trigger.WARM_SAMPLES:  # fired at the first chance: no quiet history before the impact
         return 0, first_close(events, trig[0], force.size), pulse_ends(events, trig[0], force.size), 0
     start = max(trig[0] - PRE_SAMPLES, 0)
