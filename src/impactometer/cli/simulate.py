@@ -73,7 +73,7 @@ def summary_table(result, title: str) -> tuple[Table, list]:
         ("max stroke", f"{result.u2.max() * 1e3:.2f} mm"),
         ("peak pressure, lower chamber", f"{result.pressure_lower.max() / 1e3:.1f} kPa abs"),
         ("peak pressure, upper chamber", f"{result.pressure_upper.max() / 1e3:.1f} kPa abs"),
-        ("energy dissipated", f"{result.dissipated_energy[-1]:.3f} J"),
+        (f"energy dissipated in the first {result.time[-1] * 1e3:.0f} ms", f"{result.dissipated_energy[-1]:.3f} J"),
         ("energy balance error", f"{result.energy_balance_error:.2e} of E0"),
     ]
     for name, value in rows:
