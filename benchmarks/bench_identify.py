@@ -8,11 +8,12 @@ Per push call (64-sample chunks over the impacts): the distribution of wall time
 returned an answer (at 50 kHz a 64-sample chunk arrives every 1.28 ms; one sample every 20 µs). Batch: time per
 0.15-s recording for both variants.
 
-    python benchmarks/bench_identify.py
+    python benchmarks/bench_identify.py [--record]
 """
 
 from __future__ import annotations
 
+import argparse
 import time
 
 import numpy as np
@@ -21,6 +22,7 @@ from impactometer.identify.peak_to_peak import identify_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
 from impactometer.model import simulate
 from impactometer.rig import Scenario, get_rig
+from recorded import recorded
 
 FS = 50e3
 STANDS = ("drop-stand-stiff", "drop-stand-pad")
@@ -63,6 +65,14 @@ def distribution(times: np.ndarray) -> str:
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
+    args = parser.parse_args()
+    with recorded("bench_identify", "Peak-to-peak identification: streaming and batch speed", args.record) as rec:
+        measure(rec)
+
+
+def measure(rec) -> None:
     for stand in STANDS:
         f, a, impacts = stream_signal(stand)
         print(f"\n{stand}: {f.size} samples ({f.size / FS:.0f} s at {FS / 1e3:.0f} kHz), {impacts} impacts")
@@ -73,6 +83,8 @@ def main() -> None:
             print(f"| {chunk} | {rate:,.0f} | {done} |")
             if chunk == 64:
                 calls = (times, answered)
+                rec.headline(f"streaming, 64-sample chunks, {stand}", f"{rate / 1e6:.2f} M samples/s",
+                             target=">= 1 M samples/s")
         times, answered = calls
         print(f"push calls, 64-sample chunks: all {distribution(times)}; returning an answer "
               f"{distribution(times[answered])}")

@@ -34,6 +34,7 @@ from impactometer.model import reference, simulate_batch
 from impactometer.model.setup import initial_states
 from impactometer.model.simulate import INTEGRATORS, MAX_STEP, absolute_tolerance, compare_integrators
 from impactometer.rig import get_rig
+from recorded import recorded
 
 DURATION, SAMPLE_RATE = 0.05, 50e3
 
@@ -100,7 +101,7 @@ def peak_error(forces, exact):
     return float(np.max(np.abs(forces.max(axis=1) / exact.max(axis=1) - 1.0)))
 
 
-def speed(n_fast, n_scipy, rtol):
+def speed(n_fast, n_scipy, rtol, rec):
     rig = get_rig()
     mass, velocity, pressure = scenarios(n_fast)
     simulate_batch(mass[:2], velocity[:2], pressure[:2], rig, duration=DURATION, sample_rate=SAMPLE_RATE)  # compile
@@ -124,6 +125,9 @@ def speed(n_fast, n_scipy, rtol):
         rate, cpu_rate = n_scipy / elapsed, n_scipy / cpu
         print(f"| {name} | {n_scipy} | {elapsed:.3f} | {rate:,.1f} | {fast_rate / rate:,.0f} | {cpu_rate:,.1f} | "
               f"{fast_cpu_rate / cpu_rate:,.0f} | {peak_error(forces, exact):.1e} |")
+        if "plain-Python" in name and rtol == INTEGRATORS["fast"]:
+            rec.headline(f"simulation: fast batch / solve_ivp RK45 (rtol {rtol:g}, wall)",
+                         f"{fast_rate / rate:,.0f}× ({fast_rate:,.0f} scenarios/s)", target="1000×")
     print(f"\nmean accepted steps per scenario (fast): {batch.steps.mean():.0f}")
 
 
@@ -215,6 +219,7 @@ def main():
     parser.add_argument("--scipy-scenarios", type=int, default=20)
     parser.add_argument("--throughput-scenarios", type=int, default=10_000)
     parser.add_argument("--skip-agreement", action="store_true")
+    parser.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = parser.parse_args()
     if args.device == "gpu":
         from impactometer.errors import DeviceError
@@ -224,19 +229,21 @@ def main():
             resolve_device("gpu")
         except DeviceError as exc:
             raise SystemExit(f"--device gpu: {exc}") from None
-        gpu_versus_cpu(args.gpu_scenarios, args.fast_scenarios, agree=not args.skip_agreement)
+        with recorded("bench_simulate_gpu", "Simulation: GPU batch against the CPU batch", args.record):
+            gpu_versus_cpu(args.gpu_scenarios, args.fast_scenarios, agree=not args.skip_agreement)
         return
-    for rtol in (INTEGRATORS["fast"], 1e-8):
-        speed(args.fast_scenarios, args.scipy_scenarios, rtol)
-    print(f"\n## Throughput and memory (rtol {INTEGRATORS['fast']:g}, contact force + piston acceleration)")
-    print("| scenarios | histories dtype | wall time [s] | scenarios/s | histories [MiB] | tracemalloc peak [MiB] | "
-          "process peak RSS [MiB] |")
-    print("|---:|---|---:|---:|---:|---:|---:|")
-    for dtype in (np.float32, np.float64):
-        throughput(args.throughput_scenarios, dtype)
-    if not args.skip_agreement:
-        agreement()
-
+    with recorded("bench_simulate", "Simulation: fast integrator against solve_ivp, agreement with the reference",
+                  args.record) as rec:
+        for rtol in (INTEGRATORS["fast"], 1e-8):
+            speed(args.fast_scenarios, args.scipy_scenarios, rtol, rec)
+        print(f"\n## Throughput and memory (rtol {INTEGRATORS['fast']:g}, contact force + piston acceleration)")
+        print("| scenarios | histories dtype | wall time [s] | scenarios/s | histories [MiB] | "
+              "tracemalloc peak [MiB] | process peak RSS [MiB] |")
+        print("|---:|---|---:|---:|---:|---:|---:|")
+        for dtype in (np.float32, np.float64):
+            throughput(args.throughput_scenarios, dtype)
+        if not args.skip_agreement:
+            agreement()
 
 if __name__ == "__main__":
     main()

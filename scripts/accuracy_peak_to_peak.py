@@ -19,9 +19,13 @@ of missing early answers.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # benchmarks/recorded.py
+
 import argparse
 import os
-import sys
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
@@ -32,6 +36,7 @@ from impactometer.identify.peak_to_peak import identify
 from impactometer.rig import get_rig
 from impactometer.studies.base import StudyOptions, case_seed, scenario_grid
 from impactometer.studies.identification import clean_recordings, with_noise
+from recorded import recorded
 
 NAMES = ("paper", "robust early", "robust")
 #: name of the per-case noise draws (the studies' seeding scheme)
@@ -117,7 +122,16 @@ def main() -> None:
     ap.add_argument("--pre-trigger", type=float, default=0.02, help="record length before first contact [s]")
     ap.add_argument("--contact-phase", action="store_true", help="robust: add the contact-phase fit")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
+    ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
+    name = "accuracy_peak_to_peak" if args.duration == 0.05 else f"accuracy_peak_to_peak_{args.duration * 1e3:.0f}ms"
+    title = (f"Peak-to-peak identification: accuracy over the paper's grid, {args.duration * 1e3:.0f} ms + "
+             f"{args.pre_trigger * 1e3:.0f} ms pre-trigger")
+    with recorded(name, title, args.record) as rec:
+        measure(args, rec)
+
+
+def measure(args, rec) -> None:
     grid = cases(args.values, args.subset)
     tasks = [(stand, law, noise, seed, grid, args.duration, args.pre_trigger, args.contact_phase)
              for stand in args.stands for law in args.laws for noise in args.noise
@@ -142,6 +156,11 @@ def main() -> None:
     order = [(s, law, n) for s in args.stands for law in args.laws for n in args.noise]
     for key in order:
         print("\n".join(summarise(key, results[key])))
+        final = [r for r in results[key] if r[0] == "robust" and np.isfinite(r[1])]
+        if final and key[2] == 0.05 and args.duration == 0.05:
+            rec.headline(f"robust M1 / V0 mean error, {key[0]}, {key[1]} contact, 5 % noise, 50 ms",
+                         f"{np.mean(np.abs([r[1] for r in final])):.2%} / {np.mean(np.abs([r[2] for r in final])):.2%}",
+                         target="1.5 % / 0.4 %")
     print("\nequations of the final answers (median per record):")
     for key in order:
         print(f"  {key[0]}, {key[1]}, {key[2]:.0%}: {equations_used(results[key])}")

@@ -26,11 +26,17 @@ import argparse
 import json
 import math
 import os
+import sys
 import time
 from multiprocessing import Pool
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # benchmarks/recorded.py
 
 import numpy as np
 from scipy.integrate import solve_ivp
+
+from recorded import recorded
 
 G = 9.80665
 PATM = 101325.0
@@ -228,7 +234,14 @@ def main() -> None:
     ap.add_argument("--per-law", type=int, default=40, help="records per contact law")
     ap.add_argument("--noise", type=float, default=0.05, help="noise, fraction of each channel's RMS")
     ap.add_argument("--jobs", type=int, default=2, help="simulation processes")
+    ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
+    with recorded("independent_stand", "Identification of records from an independent drop-stand simulator",
+                  args.record):
+        measure(args)
+
+
+def measure(args) -> None:
     os.makedirs(args.out, exist_ok=True)
     jobs = [(args.out, law, i, 7000 + 100 * li + i, args.noise) for li, law in enumerate(["KV", "HC"])
             for i in range(args.per_law)]

@@ -26,8 +26,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "benchmarks")]  # the fuzz corpus; benchmarks/recorded.py
 
+from recorded import recorded  # noqa: E402
 from reliability_api import calls, fuzz  # noqa: E402
 from reliability_cases import Corpus  # noqa: E402
 from reliability_corpus import VERDICTS, Case, Outcome, judge, run  # noqa: E402
@@ -152,7 +153,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-memory", action="store_true", help="Skip the memory measurement.")
     parser.add_argument("--all", action="store_true", help="List every case with its verdict.")
     parser.add_argument("--api-calls", type=int, default=4000, help="Random calls of the Python functions.")
+    parser.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     options = parser.parse_args(argv)
+    with recorded("reliability_fuzz", "Reliability: the fuzz corpus and random calls of the Python functions",
+                  options.record, argv=None if argv is None else [sys.argv[0], *argv]):
+        return measure(options)
+
+
+def measure(options) -> int:
     folder = options.folder or Path(tempfile.mkdtemp(prefix="impactometer-fuzz-"))
     corpus = Corpus(folder)
     results: list[tuple[Case, str, str]] = []
@@ -174,16 +182,15 @@ def main(argv: list[str] | None = None) -> int:
     for case, verdict, _ in results:
         table[case.category]["tried"] += 1
         table[case.category][verdict] += 1
-    width = max(len(c) for c in table) + 2
-    print(f"{'category':<{width}} {'tried':>6} {'unhandled':>10} {'silent-wrong':>13} {'data loss':>10} "
-          f"{'over-refused':>13}")
+    print("| category | tried | unhandled | silent-wrong | data loss | over-refused |")
+    print("|---|---:|---:|---:|---:|---:|")
     total = collections.Counter()
     for category, counts in table.items():
         total.update(counts)
-        print(f"{category:<{width}} {counts['tried']:>6} {counts['unhandled']:>10} {counts['silent-wrong']:>13} "
-              f"{counts['data-loss']:>10} {counts['over-refused']:>13}")
-    print(f"{'total':<{width}} {total['tried']:>6} {total['unhandled']:>10} {total['silent-wrong']:>13} "
-          f"{total['data-loss']:>10} {total['over-refused']:>13}")
+        print(f"| {category} | {counts['tried']} | {counts['unhandled']} | {counts['silent-wrong']} | "
+              f"{counts['data-loss']} | {counts['over-refused']} |")
+    print(f"| total | {total['tried']} | {total['unhandled']} | {total['silent-wrong']} | {total['data-loss']} | "
+          f"{total['over-refused']} |")
     shown = [r for r in results if r[1] != "handled" or (options.all and r[0].category != "Python API")]
     for case, verdict, reason in shown:
         print(f"  [{verdict}] {case.category} / {case.name}: {reason}")

@@ -16,6 +16,10 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # benchmarks/recorded.py
 
 import numpy as np
 
@@ -26,6 +30,7 @@ from impactometer.identify.peak_to_peak import identify
 from impactometer.identify.pulses import contact_pulses
 from impactometer.studies.base import StudyOptions, case_seed, scenario_grid
 from impactometer.studies.identification import clean_recordings, with_noise
+from recorded import recorded
 
 DURATION = 0.5  # [s] simulated for the stage figures: past the deepest point in every case
 RATES = (50e3, 40e3, 20e3, 10e3)
@@ -93,7 +98,15 @@ def main() -> None:
     parser.add_argument("--grid", type=int, default=5)
     parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                         help="a stand parameter changed, e.g. --set contact.stiffness=1e6 (repeatable)")
+    parser.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = parser.parse_args()
+    name = "stand_criteria" if args.rig == "drop-stand" and not args.set else None
+    with recorded(name or "stand_criteria_other", f"The stand against the paper's description: {args.rig}",
+                  args.record and name is not None):
+        measure(args)
+
+
+def measure(args) -> None:
     rig = get_rig(args.rig)
     changes = dict(item.split("=", 1) for item in args.set)
     if changes:
@@ -129,12 +142,13 @@ def main() -> None:
                       f", none found in {int((~ok).sum())} (stage B after the record's end: "
                       f"{int((t_b > 0.08).sum())})")
     print("\npaper variant (eqs. 3-5), noise-free, 50 ms after first contact:")
-    print("  rate     V0 error max   V0 error mean   M1 error mean   M1 error max   failed")
+    print("| rate | V0 error max | V0 error mean | M1 error mean | M1 error max | failed |")
+    print("|---:|---:|---:|---:|---:|---:|")
     for rate in RATES:
         e = paper_errors(rig, m, v, p, rate)
         ok = np.isfinite(e[:, 0])
-        print(f"  {rate / 1e3:4.0f} kHz   {np.abs(e[ok, 1]).max():10.2%}   {np.abs(e[ok, 1]).mean():12.2%}   "
-              f"{np.abs(e[ok, 0]).mean():12.2%}   {np.abs(e[ok, 0]).max():11.2%}   {int((~ok).sum()):6d}")
+        print(f"| {rate / 1e3:.0f} kHz | {np.abs(e[ok, 1]).max():.2%} | {np.abs(e[ok, 1]).mean():.2%} | "
+              f"{np.abs(e[ok, 0]).mean():.2%} | {np.abs(e[ok, 0]).max():.2%} | {int((~ok).sum())} |")
 
 
 if __name__ == "__main__":

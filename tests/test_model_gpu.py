@@ -70,11 +70,12 @@ def fresh_reason():
     gpu.unavailable_reason.cache_clear()
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not NUMBA_CUDA, reason="numba-cuda is not installed (it comes with the 'test' and 'gpu' "
                                             "extras): the CUDA simulator needs it")
 def test_cuda_simulator_runs_the_same_model_as_the_cpu_batch():
     env = {**os.environ, "NUMBA_ENABLE_CUDASIM": "1"}
-    done = subprocess.run([sys.executable, "-c", _SIMULATED], env=env, capture_output=True, text=True, timeout=600)
+    done = subprocess.run([sys.executable, "-c", _SIMULATED], env=env, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-3000:]
     report = json.loads(done.stdout.strip().splitlines()[-1])
     for law in LAWS:

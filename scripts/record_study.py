@@ -1,0 +1,50 @@
+"""Run one study of the paper (or all of them) as the command line does and print its run and summary tables.
+
+    python scripts/record_study.py all                        # impactometer study all, default sizes
+    python scripts/record_study.py absorption --grid 5        # any option of `impactometer study` after the name
+    python scripts/record_study.py absorption --grid 5 --record   # ... kept in docs/results/ and docs/benchmarks.md
+
+The study runs in a temporary folder with ``impactometer study NAME --out FOLDER [OPTIONS]`` (its progress on
+standard error) and the tables printed are those of ``impactometer study report``.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))  # benchmarks/recorded.py
+
+from impactometer.studies.report import markdown  # noqa: E402
+from recorded import recorded  # noqa: E402
+
+TITLES = {"all": "Studies of the paper (Figs. 3-9, 10), default sizes",
+          "absorption": "Adaptive absorption: strategies over the impact grid",
+          "valve-design": "Adaptive absorption: valve size and response",
+          "map-size": "Response map: map size and search (Fig. 8 analogue)",
+          "map-recordings": "Response map built from recordings"}
+
+
+def main(argv: list[str]) -> int:
+    if not argv or argv[0].startswith("-"):
+        print(__doc__, file=sys.stderr)
+        return 2
+    record = "--record" in argv
+    name, options = argv[0], [a for a in argv[1:] if a != "--record"]
+    with tempfile.TemporaryDirectory(prefix="impactometer-study-") as folder:
+        command = [sys.executable, "-m", "impactometer", "study", name, "--out", folder, *options]
+        with recorded(f"study_{name.replace('-', '_')}", TITLES.get(name, f"Study {name}"), record,
+                      argv=[sys.argv[0], *argv]):
+            done = subprocess.run(command, stdout=subprocess.DEVNULL, check=False)
+            if done.returncode != 0:
+                raise SystemExit(done.returncode)  # nothing recorded
+            print(f"`impactometer study {name} {' '.join(options)}`; run and summary tables of "
+                  "`impactometer study report`:\n")
+            print(markdown(folder))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
