@@ -128,4 +128,4 @@ def test_plot_marks_the_pulses(noisy):
     force_axis = fig.axes[0]
     assert len(force_axis.patches) == len(inspect_recording(noisy).pulses)
     assert force_axis.get_ylabel() == "contact force [kN]"  # as every figure of the package labels it
-    assert fig.axes[1].get_ylabel() == "piston acceleration [km/s²]"
+    assert fig.axes[1].get_ylabel() == "piston acceleration [m/s²]"

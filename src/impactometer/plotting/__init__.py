@@ -11,6 +11,8 @@ The computation never imports this package at module level: a result's ``.plot()
 
 from __future__ import annotations
 
+import numpy as np
+
 
 def _pyplot():
     import matplotlib
@@ -22,16 +24,37 @@ def _pyplot():
     return plt
 
 
+#: the piston acceleration as every figure draws it: SI, m/s² (the tables print m/s² too)
+ACCELERATION_LABEL = "piston acceleration [m/s²]"
+
+
 def legend_outside(ax, **options) -> None:
     """Legend to the right of ``ax``, off the data."""
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8, **options)
 
 
-def figure_legend(fig, ax) -> None:
-    """The legend of ``ax`` to the right of the whole (constrained-layout) figure, off every panel's data."""
-    handles, labels = ax.get_legend_handles_labels()
-    if handles:
-        fig.legend(handles, labels, loc="outside right upper", fontsize=8)
+def labelled(label: str, *values) -> str | None:
+    """``label`` when any of ``values`` holds a finite number, else None: a series without data stays out of the
+    legend (:func:`figure_legend` names it with ``no_answer``)."""
+    return label if any(np.isfinite(np.asarray(v, dtype=float)).any() for v in values) else None
+
+
+def figure_legend(fig, *, no_answer=(), extra=None) -> None:
+    """One legend for the whole (constrained-layout) figure, below its panels (off every panel's data and off the
+    title): each label of every panel once, the ``extra`` entries (label -> handle: keys to a style), then one line
+    ``NAME: no answer`` per name of ``no_answer`` (a series with no finite data, left out of the panels' legends)."""
+    from matplotlib.lines import Line2D
+
+    entries: dict[str, object] = {}
+    for ax in fig.axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    entries.update(extra or {})
+    for name in no_answer:
+        entries[f"{name}: no answer"] = Line2D([], [], ls="none")
+    if entries:
+        columns = max(1, min(len(entries), int(fig.get_figwidth() // 3.2)))
+        fig.legend(list(entries.values()), list(entries), loc="outside lower center", ncols=columns, fontsize=8)
 
 
 def shade_pulses(ax, pulses, *, scale: float = 1e3) -> None:

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..identify.inspection import inspect_recording
 from ..recording import ACCELERATION, FORCE
-from . import _pyplot, legend_outside, shade_pulses
+from . import ACCELERATION_LABEL, _pyplot, legend_outside, shade_pulses
 
 
 def plot_recording(recording, axes=None, *, inspection=None):
@@ -38,21 +38,32 @@ def plot_recording(recording, axes=None, *, inspection=None):
     t = recording.time * 1e3
     colors = {FORCE: "k", ACCELERATION: "tab:red"}
     # the two sensor channels are SI inside; drawn as every figure draws them
-    labels = {FORCE: ("contact force [kN]", 1e-3), ACCELERATION: ("piston acceleration [km/s²]", 1e-3)}
+    labels = {FORCE: ("contact force [kN]", 1e-3), ACCELERATION: (ACCELERATION_LABEL, 1.0)}
+    filtered = recording.metadata.get("cfc")
+    filtered = filtered if isinstance(filtered, dict) else {}  # CFC class per channel (filters.filter_recording)
     for ax, name in zip(axes, names, strict=False):
         unit = recording.unit(name)
         label, scale = labels.get(name, (f"{name.replace('_', ' ')} [{unit}]" if unit else name, 1.0))
-        ax.plot(t, recording.channel(name) * scale, color=colors.get(name, "tab:blue"), lw=0.8)
+        cfc = f", CFC {filtered[name]} filtered" if name in filtered else ""
+        ax.plot(t, recording.channel(name) * scale, color=colors.get(name, "tab:blue"), lw=0.8,
+                label=f"{name.replace('_', ' ')}{cfc}" if cfc else None)
         ax.set_ylabel(label)
         ax.set_xlim(t[0], t[-1])
         ax.grid(alpha=0.3)
         shade_pulses(ax, inspection.pulses)
     if FORCE in names and inspection.pulses:
-        ax = axes[names.index(FORCE)]
-        ax.plot([p.peak_time * 1e3 for p in inspection.pulses],
-                [(p.peak_force + inspection.force_offset) * 1e-3 for p in inspection.pulses], "v", color="tab:blue",
-                label="pulse peaks")
-        legend_outside(ax)
+        axes[names.index(FORCE)].plot([p.peak_time * 1e3 for p in inspection.pulses],
+                                      [(p.peak_force + inspection.force_offset) * 1e-3 for p in inspection.pulses],
+                                      "v", color="tab:blue", label="pulse peaks")
+    for ax, name in zip(axes, names, strict=False):
+        if (name == FORCE or name in filtered) and ax.get_legend_handles_labels()[0]:
+            legend_outside(ax)
     axes[-1].set_xlabel("time [ms]")
-    axes[0].set_title(f"{recording.source}: {inspection.samples} samples at {recording.sample_rate:g} Hz")
+    classes = {}  # CFC class -> the channels filtered with it
+    for name in names:
+        if name in filtered:
+            classes.setdefault(filtered[name], []).append(name.replace("_", " "))
+    shown = "; ".join(f"CFC {cfc} filtered ({', '.join(drawn)})" for cfc, drawn in classes.items())
+    axes[0].set_title(f"{recording.source}: {inspection.samples} samples at {recording.sample_rate:g} Hz\n"
+                      f"{shown or 'no CFC filter applied'}", fontsize=10)
     return fig

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _pyplot, legend_outside, shade_pulses
+from . import ACCELERATION_LABEL, _pyplot, legend_outside, shade_pulses
 
 
 def plot_simulation(result, axes=None, *, pulses=None):
@@ -24,9 +24,9 @@ def plot_simulation(result, axes=None, *, pulses=None):
     axes[0].set_ylabel("contact force [kN]")
     axes[0].set_title(f"M1 = {s.mass:g} kg, V0 = {s.velocity:.3f} m/s, p0 = {s.pressure_gauge / 1e3:g} kPa "
                       f"({result.rig.contact.law})")
-    acceleration = result.a2 / 1e3
+    acceleration = result.a2
     axes[1].plot(t, acceleration, color="tab:red", lw=1)
-    axes[1].set_ylabel("piston acceleration [km/s²]")
+    axes[1].set_ylabel(ACCELERATION_LABEL)
     _scale_without_stops(axes[1], t, acceleration, (result.top_stop_force > 0) | (result.bottom_stop_force > 0))
     axes[2].plot(t, result.u1 * 1e3, label="mass u1")
     axes[2].plot(t, result.u2 * 1e3, label="piston u2", ls="--")
@@ -56,5 +56,5 @@ def _scale_without_stops(ax, t, values, on_stop) -> None:
     ax.set_ylim(low - pad, high + pad)
     k = int(np.argmax(np.abs(values)))
     if not low - pad <= values[k] <= high + pad:
-        ax.annotate(f"stop: {values[k]:.1f} (off scale)", xy=(t[k], high + pad if values[k] > 0 else low - pad),
+        ax.annotate(f"stop: {values[k]:.4g} (off scale)", xy=(t[k], high + pad if values[k] > 0 else low - pad),
                     xytext=(-4, -12 if values[k] > 0 else 4), textcoords="offset points", ha="right", fontsize=8)

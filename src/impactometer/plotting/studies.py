@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..studies.tables import Row, flag, group_stats, number, pick
-from . import _pyplot, figure_legend
+from . import _pyplot, figure_legend, labelled
 
 #: colour per compared method
 COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "brute": "tab:red",
@@ -21,6 +21,15 @@ def _color(method: Any) -> str | None:
 
 def _methods(rows: Sequence[Row], column: str = "method") -> list[str]:
     return list(dict.fromkeys(r[column] for r in rows))
+
+
+def _series(ax, x, y, style: str, *, label: str, answered: set[str], name: str, **options) -> None:
+    """One line on ``ax``, in the legend as ``label`` only where it has finite data; ``name`` joins ``answered``
+    then (the names never answered are listed once, as giving no answer, by :func:`figure_legend`)."""
+    shown = labelled(label, y)
+    ax.plot(x, y, style, label=shown, **options)
+    if shown:
+        answered.add(name)
 
 
 def plot_peak_force(rows: Sequence[Row]):
@@ -38,45 +47,66 @@ def plot_peak_force(rows: Sequence[Row]):
     ax[0].plot([0, top], [0, top], "k--", lw=0.8, label="equal")
     ax[0].set(xlabel="closed form peak force [kN]", ylabel="first-pulse peak force [kN]", xlim=(0, top),
               ylim=(0, top))
-    figure_legend(fig, ax[0])
     fig.colorbar(sc, ax=ax[0], label="M1 [kg]")
     pressure = np.array([r["pressure_gauge"] for r in rows], dtype=float) / 1e3
     sc2 = ax[1].scatter(mass, (simulated / closed - 1) * 100, s=14, c=pressure, cmap="plasma")
     ax[1].axhline(0, color="k", lw=0.8)
     ax[1].set(xlabel="M1 [kg]", ylabel="simulated / closed form − 1 [%]")
     fig.colorbar(sc2, ax=ax[1], label="p0 [kPa]")
+    figure_legend(fig)
     fig.suptitle("First contact pulse: simulator and DAQ vs the two-body closed form")
     return fig
 
 
 def plot_case_bars(rows: Sequence[Row]):
-    """Figs. 3-4: signed mass and velocity error per case as bars, methods side by side, one row per pressure."""
+    """Figs. 3-4: |mass| and |velocity| error [%] per case on a log axis, so that the paper variant's tens of per
+    cent and the robust variant's hundredths are both readable; methods side by side, a hatched bar a negative
+    error (an underestimate), a cross a case a method gave no answer for. One panel per pressure and quantity."""
+    from matplotlib.patches import Patch
+    from matplotlib.transforms import blended_transform_factory
+
     plt = _pyplot()
     pressures = sorted({r["pressure_gauge"] for r in rows})
     methods = _methods(rows)
-    fig, axes = plt.subplots(len(pressures), 2, figsize=(13, 3.2 * len(pressures)), squeeze=False,
+    panels = [(p, what) for p in pressures for what in ("mass", "velocity")]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(13, 2.7 * len(panels) + 0.8), squeeze=False,
                              constrained_layout=True)
-    for row_axes, p in zip(axes, pressures, strict=False):
+    width = 0.8 / max(len(methods), 1)
+    sizes = [abs(number(r[f"{what}_error"])) * 100 for r in rows for what in ("mass", "velocity")]
+    positive = np.array([v for v in sizes if np.isfinite(v) and v > 0.0])
+    low, high = (positive.min() / 3.0, positive.max() * 3.0) if positive.size else (1e-2, 1e2)
+    keys: dict[str, Any] = {}
+    for ax, (p, what) in zip(axes[:, 0], panels, strict=True):
         subset = pick(rows, pressure_gauge=p)
         labels = list(dict.fromkeys(f"{r['mass']:g} kg\n{r['velocity']:.2g} m/s" for r in subset))
         x = np.arange(len(labels))
-        width = 0.8 / max(len(methods), 1)
+        on_floor = blended_transform_factory(ax.transData, ax.transAxes)
         for j, method in enumerate(methods):
-            chosen = pick(subset, method=method)
-            for ax, column in zip(row_axes, ("mass_error", "velocity_error"), strict=False):
-                values = np.array([r[column] for r in chosen], dtype=float) * 100
-                at = x[:values.size] + (j - (len(methods) - 1) / 2) * width
-                ax.bar(at, values, width, label=method, color=_color(method))
-                failed = ~np.isfinite(values)
-                ax.plot(at[failed], np.zeros(failed.sum()), "x", color=_color(method), ms=7,
-                        label=f"{method} failed" if failed.any() and ax is row_axes[0] else None)
-        for ax, what in zip(row_axes, ("mass", "velocity"), strict=False):
-            ax.set_yscale("symlog", linthresh=2.0)
-            ax.axhline(0, color="k", lw=0.6)
-            ax.set_xticks(x, labels, fontsize=6)
-            ax.set_ylabel(f"{what} error [%]")
-            ax.set_title(f"{what} identification, p0 = {p / 1e3:g} kPa")
-    figure_legend(fig, axes[0][0])
+            values = np.array([number(r[f"{what}_error"]) for r in pick(subset, method=method)]) * 100
+            at = x[:values.size] + (j - (len(methods) - 1) / 2) * width
+            below, failed = values < 0.0, ~np.isfinite(values)
+            bars = ax.bar(at[~failed], np.abs(values[~failed]), width, color=_color(method), lw=0.0,
+                          label=labelled(method, values))
+            for bar, negative in zip(bars, below[~failed], strict=True):
+                if negative:
+                    bar.set(hatch="///", edgecolor="w")
+            crosses = ax.plot(at[failed], np.full(failed.sum(), 0.04), "x", color=_color(method), ms=7,
+                              transform=on_floor)
+            # keys to the styles, in the legend after the methods' bars
+            if below.any():
+                keys.setdefault("hatched: negative error (underestimate)",
+                                Patch(facecolor="0.55", hatch="///", edgecolor="w", lw=0.0))
+            if failed.any():
+                keys.setdefault(f"{method}: no answer (×)", crosses[0])
+        ax.set_yscale("log")
+        ax.set_ylim(low, high)
+        ax.set_xlim(-0.6, len(labels) - 0.4)
+        ax.set_xticks(x, labels, fontsize=8)
+        ax.tick_params(axis="y", labelsize=8)
+        ax.grid(alpha=0.3, which="major", axis="y")
+        ax.set_ylabel(f"|{what} error| [%]")
+        ax.set_title(f"{what} identification, p0 = {p / 1e3:g} kPa", fontsize=10)
+    figure_legend(fig, extra=keys)
     return fig
 
 
@@ -85,27 +115,28 @@ def plot_mean_error_vs(rows: Sequence[Row], parameters: Sequence[tuple[str, str,
                        log_x: bool = False, reference: tuple[float, str] | None = None):
     """Mean (and optionally max) |error| [%] vs each parameter: one column per parameter, one row per error,
     one line per method. ``parameters`` lists (column, axis label, display scale); ``reference`` draws a
-    horizontal line (value [%], label) on the first row."""
+    horizontal line (value [%], label) on the first row. A method without a finite value anywhere is named in the
+    legend as giving no answer."""
     plt = _pyplot()
     fig, axes = plt.subplots(len(errors), len(parameters), figsize=(4.8 * max(len(parameters), 2), 3.8 * len(errors)),
                              squeeze=False, constrained_layout=True)
+    answered: set[str] = set()
     for i, error in enumerate(errors):
         for ax, (column, label, scale) in zip(axes[i], parameters, strict=False):
             for method in _methods(rows):
                 stats = sorted(group_stats(pick(rows, method=method), (column,), (error,)), key=lambda s: s[column])
                 x = np.array([s[column] for s in stats]) * scale
-                ax.plot(x, [s[f"mean_abs_{error}"] for s in stats], "o-", color=_color(method),
-                        label=f"{method} mean")
-                if maximum:
-                    ax.plot(x, [s[f"max_abs_{error}"] for s in stats], "v:", color=_color(method),
-                            label=f"{method} max")
+                lines = [("mean", "o-", "mean_abs")] + ([("max", "v:", "max_abs")] if maximum else [])
+                for what, style, key in lines:
+                    _series(ax, x, [s[f"{key}_{error}"] for s in stats], style, label=f"{method} {what}",
+                            answered=answered, name=method, color=_color(method))
             if reference is not None and i == 0:
                 ax.axhline(reference[0], color="k", ls="--", lw=0.8, label=reference[1])
             ax.set(xlabel=label, ylabel=f"|{error.replace('_', ' ')}| [%]", yscale="log")
             if log_x:
                 ax.set_xscale("log")
             ax.grid(alpha=0.3, which="both")
-    figure_legend(fig, axes[0][0])
+    figure_legend(fig, no_answer=[m for m in _methods(rows) if m not in answered])
     fig.suptitle(title)
     return fig
 
@@ -115,6 +146,7 @@ def plot_noise(rows: Sequence[Row]):
     plt = _pyplot()
     targets = ("force", "acceleration", "both")
     fig, axes = plt.subplots(2, 3, figsize=(14, 7), sharey="row", constrained_layout=True)
+    answered: set[str] = set()
     for col, target in enumerate(targets):
         subset = [r for r in rows if r["noise_on"] in (target, "none")]
         for row, error in enumerate(("mass_error", "velocity_error")):
@@ -122,12 +154,12 @@ def plot_noise(rows: Sequence[Row]):
             for method in _methods(rows):
                 stats = sorted(group_stats(pick(subset, method=method), ("noise",), (error,)),
                                key=lambda s: s["noise"])
-                x = [s["noise"] * 100 for s in stats]
-                ax.plot(x, [s[f"mean_abs_{error}"] for s in stats], "o-", color=_color(method), label=method)
+                _series(ax, [s["noise"] * 100 for s in stats], [s[f"mean_abs_{error}"] for s in stats], "o-",
+                        label=method, answered=answered, name=method, color=_color(method))
             ax.set_yscale("log")
             ax.grid(alpha=0.3, which="both")
             ax.set(xlabel=f"noise on {target} [% of RMS]", ylabel=f"mean |{error.split('_')[0]} error| [%]")
-    figure_legend(fig, axes[0][0])
+    figure_legend(fig, no_answer=[m for m in _methods(rows) if m not in answered])
     fig.suptitle("Identification error vs Gaussian noise (mean over the grid)")
     return fig
 
@@ -146,22 +178,25 @@ def plot_map_tables(rows: Sequence[Row], x: str, xlabel: str, *, log_x: bool = T
     keys = [k for k in ("search", "feature_set", "cases") if any(k in r for r in rows)]
     keys += [k for k in ("noise", "size") if k != x and len({r.get(k) for r in rows}) > 1]  # e.g. Fig. 9 settings
     series = list(dict.fromkeys(tuple(r.get(k) for k in keys) for r in rows))
+    names = [" / ".join(str(v) for v in values) for values in series]
     styles = ["-", "--", ":", "-."]
     feature_sets = list(dict.fromkeys(r.get("feature_set") for r in rows))
+    answered: set[str] = set()
     for ax, (column, label, scale) in zip(axes[0], panels, strict=False):
-        for values in series:
+        for values, name in zip(series, names, strict=True):
             chosen = sorted(pick(rows, **dict(zip(keys, values, strict=False))), key=lambda r: r[x])
             setting = dict(zip(keys, values, strict=False))
             ls = styles[feature_sets.index(setting.get("feature_set")) % len(styles)]
             marker = "s" if setting.get("cases") == "grid125" else "o"
-            ax.plot([r[x] * x_scale for r in chosen], [r[column] * scale for r in chosen], ls=ls, marker=marker, ms=4,
-                    color=_color(setting.get("search", "")), label=" / ".join(str(v) for v in values))
+            _series(ax, [r[x] * x_scale for r in chosen], [number(r[column]) * scale for r in chosen],
+                    f"{ls}{marker}", label=name, answered=answered, name=name, ms=4,
+                    color=_color(setting.get("search", "")))
         ax.set(xlabel=xlabel, ylabel=label)
         ax.set_yscale("log")
         if log_x:
             ax.set_xscale("log")
         ax.grid(alpha=0.3, which="both")
-    figure_legend(fig, axes[0][-1])
+    figure_legend(fig, no_answer=[name for name in names if name not in answered])
     fig.suptitle(title)
     return fig
 
@@ -174,19 +209,22 @@ def plot_map_recordings(rows: Sequence[Row]):
     feature_sets = list(dict.fromkeys(r["feature_set"] for r in rows))
     searches = _methods(rows, "search")
     width = 0.8 / max(len(searches), 1)
+    answered: set[str] = set()
     for ax, quantity in zip(axes, ("mass", "velocity"), strict=True):
         for k, search in enumerate(searches):
             chosen = {r["feature_set"]: r for r in pick(rows, search=search)}
             x = np.arange(len(feature_sets)) + (k - (len(searches) - 1) / 2) * width
             mean = [100 * number(chosen[f][f"{quantity}_error_mean"]) if f in chosen else np.nan for f in feature_sets]
             top = [100 * number(chosen[f][f"{quantity}_error_max"]) if f in chosen else np.nan for f in feature_sets]
-            ax.bar(x, mean, width, color=_color(search), label=f"{search} mean")
-            ax.scatter(x, top, marker="_", s=200, color="k", label="max" if k == 0 else None)
+            ax.bar(x, mean, width, color=_color(search), label=labelled(f"{search} mean", mean))
+            ax.scatter(x, top, marker="_", s=200, color="k", label=labelled("max", top))
+            if labelled(search, mean):
+                answered.add(search)
         ax.set_xticks(np.arange(len(feature_sets)), feature_sets)
         ax.set(ylabel=f"|{quantity} error| [%]", title=f"{quantity}, held-back recordings")
         ax.set_yscale("log")
         ax.grid(alpha=0.3, which="both", axis="y")
-    figure_legend(fig, axes[-1])
+    figure_legend(fig, no_answer=[s for s in searches if s not in answered])
     fig.suptitle("Response map from noisy calibration recordings")
     return fig
 
@@ -218,7 +256,7 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
     axes[0].set_yticks(ticks, [f"{tick:g}" for tick in ticks])
     axes[0].yaxis.set_minor_formatter("")
     axes[0].grid(alpha=0.3, which="both")
-    figure_legend(fig, axes[0])
+    figure_legend(fig)
     by = {(r["case"], r["strategy"]): r for r in rows}
     cases = sorted({r["case"] for r in rows})
     mine = np.array([ratio(by.get((c, strategy))) for c in cases])
@@ -241,7 +279,9 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
 
 
 def plot_valve_design(rows: Sequence[Row]):
-    """Maps over valve size × response time: median and 90th-percentile R and the number of bottomed-out runs."""
+    """Maps over valve size × response time: median and 90th-percentile R and the number of bottomed-out runs (the
+    last map only where a run bottomed out; otherwise the title says that none did). Each cell's number is written
+    in black or white, whichever stands out from the cell's colour."""
     plt = _pyplot()
     areas = sorted({r["effective_area_mm2"] for r in rows})
     times = sorted({r["response_time_ms"] for r in rows})
@@ -255,9 +295,12 @@ def plot_valve_design(rows: Sequence[Row]):
                 grids["median"][i, j] = np.median(values)
                 grids["p90"][i, j] = np.percentile(values, 90)
             grids["bottomed"][i, j] = sum(flag(r.get("bottomed_out")) for r in chosen)
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4), constrained_layout=True)
-    for ax, (key, title) in zip(axes, (("median", "median R"), ("p90", "90th percentile R"),
-                                       ("bottomed", "runs bottomed out")), strict=True):
+    maps = [("median", "median R"), ("p90", "90th percentile R")]
+    bottomed = int(np.nansum(grids["bottomed"]))
+    if bottomed:
+        maps.append(("bottomed", "runs bottomed out"))
+    fig, axes = plt.subplots(1, len(maps), figsize=(5.0 * len(maps), 4.4), squeeze=False, constrained_layout=True)
+    for ax, (key, title) in zip(axes[0], maps, strict=True):
         grid = grids[key]
         # the count map starts white at zero (a map of zeros is good news, not a colour of alarm)
         limits = {} if key != "bottomed" else {"vmin": 0.0, "vmax": max(1.0, float(np.nanmax(grid)))}
@@ -267,11 +310,20 @@ def plot_valve_design(rows: Sequence[Row]):
             for j in range(len(areas)):
                 if np.isfinite(grid[i, j]):
                     ax.text(j, i, f"{grid[i, j]:.2f}" if key != "bottomed" else f"{grid[i, j]:.0f}", ha="center",
-                            va="center", fontsize=8, color="w" if key != "bottomed" else "k")
+                            va="center", fontsize=8, color=text_colour(image.cmap(image.norm(grid[i, j]))))
         ax.set_xticks(range(len(areas)), [f"{a:g}" for a in areas])
         ax.set_yticks(range(len(times)), [f"{t:g}" for t in times])
         ax.set(xlabel="effective area of the open valve [mm²]", ylabel="response time 10-90 % [ms]", title=title)
         fig.colorbar(image, ax=ax)
-    fig.suptitle("Valve design: stage-B force ratio R of the predictive absorber over valve size and speed "
-                 "(ISO 6358 valves, C ≈ S/5 dm³/(s·bar))")
+    none = "" if bottomed else f"; none of the {len(rows)} runs bottomed out (no map of them)"
+    fig.suptitle("Valve design: stage-B force ratio R of the predictive absorber over valve size and speed\n"
+                 f"(ISO 6358 valves, C ≈ S/5 dm³/(s·bar)){none}")
     return fig
+
+
+def text_colour(rgba) -> str:
+    """Black or white, whichever contrasts more with the colour ``rgba`` (WCAG relative luminance: black above
+    0.179, where both contrasts are equal)."""
+    linear = [c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4 for c in rgba[:3]]
+    luminance = 0.2126 * linear[0] + 0.7152 * linear[1] + 0.0722 * linear[2]
+    return "k" if luminance > 0.179 else "w"
