@@ -105,3 +105,27 @@ def test_build_from_a_calibration_folder_with_manifest(tmp_path, capsys):
     probe = record_batch(30.0, 2.0, 200e3, rig, duration=0.03)[0]
     result = identify_recording(probe, rmap)
     assert result.velocity == pytest.approx(2.0, rel=0.02)  # 4×4 calibration points: coarse, but consistent
+
+
+def test_identify_with_a_map_needs_the_charge_pressure(tmp_path, capsys):
+    out = tmp_path / "map.h5"
+    status, text, err = run(["map", "build", "--grid", "6", "--out", str(out)], capsys)
+    assert status == 0, text + err
+    recording = record_batch(30.0, 1.5, 100e3, duration=0.06, noise=0.01, seed=2)[0]
+    bare = write_recording(type(recording)(sample_rate=recording.sample_rate, channels=recording.channels,
+                                           start_time=recording.start_time), tmp_path / "bare.h5")
+    command = ["identify", str(bare), "--method", "response-map", "--map", str(out), "--json"]
+    status, text, err = run(command, capsys)
+    assert_error_line(status, text, err)
+    assert "the charge pressure is not known" in err and "--pressure" in err
+    status, text, err = run([*command, "--pressure", "100kPa"], capsys)
+    assert_error_line(status, text, err)
+    assert "made for a charge pressure of 200 kPa, the measurement is at 100 kPa" in err
+    stated = write_recording(recording, tmp_path / "stated.h5")
+    status, text, err = run(["identify", str(stated), "--method", "response-map", "--map", str(out), "--pressure",
+                             "200kPa"], capsys)
+    assert_error_line(status, text, err)
+    assert "contradicts the recording's pressure_gauge_Pa of 100 kPa" in err
+    status, text, err = run(["identify", str(stated), "--pressure", "100kPa"], capsys)
+    assert_error_line(status, text, err)
+    assert "--pressure is available for --method response-map" in err

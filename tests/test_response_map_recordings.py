@@ -144,3 +144,22 @@ def test_simulated_map_identifies_recordings_through_the_sensor_chain():
     mass_error, velocity_error = mean_errors([identify_recording(r, rmap) for r in recordings], masses, velocities)
     assert mass_error < 0.015
     assert velocity_error < 0.004
+
+
+def test_the_charge_pressure_is_required_and_must_agree_with_the_recording(noisy_map):
+    # a 100 kPa impact without a stated pressure, read with a 200 kPa map: M1 came out 62 % low, silently
+    (recording,) = record_batch(30.0, 2.0, 100e3, RIG, duration=0.06, noise=0.01, seed=5)
+    bare = dataclasses.replace(recording, metadata={k: v for k, v in recording.metadata.items()
+                                                    if k != "pressure_gauge_Pa"})
+    with pytest.raises(ResponseMapError, match="the charge pressure is not known .*states no pressure_gauge_Pa"):
+        identify_recording(bare, noisy_map)
+    with pytest.raises(ResponseMapError, match="made for a charge pressure of 200 kPa, the measurement is at 100"):
+        identify_recording(bare, noisy_map, pressure_gauge=100e3)
+    with pytest.raises(ResponseMapError, match="pressure_gauge 200 kPa contradicts the recording's "
+                                               "pressure_gauge_Pa of 100 kPa"):
+        identify_recording(recording, noisy_map, pressure_gauge=200e3)
+    _, _, (inside,) = held_back(1, 0.0, seed=13)
+    stripped = dataclasses.replace(inside, metadata={k: v for k, v in inside.metadata.items()
+                                                     if k != "pressure_gauge_Pa"})
+    assert identify_recording(stripped, noisy_map, pressure_gauge=200e3).mass == \
+        identify_recording(inside, noisy_map).mass

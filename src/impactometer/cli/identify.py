@@ -13,7 +13,7 @@ from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
 from ..outputs import save_figure
-from .app import app, console, output_path, with_uncertainty
+from .app import app, console, output_path, quantity, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 
 # the identification modules load numba: they are imported where they are used, so that ``--help`` stays light
@@ -77,6 +77,9 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
              allow_extrapolation: Annotated[bool, typer.Option(
                  "--allow-extrapolation",
                  help="response-map: answer outside the map's grid (else an error).")] = False,
+             pressure: Annotated[str | None, typer.Option(
+                 "--pressure", metavar="PRESSURE",
+                 help="response-map: charge pressure p0, gauge (e.g. 200kPa); else the file's statement.")] = None,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Path | None, typer.Option("--plot", help="Save a figure of the instants used.")] = None,
              force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
@@ -86,6 +89,9 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
     if plot is not None and method != "peak-to-peak":
         raise ParameterError("--plot is available for --method peak-to-peak")
+    if pressure is not None and method != "response-map":
+        raise ParameterError("--pressure is available for --method response-map")
+    pressure_gauge = quantity(pressure, "pressure", "--pressure")
     output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
     result: Identification
@@ -95,7 +101,8 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
                                  "(a response map built with impactometer map build)")
         from ..identify.response_map import identify_recording
 
-        result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation)
+        result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation,
+                                    pressure_gauge=pressure_gauge)
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 

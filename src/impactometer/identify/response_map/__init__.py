@@ -165,23 +165,50 @@ def check_recording(recording: Recording, rmap: ResponseMap) -> None:
                       hint="expected a map of the same stand (map build --rig FILE)")
 
 
+def recording_pressure(recording: Recording, rmap: ResponseMap, pressure_gauge: float | None = None) -> float:
+    """The charge pressure [Pa gauge] of ``recording``: ``pressure_gauge`` where given, else the one its metadata
+    states (``pressure_gauge_Pa``).
+
+    ResponseMapError where neither says it (the map's own pressure is not assumed: the features of one impact
+    differ by tens of percent between charge pressures, and so would the answer), or where the two differ by more
+    than :data:`~.build.PRESSURE_TOLERANCE`.
+    """
+    stated = recording.truth("pressure_gauge_Pa")
+    if pressure_gauge is None:
+        if stated is None:
+            axis = rmap.pressures_gauge
+            span = f"{axis[0] / 1e3:g} kPa" if axis.size == 1 else f"{axis[0] / 1e3:g}-{axis[-1] / 1e3:g} kPa"
+            raise ResponseMapError(f"{recording.source}: the charge pressure is not known (the recording states no "
+                                   f"pressure_gauge_Pa, the map was made at {span}); give the measured charge "
+                                   "pressure (pressure_gauge=, --pressure)")
+        return stated
+    given = check_real("pressure_gauge", pressure_gauge, low=0.0, unit=" [Pa]")
+    if stated is not None and abs(given - stated) > max(PRESSURE_TOLERANCE[0], PRESSURE_TOLERANCE[1] * stated):
+        raise ResponseMapError(f"{recording.source}: pressure_gauge {given / 1e3:g} kPa contradicts the recording's "
+                               f"pressure_gauge_Pa of {stated / 1e3:g} kPa; expected the same charge pressure (or "
+                               "none given)")
+    return given
+
+
 def identify_recording(recording: Recording, map_or_path: ResponseMap | str | Path, *, search: str = "fast",
-                       allow_extrapolation: bool = False) -> Identification:
+                       allow_extrapolation: bool = False, pressure_gauge: float | None = None) -> Identification:
     """Identify mass and velocity of the impact in ``recording`` with a response map (or the path of one).
 
     The recording must have the map's sample rate, contact law and stand (when its metadata states them: the
-    stand by the fingerprint of its parameters, see :func:`impactometer.rig.fingerprint`); its
-    charge pressure is taken from metadata ``pressure_gauge_Pa`` (required for maps with a pressure axis), and the
-    delay of its anti-alias filter (``anti_alias_delay_s``) is taken out of its time base.
+    stand by the fingerprint of its parameters, see :func:`impactometer.rig.fingerprint`); its charge pressure is
+    ``pressure_gauge`` [Pa gauge] or, where not given, the one its metadata states (``pressure_gauge_Pa``): one of
+    them is required, and they must agree (:func:`recording_pressure`). The delay of its anti-alias filter
+    (``anti_alias_delay_s``) is taken out of its time base.
     """
     if not isinstance(recording, Recording):
         raise ParameterError(f"recording must be a Recording, got {type(recording).__name__}")
     rmap = map_or_path if isinstance(map_or_path, ResponseMap) else load_map(map_or_path)
     check_recording(recording, rmap)
+    pressure = recording_pressure(recording, rmap, pressure_gauge)
     time, force = recording_signal(recording)
     values, available = extract_features(time, force, rmap.feature_set, rmap.feature_params)
     delay = recording.time[0] - time[0]  # the filter delay: the features are complete that much later
-    found = identify_features(values, rmap, search=search, pressure_gauge=recording.truth("pressure_gauge_Pa"),
+    found = identify_features(values, rmap, search=search, pressure_gauge=pressure,
                               allow_extrapolation=allow_extrapolation, available_at=available + delay)
     return replace(found, warnings=force_plausibility(recording, found.mass, found.velocity, rmap.stand.gravity))
 
