@@ -34,6 +34,19 @@ def test_spreadsheet_export_with_semicolons_decimal_commas_and_units():
     assert rec.metadata["source_channels"]["contact_force"] == "Force [kN]"
 
 
+@pytest.mark.parametrize("separator", [";", "\t"])
+def test_decimal_commas_are_found_beyond_a_first_row_of_whole_numbers(tmp_path, separator):
+    # the decimal style was decided from the first data row alone: "0;0;0" holds no comma, and the next row,
+    # "0,00002;1,5;0,1", was refused
+    rows = ["time [s];force [N];acc [m/s^2]", "0;0;0", "0,00002;1,5;0,1", "0,00004;2;0,25"]
+    path = tmp_path / "export.csv"
+    path.write_text("\n".join(rows).replace(";", separator) + "\n")
+    rec = read_recording(path)
+    assert rec.sample_rate == pytest.approx(50e3)
+    np.testing.assert_allclose(rec.contact_force, [0.0, 1.5, 2.0])
+    np.testing.assert_allclose(rec.piston_acceleration, [0.0, 0.1, 0.25])
+
+
 def test_plain_csv_without_time_takes_the_rate_from_the_sidecar_or_the_option(tmp_path):
     rec = read_recording(DATA / "plain_no_time.csv")
     assert rec.sample_rate == 20e3 and rec.truth("mass_kg") == 25.0 and rec.metadata["operator"] == "lab A"

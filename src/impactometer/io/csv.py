@@ -158,10 +158,10 @@ def _table(path: Path) -> tuple[list[str], list[np.ndarray]]:
     header, separator = _header(first[0], path)
     columns: list[np.ndarray] = []
     rows = 0
-    decimal_comma = None
     for lines in chunks:
-        if decimal_comma is None:
-            decimal_comma = separator != "," and "," in lines[0]
+        # beside another separator a comma is a decimal mark: looked for in every row, since a row of whole
+        # numbers ("0;0;0") has none
+        decimal_comma = separator != "," and any("," in line for line in lines)
         values = _rows(lines, rows + 1, header, separator, decimal_comma, path)
         if not columns:  # size the columns from the bytes per row of the first chunk
             per_row = max(sum(len(line) + 1 for line in lines) / len(lines), 1.0)
