@@ -1,20 +1,26 @@
 """Output targets: checked before any work starts, and write failures reported in one line.
 
-Every command and writer that saves something checks its target first -- a file name (not a folder), in an existing,
-writable folder, with a supported extension, not replacing an existing file unless asked -- so that a bad target
-costs nothing, and turns an ``OSError`` while writing (disk full, permissions changed meanwhile) into an
-:class:`~impactometer.errors.OutputError` naming the target.
+Every command and writer that saves something checks its target first -- a file name (not a folder, device, pipe or
+socket), in an existing, writable folder, with a supported extension, not replacing an existing file unless asked
+-- so that a bad target costs nothing, and turns an ``OSError`` while writing (disk full, permissions changed
+meanwhile) into an :class:`~impactometer.errors.OutputError` naming the target. The file is written under a
+temporary name beside its target and moved into place by :func:`publish`, which checks the target again: a whole
+computation lies between the first check and the move, and another writer may have taken the name meanwhile.
 """
 
 from __future__ import annotations
 
+import errno
 import os
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
 from .errors import OutputError, ParameterError
 from .validation import check_flag
+
+#: extensions of the HDF5 files written besides recordings (simulation histories, response maps)
+HDF5_EXTENSIONS = (".h5", ".hdf5")
 
 
 def as_path(value: Any, field: str = "path", *, error: type[Exception] = ParameterError) -> Path:
@@ -52,6 +58,8 @@ def check_file(path: str | Path, field: str | None = None, *, overwrite: bool = 
     prefix = f"{field}: " if field else ""
     if path.is_dir():
         raise error(f"{prefix}{str(path)!r} is a folder; expected a file name")
+    if path.exists() and not path.is_file():
+        raise error(f"{prefix}{not_regular(path)}")
     if extensions is not None:
         allowed = sorted({e.lower() for e in extensions})
         found = f"extension {path.suffix!r}" if path.suffix else "no extension"
@@ -67,6 +75,46 @@ def check_file(path: str | Path, field: str | None = None, *, overwrite: bool = 
     if not _writable(folder) or (path.exists() and not os.access(path, os.W_OK)):
         raise error(f"{prefix}cannot write {str(path)!r} (permission denied); expected a writable folder")
     return path
+
+
+def not_regular(path: Path) -> str:
+    """The sentence for a target that exists and is not a regular file (a device, a pipe, a socket)."""
+    return f"{str(path)!r} is not a regular file (a device, pipe or socket); expected a file name"
+
+
+#: errors of os.link where the file system has no hard links (FAT, some network and FUSE file systems)
+_NO_LINKS = {errno.EPERM, errno.EXDEV, errno.EMLINK, errno.ENOSYS, getattr(errno, "EOPNOTSUPP", -1),
+             getattr(errno, "ENOTSUP", -1)}
+
+
+def publish(temporary: Path, path: Path, *, overwrite: bool, flag: str = "--overwrite") -> None:
+    """Move the finished file ``temporary`` onto ``path`` (in the same folder).
+
+    With ``overwrite`` an existing regular file is replaced (``os.replace``); a target that has become something
+    else (a device, a folder) is refused. Without, the file is hard-linked into place, which fails where ``path``
+    exists: a second writer that found the name free at its start, as this one did, is refused here instead of
+    silently replacing the file the first one wrote. On a file system without hard links the target is checked
+    just before ``os.replace``. OutputError naming the target (``flag``: what lets the caller replace it).
+    """
+    if overwrite:
+        if path.exists() and not path.is_file():
+            raise OutputError(f"cannot write {not_regular(path)}")
+        os.replace(temporary, path)
+        return
+    taken = OutputError(f"cannot write {str(path)!r}: it was created while this file was being written (another "
+                        f"writer?) and is kept; pass {flag} to replace it")
+    try:
+        os.link(temporary, path)
+    except FileExistsError:
+        raise taken from None
+    except OSError as exc:
+        if exc.errno not in _NO_LINKS:
+            raise
+        if os.path.lexists(path):
+            raise taken from None
+        os.replace(temporary, path)
+        return
+    os.unlink(temporary)
 
 
 def check_folder(path: str | Path, field: str) -> Path:
@@ -97,18 +145,29 @@ def write_failed(path: str | Path, exc: OSError) -> OutputError:
     return OutputError(f"cannot write {str(path)!r}: {reason}")
 
 
-def save_figure(fig, path: str | Path, *, dpi: int = 120) -> Path:
-    """Save a matplotlib figure (format from the extension) next to ``path`` and rename it into place; close it."""
-    from .plotting import _pyplot
-
-    path = Path(path)
+def write_atomically(path: Path, write: Callable[[Path], object], *, overwrite: bool,
+                     flag: str = "--overwrite") -> Path:
+    """Call ``write`` on a temporary name beside ``path``, then move the file into place (:func:`publish`); an
+    ``OSError`` becomes the OutputError naming ``path``, and the temporary file never stays."""
     temporary = path.with_name(f".{path.stem}.partial-{os.getpid()}{path.suffix}")
     try:
-        fig.savefig(temporary, dpi=dpi)
-        os.replace(temporary, path)
+        write(temporary)
+        publish(temporary, path, overwrite=overwrite, flag=flag)
+    except OutputError:
+        raise
     except OSError as exc:
-        temporary.unlink(missing_ok=True)
         raise write_failed(path, exc) from None
     finally:
-        _pyplot().close(fig)
+        temporary.unlink(missing_ok=True)
     return path
+
+
+def save_figure(fig, path: str | Path, *, dpi: int = 120, overwrite: bool = True) -> Path:
+    """Save a matplotlib figure (format from the extension) next to ``path`` and move it into place
+    (:func:`write_atomically`); close it."""
+    from .plotting import _pyplot
+
+    try:
+        return write_atomically(Path(path), lambda temporary: fig.savefig(temporary, dpi=dpi), overwrite=overwrite)
+    finally:
+        _pyplot().close(fig)

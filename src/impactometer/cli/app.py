@@ -12,7 +12,7 @@ import typer.core
 from rich.console import Console
 
 from .. import __version__
-from ..outputs import check_file, figure_formats
+from ..outputs import HDF5_EXTENSIONS, check_file, figure_formats
 from ..units import parse_quantity
 
 
@@ -71,8 +71,8 @@ def quantity(text: str | None, dimension: str, field: str) -> float | None:
 
 
 def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: str | None = None) -> Path | None:
-    """Check an output file before any work: a file name (with an extension of its ``kind``: ``figure`` or
-    ``recording``), in a writable folder, not replacing an existing file unless ``--force``."""
+    """Check an output file before any work: a file name (with an extension of its ``kind``: ``figure``,
+    ``recording`` or ``hdf5``), in a writable folder, not replacing an existing file unless ``--force``."""
     if path is None:
         return None
     if kind == "figure":
@@ -81,6 +81,8 @@ def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: s
         from ..io import FORMATS
 
         extensions = list(FORMATS)
+    elif kind == "hdf5":
+        extensions = list(HDF5_EXTENSIONS)
     else:
         extensions = None
     return check_file(path, field, overwrite=force, extensions=extensions)

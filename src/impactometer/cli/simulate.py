@@ -102,7 +102,7 @@ def simulate(
 
     announce_compilation()
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)
-    output_path(out, force)
+    output_path(out, force, kind="hdf5")
     output_path(plot, force, field="--plot", kind="figure")
     length = quantity(duration, "time", "--duration")
     budget = {"max_steps": reference_steps(length)} if integrator == "reference" else {}

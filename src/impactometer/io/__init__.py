@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ImpactometerError, RecordingError
-from ..outputs import as_path, check_file, write_failed
+from ..outputs import as_path, check_file, publish, write_failed
 from ..recording import TRUTH_KEYS, Recording, truth_value
 from ..validation import check_flag
 from . import csv, hdf5, mat, tdms
@@ -118,18 +118,24 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
     path = as_path(path, error=RecordingError)
     fmt = format_of(path)
     targets = _targets(path, fmt)
+    flag = "overwrite=True (--force)"
     for target in targets:
-        check_file(target, overwrite=overwrite, flag="overwrite=True (--force)", error=RecordingError)
+        check_file(target, overwrite=overwrite, flag=flag, error=RecordingError)
     temporary = [t.with_name(f".{t.stem}.partial-{os.getpid()}{t.suffix}") for t in targets]
+    placed: list[Path] = []
     try:
         WRITERS[fmt](recording, temporary[0])
         if fmt == "csv":
             csv.write_sidecar(recording, temporary[1])
         for tmp, target in zip(temporary, targets, strict=False):
-            os.replace(tmp, target)
+            publish(tmp, target, overwrite=overwrite, flag=flag)
+            placed.append(target)
     except Exception as exc:
         for tmp in temporary:
             tmp.unlink(missing_ok=True)
+        if not overwrite:  # a file placed before another writer took the name of its sidecar: this one's own
+            for target in placed:
+                target.unlink(missing_ok=True)
         if isinstance(exc, ImpactometerError):
             raise
         if isinstance(exc, OSError):

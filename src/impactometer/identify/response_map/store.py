@@ -11,13 +11,12 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
 from ...errors import ImpactometerError, ParameterError, ResponseMapError
-from ...outputs import as_path, check_file, write_failed
+from ...outputs import as_path, check_file, write_atomically
 from ...recording import check_sample_rate
 from .database import SCHEMA_VERSION, ResponseMap
 from .features import get_feature_set
@@ -52,9 +51,9 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
     if not isinstance(rmap, ResponseMap):
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
     path = check_file(path, overwrite=overwrite, flag="overwrite=True (--force)")
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with h5py.File(tmp, "w") as h5:
+
+    def write(temporary: Path) -> None:
+        with h5py.File(temporary, "w") as h5:
             h5.attrs["schema"] = SCHEMA
             h5.attrs["schema_version"] = SCHEMA_VERSION
             h5.attrs["feature_set"] = rmap.feature_set
@@ -66,13 +65,8 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
             for name in _DATASETS:
                 h5.create_dataset(name, data=getattr(rmap, name))
             h5.attrs[CHECKSUM] = _digest(h5.attrs, {name: np.asarray(h5[name][()], dtype=float) for name in _DATASETS})
-        os.replace(tmp, path)
-    except OSError as exc:
-        raise write_failed(path, exc) from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
-    return path
+
+    return write_atomically(path, write, overwrite=overwrite, flag="overwrite=True (--force)")
 
 
 def _json(attrs, key: str, where: str):
