@@ -2,6 +2,7 @@
 
 import hashlib
 import os
+import re
 
 import numpy as np
 import pytest
@@ -31,6 +32,31 @@ def test_round_trip_is_exact(tmp_path, simulated, ext):
         assert back.unit(name) == simulated.unit(name)
     for key, value in simulated.metadata.items():
         assert back.metadata[key] == value, key
+
+
+# MAT files rename channels to MATLAB variables by design; HDF5 refuses "/" (the test below)
+@pytest.mark.parametrize("ext, name", [(ext, name) for ext in EXTENSIONS[:3]
+                                       for name in ("a,b", "a;b", 'say "hi"', "x/y", "Kraft, gemessen; roh")
+                                       if not (ext == ".h5" and "/" in name)])
+def test_channel_names_with_separators_and_quotes_come_back(tmp_path, ext, name):
+    rec = Recording(sample_rate=1e3, channels={"contact_force": np.arange(3.0), name: np.array([1.0, 2.0, 3.0])})
+    back = read_recording(write_recording(rec, tmp_path / f"run{ext}"))
+    assert list(back.channels) == [*rec.channels]  # a CSV header cell "a,b" was unquoted: two columns, unreadable
+    np.testing.assert_array_equal(back.channel(name), rec.channel(name))
+
+
+@pytest.mark.parametrize("ext, name, why", [
+    (".csv", "a\nb", "control character"), (".csv", "a\rb", "control character"),
+    (".h5", "a/b", "HDF5 reads '/' as a path through groups"),  # before: a subgroup, silently left out on reading
+    (".h5", ".", "HDF5 reserves '.'"),
+    (".tdms", "time", "takes it for the time column"), (".h5", "force [kN]", "takes its end for a unit"),
+    (".csv", " force", "strips the spaces"),
+])
+def test_channel_names_that_cannot_come_back_are_refused_on_writing(tmp_path, ext, name, why):
+    rec = Recording(sample_rate=1e3, channels={"contact_force": np.arange(3.0), name: np.array([1.0, 2.0, 3.0])})
+    with pytest.raises(RecordingError, match=f"channel {re.escape(repr(name))} cannot be written to .*{why}"):
+        write_recording(rec, tmp_path / f"run{ext}")
+    assert list(tmp_path.iterdir()) == []
 
 
 def _rec(mass=None, **extra):

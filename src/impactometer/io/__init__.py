@@ -19,7 +19,7 @@ from ..outputs import as_path, check_file, publish, write_failed
 from ..recording import TRUTH_KEYS, Recording, truth_value
 from ..validation import check_flag
 from . import csv, hdf5, mat, tdms
-from .channels import RawData, assemble, merge_metadata
+from .channels import RawData, assemble, merge_metadata, unreadable_name
 
 #: file extension -> format name
 FORMATS = {".csv": "csv", ".txt": "csv", ".tsv": "csv", ".h5": "hdf5", ".hdf5": "hdf5", ".hdf": "hdf5",
@@ -108,6 +108,20 @@ def _targets(path: Path, fmt: str) -> list[Path]:
     return [path, csv.sidecar_path(path)] if fmt == "csv" else [path]
 
 
+#: format name -> why a channel name cannot be written in that format (None where it can)
+NAME_CHECKS: dict[str, Callable[[str], str | None]] = {"csv": csv.unwritable_name, "hdf5": hdf5.unwritable_name}
+
+
+def check_names(recording: Recording, fmt: str, path: Path) -> None:
+    """RecordingError naming the first channel of ``recording`` that a ``fmt`` file would not give back under its
+    name (:func:`.channels.unreadable_name`, and the format's own :data:`NAME_CHECKS`)."""
+    for name in recording.channels:
+        why = unreadable_name(name) or (NAME_CHECKS[fmt](name) if fmt in NAME_CHECKS else None)
+        if why:
+            raise RecordingError(f"{path}: channel {name!r} cannot be written to a {fmt} file and read back: {why}; "
+                                 "expected a channel name that reads back as itself (rename the channel)")
+
+
 def write_recording(recording: Recording, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``recording`` in the format given by the extension of ``path``; returns the path.
 
@@ -118,6 +132,7 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
     path = as_path(path, error=RecordingError)
     fmt = format_of(path)
     targets = _targets(path, fmt)
+    check_names(recording, fmt, path)
     flag = "overwrite=True (--force)"
     for target in targets:
         check_file(target, overwrite=overwrite, flag=flag, error=RecordingError)

@@ -84,6 +84,20 @@ def split_unit(name: str) -> tuple[str, str | None]:
     return name.strip(), None
 
 
+def unreadable_name(name: str) -> str | None:
+    """Why a channel written under ``name`` would come back under another name or as the time base (None where
+    it would not): reading strips surrounding spaces, takes a bracketed end for a unit and a time name for the
+    time column (:func:`split_unit`, :data:`TIME_NAMES`)."""
+    bare, unit = split_unit(name)
+    if name != name.strip():
+        return "reading strips the spaces around it"
+    if unit is not None or bare != name:
+        return f"reading takes its end for a unit ({bare!r} in {unit!r})"
+    if bare.lower() in TIME_NAMES:
+        return "reading takes it for the time column"
+    return None
+
+
 def unit_factor(unit: str | None, *, dimension: str | None, field: str, source: str) -> tuple[str, float] | None:
     """(dimension, factor to SI) of ``unit``; None for no unit, or for an unknown unit when ``dimension`` is None.
 

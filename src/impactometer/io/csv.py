@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import csv as _csv
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -109,8 +110,13 @@ def _decoded(data: bytes, encoding: str) -> list[str]:
     return lines
 
 
+#: a quoted cell of a header row ("a,b", with "" for a quote inside)
+_QUOTED = re.compile(r'"(?:[^"]|"")*"')
+
+
 def _header(line: str, path: Path) -> tuple[list[str], str]:
-    separator = next((s for s in SEPARATORS if s in line), ",")
+    unquoted = _QUOTED.sub("", line)  # a separator inside a quoted channel name is part of the name
+    separator = next((s for s in SEPARATORS if s in unquoted), ",")
     cells = next(_csv.reader([line], delimiter=separator))
     header = [cell.strip() for cell in cells]
     while header and not header[-1]:
@@ -189,10 +195,24 @@ def read(path: Path) -> RawData:
     return RawData(columns=columns, source=str(path), sample_rate=rate, start_time=start, metadata=metadata)
 
 
+def unwritable_name(name: str) -> str | None:
+    """Why a channel called ``name`` cannot be a cell of the header row (None where it can): the rows are read a
+    line at a time, so a line break (or another control character) would cut the header."""
+    if any(ord(c) < 32 or ord(c) == 127 for c in name):
+        return "it holds a control character (a line break, a tab), and the header row must stay one line"
+    return None
+
+
+def _cell(text: str) -> str:
+    """A header cell, quoted as the csv module reads it where it holds a separator or a quote."""
+    return f'"{text.replace(chr(34), 2 * chr(34))}"' if any(c in text for c in (*SEPARATORS, '"')) else text
+
+
 def write(recording: Recording, path: Path) -> None:
-    """Write the samples of ``recording`` as CSV (``time [s]`` first, SI units)."""
-    header = ["time [s]"] + [f"{name} [{recording.unit(name)}]" if recording.unit(name)
-                             else name for name in recording.channels]
+    """Write the samples of ``recording`` as CSV (``time [s]`` first, SI units; a channel name holding a
+    separator or a quote is quoted)."""
+    header = ["time [s]"] + [_cell(f"{name} [{recording.unit(name)}]" if recording.unit(name) else name)
+                             for name in recording.channels]
     table = np.column_stack([recording.time] + list(recording.channels.values()))
     with open(path, "w", encoding="utf-8", newline="") as handle:
         handle.write(",".join(header) + "\n")

@@ -83,6 +83,17 @@ def read(path: Path, *, group: str | None = None) -> RawData:
                    metadata=merge_metadata([("attribute", rest), ("attribute 'metadata'", metadata)], source))
 
 
+def unwritable_name(name: str) -> str | None:
+    """Why a channel called ``name`` cannot be a dataset of the file's root (None where it can): HDF5 reads a
+    ``/`` as a path through groups (the channel would be a dataset in a subgroup, which reading does not look
+    into) and reserves ``.``."""
+    if "/" in name:
+        return "HDF5 reads '/' as a path through groups, and the channel would not be read back"
+    if name == ".":
+        return "HDF5 reserves '.' for the group itself"
+    return None
+
+
 def write(recording: Recording, path: Path) -> None:
     """Write ``recording`` to a new HDF5 file."""
     with h5py.File(path, "w", track_order=True) as handle:  # channels come back in their order
