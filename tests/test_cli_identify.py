@@ -42,9 +42,9 @@ def test_identify_table_plot_and_stream(rec_file, tmp_path, capsys):
     main(["identify", str(rec_file), "--plot", str(out)])
     assert out.stat().st_size > 1000 and "mass M1" in capsys.readouterr().out
     with pytest.raises(SystemExit) as exc:
-        main(["identify", str(rec_file), "--plot", str(out)])  # exists, no --force
+        main(["identify", str(rec_file), "--plot", str(out)])  # exists, no --overwrite
     assert exc.value.code == 2
-    _assert_error_line(capsys.readouterr(), "--force")
+    _assert_error_line(capsys.readouterr(), "--overwrite")
     main(["stream", str(rec_file), "--json", "--chunk", "64"])
     lines = [json.loads(x) for x in capsys.readouterr().out.splitlines() if x.startswith("{")]
     assert lines[0]["kind"] == "early" and lines[-1]["mass_kg"] == pytest.approx(25.0, rel=5e-3)
@@ -66,7 +66,8 @@ def test_identify_with_a_response_map(rec_file, tmp_path, capsys):
 
     path = save_map(build_map_simulated("drop-stand-stiff", 1.5e5, masses=np.linspace(10, 50, 6),
                                         velocities=np.linspace(1, 3, 6)), tmp_path / "map.h5")
-    main(["identify", str(rec_file), "--method", "response-map", "--map", str(path), "--json"])
+    main(["identify", str(rec_file), "--method", "response-map", "--map", str(path), "--pressure", "150kPa",
+          "--json"])
     data = json.loads(capsys.readouterr().out)
     assert data["method"] == "response-map"
     assert data["velocity_m_s"] == pytest.approx(1.8, rel=0.02) and data["mass_kg"] == pytest.approx(25, rel=0.1)
@@ -164,3 +165,42 @@ def test_json_names_the_equations_and_cfc_is_refused(rec_file, capsys):
         assert len(captured.err.strip().splitlines()) == 1 and captured.out == ""
     main(["identify", str(rec_file), "--cfc", "1000", "--variant", "paper", "--json"])
     assert json.loads(capsys.readouterr().out)["variant"] == "paper"
+
+
+def test_stream_json_names_the_stage_of_each_line(rec_file, capsys):
+    """stream --json: the early answer, then updates, then the final answer, each labelled with its stage; the
+    final line is identify's answer and carries the early answer, as identify --json does."""
+    main(["stream", str(rec_file), "--json", "--chunk", "64"])
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    stages = [line["stage"] for line in lines]
+    assert stages[0] == "early" and stages[-1] == "final" and set(stages[1:-1]) == {"update"}, stages
+    assert [line["kind"] for line in lines] == ["early"] + ["estimate"] * (len(lines) - 1)
+    main(["identify", str(rec_file), "--json"])
+    batch = json.loads(capsys.readouterr().out)
+    assert lines[-1]["early"] == lines[0] | {"kind": None, "stage": "early"} or \
+        lines[-1]["early"]["mass_kg"] == lines[0]["mass_kg"]
+    assert lines[-1]["early"] == batch["early"] and lines[-1]["mass_kg"] == batch["mass_kg"]
+    assert lines[-1]["early_reason"] is None and batch["early_reason"] is None
+
+
+@pytest.fixture(scope="module")
+def pad_file(tmp_path_factory):
+    """A record on the pad stand, whose hysteretic contact the early fit's law family cannot describe."""
+    path = tmp_path_factory.mktemp("pad") / "pad.tdms"
+    main(["record", "--out", str(path), "--duration", "60ms", "--noise", "1%", "--seed", "1"])
+    return path
+
+
+def test_identify_and_stream_say_why_there_is_no_early_answer(pad_file, capsys):
+    capsys.readouterr()
+    main(["identify", str(pad_file), "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert data["early"] is None and "follow no law" in data["early_reason"] and "hysteretic" in data["early_reason"]
+    main(["stream", str(pad_file), "--json"])
+    lines = [json.loads(x) for x in capsys.readouterr().out.splitlines()]
+    assert "early" not in {line["stage"] for line in lines} and lines[-1]["stage"] == "final"
+    assert lines[-1]["early_reason"] == data["early_reason"] and lines[-1]["mass_kg"] == data["mass_kg"]
+    main(["identify", str(pad_file)])
+    assert "early" in capsys.readouterr().out.replace("\n", " ")  # the table says so too
+    main(["identify", str(pad_file), "--json", "--variant", "paper"])
+    assert "the paper variant gives no early answer" in json.loads(capsys.readouterr().out)["early_reason"]

@@ -38,35 +38,48 @@ def test_record_options_reach_the_sensor_model(tmp_path):
     assert rec.metadata["adc_bits"] == 12 and rec.metadata["anti_alias"] == "zero-phase"
 
 
-def test_record_refuses_to_overwrite_without_force(tmp_path, capsys):
+def test_record_refuses_to_overwrite_without_overwrite(tmp_path, capsys):
     out = tmp_path / "r.mat"
     main(["record", "--duration", "5ms", "--out", str(out)])
     before = out.read_bytes()
     with pytest.raises(SystemExit) as exc:
         main(["record", "--duration", "5ms", "--mass", "40kg", "--out", str(out)])
     captured = capsys.readouterr()
-    assert exc.value.code == 2 and "exists; pass --force" in captured.err
+    assert exc.value.code == 2 and "exists; pass --overwrite" in captured.err
     assert captured.err.startswith("error:") and captured.err.count("\n") == 1 and "error:" not in captured.out
     assert out.read_bytes() == before
-    main(["record", "--duration", "5ms", "--mass", "40kg", "--out", str(out), "--force"])
+    main(["record", "--duration", "5ms", "--mass", "40kg", "--out", str(out), "--overwrite"])
     assert read_recording(out).truth("mass_kg") == 40.0
+    main(["record", "--duration", "5ms", "--mass", "50kg", "--out", str(out), "--force"])  # the earlier name
+    assert read_recording(out).truth("mass_kg") == 50.0
 
 
 @pytest.mark.parametrize("argv, message", [
     (["record", "--out", "x.xlsx"], "unknown extension '.xlsx'"),
     (["record", "--noise", "loud", "--out", "x.csv"], "--noise"),
-    (["record", "--noise", "-2%", "--out", "x.csv"], "noise must be"),
-    (["record", "--sample-rate", "1kHz", "--out", "x.csv"], "sample_rate must be >= 5000"),
-    (["record", "--anti-alias", "sinc", "--out", "x.csv"], "anti_alias must be"),
+    (["record", "--noise", "-2%", "--out", "x.csv"], "--noise -2%: must be within [0, 1000%]"),
+    (["record", "--noise", "0.8", "--out", "x.csv"], "--noise 0.8: a bare number is a fraction (0.8 = 80%); did "
+                                                     "you mean 0.8%? (write 80% to mean it)"),
+    (["record", "--force-noise", "2", "--out", "x.csv"], "--force-noise 2: a bare number is a fraction"),
+    (["record", "--sample-rate", "1kHz", "--out", "x.csv"], "--sample-rate 1kHz: must be >= 5000"),
+    (["record", "--anti-alias", "sinc", "--out", "x.csv"], "--anti-alias sinc: must be"),
+    (["record", "--pre-trigger", "-1ms", "--out", "x.csv"], "--pre-trigger -1ms: must be >= 0 [s]"),
     (["record", "--extra", "voltage", "--out", "x.csv"], "unknown channel 'voltage'"),
     (["inspect", "missing.csv"], "no such file"),
     (["inspect", "bad.csv"], "data row 1, column 'force [N]' holds 'x'"),
-    (["inspect", "good.csv", "--cfc", "500"], "cfc must be one of"),
+    (["inspect", "good.csv", "--cfc", "500"], "--cfc 500: must be one of [60, 180, 600, 1000]"),
+    (["inspect", "good.csv", "--force-channel", "load"], "good.csv: --force-channel 'load' not found"),
+    (["inspect", "nameless.csv"], "or pass --force-channel)"),
+    (["inspect", "untimed.csv"], "pass --sample-rate"),
+    (["inspect", "good.csv", "--sample-rate", "20"], "--sample-rate 20: a bare number is SI (Hz); did you mean "
+                                                     "20kHz?"),
     (["inspect", "good.csv", "--group", "g"], "applies to HDF5 and TDMS files only"),
 ])
 def test_errors_print_one_line_and_exit_2(tmp_path, monkeypatch, capsys, argv, message):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "bad.csv").write_text("time [s],force [N]\n0,x\n")
+    (tmp_path / "nameless.csv").write_text("time [s],a [N]\n0,1\n0.001,2\n")
+    (tmp_path / "untimed.csv").write_text("force [N],acceleration [m/s^2]\n1,2\n3,4\n")
     write_recording(Recording(sample_rate=20e3, channels={"contact_force": np.zeros(50)}), tmp_path / "good.csv")
     with pytest.raises(SystemExit) as exc:
         main(argv)
@@ -113,7 +126,7 @@ def test_inspect_plot_cfc_and_overwrite(recorded, tmp_path, capsys):
     assert png.stat().st_size > 5000 and "figure written" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         main(["inspect", str(recorded), "--plot", str(png)])
-    main(["inspect", str(recorded), "--plot", str(png), "--force"])
+    main(["inspect", str(recorded), "--plot", str(png), "--overwrite"])
 
 
 def test_inspect_reads_a_lab_csv_with_options(tmp_path, capsys):

@@ -65,29 +65,36 @@ def test_simulate_options_velocity_contact_and_rig_file(tmp_path, capsys):
         assert np.all(f["friction_force"][:] == 0.0)
 
 
-def test_simulate_refuses_to_overwrite_without_force(tmp_path, capsys):
+@pytest.mark.parametrize("flag", ["--overwrite", "--force"])  # --force: the flag's earlier name, still accepted
+def test_simulate_refuses_to_overwrite_without_overwrite(tmp_path, capsys, flag):
     out = tmp_path / "run.h5"
     out.write_bytes(b"precious")
     args = ["simulate", "--velocity", "1m/s", "--duration", "5ms", "--out", str(out)]
     status, text, err = run(args, capsys)
     assert_error_line(status, text, err)
-    assert "exists; pass --force" in err
+    assert "exists; pass --overwrite" in err
     assert out.read_bytes() == b"precious"
-    status, _, err = run(args + ["--force"], capsys)
+    status, _, err = run(args + [flag], capsys)
     assert status == 0 and h5py.is_hdf5(out), err
 
 
 @pytest.mark.parametrize("args, message", [
     (["--pressure", "200kPaa"], "--pressure: unknown pressure unit 'kPaa'"),
     (["--mass", "heavy"], "--mass must be a number with an optional mass unit"),
-    (["--mass", "-3kg"], "mass must be >= 0.1"),
+    (["--mass", "-3kg"], "--mass -3kg: must be >= 0.1 [kg]"),
     (["--height", "nan"], "--height must be a finite number"),
-    (["--pressure", "500kPa"], "pressure_gauge must be <= the rated 400000 Pa"),
-    (["--pressure", "-1kPa"], "pressure_gauge must be >= 0"),
-    (["--contact", "glue"], "contact.law must be one of"),
+    (["--pressure", "500kPa"], "--pressure 500kPa: must be <= the rated 400000 Pa of 'drop-stand'"),
+    (["--pressure", "-1kPa"], "--pressure -1kPa: must be >= 0 [Pa]"),
+    (["--pressure", "200"], "--pressure 200: a bare number is SI (Pa); did you mean 200kPa? (write 200Pa"),
+    (["--height", "20"], "--height 20: a bare number is SI (m); did you mean 20cm or 20mm?"),
+    (["--mass", "30000"], "--mass 30000: a bare number is SI (kg); did you mean 30000g?"),
+    (["--sample-rate", "50"], "--sample-rate 50: a bare number is SI (Hz); did you mean 50kHz?"),
+    (["--duration", "50"], "--duration 50: a bare number is SI (s); did you mean 50ms?"),
+    (["--contact", "glue"], "--contact glue: must be one of"),
+    (["--integrator", "euler"], "--integrator euler: must be one of ['fast', 'reference']"),
     (["--velocity", "2m/s", "--height", "0.2m"], "give exactly one of --height and --velocity"),
     (["--duration", "50kHz"], "--duration: unknown time unit 'kHz'"),
-    (["--rig", "stand.yaml"], "rig must be one of"),
+    (["--rig", "stand.yaml"], "--rig stand.yaml: must be one of"),
 ])
 def test_bad_input_exits_2_with_one_line(args, message, capsys):
     status, out, err = run(["simulate", *args], capsys)
@@ -114,9 +121,9 @@ def test_demo_replaces_its_folder_only_with_force(tmp_path, capsys):
     (out / "impact.png").write_bytes(b"keep")
     status, text, err = run(["demo", "--out", str(out), "--no-absorb"], capsys)
     assert_error_line(status, text, err)
-    assert "--force" in err
+    assert "--overwrite" in err
     assert (out / "impact.png").read_bytes() == b"keep"
-    status, _, err = run(["demo", "--out", str(out), "--no-absorb", "--force"], capsys)
+    status, _, err = run(["demo", "--out", str(out), "--no-absorb", "--overwrite"], capsys)
     assert status == 0, err
     assert (out / "impact.png").read_bytes()[:4] == b"\x89PNG"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["demo"]  # nothing piles up beside it
@@ -125,4 +132,4 @@ def test_demo_replaces_its_folder_only_with_force(tmp_path, capsys):
 def test_error_line_keeps_bracketed_units(capsys):
     status, out, err = run(["simulate", "--mass", "0kg"], capsys)
     assert_error_line(status, out, err)
-    assert "mass must be >= 0.1 [kg], got 0.0" in err
+    assert "--mass 0kg: must be >= 0.1 [kg]" in err

@@ -48,6 +48,19 @@ def test_streaming_equals_batch_on_the_pad_stand(chunk):
         got.extend(ident.push(f[k:k + chunk], a[k:k + chunk]))
     assert ident.finish() == batch and got[0].early == batch.early
     assert [e.available_at for e in got] == sorted(e.available_at for e in got)
+    # no early answer on this stand, and every answer says why, the streaming ones as the batch one
+    assert batch.early is None and "follow no law" in batch.early_reason
+    assert {e.early_reason for e in got} == {batch.early_reason}
+
+
+def test_the_early_reason_is_none_with_an_early_answer_and_names_the_variant_without_one():
+    f, a = impact(30.0, 2.0, seed=3)
+    robust = identify_arrays(f, a, FS, -0.04)
+    assert robust.early is not None and robust.early_reason is None and robust.early.early_reason is None
+    assert robust.to_dict()["early_reason"] is None
+    paper = identify_arrays(f, a, FS, -0.04, variant="paper")
+    assert paper.early is None and paper.to_dict()["early_reason"] == ("the paper variant gives no early answer "
+                                                                       "(the robust variant does)")
 
 
 def test_stage_b_updates_keep_coming_at_a_growing_spacing():

@@ -66,3 +66,40 @@ def test_a_spelling_of_two_units_is_refused(text, dimension):
 def test_an_overflowing_quantity_is_refused():
     with pytest.raises(UnitError, match="overflows"):
         parse_quantity("1e308GHz", "frequency")
+
+
+@pytest.mark.parametrize("text, dimension, match", [
+    ("200", "pressure", r"^--x 200: a bare number is SI \(Pa\); did you mean 200kPa\? \(write 200Pa to mean it\)$"),
+    ("30000", "mass", r"did you mean 30000g\? \(write 30000kg to mean it\)"),
+    ("20", "length", r"did you mean 20cm or 20mm\?"),
+    ("200", "velocity", r"did you mean 200mm/s\?"),
+    ("50", "time", r"did you mean 50ms\?"),
+    ("50", "frequency", r"SI \(Hz\); did you mean 50kHz\?"),
+    ("2", "fraction", r"a fraction \(2 = 200%\); did you mean 2%\? \(write 200% to mean it\)"),
+    ("0.5", "pressure", r"an implausible pressure; give its unit \(write 0.5Pa to mean it\)"),
+])
+def test_a_bare_number_outside_its_plausible_range_is_refused_on_request(text, dimension, match):
+    """A bare number is SI, and on the command line (``plausible=True``) one outside the range a drop test makes
+    plausible is refused, naming the unit likely meant and the spelling that keeps the number."""
+    assert parse_quantity(text, dimension) == float(text)  # the Python API and files: SI, as before
+    with pytest.raises(UnitError, match=match):
+        parse_quantity(text, dimension, field="--x", plausible=True)
+
+
+@pytest.mark.parametrize("text, dimension, expected", [
+    ("200Pa", "pressure", 200.0), ("0", "pressure", 0.0), ("2000", "pressure", 2000.0), ("30", "mass", 30.0),
+    ("30000g", "mass", 30.0), ("0.2", "length", 0.2), ("20m", "length", 20.0), ("50000", "frequency", 5e4),
+    ("0.02", "fraction", 0.02), ("80%", "fraction", 0.8), ("0.05", "time", 0.05), ("-3", "mass", -3.0),
+    ("1500", "force", 1500.0),
+])
+def test_a_unit_or_a_plausible_bare_number_is_taken_as_written(text, dimension, expected):
+    """A unit suffix, SI included, is always the user's intent; 0 and negative numbers are left to the checks of
+    the quantity; dimensions without a range (force) take any bare number."""
+    assert parse_quantity(text, dimension, field="--x", plausible=True) == pytest.approx(expected, rel=1e-15)
+
+
+def test_every_range_names_units_of_its_dimension():
+    from impactometer.units import BARE_RANGES
+
+    for dimension, (low, high, meant) in BARE_RANGES.items():
+        assert dimension in UNITS and 0 <= low < high and meant and set(meant) <= set(UNITS[dimension])

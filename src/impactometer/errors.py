@@ -6,6 +6,7 @@ matches its meaning, so callers can catch either ``ImpactometerError`` or, e.g.,
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 
@@ -19,8 +20,31 @@ def shown(value: Any) -> str:
     return text if len(text) <= 80 else text[:77] + "..."
 
 
+#: the house form of a message about one parameter: "FIELD must EXPECTATION, got VALUE" (FIELD may carry an index,
+#: ``pressure_gauge[2]``, or a section, ``contact.law``)
+_ABOUT_FIELD = re.compile(r"^(?P<field>[A-Za-z_][\w.]*)(?:\[\d+\])? (?P<expected>must .+?)(?:, got .*)?$", re.S)
+
+
 class ImpactometerError(Exception):
-    """Base class of every error impactometer raises on purpose."""
+    """Base class of every error impactometer raises on purpose.
+
+    Attributes
+    ----------
+    field : str or None
+        The parameter the error is about, as the Python API names it (``mass``, ``pressure_gauge``, ``cfc``);
+        None where the error is not about one parameter.
+    expected : str or None
+        What that parameter must be, without its name or value (``must be >= 0.1 [kg]``); None where unknown.
+
+    Both are given as keywords, or else read from a message of the house form ``"FIELD must EXPECTATION, got
+    VALUE"``; the command line uses them to name its option and the user's text instead of the Python name.
+    """
+
+    def __init__(self, *args: Any, field: str | None = None, expected: str | None = None) -> None:
+        super().__init__(*args)
+        about = _ABOUT_FIELD.match(args[0]) if len(args) == 1 and isinstance(args[0], str) else None
+        self.field = field if field is not None else about["field"] if about else None
+        self.expected = expected if expected is not None else about["expected"] if about else None
 
 
 class ParameterError(ImpactometerError, ValueError):

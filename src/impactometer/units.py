@@ -3,6 +3,10 @@
 Used only at the edges (CLI, files): everything inside the package is SI. Symbols are read as written where case
 tells two units apart (``mHz`` is milli-, ``MHz`` mega-hertz; ``mPa`` and ``MPa``); elsewhere case does not matter
 (``khz``, ``KPA``, ``KN``), and a spelling that could be either of two units (``mhz``) is refused.
+
+On the command line a bare number (SI) outside the range a drop test makes plausible for its quantity
+(:data:`BARE_RANGES`) is refused with the unit most likely meant: ``--pressure 200`` is 200 Pa, which nobody charges
+a cylinder to, and almost always means 200 kPa. A unit suffix, SI included (``200Pa``), is always taken as meant.
 """
 
 from __future__ import annotations
@@ -12,6 +16,7 @@ import re
 
 from .constants import STANDARD_GRAVITY
 from .errors import UnitError
+from .stands import FREE_FALL_HEIGHTS, VELOCITY_RANGE
 from .validation import check_real, is_real
 
 #: dimension -> unit symbol (as written) -> factor to SI
@@ -27,6 +32,19 @@ UNITS: dict[str, dict[str, float]] = {
     "fraction": {"%": 1e-2},
     "stiffness": {"N/m": 1.0, "kN/m": 1e3, "kN/mm": 1e6},
     "area": {"m2": 1.0, "mm2": 1e-6, "mm^2": 1e-6, "cm2": 1e-4},
+}
+
+#: dimension -> (low, high, units meant): a bare number (SI) of that dimension is plausible for a drop test within
+#: [low, high] (0 always is: it is 0 in any unit, and negative values are left to the checks of the quantity);
+#: outside, the units in the tuple that bring it within are named as the likely intent
+BARE_RANGES: dict[str, tuple[float, float, tuple[str, ...]]] = {
+    "mass": (0.0, 1e3, ("g",)),  # a mass above a tonne written in grams
+    "length": (0.0, FREE_FALL_HEIGHTS[1], ("cm", "mm")),  # a drop height above the stand's 12 m
+    "velocity": (0.0, VELOCITY_RANGE[1], ("mm/s", "km/h")),  # faster than a free fall from 12 m
+    "pressure": (1e3, math.inf, ("kPa",)),  # a charge pressure below 1 kPa gauge
+    "time": (0.0, 10.0, ("ms",)),  # a record or window longer than 10 s
+    "frequency": (1e3, math.inf, ("kHz",)),  # a sample rate below 1 kHz
+    "fraction": (0.0, 0.5, ("%",)),  # noise above half of a channel's RMS
 }
 
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?inf|nan)\s*(.*?)\s*$", re.IGNORECASE)
@@ -64,7 +82,7 @@ def _fold(symbol: str) -> str:
     return symbol.lower().replace("\u03bc", "\u00b5")  # upper-casing µ gives Greek capital mu, lower-casing that mu
 
 
-def parse_quantity(text: str | float | int, dimension: str, *, field: str = "value") -> float:
+def parse_quantity(text: str | float | int, dimension: str, *, field: str = "value", plausible: bool = False) -> float:
     """Parse ``text`` as a quantity of ``dimension`` and return it in SI units.
 
     Parameters
@@ -76,6 +94,9 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
         ``acceleration``, ``fraction``, ``stiffness`` or ``area``.
     field : str
         Name used in error messages.
+    plausible : bool
+        Refuse a bare number outside the plausible range of ``dimension`` (:data:`BARE_RANGES`), naming the unit
+        most likely meant and the explicit spelling that keeps the number as it is (the command line).
 
     Returns
     -------
@@ -97,6 +118,8 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
     if not math.isfinite(value):
         raise UnitError(f"{field} must be a finite number with an optional {dimension} unit, got {text!r}")
     if not unit:
+        if plausible:
+            check_bare(match.group(1), value, dimension, field)
         return value
     known = find_unit(unit, dimension, field=field)
     if known is None:
@@ -106,6 +129,25 @@ def parse_quantity(text: str | float | int, dimension: str, *, field: str = "val
     if not math.isfinite(result):
         raise UnitError(f"{field} must be a finite number, got {text!r} ({value:g} {unit} overflows)")
     return result
+
+
+def check_bare(number: str, value: float, dimension: str, field: str) -> None:
+    """UnitError when the bare ``number`` (``value`` in SI) lies outside the plausible range of ``dimension``
+    (:data:`BARE_RANGES`): one line naming ``field``, the text, the units likely meant and how to keep the value."""
+    if dimension not in BARE_RANGES or not value > 0:
+        return
+    low, high, meant = BARE_RANGES[dimension]
+    if low <= value <= high:
+        return
+    units = UNITS[dimension]
+    likely = [f"{number}{unit}" for unit in meant if low <= value * units[unit] <= high]
+    if dimension == "fraction":
+        reading, kept = f"a fraction ({number} = {value:.0%})", f"{value * 100:g}%"
+    else:
+        si = next(unit for unit, factor in units.items() if factor == 1.0)
+        reading, kept = f"SI ({si})", f"{number}{si}"
+    guess = f"did you mean {' or '.join(likely)}?" if likely else f"an implausible {dimension}; give its unit"
+    raise UnitError(f"{field} {number}: a bare number is {reading}; {guess} (write {kept} to mean it)")
 
 
 def _example(dimension: str) -> str:

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ParameterError, shown
+from .errors import ImpactometerError, ParameterError, shown
 
 
 def is_real(value: Any) -> bool:
@@ -34,6 +34,15 @@ def _bounds(low: float | None, high: float | None, low_open: bool, high_open: bo
     if low is not None:
         return f" {'>' if low_open else '>='} {low:{spec}}"
     return "" if high is None else f" {'<' if high_open else '<='} {high:{spec}}"
+
+
+def _refused(error: type[Exception], name: str, expected: str, got: str) -> Exception:
+    """``error`` "NAME EXPECTED, got GOT", an :class:`~impactometer.errors.ImpactometerError` carrying ``name`` as
+    its field and what was expected."""
+    message = f"{name} {expected}, got {got}"
+    if issubclass(error, ImpactometerError):
+        return error(message, field=name, expected=expected)
+    return error(message)
 
 
 def check_real(name: str, value: Any, *, low: float | None = None, high: float | None = None,
@@ -58,14 +67,14 @@ def check_real(name: str, value: Any, *, low: float | None = None, high: float |
     above = high is not None and (v >= high if high_open else v > high)
     if state_range and not (number and not below and not above):
         finite_word = "finite " if finite and (low is None or high is None) else ""
-        raise error(f"{name} must be a {finite_word}number{_bounds(low, high, low_open, high_open, 'g')}{unit}, "
-                    f"got {shown(value)}")
+        raise _refused(error, name, f"must be a {finite_word}number{_bounds(low, high, low_open, high_open, 'g')}"
+                                    f"{unit}", shown(value))
     if not number:
-        raise error(f"{name} must be a {'finite ' if finite else ''}number{unit}, got {shown(value)}")
+        raise _refused(error, name, f"must be a {'finite ' if finite else ''}number{unit}", shown(value))
     if below:
-        raise error(f"{name} must be {'>' if low_open else '>='} {low:g}{unit}, got {v!r}")
+        raise _refused(error, name, f"must be {'>' if low_open else '>='} {low:g}{unit}", repr(v))
     if above:
-        raise error(f"{name} must be {'<' if high_open else '<='} {high:g}{unit}, got {v!r}")
+        raise _refused(error, name, f"must be {'<' if high_open else '<='} {high:g}{unit}", repr(v))
     return v
 
 
@@ -75,11 +84,11 @@ def check_integer(name: str, value: Any, *, low: int | None = None, high: int | 
     ``state_range``, as :func:`check_real`)."""
     outside = is_integer(value) and ((low is not None and value < low) or (high is not None and value > high))
     if not is_integer(value) or (state_range and outside):
-        raise error(f"{name} must be an integer{_bounds(low, high, False, False, '')}{unit}, got {shown(value)}")
+        raise _refused(error, name, f"must be an integer{_bounds(low, high, False, False, '')}{unit}", shown(value))
     if low is not None and value < low:
-        raise error(f"{name} must be an integer >= {low}{unit}, got {int(value)!r}")
+        raise _refused(error, name, f"must be an integer >= {low}{unit}", repr(int(value)))
     if high is not None and value > high:
-        raise error(f"{name} must be an integer <= {high}{unit}, got {int(value)!r}")
+        raise _refused(error, name, f"must be an integer <= {high}{unit}", repr(int(value)))
     return int(value)
 
 
@@ -87,7 +96,7 @@ def check_flag(name: str, value: Any, *, error: type[Exception] = ParameterError
     """``value`` as a bool (Python or numpy), or ``error`` saying ``name`` must be True or False: no 0, 1 or
     "yes" taken for one."""
     if not isinstance(value, (bool, np.bool_)):
-        raise error(f"{name} must be True or False, got {shown(value)}")
+        raise _refused(error, name, "must be True or False", shown(value))
     return bool(value)
 
 

@@ -1,5 +1,5 @@
 """Command-line interface: ``impactometer COMMAND``. Errors print in one line (on standard error) and exit with
-status 2."""
+status 2; a command group run without a command prints its help."""
 
 from __future__ import annotations
 
@@ -41,6 +41,9 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:
         # click's exceptions (typer may bundle its own copy of click, so match by interface, not by class)
         name = type(exc).__name__
+        if name == "NoArgsIsHelpError":  # the command or a group run bare: its help as click shows it, not one line
+            exc.show()  # type: ignore[attr-defined]
+            sys.exit(getattr(exc, "exit_code", 2))
         if hasattr(exc, "format_message"):
             _fail(exc.format_message(), getattr(exc, "exit_code", 2) or 2)
         if name == "Abort":

@@ -2,26 +2,63 @@
 
 from __future__ import annotations
 
+import copy
 import math
+import os
+import re
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, overload
 
 import typer
 import typer.core
-from rich.console import Console
+from rich.console import Console, ConsoleDimensions
 
 from .. import __version__
+from ..errors import ImpactometerError
 from ..outputs import HDF5_EXTENSIONS, check_file, figure_formats
 from ..units import parse_quantity
 
+#: earlier spellings of options, still accepted and left out of the help: old spelling -> the one shown
+OLD_SPELLINGS = {"--force": "--overwrite", "--identify": "--method", "--response-map": "--map"}
+#: the declaration of the flag that lets a command replace existing output files (``--force`` before)
+OVERWRITE = ("--overwrite", "--force")
+#: the help's placeholder of an option's value where it declares none, by the value's Python type
+METAVARS = {str: "TEXT", int: "INTEGER", float: "NUMBER", Path: "PATH"}
+
 
 class Command(typer.core.TyperCommand):
-    """A command whose usage line names its arguments as click does (``FILE``, not ``{FILE}``)."""
+    """A command whose usage line names its arguments as click does (``FILE``, not ``{FILE}``), whose help shows
+    a placeholder in words for every value (``TEXT``, not ``<str>``; an argument its name alone) and leaves out
+    :data:`OLD_SPELLINGS`."""
+
+    def __init__(self, *args, **options):
+        super().__init__(*args, **options)
+        for param in self.params:
+            kind = getattr(getattr(param, "type_descriptor", None), "annotation", None)
+            if param.param_type_name == "option" and param.metavar is None and not getattr(param, "is_flag", False):
+                param.metavar = METAVARS.get(kind, "TEXT")
 
     def collect_usage_pieces(self, ctx):
         return [piece[1:-1] if piece.startswith("{") and piece.endswith("}") else piece
                 for piece in super().collect_usage_pieces(ctx)]
+
+    def format_options(self, ctx, formatter):
+        sections = {"Arguments": [], "Options": []}
+        for param in self.get_params(ctx):
+            shown = copy.copy(param)
+            shown.opts = [o for o in param.opts if o not in OLD_SPELLINGS] or param.opts
+            if param.param_type_name == "argument":  # its name (FILE) says what it takes: no <path> beside it
+                shown.display_type_rich = lambda ctx: None
+            record = shown.get_help_record(ctx)
+            if record is not None and param.param_type_name in ("argument", "option"):
+                sections["Arguments" if param.param_type_name == "argument" else "Options"].append(record)
+        for title, records in sections.items():
+            if records:
+                with formatter.section(title):
+                    formatter.write_dl(records)
 
 
 class App(typer.Typer):
@@ -36,9 +73,31 @@ class App(typer.Typer):
 
 app = App(add_completion=False, pretty_exceptions_enable=False,
           help="On-line impact load identification and adaptive impact absorption.")
-console = Console(soft_wrap=True)  # paths and one-line messages are never broken (the terminal wraps)
+
+#: width of the output where it is not a terminal and COLUMNS does not say: wide enough that no table breaks a path
+UNBROKEN_WIDTH = 10_000
+
+
+class _Console(Console):
+    """A rich Console that, writing to a file or a pipe (and COLUMNS unset), is as wide as its widest line: a table
+    takes the width of its content, so a path in a table or its title is never broken (rich wraps at 80 columns
+    where the output is not a terminal)."""
+
+    @property
+    def size(self) -> ConsoleDimensions:
+        size = Console.size.fget(self)  # type: ignore[attr-defined]
+        if self.is_terminal or self._width is not None or "COLUMNS" in os.environ:
+            return size
+        return ConsoleDimensions(UNBROKEN_WIDTH, size.height)
+
+    @size.setter
+    def size(self, new_size: tuple[int, int]) -> None:
+        Console.size.fset(self, new_size)  # type: ignore[attr-defined]
+
+
+console = _Console(soft_wrap=True)  # paths and one-line messages are never broken (the terminal wraps)
 #: errors go to standard error, so that standard output holds only results (``--json`` pipes stay parsable)
-error_console = Console(soft_wrap=True, stderr=True)
+error_console = _Console(soft_wrap=True, stderr=True)
 
 
 def _version(value: bool) -> None:
@@ -66,13 +125,63 @@ def quantity(text: str | None, dimension: str, field: str) -> float | None: ...
 
 
 def quantity(text: str | None, dimension: str, field: str) -> float | None:
-    """Parse a CLI quantity with an optional unit suffix (SI when bare); None passes through."""
-    return None if text is None else parse_quantity(text, dimension, field=field)
+    """Parse a CLI quantity with an optional unit suffix (SI when bare, and refused when a bare number lies outside
+    the quantity's plausible range: :data:`~impactometer.units.BARE_RANGES`); None passes through."""
+    return None if text is None else parse_quantity(text, dimension, field=field, plausible=True)
 
 
-def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: str | None = None) -> Path | None:
+#: what the core calls a parameter -> the option that gives it (as Python spells the option), where they differ
+CORE_NAMES = {"pressure_gauge": "pressure", "contact.law": "contact", "identification": "method",
+              "response_map": "map", "extra_channels": "extra"}
+
+
+def option_name(key: str) -> str:
+    """The option of a parameter as Python spells it: ``sample_rate`` -> ``--sample-rate``."""
+    return "--" + key.replace("_", "-")
+
+
+@contextmanager
+def given(**texts: object) -> Iterator[None]:
+    """Errors of the core about the options named here speak the command line: they name the option and the user's
+    text instead of the Python parameter.
+
+    Keywords are options as Python spells them (``sample_rate`` for ``--sample-rate``; :data:`CORE_NAMES` says
+    which parameter of the core each gives where the names differ), values the user's text (None: not given). An
+    error about one of them (its ``field``) and the expectation it states become ``--pressure 900kPa: must be <= the
+    rated 400000 Pa of 'drop-stand'``; elsewhere in a message a parameter's Python name written as code
+    (``force_channel``, ``pass group``) becomes the option. The Python API keeps its own messages.
+    """
+    try:
+        yield
+    except ImpactometerError as exc:
+        spoken = speak(exc, texts)
+        if spoken == str(exc):
+            raise
+        raise type(exc)(spoken, field=exc.field, expected=exc.expected).with_traceback(exc.__traceback__) from None
+
+
+def speak(error: ImpactometerError, texts: dict[str, object]) -> str:
+    """The message of ``error`` on the command line, for the options ``texts`` (see :func:`given`)."""
+    keys = {core: key for core, key in CORE_NAMES.items() if key in texts} | {key: key for key in texts}
+    key = keys.get(error.field or "")
+    if key is not None and (texts[key] is None or not error.expected):  # about an option not given: as it is
+        return str(error)
+    if key is not None:
+        return f"{option_name(key)} {texts[key]}: {error.expected}"
+    message = str(error)
+    for core, key in keys.items():
+        if option_name(key) in message:  # the message names the option already
+            continue
+        # a name of several words is code wherever it stands; a plain word only where the message says to pass it
+        name = re.escape(core)
+        written = rf"(?<![\w.-]){name}\b" if "_" in core or "." in core else rf"(?<=\bpass ){name}\b"
+        message = re.sub(written, option_name(key), message)
+    return message
+
+
+def output_path(path: Path | None, overwrite: bool, *, field: str = "--out", kind: str | None = None) -> Path | None:
     """Check an output file before any work: a file name (with an extension of its ``kind``: ``figure``,
-    ``recording`` or ``hdf5``), in a writable folder, not replacing an existing file unless ``--force``."""
+    ``recording`` or ``hdf5``), in a writable folder, not replacing an existing file unless ``--overwrite``."""
     if path is None:
         return None
     if kind == "figure":
@@ -85,7 +194,7 @@ def output_path(path: Path | None, force: bool, *, field: str = "--out", kind: s
         extensions = list(HDF5_EXTENSIONS)
     else:
         extensions = None
-    return check_file(path, field, overwrite=force, extensions=extensions)
+    return check_file(path, field, overwrite=overwrite, extensions=extensions, flag="--overwrite")
 
 
 def announce_compilation() -> None:

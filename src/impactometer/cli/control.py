@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import ParameterError
 from ..rig import ABSORPTION_RIG
-from .app import app, console, output_path, quantity
+from .app import OVERWRITE, app, console, given, output_path, quantity
 from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, VelocityOpt, stand_and_scenario
 
 #: rows of the metrics table: (label, key of AbsorptionMetrics.to_dict(), format)
@@ -74,37 +74,43 @@ def absorb(
     velocity: VelocityOpt = None,
     pressure: PressureOpt = "200kPa",
     strategy: Annotated[str, typer.Option(
-        "--strategy", help="all, closed, constant, realtime, predictive or auto (the better of the two).")] = "all",
-    identify: Annotated[str, typer.Option("--identify", help="robust, paper, oracle or response-map.")] = "robust",
-    response_map: Annotated[Path | None,
-                            typer.Option("--response-map", help="Map file for --identify response-map.")] = None,
-    noise: Annotated[str,
-                     typer.Option("--noise", help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
+        "--strategy", metavar="NAME", help="all, closed, constant, realtime, predictive or auto (the better of the "
+                                           "two).")] = "all",
+    method: Annotated[str, typer.Option("--method", "--identify", metavar="NAME",
+                                        help="Identification: robust, paper, oracle or response-map.")] = "robust",
+    map_path: Annotated[Path | None, typer.Option("--map", "--response-map", metavar="FILE",
+                                                  help="Response map (.h5) for --method response-map.")] = None,
+    noise: Annotated[str, typer.Option("--noise", metavar="FRACTION",
+                                       help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the sensor noise.")] = 0,
     contact: ContactOpt = None,
-    rig: Annotated[str, typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = ABSORPTION_RIG,
+    rig: Annotated[str, typer.Option("--rig", metavar="STAND", help="Stand: a preset name or a TOML file.")]
+    = ABSORPTION_RIG,
     reference: Annotated[bool, typer.Option(
         "--reference", help="Also search the achievable R of this valve (a dozen more simulations).")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the metrics as one JSON object.")] = False,
-    plot: Annotated[Path | None, typer.Option("--plot", help="PNG figure of the force histories (Fig. 10b).")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing figure.")] = False,
+    plot: Annotated[Path | None, typer.Option("--plot", metavar="FILE",
+                                              help="PNG figure of the force histories (Fig. 10b).")] = None,
+    overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Overwrite an existing figure.")] = False,
 ) -> None:
     """Absorb one impact: identify M1 and V0 from noisy sensors, then control valve Z with each strategy (on the
-    stand drop-stand-pad unless --rig says otherwise)."""
+    built-in pad stand, drop-stand, unless --rig says otherwise)."""
     from ..control.loop import absorb as run_absorb  # compiled code: imported when used
     from ..control.strategies import strategy_names
 
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
                                          default_height="0.3m")
-    names = strategy_names(strategy)
-    output_path(plot, force, field="--plot", kind="figure")
-    if response_map is not None and identify != "response-map":
-        raise ParameterError(f"--response-map is only used with --identify response-map, got --identify {identify}")
-    if response_map is not None and not response_map.is_file():
-        raise ParameterError(f"--response-map: {str(response_map)!r} does not exist")
-    result = run_absorb(scenario, stand, strategy=names, identification=identify,
-                        noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=response_map,
-                        reference=reference)
+    with given(strategy=strategy):
+        names = strategy_names(strategy)
+    output_path(plot, overwrite, field="--plot", kind="figure")
+    if map_path is not None and method != "response-map":
+        raise ParameterError(f"--map is only used with --method response-map, got --method {method}")
+    if map_path is not None and not map_path.is_file():
+        raise ParameterError(f"--map: {str(map_path)!r} does not exist")
+    with given(method=method, map=map_path, noise=noise, seed=seed):
+        result = run_absorb(scenario, stand, strategy=names, identification=method,
+                            noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=map_path,
+                            reference=reference)
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
     else:

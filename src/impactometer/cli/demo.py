@@ -12,7 +12,7 @@ from rich.table import Table
 from ..errors import IdentificationError, ParameterError
 from ..outputs import check_file, check_folder, save_figure
 from ..rig import ABSORPTION_RIG, Scenario, get_rig
-from .app import announce_compilation, app, console, with_uncertainty
+from .app import OVERWRITE, announce_compilation, app, console, with_uncertainty
 from .control import metrics_table
 from .simulate import summary_table
 
@@ -22,19 +22,20 @@ SAMPLE_RATE = 50e3  # [Hz]
 
 @app.command()
 def demo(
-    out: Annotated[Path, typer.Option("--out", help="Output folder of the figures (impact.png, absorb.png); "
-                                                    "created, replaced only with --force.")]
+    out: Annotated[Path, typer.Option("--out", metavar="DIR", help="Output folder of the figures (impact.png, "
+                                                                   "absorb.png); created, replaced only with "
+                                                                   "--overwrite.")]
     = Path("impactometer-demo"),
     absorb: Annotated[bool, typer.Option("--absorb/--no-absorb", help="Also run the closed loop identify → "
                                                                       "control (about 10 s).")] = True,
-    force: Annotated[bool, typer.Option("--force", help="Replace the figures of an existing output folder.")]
+    overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Replace the figures of an existing output folder.")]
     = False,
 ) -> None:
     """Built-in impact (30 kg from 0.2 m onto the stand at 200 kPa): simulate, identify, absorb, draw."""
     from ..model import simulate as run_simulation
 
-    if out.exists() and not (force and out.is_dir()):
-        raise ParameterError(f"--out: {str(out)!r} exists; pass --force to replace the demo's figures in it, or "
+    if out.exists() and not (overwrite and out.is_dir()):
+        raise ParameterError(f"--out: {str(out)!r} exists; pass --overwrite to replace the demo's figures in it, or "
                              "choose another folder with --out DIR" if out.is_dir() else
                              f"--out: {str(out)!r} is a file; expected a folder for the demo's figures")
     check_folder(out, "--out")
@@ -89,9 +90,8 @@ def identification_table(scenario, stand) -> Table:
         if variant == "robust" and found.early is not None:
             answers.append(("robust, early", found.early))
         elif variant == "robust":
-            notes.append("robust, early: none -- the contact phase of the first two pulses follows no law of the "
-                         "early fit's family here (the stand's pad is hysteretic), so it is refused rather than "
-                         "answered far off; the final answer rests on the turning points of stage B")
+            notes.append(f"robust, early: none -- {found.early_reason}; refused rather than answered far off, the "
+                         "final answer rests on the turning points of stage B")
         answers.append((variant if variant == "paper" else "robust, final", found))
     for label, found in answers:
         table.add_row(label, with_uncertainty(found.mass, found.mass_std),

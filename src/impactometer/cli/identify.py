@@ -13,7 +13,7 @@ from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
 from ..outputs import save_figure
-from .app import app, console, output_path, quantity, with_uncertainty
+from .app import OVERWRITE, app, console, given, output_path, quantity, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 
 # the identification modules load numba: they are imported where they are used, so that ``--help`` stays light
@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from ..identify.result import Identification
 
 METHODS = ("peak-to-peak", "response-map")
-VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
+VariantOpt = Annotated[str, typer.Option("--variant", metavar="NAME", help="robust (default) or paper.")]
 ContactOpt = Annotated[bool, typer.Option("--contact-phase", help="robust: add the contact-phase fit of the first "
                                                                    "two pulses to the final answer.")]
 
@@ -46,6 +46,8 @@ def _table(result: dict, title: str) -> Table:
             table.add_row(prefix + "available at", f"{sub['available_at_s'] * 1e3:.3f} ms")
         if sub.get("equations"):
             table.add_row(prefix + "equations", equations_text(sub["equations"]))
+    if not result.get("early") and result.get("early_reason"):
+        table.add_row("early", escape(f"none: {result['early_reason']}"))
     for key in ("t00_s", "t01_s", "t11_s"):
         if result.get(key) is not None:
             table.add_row(key[:-2], f"{result[key] * 1e3:.3f} ms")
@@ -69,11 +71,14 @@ def equations_text(used: dict) -> str:
 @app.command()
 @reader_options
 def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording (csv, h5, tdms, mat).")],
-             method: Annotated[str, typer.Option("--method", help="peak-to-peak or response-map.")] = "peak-to-peak",
+             method: Annotated[str, typer.Option("--method", metavar="NAME", help="peak-to-peak or response-map.")]
+             = "peak-to-peak",
              variant: VariantOpt = "robust",
              contact_phase: ContactOpt = False,
-             map_path: Annotated[Path | None, typer.Option("--map", help="Response map (.h5).")] = None,
-             search: Annotated[str, typer.Option("--search", help="Map search: fast or brute.")] = "fast",
+             map_path: Annotated[Path | None, typer.Option("--map", metavar="FILE", help="Response map (.h5).")]
+             = None,
+             search: Annotated[str, typer.Option("--search", metavar="NAME", help="Map search: fast or brute.")]
+             = "fast",
              allow_extrapolation: Annotated[bool, typer.Option(
                  "--allow-extrapolation",
                  help="response-map: answer outside the map's grid (else an error).")] = False,
@@ -81,8 +86,9 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
                  "--pressure", metavar="PRESSURE",
                  help="response-map: charge pressure p0, gauge (e.g. 200kPa); else the file's statement.")] = None,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
-             plot: Annotated[Path | None, typer.Option("--plot", help="Save a figure of the instants used.")] = None,
-             force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
+             plot: Annotated[Path | None, typer.Option("--plot", metavar="FILE",
+                                                       help="Save a figure of the instants used.")] = None,
+             overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Overwrite the --plot file.")] = False,
              reader: ReaderOptions = DEFAULT_READER) -> None:
     """Identify the impacting mass and velocity of the first impact in FILE."""
     if method not in METHODS:
@@ -92,7 +98,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     if pressure is not None and method != "response-map":
         raise ParameterError("--pressure is available for --method response-map")
     pressure_gauge = quantity(pressure, "pressure", "--pressure")
-    output_path(plot, force, field="--plot", kind="figure")
+    output_path(plot, overwrite, field="--plot", kind="figure")
     rec = reader.read(file)
     result: Identification
     if method == "response-map":
@@ -101,12 +107,14 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
                                  "(a response map built with impactometer map build)")
         from ..identify.response_map import identify_recording
 
-        result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation,
-                                    pressure_gauge=pressure_gauge)
+        with given(search=search, pressure=pressure):
+            result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation,
+                                        pressure_gauge=pressure_gauge)
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 
-        result = identify_p2p(rec, variant=variant, contact_phase=contact_phase)
+        with given(variant=variant):
+            result = identify_p2p(rec, variant=variant, contact_phase=contact_phase)
     data = result.to_dict()
     if as_json:
         typer.echo(json.dumps(data))
@@ -124,9 +132,10 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
 def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording to replay.")],
            variant: VariantOpt = "robust",
            contact_phase: ContactOpt = False,
-           chunk: Annotated[int, typer.Option("--chunk", help="Samples per push.")] = 64,
+           chunk: Annotated[int, typer.Option("--chunk", metavar="SAMPLES", help="Samples per push.")] = 64,
            realtime: Annotated[bool, typer.Option("--realtime", help="Replay at the file's sample rate.")] = False,
-           as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate.")] = False,
+           as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate, its stage (early, "
+                                                                "update or final) named.")] = False,
            reader: ReaderOptions = DEFAULT_READER) -> None:
     """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
     from ..identify.peak_to_peak.streaming import StreamingIdentifier
@@ -136,10 +145,11 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
     rec = reader.read(file)
     from ..identify.peak_to_peak import check_unfiltered
 
-    check_unfiltered(rec, variant)
+    with given(variant=variant):
+        check_unfiltered(rec, variant)
+        ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
+                                    contact_phase=contact_phase)
     f, a = rec.contact_force, rec.piston_acceleration
-    ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
-                                contact_phase=contact_phase)
     t_wall = clock.perf_counter()
     concluded = 0
     for k in range(0, f.size, chunk):
@@ -147,16 +157,12 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
             lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
             if lag > 0:
                 clock.sleep(lag)
-        for est in ident.push(f[k:k + chunk], a[k:k + chunk]):
-            _print_estimate(est, as_json)
-        for outcome in ident.outcomes[concluded:]:  # an impact refused at its end, as identify refuses it
-            if isinstance(outcome, IdentificationError):
-                _print_refusal(outcome, rec.start_time + min(k + chunk, f.size) / rec.sample_rate, as_json)
-        concluded = len(ident.outcomes)
+        new = ident.push(f[k:k + chunk], a[k:k + chunk])
+        concluded = _report(ident, new, concluded, rec.start_time + min(k + chunk, f.size) / rec.sample_rate,
+                            as_json)
     shown = len(ident.estimates)
     final = ident.finish()  # raises the refusal of the last impact
-    for est in ident.estimates[shown:]:  # the answer the end of the input completes
-        _print_estimate(est, as_json)
+    _report(ident, ident.estimates[shown:], concluded, rec.start_time + f.size / rec.sample_rate, as_json)
     if final is None:
         raise IdentificationError("no estimate: the stream holds no impact with enough contact pulses")
     if not as_json:
@@ -171,12 +177,34 @@ def _print_refusal(error: IdentificationError, at: float, as_json: bool) -> None
                       markup=False, soft_wrap=True)
 
 
-def _print_estimate(est, as_json: bool) -> None:
+def _report(ident, new: list, concluded: int, at: float, as_json: bool) -> int:
+    """Print the estimates ``new`` of a push and the impacts concluded since the outcome ``concluded``: a refusal
+    (as identify refuses it) and, in JSON, a final answer the identifier did not repeat because an update had
+    already given it. Returns the number of outcomes now reported."""
+    for est in new:
+        _print_estimate(est, _stage(est, ident), as_json)
+    for outcome in ident.outcomes[concluded:]:
+        if isinstance(outcome, IdentificationError):
+            _print_refusal(outcome, at, as_json)
+        elif as_json and not any(outcome is est for est in new):
+            _print_estimate(outcome, "final", as_json)
+    return len(ident.outcomes)
+
+
+def _stage(est, ident) -> str:
+    """``early`` (the contact-phase answer of the first two pulses), ``final`` (the answer of a concluded impact)
+    or ``update`` (an answer the rest of the impact may still refine)."""
+    if est.details.get("stage") == "early":
+        return "early"
+    return "final" if any(est is done for done in ident.completed) else "update"
+
+
+def _print_estimate(est, stage: str, as_json: bool) -> None:
     d = est.to_dict()
-    kind = "early" if est.details.get("stage") == "early" else "estimate"
+    kind = "early" if stage == "early" else "estimate"
     if as_json:
-        d.pop("early", None)
         d["kind"] = kind
+        d["stage"] = stage
         typer.echo(json.dumps(d))
         return
     console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} "

@@ -14,7 +14,7 @@ from typing import Annotated, get_type_hints
 
 import typer
 
-from .app import quantity
+from .app import given, quantity
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -22,11 +22,12 @@ class ReaderOptions:
     """How to read a recording: channel names, group, sign flips, gravity, time base, CFC filter."""
 
     force_channel: Annotated[str | None, typer.Option(
-        "--force-channel", help="Name of the contact force channel (default: found by name).")] = None
+        "--force-channel", metavar="NAME", help="Name of the contact force channel (default: found by name).")] = None
     acceleration_channel: Annotated[str | None, typer.Option(
-        "--acceleration-channel", help="Name of the piston acceleration channel (default: found by name).")] = None
+        "--acceleration-channel", metavar="NAME",
+        help="Name of the piston acceleration channel (default: found by name).")] = None
     group: Annotated[str | None, typer.Option(
-        "--group", help="HDF5/TDMS group holding the channels.")] = None
+        "--group", metavar="NAME", help="HDF5/TDMS group holding the channels.")] = None
     flip_force: Annotated[bool, typer.Option(
         "--flip-force", help="Change the sign of the force (a load cell mounted the other way).")] = False
     flip_acceleration: Annotated[bool, typer.Option(
@@ -34,18 +35,20 @@ class ReaderOptions:
     acceleration_includes_gravity: Annotated[bool, typer.Option(
         "--acceleration-includes-gravity", help="The accelerometer reads a − g: add g back.")] = False
     sample_rate: Annotated[str | None, typer.Option(
-        "--sample-rate", help="Sample rate of a file without a time base (e.g. 50kHz).")] = None
+        "--sample-rate", metavar="FREQUENCY", help="Sample rate of a file without a time base (e.g. 50kHz).")] = None
     cfc: Annotated[int | None, typer.Option(
-        "--cfc", help="Apply a CFC filter class first (60, 180, 600, 1000).")] = None
+        "--cfc", metavar="CLASS", help="Apply a CFC filter class first (60, 180, 600, 1000).")] = None
 
     def read(self, path: Path):
         """The :class:`~impactometer.recording.Recording` in ``path``, read and filtered as the options say."""
         from ..io import read_recording
 
-        rec = read_recording(path, force_channel=self.force_channel, acceleration_channel=self.acceleration_channel,
-                             group=self.group, flip_force=self.flip_force, flip_acceleration=self.flip_acceleration,
-                             acceleration_includes_gravity=self.acceleration_includes_gravity,
-                             sample_rate=quantity(self.sample_rate, "frequency", "--sample-rate"))
+        with given(**{f.name: getattr(self, f.name) for f in fields(self)}):
+            rec = read_recording(path, force_channel=self.force_channel,
+                                 acceleration_channel=self.acceleration_channel, group=self.group,
+                                 flip_force=self.flip_force, flip_acceleration=self.flip_acceleration,
+                                 acceleration_includes_gravity=self.acceleration_includes_gravity,
+                                 sample_rate=quantity(self.sample_rate, "frequency", "--sample-rate"))
         if rec.units_note:
             from .app import error_console
 
@@ -53,7 +56,8 @@ class ReaderOptions:
         if self.cfc is not None:
             from ..filters import filter_recording
 
-            rec = filter_recording(rec, self.cfc)
+            with given(cfc=self.cfc):
+                rec = filter_recording(rec, self.cfc)
         return rec
 
 

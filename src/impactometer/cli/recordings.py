@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import ParameterError
 from ..outputs import save_figure
-from .app import app, console, output_path, quantity
+from .app import OVERWRITE, app, console, given, output_path, quantity
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 from .simulate import (
     ContactOpt,
@@ -28,30 +28,28 @@ from .simulate import (
 
 
 @overload
-def _fraction(text: str, field: str, force: bool = False) -> float: ...
+def _fraction(text: str, field: str) -> float: ...
 
 
 @overload
-def _fraction(text: str | None, field: str, force: bool = False) -> float | None: ...
+def _fraction(text: str | None, field: str) -> float | None: ...
 
 
-def _fraction(text: str | None, field: str, force: bool = False) -> float | None:
-    """A noise level: ``2%`` or a bare fraction (0.02); a bare number above 0.5 is refused without ``--force``."""
+def _fraction(text: str | None, field: str) -> float | None:
+    """A noise level: ``2%`` or a bare fraction (0.02; a bare number above 0.5 is refused as a percent without its
+    sign, see :func:`~impactometer.cli.app.quantity`), at most 1000%."""
     if text is None:
         return None
     value = quantity(text, "fraction", field)
     if not 0 <= value <= 10:
-        raise ParameterError(f"{field} must be within [0, 1000%], got {text!r}")
-    if value > 0.5 and "%" not in text and not force:
-        raise ParameterError(f"{field} {text!r} is a fraction of the channel's RMS, that is {value:.0%}; write "
-                             f"{text}% for {text} percent, or pass --force to record {value:.0%} noise")
+        raise ParameterError(f"{field} {text}: must be within [0, 1000%]")
     return value
 
 
 @app.command()
 def record(
-    out: Annotated[Path, typer.Option("--out", help="Output file; format from the extension (.csv, .h5, .tdms, "
-                                                    ".mat).")],
+    out: Annotated[Path, typer.Option("--out", metavar="FILE", help="Output file; format from the extension (.csv, "
+                                                                    ".h5, .tdms, .mat).")],
     mass: MassOpt = "30kg",
     height: HeightOpt = None,
     velocity: VelocityOpt = None,
@@ -60,43 +58,48 @@ def record(
     rig: RigOpt = None,
     duration: DurationOpt = "50ms",
     sample_rate: RateOpt = "50kHz",
-    noise: Annotated[str, typer.Option("--noise", help="Noise std per channel: a percent of its RMS (2%) or a "
-                                                       "fraction (0.02); a fraction above 0.5 needs --force.")]
+    noise: Annotated[str, typer.Option("--noise", metavar="FRACTION", help="Noise std per channel: a percent of its "
+                                                                          "RMS (2%) or a fraction (0.02, at most "
+                                                                          "0.5; above, write the percent).")]
     = "0",
-    force_noise: Annotated[str | None, typer.Option("--force-noise", help="Noise of the force channel "
-                                                                             "(overrides --noise).")] = None,
-    acceleration_noise: Annotated[str | None, typer.Option("--acceleration-noise", help="Noise of the "
-                                                              "acceleration channel (overrides --noise).")] = None,
+    force_noise: Annotated[str | None, typer.Option("--force-noise", metavar="FRACTION",
+                                                    help="Noise of the force channel (overrides --noise).")] = None,
+    acceleration_noise: Annotated[str | None, typer.Option("--acceleration-noise", metavar="FRACTION", help="Noise "
+                                                           "of the acceleration channel (overrides --noise).")]
+    = None,
     seed: Annotated[int | None, typer.Option("--seed", help="Seed of the noise.")] = None,
-    pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Time recorded before first contact "
-                                                                   "(0: the record starts at contact).")] = "20ms",
-    anti_alias: Annotated[str, typer.Option("--anti-alias", help="causal (default), zero-phase or none.")]
-    = "causal",
+    pre_trigger: Annotated[str, typer.Option("--pre-trigger", metavar="TIME", help="Time recorded before first "
+                                                                                   "contact (0: the record starts "
+                                                                                   "at contact).")] = "20ms",
+    anti_alias: Annotated[str, typer.Option("--anti-alias", metavar="NAME",
+                                            help="causal (default), zero-phase or none.")] = "causal",
     adc_bits: Annotated[int | None, typer.Option("--adc-bits", help="ADC resolution; auto range ±1.25·peak.")]
     = None,
     include_gravity: Annotated[bool, typer.Option("--include-gravity", help="Accelerometer reads a − g.")] = False,
-    extra: Annotated[list[str] | None, typer.Option("--extra", help="Extra channel (piston_displacement, "
-                                                                       "pressure_lower, ...); repeatable.")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing file; allow a noise fraction above "
-                                                        "0.5.")] = False,
+    extra: Annotated[list[str] | None, typer.Option("--extra", metavar="CHANNEL", help="Extra channel "
+                                                       "(piston_displacement, pressure_lower, ...); repeatable.")]
+    = None,
+    overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Overwrite an existing file.")] = False,
 ) -> None:
     """Simulate one drop test and write what the stand's sensors and DAQ would record."""
     from ..io import format_of, write_recording
     from ..sensors import record as make_recording
 
     format_of(out)
-    output_path(out, force, kind="recording")
+    output_path(out, overwrite, kind="recording")
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact,
                                          default_height="0.2m")
-    level = _fraction(noise, "--noise", force)
-    given = {"contact_force": _fraction(force_noise, "--force-noise", force),
-             "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise", force)}
-    levels = {name: level if value is None else value for name, value in given.items()}
-    rec = make_recording(scenario, stand, sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
-                         duration=quantity(duration, "time", "--duration"), noise=levels, seed=seed,
-                         pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"), anti_alias=anti_alias,
-                         adc_bits=adc_bits, include_gravity=include_gravity, extra_channels=tuple(extra or ()))
-    write_recording(rec, out, overwrite=force)
+    level = _fraction(noise, "--noise")
+    channel_levels = {"contact_force": _fraction(force_noise, "--force-noise"),
+                      "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise")}
+    levels = {name: level if value is None else value for name, value in channel_levels.items()}
+    with given(sample_rate=sample_rate, duration=duration, seed=seed, pre_trigger=pre_trigger, anti_alias=anti_alias,
+               adc_bits=adc_bits, include_gravity=include_gravity, extra=None if extra is None else ",".join(extra)):
+        rec = make_recording(scenario, stand, sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
+                             duration=quantity(duration, "time", "--duration"), noise=levels, seed=seed,
+                             pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"), anti_alias=anti_alias,
+                             adc_bits=adc_bits, include_gravity=include_gravity, extra_channels=tuple(extra or ()))
+    write_recording(rec, out, overwrite=overwrite)
     console.print(f"{len(rec)} samples at {rec.sample_rate:g} Hz ({scenario.mass:g} kg at "
                   f"{scenario.velocity:.4g} m/s, p0 = {scenario.pressure_gauge / 1e3:g} kPa, "
                   f"{stand.contact.law}) written to {out}", highlight=False)
@@ -132,16 +135,16 @@ def _inspection_tables(rec, result) -> list[Table]:
 @reader_options
 def inspect(
     file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording (csv, h5, tdms, mat).")],
-    plot: Annotated[Path | None, typer.Option("--plot", help="PNG of force and acceleration, pulses marked.")]
-    = None,
+    plot: Annotated[Path | None, typer.Option("--plot", metavar="FILE",
+                                              help="PNG of force and acceleration, pulses marked.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object instead of tables.")] = False,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
+    overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Overwrite the --plot file.")] = False,
     reader: ReaderOptions = DEFAULT_READER,
 ) -> None:
     """Print what FILE holds: duration, rate, channels and units, peak force, contact pulses, stage B, noise."""
     from ..identify.inspection import inspect_recording
 
-    output_path(plot, force, field="--plot", kind="figure")
+    output_path(plot, overwrite, field="--plot", kind="figure")
     rec = reader.read(file)
     result = inspect_recording(rec)
     if as_json:

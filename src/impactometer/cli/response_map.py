@@ -13,7 +13,8 @@ from rich.progress import Progress
 from rich.table import Table
 
 from ..errors import ParameterError
-from .app import App, app, console, output_path, quantity
+from .app import OVERWRITE, App, app, console, given, output_path, quantity
+from .simulate import ContactOpt, RigOpt
 
 map_app = App(help="Response maps: build a database of features, inspect it.")
 app.add_typer(map_app, name="map")
@@ -55,30 +56,36 @@ def parse_pressures(text: str) -> list[float]:
 
 @map_app.command("build")
 def build(
-    out: Annotated[Path, typer.Option("--out", help="HDF5 file of the map.")],
-    pressure: Annotated[str, typer.Option("--pressure", help="Charge pressure (gauge); a comma list gives a "
-                                                             "pressure axis (e.g. 20kPa,200kPa,400kPa).")] = "200kPa",
-    grid: Annotated[str, typer.Option("--grid", help="Masses x velocities simulated (or interpolated).")] = "10x10",
-    mass: Annotated[str, typer.Option("--mass", help="Mass range LOW:HIGH.")] = "10kg:50kg",
-    height: Annotated[str | None, typer.Option("--height", help="Drop-height range LOW:HIGH (default "
-                                                                   "5cm:50cm).")] = None,
-    velocity: Annotated[str | None, typer.Option("--velocity", help="Velocity range LOW:HIGH instead of "
-                                                                       "--height.")] = None,
-    features: Annotated[str, typer.Option("--features", help="Feature set: max-impulse, peaks or "
-                                                                   "impulse-profile.")] = "max-impulse",
-    window: Annotated[str | None, typer.Option("--window", help="Window T of max-impulse and impulse-profile "
-                                                                   "(default 20ms).")] = None,
-    refine_to: Annotated[str | None, typer.Option("--refine", help="Interpolate to N (NxN) or NxM.")] = None,
-    sample_rate: Annotated[str, typer.Option("--sample-rate", help="Sample rate of the signals.")] = "50kHz",
-    rig: Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")] = None,
-    contact: Annotated[str | None, typer.Option("--contact", help="Contact law: kv or hunt.")] = None,
-    from_recordings: Annotated[Path | None, typer.Option("--from-recordings", help="Folder of calibration "
-                                                                                      "recordings.")] = None,
-    manifest: Annotated[Path | None, typer.Option("--manifest", help="Manifest CSV of the calibration "
-                                                                        "set.")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite an existing map file.")] = False,
-    device: Annotated[str, typer.Option("--device", help="Where the simulations run: cpu, gpu (extra "
-                                                         "impactometer[gpu]) or auto (the GPU when usable).")] = "cpu",
+    out: Annotated[Path, typer.Option("--out", metavar="FILE", help="HDF5 file of the map.")],
+    pressure: Annotated[str, typer.Option("--pressure", metavar="PRESSURE[,PRESSURE...]",
+                                          help="Charge pressure (gauge); a comma list gives a pressure axis (e.g. "
+                                               "20kPa,200kPa,400kPa).")] = "200kPa",
+    grid: Annotated[str, typer.Option("--grid", metavar="MxV", help="Masses x velocities simulated (or "
+                                                                     "interpolated).")] = "10x10",
+    mass: Annotated[str, typer.Option("--mass", metavar="MASS:MASS", help="Mass range LOW:HIGH.")] = "10kg:50kg",
+    height: Annotated[str | None, typer.Option("--height", metavar="LENGTH:LENGTH",
+                                               help="Drop-height range LOW:HIGH (default 5cm:50cm).")] = None,
+    velocity: Annotated[str | None, typer.Option("--velocity", metavar="VELOCITY:VELOCITY",
+                                                 help="Velocity range LOW:HIGH instead of --height.")] = None,
+    features: Annotated[str, typer.Option("--features", metavar="NAME", help="Feature set: max-impulse, peaks or "
+                                                                             "impulse-profile.")] = "max-impulse",
+    window: Annotated[str | None, typer.Option("--window", metavar="TIME", help="Window T of max-impulse and "
+                                                                                "impulse-profile (default 20ms).")]
+    = None,
+    refine_to: Annotated[str | None, typer.Option("--refine", metavar="NxM", help="Interpolate to N (NxN) or "
+                                                                                  "NxM.")] = None,
+    sample_rate: Annotated[str, typer.Option("--sample-rate", metavar="FREQUENCY",
+                                             help="Sample rate of the signals.")] = "50kHz",
+    rig: RigOpt = None,
+    contact: ContactOpt = None,
+    from_recordings: Annotated[Path | None, typer.Option("--from-recordings", metavar="DIR",
+                                                         help="Folder of calibration recordings.")] = None,
+    manifest: Annotated[Path | None, typer.Option("--manifest", metavar="FILE",
+                                                  help="Manifest CSV of the calibration set.")] = None,
+    overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Overwrite an existing map file.")] = False,
+    device: Annotated[str, typer.Option("--device", metavar="NAME", help="Where the simulations run: cpu, gpu "
+                                                                         "(extra impactometer[gpu]) or auto (the "
+                                                                         "GPU when usable).")] = "cpu",
 ) -> None:
     """Build a response map by simulation (or from calibration recordings) and save it (HDF5)."""
     import numpy as np
@@ -89,7 +96,7 @@ def build(
     from ..model.gpu import resolve_device
     from ..rig import get_rig
 
-    output_path(out, force)
+    output_path(out, overwrite)
     if from_recordings is not None and device != "cpu":
         raise ParameterError(f"--device applies to maps built by simulation, got --device {device!r} with "
                              "--from-recordings")
@@ -98,7 +105,8 @@ def build(
     if window is not None and features not in ("max-impulse", "impulse-profile"):
         raise ParameterError(f"--window applies to --features max-impulse and impulse-profile, got --features "
                              f"{features!r}")
-    stand = get_rig(rig, contact=contact)
+    with given(rig=rig, contact=contact):
+        stand = get_rig(rig, contact=contact)
     if from_recordings is not None:
         from ..io import read_calibration_set
 
@@ -117,10 +125,11 @@ def build(
             velocities = np.sqrt(2.0 * stand.gravity * np.linspace(low, high, n_v))
         pressures = parse_pressures(pressure)
         if pressures[-1] > stand.cylinder.rated_pressure_gauge:
-            raise ParameterError(f"--pressure: {pressures[-1]:g} Pa exceeds the rated "
+            raise ParameterError(f"--pressure {pressure}: must be <= the rated "
                                  f"{stand.cylinder.rated_pressure_gauge:g} Pa of {stand.name!r}")
-        get_feature_set(features).params(params)  # bad features or a device the machine lacks: refused before
-        resolve_device(device)  # any progress is printed
+        with given(features=features, window=window, device=device):
+            get_feature_set(features).params(params)  # bad features or a device the machine lacks: refused before
+            resolve_device(device)  # any progress is printed
         if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
             print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
                   "pressure(s)) ...", file=sys.stderr, flush=True)
@@ -136,7 +145,7 @@ def build(
                                        progress=progress, device=device)
     if refine_to is not None:
         rmap = refine(rmap, parse_grid(refine_to, "--refine"))
-    save_map(rmap, out, overwrite=force)
+    save_map(rmap, out, overwrite=overwrite)
     console.print(info_table(rmap.describe(), str(out)))
     console.print(f"map written to {out}")
 

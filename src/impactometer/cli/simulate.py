@@ -11,35 +11,40 @@ from rich.table import Table
 from ..errors import ParameterError
 from ..outputs import save_figure, write_failed
 from ..rig import Scenario, get_rig
-from .app import announce_compilation, app, console, output_path, quantity
+from .app import OVERWRITE, announce_compilation, app, console, given, output_path, quantity
 
-MassOpt = Annotated[str, typer.Option("--mass", help="Impacting mass M1 (e.g. 30kg).")]
-HeightOpt = Annotated[str | None, typer.Option("--height", help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
-VelocityOpt = Annotated[str | None, typer.Option("--velocity", help="Impact velocity V0 (e.g. 2m/s).")]
-PressureOpt = Annotated[str, typer.Option("--pressure", help="Charge pressure p0, gauge (e.g. 200kPa).")]
-ContactOpt = Annotated[str | None,
-                      typer.Option("--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")]
-RigOpt = Annotated[str | None, typer.Option("--rig", help="Stand: a preset name or a TOML file.")]
-DurationOpt = Annotated[str, typer.Option("--duration", help="Simulated time after first contact.")]
-RateOpt = Annotated[str, typer.Option("--sample-rate", help="Sample rate of the histories.")]
+MassOpt = Annotated[str, typer.Option("--mass", metavar="MASS", help="Impacting mass M1 (e.g. 30kg).")]
+HeightOpt = Annotated[str | None, typer.Option("--height", metavar="LENGTH",
+                                               help="Drop height h, V0 = sqrt(2gh) (e.g. 0.2m).")]
+VelocityOpt = Annotated[str | None, typer.Option("--velocity", metavar="VELOCITY",
+                                                 help="Impact velocity V0 (e.g. 2m/s).")]
+PressureOpt = Annotated[str, typer.Option("--pressure", metavar="PRESSURE",
+                                          help="Charge pressure p0, gauge (e.g. 200kPa).")]
+ContactOpt = Annotated[str | None, typer.Option(
+    "--contact", metavar="LAW", help="Contact law: hysteretic, kelvin-voigt (kv) or hunt-crossley (hunt) (default: "
+                                     "the stand's own, hysteretic on drop-stand).")]
+RigOpt = Annotated[str | None, typer.Option("--rig", metavar="STAND",
+                                            help="Stand: a preset name or a TOML file (default: drop-stand).")]
+DurationOpt = Annotated[str, typer.Option("--duration", metavar="TIME", help="Simulated time after first contact.")]
+RateOpt = Annotated[str, typer.Option("--sample-rate", metavar="FREQUENCY", help="Sample rate of the histories.")]
 
 
 def stand_and_scenario(mass: str, height: str | None, velocity: str | None, pressure: str, *, rig: str | None,
                        contact: str | None, default_height: str = "0.2m"):
     """The (stand, scenario) of a command's options (neither height nor velocity: ``default_height``)."""
-
-    stand = get_rig(rig, contact=contact)
-    m = quantity(mass, "mass", "--mass")
-    p0 = quantity(pressure, "pressure", "--pressure")
-    if height is not None and velocity is not None:
-        raise ParameterError(f"give exactly one of --height and --velocity (neither: a drop from {default_height}), "
-                             "got both")
-    if velocity is not None:
-        scenario = Scenario(mass=m, velocity=quantity(velocity, "velocity", "--velocity"), pressure_gauge=p0)
-    else:
-        scenario = Scenario.from_height(mass=m, height=quantity(height or default_height, "length", "--height"),
-                                        pressure_gauge=p0, gravity=stand.gravity)
-    scenario.check_against(stand)
+    with given(rig=rig, contact=contact, mass=mass, height=height, velocity=velocity, pressure=pressure):
+        stand = get_rig(rig, contact=contact)
+        m = quantity(mass, "mass", "--mass")
+        p0 = quantity(pressure, "pressure", "--pressure")
+        if height is not None and velocity is not None:
+            raise ParameterError(f"give exactly one of --height and --velocity (neither: a drop from "
+                                 f"{default_height}), got both")
+        if velocity is not None:
+            scenario = Scenario(mass=m, velocity=quantity(velocity, "velocity", "--velocity"), pressure_gauge=p0)
+        else:
+            scenario = Scenario.from_height(mass=m, height=quantity(height or default_height, "length", "--height"),
+                                            pressure_gauge=p0, gravity=stand.gravity)
+        scenario.check_against(stand)
     return stand, scenario
 
 
@@ -91,10 +96,11 @@ def simulate(
     rig: RigOpt = None,
     duration: DurationOpt = "50ms",
     sample_rate: RateOpt = "50kHz",
-    integrator: Annotated[str, typer.Option(help="fast (compiled) or reference (solve_ivp).")] = "fast",
-    out: Annotated[Path | None, typer.Option("--out", help="HDF5 file of the histories.")] = None,
-    plot: Annotated[Path | None, typer.Option("--plot", help="PNG figure of the histories.")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Overwrite existing output files.")] = False,
+    integrator: Annotated[str, typer.Option(metavar="NAME", help="fast (compiled) or reference (solve_ivp).")]
+    = "fast",
+    out: Annotated[Path | None, typer.Option("--out", metavar="FILE", help="HDF5 file of the histories.")] = None,
+    plot: Annotated[Path | None, typer.Option("--plot", metavar="FILE", help="PNG figure of the histories.")] = None,
+    overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Overwrite existing output files.")] = False,
 ) -> None:
     """Simulate one drop test on the stand and save its histories (HDF5) and a figure."""
     from ..model import simulate as run_simulation
@@ -102,18 +108,19 @@ def simulate(
 
     announce_compilation()
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)
-    output_path(out, force, kind="hdf5")
-    output_path(plot, force, field="--plot", kind="figure")
-    length = quantity(duration, "time", "--duration")
-    budget = {"max_steps": reference_steps(length)} if integrator == "reference" else {}
-    result = run_simulation(scenario, stand, duration=length, integrator=integrator,
-                            sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), **budget)
+    output_path(out, overwrite, kind="hdf5")
+    output_path(plot, overwrite, field="--plot", kind="figure")
+    with given(duration=duration, integrator=integrator, sample_rate=sample_rate):
+        length = quantity(duration, "time", "--duration")
+        budget = {"max_steps": reference_steps(length)} if integrator == "reference" else {}
+        result = run_simulation(scenario, stand, duration=length, integrator=integrator,
+                                sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), **budget)
     table, pulses = summary_table(result, f"{scenario.mass:g} kg at {scenario.velocity:.3f} m/s, "
                                           f"p0 = {scenario.pressure_gauge / 1e3:g} kPa ({stand.contact.law})")
     console.print(table)
     if out is not None:
         try:
-            save_simulation(result, out, overwrite=force)
+            save_simulation(result, out, overwrite=overwrite)
         except OSError as exc:
             raise write_failed(out, exc) from None
         console.print(f"histories written to {out}")

@@ -18,7 +18,8 @@ from ..rig import get_rig
 from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
 from ..studies.report import markdown, write_report
 from ..studies.runner import check_backend
-from .app import app, console, quantity
+from .app import OVERWRITE, app, console, given, quantity
+from .simulate import ContactOpt
 
 
 def _fraction(text: str, field: str) -> float:
@@ -78,20 +79,21 @@ def study(
     grid: Annotated[int | None, typer.Option(
         "--grid", help="Values per axis of the M1×V0×p0 grid (5: the paper's 125 cases; default: per study).")]
     = None,
-    noise: Annotated[str, typer.Option("--noise", help="Sensor noise of the non-noise studies (% of RMS).")] = "1%",
-    sample_rate: Annotated[str, typer.Option("--sample-rate", help="DAQ rate of the non-sampling studies.")]
-    = "50kHz",
-    duration: Annotated[str, typer.Option("--duration", help="Record length after first contact.")] = "100ms",
-    pre_trigger: Annotated[str, typer.Option("--pre-trigger", help="Record length before first contact.")]
-    = "50ms",
-    contact: Annotated[str | None, typer.Option(
-        "--contact", help="Contact law: kelvin-voigt (kv) or hunt-crossley (hunt).")] = None,
+    noise: Annotated[str, typer.Option("--noise", metavar="FRACTION",
+                                       help="Sensor noise of the non-noise studies (% of RMS).")] = "1%",
+    sample_rate: Annotated[str, typer.Option("--sample-rate", metavar="FREQUENCY",
+                                             help="DAQ rate of the non-sampling studies.")] = "50kHz",
+    duration: Annotated[str, typer.Option("--duration", metavar="TIME", help="Record length after first contact.")]
+    = "100ms",
+    pre_trigger: Annotated[str, typer.Option("--pre-trigger", metavar="TIME",
+                                             help="Record length before first contact.")] = "50ms",
+    contact: ContactOpt = None,
     rig: Annotated[str | None, typer.Option(
-        "--rig", help="Stand: a preset name or a TOML file (default: drop-stand; drop-stand-pad for the absorber's "
-                      "studies).")] = None,
+        "--rig", metavar="STAND", help="Stand: a preset name or a TOML file (default: drop-stand, the pad stand; "
+                                       "a study with a stand of its own uses it).")] = None,
     setting: Annotated[list[str] | None, typer.Option(
         "--set", help="Study setting STUDY.SETTING=JSON, e.g. noise.levels=[0,0.05] (repeatable).")] = None,
-    force: Annotated[bool, typer.Option("--force", help="Discard runs with other options; overwrite files.")]
+    force: Annotated[bool, typer.Option(*OVERWRITE, help="Discard runs with other options; overwrite files.")]
     = False,
     device: Annotated[str, typer.Option(
         "--device", help="Where batches of simulations run: cpu, gpu (extra impactometer[gpu]) or auto (the GPU when "
@@ -104,7 +106,8 @@ def study(
     if out is None:
         raise ParameterError("--out is required: the folder for the tables, figures and index.html")
     check_folder(out, "--out")
-    check_backend(workers, scheduler)
+    with given(workers=workers, scheduler=scheduler):
+        check_backend(workers, scheduler)
     if name == "report":
         path = write_report(out, force=force)
         console.print(markdown(out), highlight=False, markup=False, soft_wrap=True)
@@ -112,7 +115,8 @@ def study(
         return
     from ..model.gpu import resolve_device, use_device  # lazily: loads numba, which --help must not
 
-    device = resolve_device(device)  # a bad or unusable device fails before any study starts
+    with given(device=device):
+        device = resolve_device(device)  # a bad or unusable device fails before any study starts
     load_studies()
     if name == "all":
         names = available_studies()
@@ -122,12 +126,14 @@ def study(
     else:
         get_study(name)
         names = [name]
-    options = StudyOptions(rig=get_rig(rig, contact=contact), seed=seed, seeds=seeds, grid=grid,
-                           noise=_fraction(noise, "--noise"),
-                           sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
-                           duration=quantity(duration, "time", "--duration"),
-                           pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"),
-                           params=_parse_params(setting), rig_is_default=rig is None and contact is None)
+    with given(rig=rig, contact=contact, seed=seed, seeds=seeds, grid=grid, noise=noise, sample_rate=sample_rate,
+               duration=duration, pre_trigger=pre_trigger):
+        options = StudyOptions(rig=get_rig(rig, contact=contact), seed=seed, seeds=seeds, grid=grid,
+                               noise=_fraction(noise, "--noise"),
+                               sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
+                               duration=quantity(duration, "time", "--duration"),
+                               pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"),
+                               params=_parse_params(setting), rig_is_default=rig is None and contact is None)
     columns = (TextColumn("{task.description:<14}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                TextColumn("ETA"), TimeRemainingColumn())
     start = time.perf_counter()

@@ -48,6 +48,10 @@ class Identification:
         Standard errors [kg], [m/s]; NaN when the method gives none (``peak-to-peak/paper``, the response map).
     early : Identification or None
         The early answer (peak-to-peak robust: from the data up to the second pulse), or None.
+    early_reason : str or None
+        Why there is no early answer (peak-to-peak: the refusal of the early fit, the data that never allowed one,
+        or a variant that gives none); None where there is one, for the early answer itself, and for the methods
+        that give none by design (response map, oracle).
     warnings : tuple of str
         Sentences on what makes the answer implausible (:mod:`.plausibility`); empty when nothing does.
     details : mapping
@@ -68,6 +72,7 @@ class Identification:
     mass_std: float = math.nan
     velocity_std: float = math.nan
     early: Identification | None = None
+    early_reason: str | None = None
     warnings: tuple[str, ...] = ()
     details: Mapping[str, Any] = field(default_factory=dict)
     error: str | None = None
@@ -77,8 +82,8 @@ class Identification:
         """Build without the dataclass ``__init__`` (the response map's fast search costs less than setting each
         frozen field); every field not given takes its default."""
         obj = cls.__new__(cls)
-        obj.__dict__.update({"mass_std": math.nan, "velocity_std": math.nan, "early": None, "warnings": (),
-                             "details": {}, "error": None, **values})
+        obj.__dict__.update({"mass_std": math.nan, "velocity_std": math.nan, "early": None, "early_reason": None,
+                             "warnings": (), "details": {}, "error": None, **values})
         return obj
 
     @property
@@ -135,7 +140,8 @@ class Identification:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping: ``mass_kg``, ``velocity_m_s``, ``energy_J``, their standard errors, ``available_at_s``,
-        ``method`` (the family), ``variant`` (peak-to-peak) or ``search`` (response map), ``early``, ``warnings``,
+        ``method`` (the family), ``variant`` (peak-to-peak) or ``search`` (response map), ``early``,
+        ``early_reason``, ``warnings``,
         ``error``, and the reported details (:data:`REPORTED_DETAILS`); unknown numbers as None."""
         out: dict[str, Any] = {
             "mass_kg": finite_or_none(self.mass), "velocity_m_s": finite_or_none(self.velocity),
@@ -145,6 +151,7 @@ class Identification:
         if self.family in VARIANT_KEYS:
             out[VARIANT_KEYS[self.family]] = self.variant
         out["early"] = None if self.early is None else self.early.to_dict()
+        out["early_reason"] = self.early_reason
         out["warnings"] = list(self.warnings)
         out["error"] = self.error
         for name, key in REPORTED_DETAILS.items():

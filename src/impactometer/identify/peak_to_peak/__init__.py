@@ -73,7 +73,8 @@ def solve(seg: Segment, variant: str, gravity: float, *, early: Identification |
         result = solve_robust(seg, gravity, early, contact_phase=contact_phase, stage=stage)
     else:
         result = VARIANT_SOLVERS[variant](seg, gravity, early)
-    return replace(result, warnings=answer_warnings(seg, result, gravity))
+    reason = None if early is not None or result.details.get("stage") == "early" else early_refusal(seg, variant)
+    return replace(result, warnings=answer_warnings(seg, result, gravity), early_reason=reason)
 
 
 def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tuple[str, ...]:
@@ -285,9 +286,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
         assert second is not None and peak2 is not None  # a single contact is answered above or refused
         theta, cov, chi2, dof, _, info = _contact_phase(seg, kin, peak2, noise)
         if info["branches"] == "none":
-            raise IdentificationError("the contact phase does not determine the mass here: the second pulse is "
-                                      "not a fresh contact (the overlap stayed positive through the gap before "
-                                      "it), and the first pulse alone fixes the velocity but hardly the mass")
+            raise IdentificationError(f"the contact phase does not determine the mass here: {info['refusal']}")
         used = {"onsets": int(info["onset_row"]), "extrema": 0, "stage_b_extrema": 0, "separations": 0,
                 "stage_b_samples": 0, "contact_phase": info}
         last = second.end if second.complete else seg.force.size - 1
@@ -330,15 +329,32 @@ def _contact_phase(seg: Segment, kin: Kinematics, peak2: int, noise: dict):
 VARIANT_SOLVERS = {"robust": solve_robust, "paper": solve_paper}
 
 
+#: key of a segment's onset cache that keeps why the early answer was refused: the cache is shared by the segments
+#: cut from one impact (the early cut and the whole record in the batch function, every estimate of an impact in
+#: the streaming identifier), so the later answers say why they have no early one
+EARLY_REFUSAL = ("early answer", "refusal")
+#: why there is no early answer where the data never allowed one
+NO_EARLY_DATA = ("the early answer needs a complete first contact pulse and a second one past its peak; the record "
+                 "holds none")
+
+
 def early_answer(cut: Segment | None, gravity: float) -> Identification | None:
     """The robust variant's early answer from the data up to the second pulse, or None when that data allows
-    none."""
+    none (the reason kept for :func:`early_refusal`)."""
     if cut is None:
         return None
     try:
         return solve(cut, "robust", gravity, stage="early")
-    except IdentificationError:
+    except IdentificationError as exc:
+        cut.onset_cache[EARLY_REFUSAL] = str(exc)
         return None
+
+
+def early_refusal(seg: Segment, variant: str) -> str:
+    """Why an answer from ``seg`` has no early answer."""
+    if variant != "robust":
+        return f"the {variant} variant gives no early answer (the robust variant does)"
+    return seg.onset_cache.get(EARLY_REFUSAL, NO_EARLY_DATA)
 
 
 def identify_arrays(force, acceleration, sample_rate: float, start_time: float = 0.0, *, variant: str = "robust",

@@ -58,7 +58,8 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
 
     Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
     the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
-    used (``samples``, ``onset_row``, ``branches``).
+    used (``samples``, ``onset_row``, ``branches``; ``branches`` is ``none`` where there is no answer, and
+    ``refusal`` then says why).
     """
     common = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples)
     whole = _fit(kin, pulses, [p.end for p in pulses], onset1, onset1_std, **common)
@@ -69,7 +70,9 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
             and (chosen[5] or {}).get("misfit", 0.0) > MISFIT_LIMIT:
         # not even the loading parts follow one law of the family, beyond the noise and by a visible part of the
         # force: the contact phase says nothing reliable
-        return _no_answer()
+        return _no_answer(f"the first two pulses follow no law Fc = k·δ^n + c·δ^m·δ' of the early fit's family "
+                          f"(even their loading parts miss it by {chosen[5]['misfit']:.1%} of the force beyond the "
+                          "noise): a hysteretic contact such as a pad, or pulses that are not whole contacts")
     gap_index = np.arange(gap[0], gap[1], dtype=float)
     if gap_index.size and np.all(np.isfinite(chosen[0])):
         tau, _, _, i_f, _, _, da = kin.at(gap_index)
@@ -79,15 +82,16 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
         grad = np.array([tau[k], -i_f[k]])
         if delta[k] > DIP_SIGMAS * np.sqrt(max(float(grad @ chosen[1] @ grad), 0.0)):
             # the first pulse alone determines V0 but hardly the mass: no answer
-            return _no_answer()
+            return _no_answer("the second pulse is not a fresh contact (the overlap stayed positive through the gap "
+                              "before it), and the first pulse alone fixes the velocity but hardly the mass")
     return (*chosen[:5], {"samples": int(chosen[4][1].size - 1), "onset_row": True,
                           "branches": "whole" if fits else "loading"})
 
 
-def _no_answer():
-    """What :func:`solve_early` returns where the contact phase gives no answer."""
+def _no_answer(reason: str):
+    """What :func:`solve_early` returns where the contact phase gives no answer, and why (``info["refusal"]``)."""
     return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
-            {"samples": 0, "onset_row": False, "branches": "none"})
+            {"samples": 0, "onset_row": False, "branches": "none", "refusal": reason})
 
 
 def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, start=None):
