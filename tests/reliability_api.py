@@ -15,7 +15,7 @@ import numpy as np
 
 from impactometer.control.strategies import strategy_names
 from impactometer.errors import ImpactometerError
-from impactometer.filters import filter_recording
+from impactometer.filters import cfc_corridor, filter_recording
 from impactometer.identify.inspection import inspect_recording
 from impactometer.identify.peak_to_peak import identify, identify_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier, stream_arrays
@@ -32,10 +32,11 @@ from impactometer.identify.response_map import (
 )
 from impactometer.identify.response_map.features import get_feature_set
 from impactometer.io import read_calibration_set, read_recording, write_recording
+from impactometer.model import simulate_batch
 from impactometer.recording import Recording
-from impactometer.rig import Scenario, from_dict, get_rig
+from impactometer.rig import Scenario, from_dict, get_rig, load_toml, save_toml
 from impactometer.sensors import apply_sensors, record
-from impactometer.studies import StudyOptions, get_study
+from impactometer.studies import StudyOptions, get_study, run_study
 from impactometer.units import parse_quantity
 
 BAD = [None, "abc", "", -1, 0, 1e308, -1e308, float("nan"), float("inf"), np.float64(3.0), np.int64(-2), True, [],
@@ -98,6 +99,14 @@ def calls(recording: Recording, path: Path, map_path: Path, folder: Path) -> dic
         "strategy_names": lambda x, y: strategy_names(x),
         "check_answer": lambda x, y: check_answer(x, y),
         "noise_std": lambda x, y: noise_std(x),
+        "simulate_batch": lambda x, y: simulate_batch(x, 2.0, 200e3, duration=0.002 if y is None else y),
+        "cfc_corridor": lambda x, y: cfc_corridor(60 if y is None else y, x),
+        "save_toml": lambda x, y: save_toml(get_rig() if y is None else x, out / x if isinstance(x, str) else x,
+                                            overwrite=True),
+        "load_toml": lambda x, y: load_toml(x),
+        # a text names a folder in which the study would run: only the other values are thrown at it
+        "run_study": lambda x, y: run_study("peak-force", None if isinstance(x, str) else x, StudyOptions(grid=2)),
+        "Recording.channel": lambda x, y: recording.channel(x),
     }
 
 

@@ -14,11 +14,17 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from impactometer.cli import main
+from impactometer.errors import ParameterError, RecordingError
+from impactometer.filters import cfc_corridor
 from impactometer.identify.peak_to_peak import identify
+from impactometer.model import simulate_batch
 from impactometer.recording import Recording
+from impactometer.rig import load_toml, save_toml
+from impactometer.studies import run_study
 from reliability_api import calls, fuzz
 from reliability_cases import Corpus
 from reliability_corpus import judge, run
@@ -67,6 +73,23 @@ def test_bad_arguments_to_the_python_functions_raise_impactometer_errors(corpus)
     table = calls(corpus.rec, corpus.base, corpus.map, corpus.folder)
     made, failures = fuzz(table, 1500, seed=1)
     assert made == 1500 and not failures, "\n".join(failures)
+
+
+@pytest.mark.parametrize("call, error, message", [
+    # each raised a builtin error before (MemoryError for 745 GiB, ValueError from float(), TypeError)
+    (lambda tmp: simulate_batch(np.full(10**6, 30.0), 2.0, 200e3, duration=1.0), ParameterError,
+     r"would take 745.1 GiB \(1000000 scenarios × 2 channels × 50001 samples × 8 bytes\)"),
+    (lambda tmp: cfc_corridor(60, "abc"), ParameterError, "frequency must be finite numbers >= 0 .Hz., got 'abc'"),
+    (lambda tmp: save_toml(None, tmp / "stand.toml"), ParameterError, "rig must be a Rig, got NoneType"),
+    (lambda tmp: load_toml(5), ParameterError, r"rig file must be a file name \(str or path\), got int"),
+    (lambda tmp: run_study("peak-force", None), ParameterError, "--out must be a folder name .*got NoneType"),
+    (lambda tmp: Recording(sample_rate=1e3, channels={"contact_force": [1.0, 2.0]}).channel([1]), RecordingError,
+     r"a channel name must be a str, got \[1\]; channels found: \['contact_force'\]"),
+])
+def test_bad_arguments_found_by_the_fuzz_raise_named_impactometer_errors(tmp_path, call, error, message):
+    with pytest.raises(error, match=message):
+        call(tmp_path)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_second_study_into_a_locked_folder_is_refused(tmp_path, capsys):

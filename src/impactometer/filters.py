@@ -139,7 +139,12 @@ def cfc_corridor(cfc: int, frequency) -> tuple[np.ndarray, np.ndarray]:
     Upper: +0.5 dB up to f_n, then falling 9 dB/octave, never below the stop-band level.
     """
     klass = channel_class(cfc)
-    f = np.asarray(frequency, dtype=float)
+    try:
+        f = np.asarray(frequency, dtype=float)
+    except (TypeError, ValueError):
+        f = np.array(np.nan)
+    if not np.all(np.isfinite(f) & (f >= 0.0)):
+        raise ParameterError(f"frequency must be finite numbers >= 0 [Hz], got {shown(frequency)}")
     lower = np.full(f.shape, -np.inf)
     lower[f <= klass.f_h] = -0.5
     mid = (f > klass.f_h) & (f <= klass.f_n)

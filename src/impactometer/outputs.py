@@ -23,15 +23,16 @@ from .validation import check_flag
 HDF5_EXTENSIONS = (".h5", ".hdf5")
 
 
-def as_path(value: Any, field: str = "path", *, error: type[Exception] = ParameterError) -> Path:
-    """``value`` (a str or an os.PathLike) as a Path; ``error`` naming ``field`` for anything else."""
+def as_path(value: Any, field: str = "path", *, error: type[Exception] = ParameterError, kind: str = "file") -> Path:
+    """``value`` (a str or an os.PathLike) as a Path; ``error`` naming ``field`` for anything else (``kind``: what
+    the name is of, ``file`` or ``folder``)."""
     if isinstance(value, Path):
         return value
     if isinstance(value, str) or (isinstance(value, os.PathLike) and isinstance(os.fspath(value), str)):
         if "\x00" in str(value):
-            raise error(f"{field} must be a file name without NUL characters, got {str(value)[:60]!r}")
+            raise error(f"{field} must be a {kind} name without NUL characters, got {str(value)[:60]!r}")
         return Path(value)
-    raise error(f"{field} must be a file name (str or path), got {type(value).__name__}")
+    raise error(f"{field} must be a {kind} name (str or path), got {type(value).__name__}")
 
 
 def figure_formats() -> list[str]:
@@ -120,7 +121,7 @@ def publish(temporary: Path, path: Path, *, overwrite: bool, flag: str = "--over
 def check_folder(path: str | Path, field: str) -> Path:
     """``path`` as an output folder: an existing writable folder, or one that can be created (its nearest existing
     parent a writable folder). ParameterError naming ``field`` otherwise."""
-    path = Path(path)
+    path = as_path(path, field, kind="folder")
     if path.exists():
         if not path.is_dir():
             raise ParameterError(f"{field}: {str(path)!r} exists and is not a folder; expected a folder")

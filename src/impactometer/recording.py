@@ -150,6 +150,9 @@ class Recording:
 
     def channel(self, name: str) -> np.ndarray:
         """Samples of channel ``name``; the error lists the channels present."""
+        if not isinstance(name, str):
+            raise RecordingError(f"{self.source}: a channel name must be a str, got {shown(name)}; channels found: "
+                                 f"{sorted(self.channels)}")
         if name not in self.channels:
             raise RecordingError(f"{self.source}: channel {name!r} is missing; channels found: {sorted(self.channels)}")
         return self.channels[name]

@@ -38,7 +38,7 @@ from .components import (  # noqa: F401 - the parts are part of the stand's API
 )
 from .constants import STANDARD_GRAVITY
 from .errors import ParameterError
-from .outputs import check_file, write_failed
+from .outputs import as_path, check_file, write_failed
 from .stands import MASS_RANGE, VELOCITY_RANGE, check_stops
 from .validation import check_real, is_real
 
@@ -149,7 +149,7 @@ def parameter_names() -> list[str]:
 
 def load_toml(path: str | Path) -> Rig:
     """Load a stand from a TOML file."""
-    path = Path(path)
+    path = as_path(path, "rig file")
     if not path.is_file():
         raise ParameterError(f"rig file {str(path)!r} does not exist")
     try:
@@ -164,6 +164,8 @@ def load_toml(path: str | Path) -> Rig:
 
 def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``rig`` to ``path`` as TOML."""
+    if not isinstance(rig, Rig):
+        raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
     path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
     try:
         path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")

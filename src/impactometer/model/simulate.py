@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
@@ -24,6 +25,16 @@ MAX_STEP = 1e-3
 #: default bound of the number of accepted steps per scenario
 MAX_STEPS = 10_000_000
 _CHUNK_BYTES = 64 * 2**20
+#: largest batch of histories simulate_batch holds in memory when the machine's memory is not known [bytes]
+FALLBACK_BATCH_BYTES = 16 * 2**30
+
+
+def memory_bytes() -> int:
+    """Physical memory of this machine [bytes], or :data:`FALLBACK_BATCH_BYTES` where the system does not say."""
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        return FALLBACK_BATCH_BYTES
 _STATE_SCALE = np.array([0.1, 1.0, 0.1, 1.0, 1e5, 1e5, 1e-3, 1e-4, 100.0, 1e-3])
 
 
@@ -194,7 +205,14 @@ def simulate_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, ov
     """
     plan = _plan(mass, velocity, pressure_gauge, rig, overrides, duration, sample_rate, channels, rtol, dtype,
                  max_step, max_steps, device)
-    return _run(plan, slice(0, plan.params.shape[0]))
+    n = plan.params.shape[0]
+    size = n * plan.index.size * plan.time.size * plan.dtype.itemsize
+    if size > memory_bytes():
+        raise ParameterError(f"the histories of this batch would take {size / 2**30:.4g} GiB ({n} scenarios × "
+                             f"{plan.index.size} channels × {plan.time.size} samples × {plan.dtype.itemsize} bytes), "
+                             f"more than the {memory_bytes() / 2**30:.4g} GiB of memory of this machine; expected "
+                             "fewer scenarios, channels or samples, or simulate_blocks (a block at a time)")
+    return _run(plan, slice(0, n))
 
 
 def simulate_blocks(mass, velocity, pressure_gauge, rig: Rig | None = None, *, overrides=None,
