@@ -37,7 +37,7 @@ def test_gpu_without_a_gpu_is_one_line_naming_the_extra_and_exit_2(argv, tmp_pat
 def test_unknown_device_is_exit_2(argv, tmp_path, capsys):
     status, out, err = run([*argv, "--out", str(tmp_path / "x")], capsys)
     assert_error_line(status, out, err)
-    assert "device must be one of ['cpu', 'gpu', 'auto'], got 'tpu'" in err.splitlines()[-1]
+    assert "--device tpu: must be one of ['cpu', 'gpu', 'auto']" in err.splitlines()[-1]
 
 
 def test_map_build_on_auto_falls_back_to_the_cpu(tmp_path, capsys, no_gpu):

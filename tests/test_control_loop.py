@@ -173,7 +173,7 @@ def test_cli_absorb_json_and_plot(tmp_path, capsys):
         main(["absorb", "--strategy", "closed", "--identify", "oracle", "--plot", str(figure)])
     assert exit_info.value.code == 2
     captured = capsys.readouterr()
-    assert "--force" in captured.err and captured.err.startswith("error:") and captured.err.count("\n") == 1
+    assert "--overwrite" in captured.err and captured.err.startswith("error:") and captured.err.count("\n") == 1
     assert "error:" not in captured.out
 
 
@@ -184,9 +184,10 @@ def test_cli_absorb_table(capsys):
 
 
 @pytest.mark.parametrize("args, match", [
-    (["--strategy", "open"], "strategy must be one of"), (["--identify", "guess"], "identification"),
+    (["--strategy", "open"], "--strategy open: must be one of"), (["--identify", "guess"], "--method guess"),
+    (["--method", "guess"], "--method guess: must be one of"),
     (["--noise", "-3%"], "noise"), (["--mass", "-30kg"], "mass"),
-    (["--response-map", "map.h5"], "--identify response-map")])
+    (["--response-map", "map.h5"], "--map is only used with --method response-map")])
 def test_cli_absorb_bad_input(args, match, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["absorb", *args])

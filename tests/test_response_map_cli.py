@@ -48,7 +48,7 @@ def test_existing_map_is_not_overwritten_without_force(tmp_path, capsys):
     out.write_bytes(b"precious")
     status, text, err = run(["map", "build", "--grid", "4x4", "--out", str(out)], capsys)
     assert_error_line(status, text, err)
-    assert "--force" in err
+    assert "--overwrite" in err
     assert out.read_bytes() == b"precious"
     status, _, err = run(["map", "build", "--grid", "4x4", "--out", str(out), "--force"], capsys)
     assert status == 0, err
@@ -59,8 +59,8 @@ def test_existing_map_is_not_overwritten_without_force(tmp_path, capsys):
     (["--grid", "1x10"], "--grid: expected MASSESxVELOCITIES"),
     (["--mass", "50kg:10kg"], "--mass: expected 0 <= LOW < HIGH"),
     (["--pressure", "300kPa,100kPa"], "--pressure: expected one pressure or an increasing comma list"),
-    (["--pressure", "900kPa"], "exceeds the rated"),
-    (["--features", "fft"], "features must be one of"),
+    (["--pressure", "900kPa"], "--pressure 900kPa: must be <= the rated 400000 Pa"),
+    (["--features", "fft"], "--features fft: must be one of"),
     (["--features", "peaks", "--window", "20ms"], "--window applies to"),
     (["--height", "5cm:50cm", "--velocity", "1m/s:3m/s"], "at most one of --height and --velocity"),
 ])
