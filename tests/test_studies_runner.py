@@ -14,8 +14,9 @@ import numpy as np
 import pytest
 
 from impactometer.errors import ParameterError
-from impactometer.studies import StudyOptions, run_study
-from impactometer.studies.store import atomic_write, read_chunk
+from impactometer.studies import StudyOptions, run_study, runner
+from impactometer.studies.runner import compiling
+from impactometer.studies.store import LOCK, atomic_write, locked, read_chunk
 from impactometer.studies.tables import read_csv
 
 SMALL = dict(grid=3, params={"peak-force.chunk_size": 4})  # 27 cases in 7 chunks
@@ -59,7 +60,7 @@ def test_rerun_reuses_finished_chunks_and_recomputes_damaged_ones(tmp_path):
 
 def test_other_options_in_the_same_folder_need_force(tmp_path):
     run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
-    with pytest.raises(ParameterError, match="other options.*--force"):
+    with pytest.raises(ParameterError, match="other options.*--overwrite"):
         run_study("peak-force", tmp_path, StudyOptions(seed=5, **SMALL), workers=1)
     redone = run_study("peak-force", tmp_path, StudyOptions(seed=5, **SMALL), workers=1, force=True)
     assert redone.reused_chunks == 0
@@ -89,7 +90,8 @@ def test_killed_run_loses_no_finished_chunk_and_resumes(tmp_path):
     assert not (out / "peak-force.csv").exists()
     for path in chunks:  # every file under a final name is complete
         assert json.loads(path.read_text())["rows"]
-    resumed = run_study("peak-force", out, options, workers=1)
+    with pytest.warns(UserWarning, match=rf"removed a stale lock .* of process {proc.pid}, which is no longer running"):
+        resumed = run_study("peak-force", out, options, workers=1)
     assert resumed.reused_chunks >= len(chunks)
     fresh = run_study("peak-force", tmp_path / "fresh", options, workers=1)
     assert read_csv(resumed.table.read_text()) == read_csv(fresh.table.read_text())
@@ -156,3 +158,71 @@ def test_a_failing_chunk_names_its_study_and_cases_and_keeps_finished_chunks(tmp
         run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
     assert len(list((tmp_path / "peak-force").glob("chunk-*.json"))) == 2
     assert not (tmp_path / "peak-force.csv").exists()
+
+
+def test_the_lock_is_removed_however_the_run_ends(tmp_path, monkeypatch):
+    run_study("peak-force", tmp_path / "done", StudyOptions(**SMALL), workers=1)
+    assert not (tmp_path / "done" / LOCK).exists()
+    with pytest.raises(ParameterError, match="other options"):
+        run_study("peak-force", tmp_path / "done", StudyOptions(seed=9, **SMALL), workers=1)
+    assert not (tmp_path / "done" / LOCK).exists()
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(runner, "evaluate_chunk", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_study("peak-force", tmp_path / "stopped", StudyOptions(**SMALL), workers=1)
+    assert not (tmp_path / "stopped" / LOCK).exists()
+
+
+def test_a_lock_left_by_a_dead_process_is_stale_and_said_so(tmp_path):
+    ended = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True,
+                           check=True)
+    dead = int(ended.stdout)
+    (tmp_path / LOCK).write_text(f"process {dead}")
+    notes = []
+    with locked(tmp_path, notice=notes.append):
+        assert (tmp_path / LOCK).read_text() == f"process {os.getpid()}"
+    assert notes == [f"removed a stale lock {str(tmp_path / LOCK)!r} of process {dead}, which is no longer running "
+                     "(a killed run; its finished chunks are kept)"]
+    (tmp_path / LOCK).write_text(f"process {os.getppid()}")  # running, but holding no lock on the file
+    with locked(tmp_path, notice=notes.append):
+        pass
+    assert "which no longer holds it" in notes[-1] and not (tmp_path / LOCK).exists()
+
+
+def test_a_rerun_keeps_a_finished_study_and_force_rewrites_it(tmp_path):
+    first = run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
+    stats = [path.stat() for path in (first.table, first.figure)]
+    again = run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1)
+    assert again.kept and again.reused_chunks == again.chunks and again.rows == first.rows
+    assert [(s.st_ino, s.st_mtime_ns) for s in stats] == [(p.stat().st_ino, p.stat().st_mtime_ns)
+                                                          for p in (again.table, again.figure)]
+    forced = run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=1, force=True)
+    assert not forced.kept and forced.table.stat().st_ino != stats[0].st_ino
+    assert forced.table.read_text() == first.table.read_text()
+
+
+def test_compiling_calls_back_once_when_numba_compiles_and_not_for_a_compiled_kernel():
+    import numba
+
+    @numba.njit
+    def twice(x):
+        return 2 * x
+
+    calls = []
+    with compiling(lambda: calls.append("compiling")):
+        assert twice(2) == 4 and twice(2.5) == 5.0  # two signatures, two compilations, one call
+    assert calls == ["compiling"]
+    with compiling(lambda: calls.append("again")):
+        assert twice(3) == 6
+    assert calls == ["compiling"]
+
+
+def test_a_pool_says_what_it_does_until_its_first_chunk_lands(tmp_path):
+    said = []
+    run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=2, status=lambda name, text: said.append(text))
+    doing = {"starting 2 worker processes", "running the first chunks",
+             f"compiling kernels in 2 workers (first run only, {runner.COMPILE_TIME})"}
+    assert said[0] in doing and said[-1] == "" and set(said) <= doing | {""}

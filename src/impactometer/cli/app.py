@@ -6,7 +6,6 @@ import copy
 import math
 import os
 import re
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -197,11 +196,32 @@ def output_path(path: Path | None, overwrite: bool, *, field: str = "--out", kin
     return check_file(path, field, overwrite=overwrite, extensions=extensions, flag="--overwrite")
 
 
-def announce_compilation() -> None:
-    """Say so on stderr before the compiled kernels are built for the first time (no cache beside the model)."""
-    cache = Path(__file__).resolve().parents[1] / "model" / "__pycache__"
-    if not any(cache.glob("*.nbi")):
-        print("compiling kernels, once, about 15 s ...", file=sys.stderr, flush=True)
+@contextmanager
+def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s") -> Iterator[None]:
+    """Say on standard error what the command is ``doing`` while the block runs and, if numba compiles kernels in
+    it (a first run: nothing in numba's cache), that it does and how long that takes (``compile_time``, measured
+    on a cold cache): a spinner with the elapsed time on a terminal; elsewhere (a log, a pipe) one plain line, and
+    only when it compiles."""
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.table import Column
+
+    from ..studies.runner import compiling
+
+    live = error_console.is_terminal
+    note = f"compiling kernels, first run only ({compile_time})"
+    spinner = Progress(SpinnerColumn(), TimeElapsedColumn(),
+                       TextColumn("{task.description}", table_column=Column(overflow="fold")), console=error_console,
+                       transient=True, disable=not live, redirect_stdout=False, redirect_stderr=False)
+    task = spinner.add_task(doing, total=None)
+
+    def compiling_now() -> None:
+        if live:
+            spinner.update(task, description=f"{doing}: {note}")
+        else:
+            error_console.print(f"{note} ...", highlight=False, markup=False, soft_wrap=True)
+
+    with spinner, compiling(compiling_now):
+        yield
 
 
 def with_uncertainty(value: float, std: float | None, unit: str = "", *, digits: int = 4) -> str:

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import ParameterError
 from ..rig import ABSORPTION_RIG
-from .app import OVERWRITE, app, console, given, output_path, quantity
+from .app import OVERWRITE, announce_compilation, app, console, given, output_path, quantity
 from .simulate import ContactOpt, HeightOpt, MassOpt, PressureOpt, VelocityOpt, stand_and_scenario
 
 #: rows of the metrics table: (label, key of AbsorptionMetrics.to_dict(), format)
@@ -107,7 +107,10 @@ def absorb(
         raise ParameterError(f"--map is only used with --method response-map, got --method {method}")
     if map_path is not None and not map_path.is_file():
         raise ParameterError(f"--map: {str(map_path)!r} does not exist")
-    with given(method=method, map=map_path, noise=noise, seed=seed):
+    doing = (f"closed loop on {stand.name}: identify M1 and V0 ({method}), then control valve Z with "
+             f"{', '.join(names)}{'; then search the achievable R' if reference else ''}")
+    with given(method=method, map=map_path, noise=noise, seed=seed), \
+            announce_compilation(doing, compile_time="about 30-80 s"):
         result = run_absorb(scenario, stand, strategy=names, identification=method,
                             noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=map_path,
                             reference=reference)

@@ -27,7 +27,8 @@ def demo(
                                                                    "--overwrite.")]
     = Path("impactometer-demo"),
     absorb: Annotated[bool, typer.Option("--absorb/--no-absorb", help="Also run the closed loop identify → "
-                                                                      "control (about 10 s).")] = True,
+                                                                      "control (a second; 15-40 s on a first run, "
+                                                                      "which compiles it).")] = True,
     overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Replace the figures of an existing output folder.")]
     = False,
 ) -> None:
@@ -45,20 +46,21 @@ def demo(
     impact_png, absorb_png = out / "impact.png", out / "absorb.png"
     for figure in (impact_png, absorb_png):
         check_file(figure, "--out", overwrite=True)
-    announce_compilation()
-
-    result = run_simulation(scenario, stand, duration=0.1, sample_rate=SAMPLE_RATE)
-    table, pulses = summary_table(result, "1. simulation: 30 kg from 0.2 m onto the drop stand at 200 kPa")
+    with announce_compilation("1. simulating the drop"):
+        result = run_simulation(scenario, stand, duration=0.1, sample_rate=SAMPLE_RATE)
+        table, pulses = summary_table(result, "1. simulation: 30 kg from 0.2 m onto the drop stand at 200 kPa")
     console.print(table)
     save_figure(result.plot(pulses=pulses), impact_png)
     console.print(f"figure written to {impact_png}\n")
 
-    console.print(identification_table(scenario, stand))
+    with announce_compilation("2. identifying M1 and V0 from the simulated sensors"):
+        table = identification_table(scenario, stand)
+    console.print(table)
     if absorb:
         from ..control.loop import absorb as run_absorb
 
-        with console.status(f"closed loop on {ABSORPTION_RIG}: identify, then control valve Z with each strategy "
-                            "..."):
+        with announce_compilation(f"3. closed loop on {ABSORPTION_RIG}: identify, then control valve Z with each "
+                                  "strategy", compile_time="about 15-40 s"):
             absorbed = run_absorb(scenario, get_rig(ABSORPTION_RIG), strategy="all", noise=NOISE, seed=0)
         metrics = metrics_table(absorbed)
         metrics.title = f"\n3. adaptive absorption (the paper's Fig. 10b), {NOISE:.0%} sensor noise: {metrics.title}"

@@ -106,17 +106,17 @@ def simulate(
     from ..model import simulate as run_simulation
     from ..model.io import save_simulation
 
-    announce_compilation()
     stand, scenario = stand_and_scenario(mass, height, velocity, pressure, rig=rig, contact=contact)
     output_path(out, overwrite, kind="hdf5")
     output_path(plot, overwrite, field="--plot", kind="figure")
-    with given(duration=duration, integrator=integrator, sample_rate=sample_rate):
-        length = quantity(duration, "time", "--duration")
-        budget = {"max_steps": reference_steps(length)} if integrator == "reference" else {}
-        result = run_simulation(scenario, stand, duration=length, integrator=integrator,
-                                sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), **budget)
-    table, pulses = summary_table(result, f"{scenario.mass:g} kg at {scenario.velocity:.3f} m/s, "
-                                          f"p0 = {scenario.pressure_gauge / 1e3:g} kPa ({stand.contact.law})")
+    with announce_compilation("simulating the drop and finding its contact pulses"):
+        with given(duration=duration, integrator=integrator, sample_rate=sample_rate):
+            length = quantity(duration, "time", "--duration")
+            budget = {"max_steps": reference_steps(length)} if integrator == "reference" else {}
+            result = run_simulation(scenario, stand, duration=length, integrator=integrator,
+                                    sample_rate=quantity(sample_rate, "frequency", "--sample-rate"), **budget)
+        table, pulses = summary_table(result, f"{scenario.mass:g} kg at {scenario.velocity:.3f} m/s, "
+                                              f"p0 = {scenario.pressure_gauge / 1e3:g} kPa ({stand.contact.law})")
     console.print(table)
     if out is not None:
         try:

@@ -3,14 +3,27 @@
 from __future__ import annotations
 
 import json
+import signal
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    SpinnerColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 from rich.table import Table
+from rich.text import Text
 
 from ..errors import ParameterError
 from ..outputs import check_folder
@@ -18,7 +31,7 @@ from ..rig import get_rig
 from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
 from ..studies.report import markdown, write_report
 from ..studies.runner import check_backend
-from .app import OVERWRITE, app, console, given, quantity
+from .app import OVERWRITE, app, console, error_console, given, quantity
 from .simulate import ContactOpt
 
 
@@ -64,6 +77,88 @@ def _parse_params(items: list[str] | None) -> dict:
         except (ValueError, RecursionError):
             params[key] = value  # a bare word or a quantity with a unit ("20kPa"), checked by the study
     return params
+
+
+class _BarOrDoing(BarColumn):
+    """The bar of a study, or what it is doing while its first chunk is awaited (a study starts at 0 for a while:
+    workers start, kernels compile)."""
+
+    def render(self, task):
+        doing = task.fields.get("doing")
+        return Text(doing, overflow="fold") if doing else super().render(task)
+
+
+class _Progress:
+    """Progress of the studies on standard error: a bar per study with a count and, until its first chunk lands,
+    what it is doing (starting workers, compiling kernels) on a terminal; elsewhere (a log, a pipe) plain lines:
+    each thing it starts doing, every tenth of the cases, and the end of each study."""
+
+    def __init__(self, names: list[str]) -> None:
+        self.live = error_console.is_terminal
+        self.bar = Progress(SpinnerColumn(), TextColumn("{task.description:<14}"), MofNCompleteColumn(),
+                            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), _BarOrDoing(),
+                            console=error_console, disable=not self.live, redirect_stdout=False,
+                            redirect_stderr=False)
+        self.tasks = {n: self.bar.add_task(n, total=None, doing="") for n in names}
+        self.said: dict[str, tuple[int, str]] = {}  # study -> (tenths of its cases said, last text said)
+        self.start = time.perf_counter()
+
+    def __enter__(self) -> _Progress:
+        self.bar.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def stop(self) -> None:
+        self.bar.stop()
+
+    def _line(self, text: str) -> None:
+        if not self.live:
+            error_console.print(text, highlight=False, markup=False, soft_wrap=True)
+
+    def progress(self, name: str, done: int, total: int) -> None:
+        self.bar.update(self.tasks[name], completed=done, total=total)
+        tenths, doing = self.said.get(name, (-1, ""))
+        now = 10 * done // max(total, 1)
+        if now > tenths:
+            self.said[name] = (now, doing)
+            elapsed = time.perf_counter() - self.start
+            self._line(f"{name}: {done}/{total} cases{' done' if done == total else ''} ({elapsed:.0f} s)")
+
+    def status(self, name: str, text: str) -> None:
+        self.bar.update(self.tasks[name], doing=text)
+        tenths, said = self.said.get(name, (-1, ""))
+        if text and text != said:
+            self.said[name] = (tenths, text)
+            self._line(f"{name}: {text} ...")
+
+    def notice(self, text: str) -> None:
+        error_console.print(f"note: {text}", highlight=False, markup=False, soft_wrap=True)
+
+
+class _Signals:
+    terminated = False
+
+
+@contextmanager
+def _terminated_is_interrupted() -> Iterator[_Signals]:
+    """SIGTERM (``kill``, a batch system ending the job) stops the run as Ctrl-C does: KeyboardInterrupt, so the
+    workers are terminated and the folder's lock removed before the process exits."""
+    signals = _Signals()
+    if threading.current_thread() is not threading.main_thread():
+        yield signals
+        return
+
+    def handler(number, frame) -> None:
+        signals.terminated = True
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield signals
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 @app.command()
@@ -134,27 +229,30 @@ def study(
                                duration=quantity(duration, "time", "--duration"),
                                pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"),
                                params=_parse_params(setting), rig_is_default=rig is None and contact is None)
-    columns = (TextColumn("{task.description:<14}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-               TextColumn("ETA"), TimeRemainingColumn())
     start = time.perf_counter()
-    with Progress(*columns, console=console, transient=False) as bar:
-        tasks = {n: bar.add_task(n, total=None) for n in names}
-
-        def progress(study_name: str, done: int, total: int) -> None:
-            bar.update(tasks[study_name], completed=done, total=total)
-
+    report_found = (out / "index.html").exists()
+    with _Progress(names) as bar, _terminated_is_interrupted() as signals:
         try:
             with use_device(device):
                 runs = run_studies(names, out, options, workers=workers, scheduler=scheduler, force=force,
-                                   progress=progress)
+                                   progress=bar.progress, status=bar.status, notice=bar.notice)
         except KeyboardInterrupt:
-            console.print(f"interrupted: the finished chunks are kept in {out}; rerun the same command to resume")
+            bar.stop()
+            error_console.print(f"interrupted: the finished chunks are kept in {out}; rerun the same command to "
+                                "resume", highlight=False, markup=False, soft_wrap=True)
+            if signals.terminated:
+                raise typer.Exit(128 + signal.SIGTERM) from None
             raise typer.Abort() from None
     table = Table(title=f"studies in {out} ({time.perf_counter() - start:.1f} s)")
-    for column in ("study", "cases", "reused chunks", "wall [s]", "compute [s]", "table"):
-        table.add_column(escape(column), overflow="fold", justify="left" if column in ("study", "table") else "right")
+    for column in ("study", "cases", "reused chunks", "wall [s]", "compute [s]", "table", "files"):
+        table.add_column(escape(column), overflow="fold",
+                         justify="left" if column in ("study", "table", "files") else "right")
     for run in runs:
         table.add_row(run.name, str(run.cases), f"{run.reused_chunks}/{run.chunks}", f"{run.wall_time:.1f}",
-                      f"{run.compute_time:.1f}", str(run.table))
+                      f"{run.compute_time:.1f}", str(run.table), "kept (finished earlier)" if run.kept else "written")
     console.print(table)
-    console.print(f"report written to {out / 'index.html'}")
+    if all(run.kept for run in runs) and report_found and not force:
+        console.print(f"finished earlier with these options: tables, figures and report {out / 'index.html'} kept "
+                      "(--overwrite rewrites them)")
+    else:
+        console.print(f"report written to {out / 'index.html'}")

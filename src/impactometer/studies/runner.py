@@ -2,17 +2,23 @@
 
 Finished chunks are persisted as they complete (see :mod:`.store`), so a rerun skips them. The chunks and every
 case's random numbers are fixed by the options, never by the number of workers, so the tables are identical
-whatever runs them.
+whatever runs them. A rerun keeps the table and figure of a study it finds finished (same options) and writes only
+what is missing; ``force`` rewrites them.
+
+Local worker processes exit with their parent: stopped (an exception, Ctrl-C, SIGTERM turned into one by the
+command line), the run terminates them; killed (SIGKILL), each worker notices that its parent is gone and exits.
 """
 
 from __future__ import annotations
 
 import math
 import os
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +35,11 @@ from .report import check_target, write_report
 from .tables import to_csv
 
 Task = tuple[int, list[Row]]
+#: ``status(name, text)``: what a study run is doing before its chunks flow ("" once they do)
+Status = Callable[[str, str], None]
+
+#: compile time of the kernels of a study on a cold numba cache (every worker compiles its own), measured on 2 cores
+COMPILE_TIME = "about 20-90 s"
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -36,7 +47,8 @@ class StudyRun:
     """Outcome of one study run: the tidy table, where it was written and how long it took.
 
     ``wall_time`` is the time of this invocation [s]; ``compute_time`` the sum of the chunks' evaluation
-    times [s], including chunks reused from an earlier run.
+    times [s], including chunks reused from an earlier run. ``kept`` is True when the table and figure of an
+    earlier, finished run with the same options were found and left as they were.
     """
 
     name: str
@@ -48,6 +60,7 @@ class StudyRun:
     reused_chunks: int
     wall_time: float
     compute_time: float
+    kept: bool = False
 
 
 def evaluate_chunk(name: str, cases: list[Row], options: StudyOptions) -> tuple[list[Row], float]:
@@ -72,11 +85,69 @@ def _plain(row: Row) -> Row:
     return out
 
 
-def _init_worker() -> None:  # pragma: no cover - runs in pool processes
-    """One numba thread per pool process (the pool provides the parallelism)."""
-    import numba
+def _compile_listener(callback: Callable[[], None]):
+    """A numba event listener that calls ``callback()`` when the first compilation starts (a kernel found in
+    numba's cache is loaded, not compiled, and calls nothing)."""
+    from numba.core import event
 
+    class Listener(event.Listener):
+        called = False
+
+        def on_start(self, ev) -> None:
+            if not self.called:
+                self.called = True
+                callback()
+
+        def on_end(self, ev) -> None:
+            pass
+
+    return Listener()
+
+
+@contextmanager
+def compiling(callback: Callable[[], None]) -> Iterator[None]:
+    """Call ``callback()`` once if numba starts compiling a kernel in this process while the block runs."""
+    from numba.core import event
+
+    with event.install_listener("numba:compile", _compile_listener(callback)):
+        yield
+
+
+def _init_worker(events) -> None:  # pragma: no cover - runs in pool processes
+    """Set up a pool process: exit with the parent, leave Ctrl-C to it, one numba thread (the pool provides the
+    parallelism), and tell the parent through ``events`` that it is ready and when it starts compiling."""
+    import multiprocessing
+    import signal
+
+    import numba
+    from numba.core import event
+
+    parent = multiprocessing.parent_process()
+    if parent is not None:
+        threading.Thread(target=_exit_with, args=(parent,), name="impactometer-parent-watch", daemon=True).start()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole process group; the parent stops us
     numba.set_num_threads(1)
+    global _worker_listener
+    _worker_listener = _compile_listener(lambda: events.put("compiling"))
+    event.register("numba:compile", _worker_listener)  # for the process's life
+    events.put("ready")
+
+
+_worker_listener = None  # a pool process's compile listener: says "compiling" at most once per chunk
+
+
+def _evaluate_in_worker(name: str, cases: list[Row], options: StudyOptions) -> tuple[list[Row], float]:
+    """:func:`evaluate_chunk` in a pool process (a chunk that compiles kernels says so once)."""
+    if _worker_listener is not None:
+        _worker_listener.called = False
+    return evaluate_chunk(name, cases, options)
+
+
+def _exit_with(parent) -> None:  # pragma: no cover - runs in pool processes
+    """Wait for the parent process to end (its sentinel closes when it dies, however it dies), then exit: a killed
+    run leaves no worker behind, blocked on a queue that will never be fed."""
+    parent.join()
+    os._exit(1)
 
 
 class _Serial:
@@ -84,29 +155,73 @@ class _Serial:
 
     workers = 1
 
-    def run(self, name: str, tasks: Sequence[Task], options: StudyOptions) -> Iterator[tuple[int, Any]]:
-        for index, cases in tasks:
-            yield index, evaluate_chunk(name, cases, options)
+    def run(self, name: str, tasks: Sequence[Task], options: StudyOptions,
+            status: Status | None = None) -> Iterator[tuple[int, Any]]:
+        def compiling_now() -> None:
+            if status:
+                status(name, f"compiling kernels (first run only, {COMPILE_TIME})")
 
-    def close(self) -> None:
+        for index, cases in tasks:
+            with compiling(compiling_now):
+                result = evaluate_chunk(name, cases, options)
+            if status:
+                status(name, "")
+            yield index, result
+
+    def close(self, abort: bool = False) -> None:
         pass
 
 
 class _Pool:
-    """A local process pool (spawned processes, one numba thread each)."""
+    """A local process pool (spawned processes, one numba thread each, that exit with this process)."""
+
+    #: seconds between looks at the workers' messages while no chunk finishes
+    poll = 0.2
 
     def __init__(self, workers: int) -> None:
         import multiprocessing
 
+        context = multiprocessing.get_context("spawn")
         self.workers = workers
-        self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                        initializer=_init_worker)
+        self.events = context.SimpleQueue()  # "ready" and "compiling" from the workers
+        self.ready = 0
+        self.compiling = False
+        self.pool = ProcessPoolExecutor(max_workers=workers, mp_context=context, initializer=_init_worker,
+                                        initargs=(self.events,))
 
-    def run(self, name: str, tasks: Sequence[Task], options: StudyOptions) -> Iterator[tuple[int, Any]]:
-        pending = {self.pool.submit(evaluate_chunk, name, cases, options): index for index, cases in tasks}
+    def _read(self) -> None:
+        """Read the workers' messages (a few per chunk at most: read as chunks land, the pipe never fills)."""
+        while not self.events.empty():
+            message = self.events.get()
+            self.ready += message == "ready"
+            self.compiling |= message == "compiling"
+
+    def _phase(self, name: str, status: Status | None) -> None:
+        """Say what the pool is doing until the first chunk of study ``name`` lands."""
+        if status is None:
+            return
+        if self.compiling:
+            status(name, f"compiling kernels in {self.workers} workers (first run only, {COMPILE_TIME})")
+        elif not self.ready:
+            status(name, f"starting {self.workers} worker processes")
+        else:
+            status(name, "running the first chunks")
+
+    def run(self, name: str, tasks: Sequence[Task], options: StudyOptions,
+            status: Status | None = None) -> Iterator[tuple[int, Any]]:
+        pending = {self.pool.submit(_evaluate_in_worker, name, cases, options): index for index, cases in tasks}
+        waiting = True  # for the first chunk
+        self.compiling = False
         try:
             while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                self._read()
+                if waiting:
+                    self._phase(name, status)
+                done, _ = wait(pending, timeout=self.poll if waiting else None, return_when=FIRST_COMPLETED)
+                if done and waiting:
+                    waiting = False
+                    if status:
+                        status(name, "")
                 for future in done:
                     index = pending.pop(future)
                     try:
@@ -120,8 +235,13 @@ class _Pool:
             for future in pending:
                 future.cancel()
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
+        """Shut the pool down: after the running chunks finish, or at once (``abort``: terminate the workers)."""
+        if abort:
+            for process in list((getattr(self.pool, "_processes", None) or {}).values()):
+                process.terminate()
         self.pool.shutdown(wait=True, cancel_futures=True)
+        self.events.close()
 
 
 class _Dask:
@@ -140,20 +260,38 @@ class _Dask:
                                  f"running Dask scheduler, e.g. tcp://HOST:8786") from None
         self.workers = max(1, sum(self.client.nthreads().values()))
 
-    def run(self, name: str, tasks: Sequence[Task], options: StudyOptions) -> Iterator[tuple[int, Any]]:
+    def run(self, name: str, tasks: Sequence[Task], options: StudyOptions,
+            status: Status | None = None) -> Iterator[tuple[int, Any]]:
         from dask.distributed import as_completed
 
         futures = {self.client.submit(evaluate_chunk, name, cases, options, pure=False): index
                    for index, cases in tasks}
+        if status:
+            status(name, f"waiting for the first chunks from the cluster ({self.workers} threads; a first run "
+                         "compiles kernels on every worker)")
         try:
-            for future in as_completed(list(futures), loop=self.client.loop):
+            for number, future in enumerate(as_completed(list(futures), loop=self.client.loop)):
+                if number == 0 and status:
+                    status(name, "")
                 yield futures[future], future.result()
         finally:
             for future in futures:
                 future.cancel()
 
-    def close(self) -> None:
+    def close(self, abort: bool = False) -> None:
         self.client.close()
+
+
+@contextmanager
+def _closing(executor) -> Iterator[Any]:
+    """``executor`` for the block, closed after it: at once (its workers terminated) when the block raised or was
+    interrupted (Ctrl-C, or SIGTERM turned into KeyboardInterrupt), else after its last chunk."""
+    try:
+        yield executor
+    except BaseException:
+        executor.close(abort=True)
+        raise
+    executor.close()
 
 
 #: address schemes of a Dask scheduler reachable from another process
@@ -188,8 +326,12 @@ def backend(workers: int | None = None, scheduler: str | None = None):
 
 def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *, workers: int | None = None,
               scheduler: str | None = None, force: bool = False, progress: Callable | None = None,
+              status: Status | None = None, notice: Callable[[str], None] | None = None,
               executor=None) -> StudyRun:
     """Run study ``name`` into folder ``out`` (resuming from finished chunks) and write its table and figure.
+
+    A table and figure that an earlier run with the same options finished are kept as they are (the returned run
+    says ``kept``); missing ones are written.
 
     Parameters
     ----------
@@ -204,9 +346,15 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     scheduler : str, optional
         Address of a Dask scheduler (``tcp://HOST:PORT``) to run the chunks on instead.
     force : bool
-        Discard chunks of a run with other options and overwrite tables not written by a study run.
+        Discard chunks of a run with other options and overwrite tables and figures, also those of an earlier run
+        and those not written by a study run.
     progress : callable, optional
         ``progress(name, done_cases, total_cases)`` called as chunks finish.
+    status : callable, optional
+        ``status(name, text)``: what the run is doing until its first chunk lands (starting workers, compiling
+        kernels), ``""`` once chunks flow.
+    notice : callable, optional
+        ``notice(text)`` for a one-line note (a stale lock of a killed run removed); default: a warning.
     executor : optional
         An executor from :func:`backend` to reuse (then ``workers`` and ``scheduler`` are ignored).
 
@@ -225,15 +373,16 @@ def run_study(name: str, out: str | Path, options: StudyOptions | None = None, *
     options = options_for(study, options)
     start = time.perf_counter()
     out = check_folder(out, "--out")
-    with store.locked(out):
+    with store.locked(out, notice=notice):
         return _run_locked(name, study, out, options, start, workers=workers, scheduler=scheduler, force=force,
-                           progress=progress, executor=executor)
+                           progress=progress, status=status, executor=executor)
 
 
 def _run_locked(name, study, out: Path, options: StudyOptions, start: float, *, workers, scheduler, force,
-                progress, executor) -> StudyRun:
+                progress, status, executor) -> StudyRun:
     """:func:`run_study` in ``out``, whose lock the caller holds."""
     key = options.key(name)
+    finished = not force and store.finished(out, name, key)
     folder = store.prepare_folder(out, name, key, options.to_dict(), force=force)
     cases = indexed_cases(study, options)
     size = options.param(name, "chunk_size", study.chunk_size)  # checked with the options
@@ -250,50 +399,53 @@ def _run_locked(name, study, out: Path, options: StudyOptions, start: float, *, 
     tasks = [(i, chunk) for i, chunk in enumerate(chunks) if i not in results]
     own = executor is None and tasks
     runner = backend(workers, scheduler) if own else executor
-    try:
-        for index, (rows, seconds) in (runner.run(name, tasks, options) if tasks else ()):
+    with _closing(runner) if own else nullcontext():
+        for index, (rows, seconds) in (runner.run(name, tasks, options, status) if tasks else ()):
             store.write_chunk(folder, study=name, key=key, index=index, cases=chunks[index], rows=rows,
                               seconds=seconds)
             results[index] = (rows, seconds)
             done += len(chunks[index])
             if progress:
                 progress(name, done, len(cases))
-    finally:
-        if own:
-            runner.close()
     rows = [row for i in range(len(chunks)) for row in results[i][0]]
-    table = store.atomic_write(out / f"{name}.csv", to_csv(rows))
-    figure = store.save_figure(study.plot(rows, options), out / f"{name}.png")
+    table, figure = out / f"{name}.csv", out / f"{name}.png"
+    kept = finished and not tasks and table.exists() and figure.exists()
+    if not (finished and table.exists()):
+        store.atomic_write(table, to_csv(rows))
+    if not (finished and figure.exists()):
+        store.save_figure(study.plot(rows, options), figure)
     compute = math.fsum(results[i][1] for i in results)
     run = StudyRun(name=name, rows=rows, table=table, figure=figure, cases=len(cases), chunks=len(chunks),
-                   reused_chunks=reused, wall_time=time.perf_counter() - start, compute_time=compute)
-    store.write_result(folder, {
-        "name": name, "title": study.title, "figure": study.figure, "cases": len(cases), "rows": len(rows),
-        "chunks": len(chunks), "reused_chunks": reused, "wall_time": run.wall_time, "compute_time": compute,
-        "workers": getattr(runner, "workers", 1) if tasks else 0, "options": options.to_dict(),
-        "aggregate": [_plain(r) for r in study.aggregate(rows)], "summary": study.summary(rows)})
+                   reused_chunks=reused, wall_time=time.perf_counter() - start, compute_time=compute, kept=kept)
+    if not kept:
+        store.write_result(folder, {
+            "name": name, "title": study.title, "figure": study.figure, "cases": len(cases), "rows": len(rows),
+            "chunks": len(chunks), "reused_chunks": reused, "wall_time": run.wall_time, "compute_time": compute,
+            "workers": getattr(runner, "workers", 1) if tasks else 0, "options": options.to_dict(),
+            "aggregate": [_plain(r) for r in study.aggregate(rows)], "summary": study.summary(rows)})
     return run
 
 
 def run_studies(names: Sequence[str], out: str | Path, options: StudyOptions | None = None, *,
                 workers: int | None = None, scheduler: str | None = None, force: bool = False,
-                progress: Callable | None = None, report: bool = True) -> list[StudyRun]:
-    """Run several studies with one executor, then write ``out/index.html`` (see :func:`run_study`)."""
+                progress: Callable | None = None, status: Status | None = None,
+                notice: Callable[[str], None] | None = None, report: bool = True) -> list[StudyRun]:
+    """Run several studies with one executor, then write ``out/index.html`` (see :func:`run_study`).
+
+    The report is rewritten when a study wrote something or when it is missing; when every study was kept, an
+    existing report is kept too.
+    """
     load_studies()
     names = list(names)
     for name in names:
         get_study(name)
     check_folder(out, "--out")
-    with store.locked(Path(out)):
-        if report:
-            check_target(out, force=force)
-        executor = backend(workers, scheduler)
-        try:
-            runs = [run_study(name, out, options, force=force, progress=progress, executor=executor)
+    with store.locked(Path(out), notice=notice):
+        page = check_target(out, force=force) if report else None
+        with _closing(backend(workers, scheduler)) as executor:  # local processes start with the first chunk
+            runs = [run_study(name, out, options, force=force, progress=progress, status=status, executor=executor)
                     for name in names]
-        finally:
-            executor.close()
-        if report:
+        if page is not None and (force or not page.exists() or not all(run.kept for run in runs)):
             write_report(out, force=force)
     return runs
 

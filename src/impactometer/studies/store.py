@@ -7,7 +7,7 @@ Layout of ``DIR``::
     DIR/<study>/manifest.json   the options the chunks belong to (their key)
     DIR/<study>/chunk-00003.json  finished chunks (rows + compute time)
     DIR/<study>/result.json     aggregate table, summary and timings, read by the report
-    DIR/.impactometer.lock      held by the run writing into DIR (a second run is refused)
+    DIR/.impactometer.lock      held by the run writing into DIR (a second run is refused); removed when it ends
 
 Every file is written to a temporary name in the same folder, flushed, synced and renamed with ``os.replace``:
 a killed run leaves either the previous file or the new one, never a half-written file under the final name.
@@ -21,7 +21,8 @@ import json
 import os
 import sys
 import tempfile
-from collections.abc import Iterator
+import warnings
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -38,12 +39,15 @@ _held: dict[Path, int] = {}  # study folders this process holds -> nesting depth
 
 
 @contextmanager
-def locked(out: Path) -> Iterator[Path]:
+def locked(out: Path, *, notice: Callable[[str], None] | None = None) -> Iterator[Path]:
     """Hold the lock of study folder ``out`` (created if missing) while the block runs.
 
     Two runs never write into one folder at once: a second run, in this or another process, is refused with a
-    ParameterError naming the process that holds the folder. The lock is the operating system's (flock), so a
-    killed run leaves nothing to clean up. Nested use in the same process (a run writing its report) is allowed.
+    ParameterError naming the process that holds the folder. The lock is the operating system's (flock) on
+    ``out/.impactometer.lock``, which the run removes when the block ends, however it ends. A lock file left by a
+    killed run (SIGKILL) holds no lock: it is taken over and reported through ``notice(text)`` (default: a
+    warning), saying whether the process it names is still running. Nested use in the same process (a run writing
+    its report) is allowed.
     """
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -55,27 +59,79 @@ def locked(out: Path) -> Iterator[Path]:
         finally:
             _held[key] -= 1
         return
+    path = out / LOCK
+    handle, previous = _acquire(path, out)
     try:
-        handle = open(out / LOCK, "a+", encoding="utf-8")  # noqa: SIM115 - held open for the whole run
-    except OSError as exc:
-        raise write_failed(out / LOCK, exc) from None
-    try:
-        if not _try_lock(handle):
-            handle.seek(0)
-            holder = handle.read().strip() or "another process"
-            raise ParameterError(f"--out: {str(out)!r} is being written by another study run ({holder}); wait "
-                                 "for it to finish or choose another --out")
         handle.seek(0)
         handle.truncate()
         handle.write(f"process {os.getpid()}")
         handle.flush()
+        if previous:
+            _stale(previous, path, notice)
         _held[key] = 1
         try:
             yield out
         finally:
             del _held[key]
     finally:
+        try:  # removed while still locked: a run that opened the old file sees it is gone and opens a new one
+            if os.path.samestat(os.fstat(handle.fileno()), os.stat(path)):
+                path.unlink()
+        except OSError:
+            pass
         handle.close()  # releases the lock
+
+
+def _acquire(path: Path, out: Path):
+    """Open and lock ``path``: (the open file, the text it held before); ParameterError while another run holds
+    it."""
+    while True:
+        try:
+            handle = open(path, "a+", encoding="utf-8")  # noqa: SIM115 - held open for the whole run
+        except OSError as exc:
+            raise write_failed(path, exc) from None
+        handle.seek(0)
+        text = handle.read().strip()
+        if not _try_lock(handle):
+            handle.close()
+            raise ParameterError(f"--out: {str(out)!r} is being written by another study run "
+                                 f"({text or 'another process'}); wait for it to finish or choose another --out")
+        try:
+            current = os.path.samestat(os.fstat(handle.fileno()), os.stat(path))
+        except OSError:
+            current = False
+        if current:  # else its holder removed it between our open and our lock: lock the next one
+            handle.seek(0)
+            return handle, handle.read().strip()
+        handle.close()
+
+
+def _stale(previous: str, path: Path, notice: Callable[[str], None] | None) -> None:
+    """Report the lock file of a run that ended without removing it (killed)."""
+    pid = previous.removeprefix("process ").strip()
+    if pid.isdigit() and int(pid) != os.getpid():
+        state = "which is no longer running" if not _running(int(pid)) else "which no longer holds it"
+        text = (f"removed a stale lock {str(path)!r} of process {pid}, {state} (a killed run; its finished chunks "
+                "are kept)")
+    else:
+        text = f"removed a stale lock {str(path)!r} ({previous[:60]!r}) of a run that ended without removing it"
+    if notice is None:
+        warnings.warn(text, stacklevel=4)
+    else:
+        notice(text)
+
+
+def _running(pid: int) -> bool:
+    """Whether process ``pid`` exists (on this machine; on Windows, where signal 0 would end it, assumed)."""
+    if sys.platform == "win32":  # pragma: no cover - Windows
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # exists, owned by someone else (or not ours to ask about)
+        return True
+    return True
 
 
 def _try_lock(handle) -> bool:
@@ -161,6 +217,16 @@ def read_chunk(folder: Path, *, study: str, key: str, index: int, cases: list[di
     return payload
 
 
+def finished(out: Path, study: str, key: str) -> bool:
+    """Whether ``out`` holds a finished run of ``study`` under options ``key`` (its manifest and result)."""
+    folder = Path(out) / study
+    try:
+        manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(manifest, dict) and manifest.get("key") == key and read_result(folder) is not None
+
+
 def prepare_folder(out: Path, study: str, key: str, options: dict[str, Any], *, force: bool) -> Path:
     """The study's chunk folder under ``out``, checked against the options of an earlier run.
 
@@ -181,7 +247,7 @@ def prepare_folder(out: Path, study: str, key: str, options: dict[str, Any], *, 
             if not force:
                 raise ParameterError(
                     f"--out: {str(folder)!r} holds a '{study}' run with other options "
-                    f"({_differences(previous.get('options'), options)}); pass --force to discard it or choose "
+                    f"({_differences(previous.get('options'), options)}); pass --overwrite to discard it or choose "
                     f"another --out")
             for old in folder.glob("chunk-*.json"):
                 old.unlink()
@@ -190,7 +256,7 @@ def prepare_folder(out: Path, study: str, key: str, options: dict[str, Any], *, 
         for name in (f"{study}.csv", f"{study}.png"):
             if (out / name).exists():
                 raise ParameterError(f"--out: {str(out / name)!r} exists and was not written by a study run; "
-                                     f"pass --force to overwrite it")
+                                     f"pass --overwrite to overwrite it")
     folder.mkdir(parents=True, exist_ok=True)
     atomic_write(manifest, json.dumps({"schema": SCHEMA, "study": study, "key": key, "options": options},
                                       indent=1, default=repr))
