@@ -201,7 +201,7 @@ def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s") -> 
     """Say on standard error what the command is ``doing`` while the block runs and, if numba compiles kernels in
     it (a first run: nothing in numba's cache), that it does and how long that takes (``compile_time``, measured
     on a cold cache): a spinner with the elapsed time on a terminal; elsewhere (a log, a pipe) one plain line, and
-    only when it compiles."""
+    only when it compiles (``doing: compiling kernels, first run only (about 10-30 s) ...``)."""
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Column
 
@@ -218,7 +218,7 @@ def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s") -> 
         if live:
             spinner.update(task, description=f"{doing}: {note}")
         else:
-            error_console.print(f"{note} ...", highlight=False, markup=False, soft_wrap=True)
+            error_console.print(f"{doing}: {note} ...", highlight=False, markup=False, soft_wrap=True)
 
     with spinner, compiling(compiling_now):
         yield
