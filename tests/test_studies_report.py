@@ -69,7 +69,7 @@ def test_a_broken_figure_is_detected_by_the_page(report_folder, tmp_path):
 
 def test_a_foreign_index_html_is_not_overwritten(tmp_path):
     (tmp_path / "index.html").write_text("<html>my page</html>")
-    with pytest.raises(ParameterError, match="not written by impactometer; pass --force"):
+    with pytest.raises(ParameterError, match="not written by impactometer; pass --overwrite"):
         write_report(tmp_path)
     assert (tmp_path / "index.html").read_text() == "<html>my page</html>"
     write_report(tmp_path, force=True)

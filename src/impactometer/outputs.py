@@ -47,7 +47,7 @@ def _writable(folder: Path) -> bool:
 
 
 def check_file(path: str | Path, field: str | None = None, *, overwrite: bool = False,
-               extensions: Iterable[str] | None = None, flag: str = "--force",
+               extensions: Iterable[str] | None = None, flag: str = "--overwrite",
                error: type[Exception] = ParameterError) -> Path:
     """``path`` as a file target: not a folder, in an existing writable folder, with one of ``extensions``
     (case-insensitive) and, unless ``overwrite``, not an existing file; ``error`` naming ``field`` otherwise.

@@ -197,30 +197,31 @@ def output_path(path: Path | None, overwrite: bool, *, field: str = "--out", kin
 
 
 @contextmanager
-def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s") -> Iterator[None]:
+def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s", spinner: bool = True) -> Iterator[None]:
     """Say on standard error what the command is ``doing`` while the block runs and, if numba compiles kernels in
     it (a first run: nothing in numba's cache), that it does and how long that takes (``compile_time``, measured
-    on a cold cache): a spinner with the elapsed time on a terminal; elsewhere (a log, a pipe) one plain line, and
-    only when it compiles (``doing: compiling kernels, first run only (about 10-30 s) ...``)."""
+    on a cold cache): a spinner with the elapsed time on a terminal; elsewhere (a log, a pipe), or without
+    ``spinner`` (a block that prints as it goes or shows its own progress bar), one plain line, and only when it
+    compiles (``doing: compiling kernels, first run only (about 10-30 s) ...``)."""
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Column
 
     from ..studies.runner import compiling
 
-    live = error_console.is_terminal
+    live = spinner and error_console.is_terminal
     note = f"compiling kernels, first run only ({compile_time})"
-    spinner = Progress(SpinnerColumn(), TimeElapsedColumn(),
+    bar = Progress(SpinnerColumn(), TimeElapsedColumn(),
                        TextColumn("{task.description}", table_column=Column(overflow="fold")), console=error_console,
                        transient=True, disable=not live, redirect_stdout=False, redirect_stderr=False)
-    task = spinner.add_task(doing, total=None)
+    task = bar.add_task(doing, total=None)
 
     def compiling_now() -> None:
         if live:
-            spinner.update(task, description=f"{doing}: {note}")
+            bar.update(task, description=f"{doing}: {note}")
         else:
             error_console.print(f"{doing}: {note} ...", highlight=False, markup=False, soft_wrap=True)
 
-    with spinner, compiling(compiling_now):
+    with bar, compiling(compiling_now):
         yield
 
 

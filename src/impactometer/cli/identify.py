@@ -13,7 +13,7 @@ from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
 from ..outputs import save_figure
-from .app import OVERWRITE, app, console, given, output_path, quantity, with_uncertainty
+from .app import OVERWRITE, announce_compilation, app, console, given, output_path, quantity, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 
 # the identification modules load numba: they are imported where they are used, so that ``--help`` stays light
@@ -107,13 +107,13 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
                                  "(a response map built with impactometer map build)")
         from ..identify.response_map import identify_recording
 
-        with given(search=search, pressure=pressure):
+        with given(search=search, pressure=pressure), announce_compilation("searching the response map"):
             result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation,
                                         pressure_gauge=pressure_gauge)
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 
-        with given(variant=variant):
+        with given(variant=variant), announce_compilation("identifying M1 and V0", compile_time="about 5-20 s"):
             result = identify_p2p(rec, variant=variant, contact_phase=contact_phase)
     data = result.to_dict()
     if as_json:
@@ -152,14 +152,16 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
     f, a = rec.contact_force, rec.piston_acceleration
     t_wall = clock.perf_counter()
     concluded = 0
-    for k in range(0, f.size, chunk):
-        if realtime:
-            lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
-            if lag > 0:
-                clock.sleep(lag)
-        new = ident.push(f[k:k + chunk], a[k:k + chunk])
-        concluded = _report(ident, new, concluded, rec.start_time + min(k + chunk, f.size) / rec.sample_rate,
-                            as_json)
+    # a line on standard error if the first impact compiles the kernels; estimates print as they come
+    with announce_compilation("streaming", compile_time="about 5-20 s", spinner=False):
+        for k in range(0, f.size, chunk):
+            if realtime:
+                lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
+                if lag > 0:
+                    clock.sleep(lag)
+            new = ident.push(f[k:k + chunk], a[k:k + chunk])
+            concluded = _report(ident, new, concluded, rec.start_time + min(k + chunk, f.size) / rec.sample_rate,
+                                as_json)
     shown = len(ident.estimates)
     final = ident.finish()  # raises the refusal of the last impact
     _report(ident, ident.estimates[shown:], concluded, rec.start_time + f.size / rec.sample_rate, as_json)

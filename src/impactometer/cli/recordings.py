@@ -12,7 +12,7 @@ from rich.table import Table
 
 from ..errors import ParameterError
 from ..outputs import save_figure
-from .app import OVERWRITE, app, console, given, output_path, quantity
+from .app import OVERWRITE, announce_compilation, app, console, given, output_path, quantity
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 from .simulate import (
     ContactOpt,
@@ -94,7 +94,8 @@ def record(
                       "piston_acceleration": _fraction(acceleration_noise, "--acceleration-noise")}
     levels = {name: level if value is None else value for name, value in channel_levels.items()}
     with given(sample_rate=sample_rate, duration=duration, seed=seed, pre_trigger=pre_trigger, anti_alias=anti_alias,
-               adc_bits=adc_bits, include_gravity=include_gravity, extra=None if extra is None else ",".join(extra)):
+               adc_bits=adc_bits, include_gravity=include_gravity, extra=None if extra is None else ",".join(extra)), \
+            announce_compilation("simulating the drop and recording it"):
         rec = make_recording(scenario, stand, sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
                              duration=quantity(duration, "time", "--duration"), noise=levels, seed=seed,
                              pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"), anti_alias=anti_alias,

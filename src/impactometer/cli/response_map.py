@@ -13,7 +13,7 @@ from rich.progress import Progress
 from rich.table import Table
 
 from ..errors import ParameterError
-from .app import OVERWRITE, App, app, console, given, output_path, quantity
+from .app import OVERWRITE, App, announce_compilation, app, console, error_console, given, output_path, quantity
 from .simulate import ContactOpt, RigOpt
 
 map_app = App(help="Response maps: build a database of features, inspect it.")
@@ -133,7 +133,9 @@ def build(
         if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
             print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
                   "pressure(s)) ...", file=sys.stderr, flush=True)
-        with Progress(console=console, transient=True, disable=not console.is_terminal) as bar:
+        with Progress(console=error_console, transient=True, disable=not error_console.is_terminal,
+                      redirect_stdout=False) as bar, \
+                announce_compilation("simulating the response map", spinner=False):
             task = bar.add_task("simulating the response map", total=None)
 
             def progress(done: int, total: int) -> None:

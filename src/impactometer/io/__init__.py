@@ -133,7 +133,7 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
     fmt = format_of(path)
     targets = _targets(path, fmt)
     check_names(recording, fmt, path)
-    flag = "overwrite=True (--force)"
+    flag = "overwrite=True (--overwrite)"
     for target in targets:
         check_file(target, overwrite=overwrite, flag=flag, error=RecordingError)
     temporary = [t.with_name(f".{t.stem}.partial-{os.getpid()}{t.suffix}") for t in targets]

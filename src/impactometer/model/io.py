@@ -17,7 +17,7 @@ def save_simulation(result: SimulationResult, path: str | Path, *, overwrite: bo
     an existing file is replaced only with ``overwrite``, and never one that is not a regular file."""
     import h5py
 
-    path = check_file(path, overwrite=overwrite, extensions=HDF5_EXTENSIONS, flag="overwrite=True (--force)")
+    path = check_file(path, overwrite=overwrite, extensions=HDF5_EXTENSIONS, flag="overwrite=True (--overwrite)")
 
     def write(temporary: Path) -> None:
         with h5py.File(temporary, "w") as f:
@@ -30,4 +30,4 @@ def save_simulation(result: SimulationResult, path: str | Path, *, overwrite: bo
             for name in ARRAY_FIELDS:
                 f.create_dataset(name, data=getattr(result, name), compression="gzip", shuffle=True)
 
-    return write_atomically(path, write, overwrite=overwrite, flag="overwrite=True (--force)")
+    return write_atomically(path, write, overwrite=overwrite, flag="overwrite=True (--overwrite)")

@@ -140,7 +140,7 @@ def check_target(out: str | Path, *, force: bool = False) -> Path:
         except OSError:
             ours = False
         if not ours:
-            raise ParameterError(f"--out: {str(path)!r} exists and was not written by impactometer; pass --force "
+            raise ParameterError(f"--out: {str(path)!r} exists and was not written by impactometer; pass --overwrite "
                                  f"to overwrite it")
     return path
 

@@ -50,7 +50,7 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
 
     if not isinstance(rmap, ResponseMap):
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
-    path = check_file(path, overwrite=overwrite, flag="overwrite=True (--force)")
+    path = check_file(path, overwrite=overwrite, flag="overwrite=True (--overwrite)")
 
     def write(temporary: Path) -> None:
         with h5py.File(temporary, "w") as h5:
@@ -66,7 +66,7 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
                 h5.create_dataset(name, data=getattr(rmap, name))
             h5.attrs[CHECKSUM] = _digest(h5.attrs, {name: np.asarray(h5[name][()], dtype=float) for name in _DATASETS})
 
-    return write_atomically(path, write, overwrite=overwrite, flag="overwrite=True (--force)")
+    return write_atomically(path, write, overwrite=overwrite, flag="overwrite=True (--overwrite)")
 
 
 def _json(attrs, key: str, where: str):
