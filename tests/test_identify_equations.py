@@ -11,7 +11,7 @@ from impactometer.identify.peak_to_peak import identify, identify_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
 from impactometer.model import simulate
 from impactometer.rig import Scenario, get_rig
-from impactometer.sensors import record
+from impactometer.sensors import apply_sensors, record
 
 FS = 50e3
 
@@ -120,6 +120,51 @@ def test_white_noise_through_a_daq_anti_alias_filter_is_accepted():
     a = rec.piston_acceleration + signal.sosfilt(sos, rng.normal(0, 10.0, f.size))
     res = identify_arrays(f, a, FS, rec.start_time)
     assert abs(res.mass / 30.0 - 1) < 0.05
+
+
+def _slow_contact(amplitude, acceleration_ratio, *, seed=0, fs=2e6):
+    """White noise of unit σ on both channels, then a half-sine contact pulse 4 ms long: at 2 MHz its foot rises
+    over hundreds of samples, as a real contact's does."""
+    rng = np.random.default_rng(seed)
+    start, width = 20000, 8000
+    k = np.arange(start + 3 * width)
+    pulse = np.where((k >= start) & (k < start + width), np.sin(np.pi * (k - start) / width), 0.0)
+    force = amplitude * pulse + rng.normal(0.0, 1.0, k.size)
+    acceleration = acceleration_ratio * amplitude * pulse + rng.normal(0.0, 1.0, k.size)
+    return force, acceleration, start
+
+
+def test_the_pre_trigger_statistics_stop_at_the_foot_of_the_rise_at_high_sample_rates():
+    """The trigger fires a fixed time into the rise: at 2 MHz hundreds of samples after first contact, far more than
+    the 32 samples of the guard. The foot read as noise made white noise look low-pass filtered (correlation 0.80
+    here before); the statistics now stop where the rise starts."""
+    force, acceleration, start = _slow_contact(150.0, 3.0)
+    first, stop, _, pre = p2p.segment_bounds(force, 2e6)
+    assert first + pre - start > 3 * p2p.segment.GUARD_SAMPLES  # the trigger fired far into the rise
+    seg = p2p.segment_of(force, acceleration, 2e6, 0.0, first, stop, pre, {})
+    assert abs(seg.noise_correlation) < 0.05
+    assert first + seg.pre_samples <= start + 16  # no more than the first samples of the (yet flat) foot
+
+
+def test_the_trigger_fires_on_a_contact_that_rises_over_thousands_of_samples():
+    """At 2 MHz a baseline of 256 samples followed a slow rise, its running σ growing with it, and the trigger
+    never fired ("no impact found"); the baseline now spans the same time at every rate above 50 kHz."""
+    force, _, start = _slow_contact(100.0, 1.0)
+    first, _, _, pre = p2p.segment_bounds(force, 2e6)
+    assert 0 < first + pre - start < 400
+
+
+def test_a_two_megahertz_record_with_white_noise_is_identified():
+    """Refused before as "low-pass filtered (correlation 0.86)" while 0.5 and 1 MHz were answered."""
+    scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3)
+    sim = simulate(scenario, duration=0.05, sample_rate=4e6)
+    quiet = np.zeros(40000)  # 10 ms before first contact
+    rec = apply_sensors({"contact_force": np.r_[quiet, sim.contact_force], "piston_acceleration": np.r_[quiet, sim.a2]},
+                        input_rate=4e6, sample_rate=2e6, start_time=-0.01, noise=0.01, seed=0)
+    answer = identify(rec)
+    assert abs(answer.mass - 30.0) < 3.0 * answer.mass_std and abs(answer.mass / 30.0 - 1) < 0.05
+    assert abs(answer.velocity - scenario.velocity) < 3.0 * answer.velocity_std
+    assert abs(prepared(rec).noise_correlation) < 0.05
 
 
 def test_an_answer_without_information_is_refused_not_given():

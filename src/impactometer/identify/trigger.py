@@ -28,8 +28,10 @@ IDLE, ACTIVE = 0, 1
 EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE, EVENT_PAST_PEAK = 1, 2, 3, 4
 #: a pulse is past its peak when the force has fallen below this fraction of its maximum so far
 PAST_PEAK_FRACTION = 0.5
-#: time constant of the running baseline and noise level [samples]
-BASELINE_SAMPLES = 256
+#: time constant of the running baseline and noise level [samples] up to BASELINE_RATE [Hz]; above it the same
+#: time (5.12 ms): at 2 MHz the first contact takes thousands of samples to rise, and a baseline of 256 samples
+#: followed that rise, its running σ growing with it, so that the trigger never fired
+BASELINE_SAMPLES, BASELINE_RATE = 256, 50e3
 #: samples the baseline learns from before the trigger may fire
 WARM_SAMPLES = 64
 #: the trigger fires at this many running standard deviations above the baseline
@@ -45,6 +47,11 @@ _MEAN, _VAR, _SIGMA, _BASE, _PMAX, _FIRST, _PREV1, _PREV2, _D2SUM, _WMAX = range
 _MODE, _SEEN, _TRIG, _SINCE, _QUIET, _INSIDE, _PAST, _RUN = range(8)
 #: index of the int state that is 1 while the force is inside a pulse (read by the streaming identifier)
 INSIDE = _INSIDE
+
+
+def baseline_samples(sample_rate: float) -> int:
+    """Time constant of the running baseline [samples] at ``sample_rate`` [Hz] (:data:`BASELINE_SAMPLES`)."""
+    return max(BASELINE_SAMPLES, int(round(BASELINE_SAMPLES * sample_rate / BASELINE_RATE)))
 
 
 def new_state() -> tuple[np.ndarray, np.ndarray]:
@@ -81,14 +88,15 @@ def _starts_in_contact(x, index, fstate, floor):
 
 
 @njit(cache=True)
-def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, events):
+def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, baseline, events):
     """Advance the trigger over ``force``; write (code, absolute sample index) rows into ``events``.
 
     Returns the number of events written (at most two per sample: a pulse past its peak and its end). ``floor`` [N]
     is the smallest trigger level (resolution of the channel), ``quiet_samples`` the release run that closes an
-    impact, ``max_samples`` the longest impact.
+    impact, ``max_samples`` the longest impact, ``baseline`` the time constant of the running baseline
+    (:func:`baseline_samples`).
     """
-    alpha = 1.0 / BASELINE_SAMPLES
+    alpha = 1.0 / baseline
     n_events = 0
     for k in range(force.shape[0]):
         x = force[k]

@@ -14,7 +14,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ...recording import check_sample_rate
 from .. import trigger
-from ..pulses import SUSTAINED_FACTOR, PulseSpan, detect_pulses, noise_std, sustained_index
+from ..pulses import RELEASE_SIGMAS, SUSTAINED_FACTOR, PulseSpan, detect_pulses, noise_std, sustained_index
 from .onsets import VERTEX_HALF_MAX, onset_index, separation_index, turning_points, vertex
 
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
@@ -95,7 +95,8 @@ def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.nd
     quiet, longest = max(int(QUIET_TIME * sample_rate), 1), max(int(MAX_DURATION * sample_rate), 1)
     found = [np.empty((0, 2), dtype=np.int64)]
     for start in range(0, force.size, TRIGGER_BLOCK):
-        n = trigger.run_trigger(force[start:start + TRIGGER_BLOCK], fstate, istate, floor, quiet, longest, events)
+        n = trigger.run_trigger(force[start:start + TRIGGER_BLOCK], fstate, istate, floor, quiet, longest,
+                                trigger.baseline_samples(sample_rate), events)
         found.append(events[:n].copy())
         if np.any(events[:n, 0] == trigger.EVENT_CLOSE):  # the first impact is over (a close follows a trigger)
             break
@@ -116,10 +117,35 @@ def quantum(x: np.ndarray) -> float:
     return step
 
 
+def quiet_samples(force: np.ndarray, acceleration: np.ndarray, pre: int) -> int:
+    """How many of the ``pre`` samples before the trigger give the offsets and the noise: all but the last
+    ``GUARD_SAMPLES``, and none from the foot of the first rise on.
+
+    The trigger fires ``TRIGGER_SIGMAS`` noise σ above the baseline, a fixed time into the rise of the contact
+    whatever the sample rate: at 2 MHz the foot spans hundreds of samples, far more than the guard, and its slow
+    rise read as noise looked low-pass filtered (a lag-1 correlation of 0.8 for white noise). In each channel the
+    foot starts after the last sample at which the mean of the ``GUARD_SAMPLES`` samples up to it lay within
+    ``RELEASE_SIGMAS`` of their noise of the level before (the median of the first half of the window; σ from
+    second differences, which a smooth rise hardly has); the earlier foot of the two channels ends the window.
+    """
+    guarded = pre - GUARD_SAMPLES
+    if guarded < MIN_PRE_SAMPLES:
+        return guarded
+    end = guarded
+    for x in (force, acceleration):
+        head = np.asarray(x[:pre], dtype=float)
+        level = float(np.median(head[:pre // 2]))
+        mean = np.convolve(head - level, np.full(GUARD_SAMPLES, 1.0 / GUARD_SAMPLES), mode="valid")
+        quiet = np.flatnonzero(mean <= RELEASE_SIGMAS * noise_std(head) / np.sqrt(GUARD_SAMPLES))
+        end = min(end, int(quiet[-1]) + GUARD_SAMPLES if quiet.size else 0)  # past the last quiet mean
+    return end
+
+
 def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
             pre: int, *, cache: dict | None = None) -> Segment:
-    """Offsets and noise from the first ``pre`` samples (less the guard), then the pulses of the impact."""
-    n_pre = pre - GUARD_SAMPLES
+    """Offsets and noise from the first ``pre`` samples (less the guard and the foot of the first rise,
+    :func:`quiet_samples`), then the pulses of the impact."""
+    n_pre = quiet_samples(force, acceleration, pre)
     correlation = 0.0
     if n_pre >= MIN_PRE_SAMPLES:
         f0, a0 = float(np.mean(force[:n_pre])), float(np.mean(acceleration[:n_pre]))

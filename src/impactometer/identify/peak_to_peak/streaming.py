@@ -84,6 +84,7 @@ class StreamingIdentifier:
         self.contact_phase = bool(contact_phase)
         self.quiet = max(int(p2p.QUIET_TIME * sample_rate), 1)
         self.max_samples = max(int(p2p.MAX_DURATION * sample_rate), 1)
+        self.baseline = trigger.baseline_samples(sample_rate)
         self.capacity = p2p.PRE_SAMPLES + self.max_samples + 2
         self._force = np.zeros(self.capacity)
         self._acc = np.zeros(self.capacity)
@@ -136,7 +137,7 @@ class StreamingIdentifier:
                                       "numbers")
         was_inside = self._start is not None and bool(self._istate[trigger.INSIDE])
         n_ev = trigger.run_trigger(f, self._fstate, self._istate, self.floor, self.quiet, self.max_samples,
-                                   self._events)
+                                   self.baseline, self._events)
         self.seen += f.size
         out = []
         for code, index in self._events[:n_ev]:
