@@ -14,6 +14,7 @@ from impactometer.control import ControlSettings
 from impactometer.control import controller as ctl
 from impactometer.control import simulate as loop
 from impactometer.control.bound import closed_curve, efficiency_bound
+from impactometer.control.event import common_window
 from impactometer.control.metrics import absorption_metrics
 from impactometer.control.strategies import get_strategy, strategy_names
 from impactometer.control.valve import Absorber, ValveDrive, effective_area, iso6358_valve, valve_mass_flow
@@ -284,45 +285,105 @@ def _constant_deceleration_run(mass=20.0, v0=2.0, decel=15.0, fs=20e3, relative_
                            scenario=Scenario(mass=mass, velocity=v0), rig=Rig(), extra={}), t_stop + stage_a
 
 
+def _with_chambers(run, pressure=1.3e5):
+    """The run with both chambers at ``pressure`` [Pa] and the piston following the mass (a closed-valve run as
+    ``common_window`` reads it)."""
+    out = SimpleNamespace(**vars(run))
+    out.pressure_lower = np.full_like(run.time, pressure)
+    out.pressure_upper = np.full_like(run.time, pressure)
+    out.u2 = run.u1
+    return out
+
+
 def test_metrics_of_a_constant_deceleration_are_ideal():
     run, t_stop = _constant_deceleration_run()
-    m = absorption_metrics(run, 0.0, 2.0 ** 2 / 30.0)
-    assert m.efficiency == pytest.approx(1.0, abs=1e-3)
-    assert m.time_to_stop == pytest.approx(t_stop, abs=2 / 20e3)
-    assert m.stroke_used == pytest.approx(2.0 ** 2 / 30.0, rel=1e-6)
+    usable = 2.0 ** 2 / 30.0  # the deceleration uses exactly the usable stroke: F0 is its force
+    m = absorption_metrics(run, 0.0, usable)
+    assert m.impact_force == pytest.approx(20.0 * (STANDARD_GRAVITY + 15.0), rel=1e-12)
+    # the CFC 60 filter rings by a few percent at the end of the deceleration (a 300 N step down)
+    assert m.whole_event_peak_ratio == pytest.approx(1.0, abs=0.03)
+    assert m.peak_deceleration_g == pytest.approx(15.0 / STANDARD_GRAVITY, rel=0.06)
+    assert m.whole_event_efficiency == pytest.approx(1.0, abs=0.03)
+    assert m.controlled_efficiency == pytest.approx(1.0, abs=1e-3)
+    assert m.stopped and m.time_to_stop == pytest.approx(t_stop, abs=2 / 20e3)
+    assert m.stroke_used == pytest.approx(usable, rel=1e-6) and m.stroke_utilisation == pytest.approx(1.0, rel=1e-6)
     assert m.max_deceleration == pytest.approx(15.0, rel=1e-9)
     assert not m.bottomed_out and not m.rebounded
     assert m.energy_absorbed == pytest.approx(0.5 * 20 * 4 + 20 * STANDARD_GRAVITY * 4 / 30, rel=1e-6)
     assert m.bounce_energy == 0.0  # sustained contact: no relative motion
-    assert not m.stage_b  # one contact pulse from the first contact on: no stage A, so no stage B either
+    assert not m.own_window  # one contact pulse from the first contact on: no stage A, so no stage B either
+    # without a common window R_B is undefined, the whole event is judged all the same
+    assert math.isnan(m.stage_b_ratio) and m.to_dict()["stage_b_ratio"] is None
 
 
-def test_stage_b_force_ratio_of_a_constant_deceleration_is_one():
-    run, t_stop = _constant_deceleration_run(stage_a=0.01)
-    usable = float(run.u1.max())  # the deceleration uses exactly the usable stroke
-    start = 0.03  # control from 30 ms: F_ref is the constant force of the rest of the stroke
-    m = absorption_metrics(run, start, usable)
-    assert m.stage_b and m.stage_b_start == pytest.approx(0.01, abs=2 / 20e3)
-    assert m.reference_force == pytest.approx(20.0 * (STANDARD_GRAVITY + 15.0), rel=1e-9)
-    # the CFC 60 filter rings by a few percent at the end of the deceleration (a 300 N step down)
-    assert m.stage_b_force_ratio == pytest.approx(1.0, abs=0.03)
-    assert m.stage_b_efficiency == pytest.approx(1.0, abs=0.03)
-    # stopping short of the usable stroke needs more force than F_ref: R > 1 and η_B < 1
-    longer = absorption_metrics(run, start, usable + 0.05)
-    expected = 20.0 * (STANDARD_GRAVITY + 15.0) / longer.reference_force
-    assert longer.stage_b_force_ratio == pytest.approx(expected, rel=0.03)
-    assert longer.stage_b_force_ratio > 1.2 and longer.stage_b_efficiency < 0.8
-    # control from the start of stage B: the filtered collision leaks in, R is larger
-    assert absorption_metrics(run, 0.0, usable).stage_b_force_ratio > m.stage_b_force_ratio
+def test_a_mass_still_moving_at_the_end_of_its_record_has_not_stopped():
+    run, _ = _constant_deceleration_run()
+    cut = SimpleNamespace(**vars(run))
+    for name in ("time", "contact_force", "u1", "v1", "v2", "bottom_stop_force"):
+        setattr(cut, name, getattr(run, name)[:1000])  # 50 ms of a 133 ms deceleration
+    m = absorption_metrics(cut, 0.0, 0.19)
+    assert not m.stopped and math.isnan(m.time_to_stop)
 
 
-def test_a_mass_stopped_in_stage_a_has_no_stage_b():
+def test_r_b_of_a_constant_deceleration_on_the_common_window_is_one():
+    run, _ = _constant_deceleration_run(stage_a=0.05)  # the stage-A collision ends 46 ms before stage B
+    usable = float(run.u1.max())
+    window = common_window(_with_chambers(run), usable)
+    assert window.start == pytest.approx(0.05, abs=2 / 20e3) and not window.reason
+    # F_ref from the state at t_w: V0 with the stroke left after the flight of stage A
+    remaining = usable - float(run.u1[np.searchsorted(run.time, window.start)])
+    assert window.reference_force == pytest.approx(20.0 * (2.0 ** 2 / (2 * remaining) + STANDARD_GRAVITY), rel=1e-9)
+    m = absorption_metrics(run, 0.06, usable, window)  # the control start does not move the window
+    assert m.common_window_start == window.start and m.reference_force == window.reference_force
+    # the phaseless CFC 60 filter overshoots the 500 N step of the landing by about 3.5 %
+    assert m.stage_b_ratio == pytest.approx(1.0, abs=0.05)
+    # stopping short of the usable stroke needs more than F_ref: R_B > 1 by the ratio of the two forces
+    longer = common_window(_with_chambers(run), usable + 0.05)
+    assert absorption_metrics(run, 0.06, usable, longer).stage_b_ratio == pytest.approx(
+        20.0 * (STANDARD_GRAVITY + 15.0) / longer.reference_force, rel=0.05)
+
+
+def test_the_floor_is_the_share_of_friction_and_rod_force_the_mass_carries():
+    run, _ = _constant_deceleration_run(stage_a=0.05)
+    rig = run.rig
+    pressure = 1e6  # the merged chambers at 10 bar: the floor is far above F_ref
+    window = common_window(_with_chambers(run, pressure), float(run.u1.max()))
+    c = rig.cylinder
+    floor = 20.0 * (rig.friction.force + (pressure - rig.gas.atmospheric_pressure) * c.rod_area) / (
+        20.0 + c.piston_mass)
+    assert window.floor_force == pytest.approx(floor, rel=1e-9) and floor > window.reference_force
+    m = absorption_metrics(run, 0.0, float(run.u1.max()), window)
+    assert m.stage_b_ratio == pytest.approx(m.stage_b_peak_force / floor, rel=1e-12)
+    vented = common_window(_with_chambers(run, pressure), float(run.u1.max()), vented=True)
+    assert vented.floor_force == pytest.approx(20.0 * rig.friction.force / (20.0 + c.piston_mass), rel=1e-12)
+
+
+def test_the_common_window_is_never_restarted():
+    """A parting of the bodies after the first sustained contact neither moves the window nor drops the force
+    before it; the window of one impact is the same for a run whose own stage B starts later."""
+    run, _ = _constant_deceleration_run(stage_a=0.05)
+    usable = float(run.u1.max())
+    window = common_window(_with_chambers(run), usable)
+    parted = SimpleNamespace(**vars(run))
+    force = run.contact_force.copy()
+    force[(run.time > 0.06) & (run.time < 0.065)] += 400.0  # a collision ...
+    force[(run.time >= 0.065) & (run.time < 0.066)] = 0.0  # ... and the bodies apart for 1 ms
+    parted.contact_force = force
+    m = absorption_metrics(parted, 0.0, usable, window)
+    assert m.common_window_start == window.start
+    assert m.own_window_start > 0.065  # the earlier metric restarted its window at the new contact
+    assert m.stage_b_ratio > 1.3 > m.own_window_force_ratio
+
+
+def test_a_mass_stopped_in_stage_a_has_no_common_window():
     run, _ = _constant_deceleration_run(stage_a=0.01)
-    stopped = SimpleNamespace(**vars(run))
+    stopped = SimpleNamespace(**vars(_with_chambers(run)))
     stopped.u1 = np.where(run.time < 2e-3, run.time * 2.0, 4e-3 - (run.time - 2e-3) * 0.1)  # deepest at 2 ms
-    m = absorption_metrics(stopped, 0.005, 0.19)
-    assert not m.stage_b and math.isnan(m.stage_b_force_ratio) and math.isnan(m.stage_b_start)
-    assert m.to_dict()["stage_b_force_ratio"] is None
+    window = common_window(stopped, 0.19)
+    assert math.isnan(window.start) and "stage A" in window.reason
+    m = absorption_metrics(stopped, 0.005, 0.19, window)
+    assert not m.own_window and math.isnan(m.stage_b_ratio) and math.isnan(m.own_window_start)
+    assert m.to_dict()["stage_b_ratio"] is None
 
 
 def test_bounce_energy_is_the_kinetic_energy_of_the_relative_motion():

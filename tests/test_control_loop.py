@@ -41,11 +41,13 @@ def test_force_control_stops_the_mass_within_the_stroke_without_rebound(oracle_r
     piston = run.result.u2.max() - run.result.u2[0]
     assert usable - 0.03 < piston < usable + 0.002 and m.stroke_used >= piston
     assert not m.bottomed_out and m.rebound < 1e-3
-    # stage B judged: closer to a constant force than the gas spring, and near what the valve allows
+    # the common window judged: closer to a constant force than the gas spring
     closed = oracle_run.metrics["closed"]
-    assert m.stage_b and closed.stage_b
-    assert m.stage_b_force_ratio < 0.75 * closed.stage_b_force_ratio
-    assert m.stage_b_efficiency > 2.0 * closed.stage_b_efficiency
+    assert m.stage_b_ratio < 0.75 * closed.stage_b_ratio
+    assert m.common_window_start == closed.common_window_start and m.reference_force == closed.reference_force
+    # the whole event: the first collision (before any control) sets the peak of every strategy
+    assert m.whole_event_peak_ratio == pytest.approx(closed.whole_event_peak_ratio, rel=1e-3)
+    assert m.stopped and m.stroke_utilisation > 0.9 > closed.stroke_utilisation
 
 
 def test_the_rebound_brake_lets_the_compressed_gas_out_only_while_the_bodies_rise():
@@ -78,13 +80,24 @@ def test_predictive_holds_the_target_in_stage_b(oracle_run):
     assert np.median(np.abs(body[late] / target[late] - 1.0)) < 0.1
 
 
-def test_achievable_reference_is_a_level_program_that_stops_in_the_stroke(oracle_run):
+def test_achievable_reference_bounds_the_strategies_and_stops_in_the_stroke(oracle_run):
     ref = oracle_run.reference
-    closed = oracle_run.metrics["closed"]
-    assert ref is not None and math.isfinite(ref.force_ratio)
-    assert 1.0 <= ref.force_ratio < closed.stage_b_force_ratio
+    assert ref is not None and math.isfinite(ref.force_ratio) and ref.runs > 100
+    # judged on the same window: no strategy of the impact (true M1 and V0 here) does better
+    assert 1.0 <= ref.force_ratio <= min(m.stage_b_ratio for m in oracle_run.metrics.values())
     assert ref.stroke_used <= oracle_run.absorber.usable_stroke(oracle_run.rig) + STROKE_TOLERANCE
-    assert oracle_run.to_dict()["achievable_force_ratio"] == pytest.approx(ref.force_ratio)
+    data = oracle_run.to_dict()
+    assert data["achievable_force_ratio"] == pytest.approx(ref.force_ratio)
+    assert data["achievable_family"] in ("segments", "level", "moving target")
+    assert len(data["achievable_openings"]) in (0, 8)
+
+
+def test_a_run_that_has_not_stopped_is_simulated_until_it_has():
+    """A small constant opening lets the mass creep down for longer than the record asked for: the run is simulated
+    again for longer, until the mass stops, instead of being judged on a cut record."""
+    result = absorb(SCENARIO, strategy="constant", identification="oracle", duration=0.05)
+    m = result.metrics["constant"]
+    assert m.stopped and m.time_to_stop > 0.05 and result.runs["constant"].result.time[-1] > 0.05
 
 
 def test_untrusted_identification_waits_for_the_stage_b_mass(monkeypatch):
@@ -114,7 +127,7 @@ def test_without_an_identification_the_force_strategies_wait_for_stage_b(monkeyp
     data = result.to_dict()["strategies"]
     assert {values["control_start_s"] for values in data.values()} == {result.control_start}
     assert history["estimated_mass"][-1] == pytest.approx(SCENARIO.mass, rel=0.05)
-    assert not m.bottomed_out and m.stage_b_force_ratio < result.metrics["closed"].stage_b_force_ratio
+    assert not m.bottomed_out and m.stage_b_ratio < result.metrics["closed"].stage_b_ratio
 
 
 def test_over_capacity_is_reported():
@@ -152,11 +165,13 @@ def test_absorption_study_rows_and_summary():
     rows = study.evaluate([{"case": 0, "mass": 30.0, "velocity": 2.0, "pressure_gauge": 210e3}], options)
     assert [r["strategy"] for r in rows] == ["closed", "predictive", "predictive (oracle)", "achievable reference"]
     assert len({r["control_start_s"] for r in rows}) == 1  # the oracle and the reference start with the loop
+    assert len({r["common_window_start_s"] for r in rows}) == 1  # one window for every row of the impact
     table = {r["strategy"]: r for r in study.aggregate(rows)}
-    assert table["predictive"]["median R"] < table["closed"]["median R"]
-    assert table["closed"]["without stage B"] == 0 and table["predictive"]["bottomed out"] == 0
+    assert table["predictive"]["median R_B"] < table["closed"]["median R_B"]
+    assert table["closed"]["common set"] == 1 and table["predictive"]["bottomed out"] == 0
+    assert table["achievable reference"]["median R_B"] <= table["predictive (oracle)"]["median R_B"]
     summary = study.summary(rows)
-    assert "force ratio" in summary[0]["quantity"] and "1 impacts with stage B" in summary[0]["ours"]
+    assert "R_B" in summary[0]["quantity"] and "1 impacts of the common set" in summary[0]["ours"]
 
 
 def test_cli_absorb_json_and_plot(tmp_path, capsys):
@@ -164,8 +179,9 @@ def test_cli_absorb_json_and_plot(tmp_path, capsys):
     main(["absorb", "--mass", "30kg", "--height", "0.3m", "--pressure", "200kPa", "--strategy", "predictive",
           "--identify", "oracle", "--json", "--plot", str(figure)])
     data = json.loads(capsys.readouterr().out)
-    keys = {"stage_b_force_ratio", "stage_b_efficiency", "stage_b_start_s", "reference_force_N", "bottomed_out",
-            "rebound_m", "control_start_s", "peak_force_stage_a_N"}
+    keys = {"whole_event_peak_ratio", "peak_deceleration_g", "whole_event_efficiency", "stroke_used_m",
+            "stage_b_ratio", "common_window_start_s", "floor_force_N", "reference_force_N", "control_start_s",
+            "bottomed_out", "rebound_m"}
     assert keys <= set(data["strategies"]["predictive"])
     assert data["rig"] == "drop-stand"
     assert figure.stat().st_size > 10_000
@@ -180,7 +196,7 @@ def test_cli_absorb_json_and_plot(tmp_path, capsys):
 def test_cli_absorb_table(capsys):
     main(["absorb", "--strategy", "closed", "--identify", "oracle", "--rig", "drop-stand"])
     out = capsys.readouterr().out
-    assert "stage-B force ratio R" in out and "rebound [mm]" in out
+    assert "R_B on the common window" in out and "peak / F0" in out and "rebound [mm]" in out
 
 
 @pytest.mark.parametrize("args, match", [

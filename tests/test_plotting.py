@@ -31,6 +31,7 @@ from impactometer.plotting.studies import (
 )
 from impactometer.recording import Recording
 from impactometer.rig import Scenario
+from impactometer.studies.valve_design import valve_label
 
 METHODS = ("paper", "robust-early", "robust")
 
@@ -124,11 +125,13 @@ def test_case_bars_show_large_and_small_errors_on_a_log_axis():
 
 
 def test_valve_design_text_contrasts_and_an_empty_count_map_is_dropped():
-    rows = [{"effective_area_mm2": a, "response_time_ms": t, "stage_b": True, "stage_b_force_ratio": 1.0 + a / 400 + t,
-             "bottomed_out": False} for a in (25.0, 100.0, 400.0) for t in (1.0, 3.0) for _ in range(2)]
+    rows = [{"impact": i, "effective_area_mm2": a, "response_time_ms": t, "valve": valve_label(a, t),
+             "stage_b_ratio": 1.0 + a / 400 + t + i, "bottomed_out": False}
+            for a in (25.0, 100.0, 400.0) for t in (1.0, 3.0) for i in range(2)]
     fig = plot_valve_design(rows)
     maps = [a for a in fig.axes if a.images]
-    assert [a.get_title() for a in maps] == ["median R", "90th percentile R"]
+    assert [a.get_title() for a in maps] == ["median R_B", "90th percentile R_B"]
+    assert "on the 2 impacts every valve has it for" in fig._suptitle.get_text()
     assert "none of the 12 runs bottomed out" in fig._suptitle.get_text()
     for ax in maps:
         image = ax.images[0]
@@ -152,9 +155,9 @@ def test_the_other_study_figures_keep_their_legends_off_the_titles():
                   for s in ("brute", "fast")]
     peaks = [{"closed_form_peak_force": f, "simulated_peak_force": 1.01 * f, "recorded_peak_force": 0.98 * f,
               "mass": m, "pressure_gauge": 1e5} for f, m in ((2e3, 10.0), (4e3, 30.0), (6e3, 50.0))]
-    absorption = [{"case": c, "strategy": s, "stage_b": True, "stage_b_force_ratio": 1.1 + 0.1 * c, "mass_kg": 10.0 * c}
-                  for c in range(1, 4) for s in ("closed", "predictive", "predictive (oracle)",
-                                                 "achievable reference")]
+    absorption = [{"case": c, "strategy": s, "stage_b_ratio": 1.1 + 0.1 * c, "whole_event_peak_ratio": 3.0 + c,
+                   "mass_kg": 10.0 * c} for c in range(1, 4)
+                  for s in ("closed", "predictive", "predictive (oracle)", "achievable reference")]
     figures = [plot_map_tables(tables, "size", "map size", title="Response map: error vs database size"),
                plot_map_recordings(recordings), plot_peak_force(peaks), plot_absorption_study(absorption)]
     for fig in figures:
@@ -177,6 +180,11 @@ def test_absorption_figure_clips_no_force_and_labels_its_lines(absorbed):
     assert force.get_ylim()[1] >= peak and zoom.get_ylim()[1] >= peak
     assert 15.0 <= zoom.get_xlim()[1] <= 40.0  # the first ~20 ms, where the identification reads
     texts = _texts(fig)
+    window = absorbed.window
+    assert any(t.startswith("control starts") for t in texts)
+    assert f"first sustained contact ({window.start * 1e3:.1f} ms)" in texts
+    assert "common window of R_B (to the deepest point)" in texts
+    assert any(t.startswith("F_floor") for t in texts) and any(t.startswith("F_ref") for t in texts)
     assert any(t.startswith("thin:") for t in texts) and any(t.startswith("thick: CFC 60") for t in texts)
     assert any(t.startswith("solid: mass") for t in texts) and any(t.startswith("dashed: piston") for t in texts)
     usable = absorbed.absorber.usable_stroke(absorbed.rig) * 1e3

@@ -26,6 +26,7 @@ from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
 from ..validation import check_flag, check_integer, check_real, finite_or_none
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
+from .event import STOPPED_FRACTION, CommonWindow, common_window
 from .identified import (
     IDENTIFICATION_WINDOW,
     identify_impact,
@@ -35,6 +36,7 @@ from .identified import (
     usable_velocity,
 )
 from .metrics import AbsorptionMetrics, absorption_metrics
+from .reference import EVALUATIONS as REFERENCE_EVALUATIONS
 from .reference import AchievableReference, achievable_reference
 from .strategies import ControlContext, get_strategy, strategy_names
 from .valve import Absorber
@@ -44,6 +46,9 @@ IDENTIFICATIONS = ("robust", "paper", "oracle", "response-map")
 #: a valve strategy's run ends this long after the mass's deepest point [s]: long enough for the rebound of a mass
 #: resting on the closed gas spring (a period of 0.1-0.3 s) to show
 REBOUND_WINDOW = 0.15
+#: a run whose mass has not stopped at the end of its record is simulated again for twice as long, up to this
+#: duration [s]; one that has not stopped then is reported as a run that cannot stop (``stopped`` False)
+MAX_DURATION = 4.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -73,6 +78,7 @@ class AbsorptionResult:
     runs: dict[str, StrategyRun]
     bound: EfficiencyBound
     over_capacity: bool
+    window: CommonWindow = CommonWindow(start=math.nan, reference_force=math.nan, floor_force=math.nan)
     control_start: float = math.inf
     reference: AchievableReference | None = None
     notes: tuple[str, ...] = ()
@@ -102,12 +108,15 @@ class AbsorptionResult:
                 strategies[name]["estimated_mass_kg"] = finite_or_none(float(mass[last]))
                 std = float(run.controller["estimated_mass_std"][last])
                 strategies[name]["estimated_mass_std_kg"] = finite_or_none(std)
-        reference = self.reference
+        reference, window = self.reference, self.window
         return {"mass_kg": self.scenario.mass, "velocity_m_s": self.scenario.velocity,
                 "pressure_gauge_Pa": self.scenario.pressure_gauge, "identification": loop_summary(self.identified),
                 "rig": self.rig.name, "usable_stroke_m": self.absorber.usable_stroke(self.rig),
-                "achievable_force_ratio": None if reference is None else finite_or_none(reference.force_ratio),
-                "achievable_level_N": None if reference is None else finite_or_none(reference.level),
+                "control_start_s": finite_or_none(self.control_start),
+                "common_window_start_s": finite_or_none(window.start),
+                "reference_force_N": finite_or_none(window.reference_force),
+                "floor_force_N": finite_or_none(window.floor_force), "common_window_excluded": window.reason or None,
+                **({} if reference is None else reference.to_dict()),
                 "efficiency_max": finite_or_none(self.bound.efficiency),
                 "bound_force_N": finite_or_none(self.bound.level),
                 "first_collision_peak_N": finite_or_none(self.bound.first_collision_peak),
@@ -133,15 +142,36 @@ def default_duration(scenario: Scenario, usable_stroke: float) -> float:
     return float(min(1.2, max(0.3, 0.15 + 4.0 * usable_stroke / scenario.velocity)))
 
 
-def sensor_noise(closed_result, noise: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Noise matrix of the controller's sensors (rows in the order of ``simulate.SENSOR_CHANNELS``) and the standard
-    deviation of each row: ``noise`` × each channel's RMS over the closed-valve record."""
-    t = closed_result.time
-    window = t <= IDENTIFICATION_WINDOW
+def sensor_sigma(closed_result, noise: float) -> np.ndarray:
+    """Standard deviation of each of the controller's sensors (in the order of ``simulate.SENSOR_CHANNELS``):
+    ``noise`` × each channel's RMS over the closed-valve record's first ``IDENTIFICATION_WINDOW``."""
+    window = closed_result.time <= IDENTIFICATION_WINDOW
+    return np.array([noise * float(np.sqrt(np.mean(getattr(closed_result, name)[window] ** 2)))
+                     for name in loop.SENSOR_CHANNELS])
+
+
+def sensor_noise(sigma: np.ndarray, samples: int, seed: int) -> np.ndarray:
+    """Noise matrix (N_SENSOR, ``samples``) of the controller's sensors with standard deviations ``sigma``; drawn
+    sample by sample, so a longer run sees the same noise over the samples the shorter one had."""
     rng = np.random.default_rng([int(seed), 7])
-    sigma = np.array([noise * float(np.sqrt(np.mean(getattr(closed_result, name)[window] ** 2)))
-                      for name in loop.SENSOR_CHANNELS])
-    return sigma[:, None] * rng.standard_normal((sigma.size, t.size)), sigma
+    return sigma[:, None] * rng.standard_normal((samples, sigma.size)).T
+
+
+def run_until_stopped(scenario: Scenario, rig: Rig, control, absorber: Absorber, *, duration: float,
+                      sample_rate: float, sigma: np.ndarray, seed: int):
+    """A controlled run (``simulate_controlled``) simulated until the mass has stopped: a run whose mass still
+    moves at the end of its record is simulated again for twice as long, up to ``MAX_DURATION`` [s]."""
+    while True:
+        samples = loop.sample_times(duration, sample_rate).size
+        result, history = loop.simulate_controlled(
+            scenario, rig, control=control, drive=absorber.drive, duration=duration, sample_rate=sample_rate,
+            sensor_noise=sensor_noise(sigma, samples, seed), stop_after=REBOUND_WINDOW)
+        deepest = int(np.argmax(result.u1))
+        moving = abs(result.v1[deepest]) > STOPPED_FRACTION * scenario.velocity
+        cut = result.time.size == samples and deepest >= samples - 2 and "ended_at_bottom" not in result.extra
+        if not (cut and moving) or duration >= MAX_DURATION:
+            return result, history
+        duration = min(2.0 * duration, MAX_DURATION)
 
 
 def _check(scenario, noise, seed, identification, absorber, control_start) -> None:
@@ -160,7 +190,8 @@ def _check(scenario, noise, seed, identification, absorber, control_start) -> No
 def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | list[str] = "all",
            identification: str = "robust", noise: float = 0.02, seed: int = 0, absorber: Absorber | None = None,
            sample_rate: float = 50e3, duration: float | None = None, control_start: float | None = None,
-           response_map=None, reference: bool = False) -> AbsorptionResult:
+           response_map=None, reference: bool = False,
+           reference_evaluations: int = REFERENCE_EVALUATIONS) -> AbsorptionResult:
     """Absorb one impact with the closed loop identify → control.
 
     Parameters
@@ -190,7 +221,10 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     response_map : ResponseMap or path, optional
         The map for ``identification="response-map"``.
     reference : bool
-        Also search the achievable reference (:mod:`.reference`; a dozen more simulations).
+        Also search the achievable reference (:mod:`.reference`; a dozen simulations, plus
+        ``reference_evaluations`` for its piecewise-constant programs).
+    reference_evaluations : int
+        Plant simulations of the piecewise-constant search of the reference (0: that family is skipped).
 
     Returns
     -------
@@ -200,6 +234,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     absorber = Absorber() if absorber is None else absorber
     _check(scenario, noise, seed, identification, absorber, control_start)
     check_flag("reference", reference)
+    check_integer("reference_evaluations", reference_evaluations, low=0, high=10_000)
     names = strategy_names(strategy)
     rig = get_rig(ABSORPTION_RIG if rig is None else rig)
     scenario.check_against(rig)
@@ -234,7 +269,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                      f"({usable:.3f} m), above the rated {absorber.rated_force:.0f} N: the best achievable outcome "
                      f"is shown")
     start = found.available_at if found.error is None else math.inf
-    noise_matrix, sigma = sensor_noise(closed, noise, seed)
+    sigma = sensor_sigma(closed, noise)
+    window = common_window(closed, usable, vented=absorber.drive.route == "atmosphere")
     trusted_mass = usable_mass(found)
     context = ControlContext(rig=rig, absorber=absorber, mass=trusted_mass, velocity=usable_velocity(found),
                              mass_std=found.mass_std if math.isfinite(trusted_mass)
@@ -251,13 +287,12 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         if control.strategy == "closed":
             simulated[name] = (control, closed, {key: np.full_like(closed.time, np.nan) for key in loop.HISTORIES})
         else:
-            simulated[name] = (control, *loop.simulate_controlled(
-                scenario, rig, control=control, drive=absorber.drive, duration=duration, sample_rate=sample_rate,
-                sensor_noise=noise_matrix, stop_after=REBOUND_WINDOW))
+            simulated[name] = (control, *run_until_stopped(scenario, rig, control, absorber, duration=duration,
+                                                           sample_rate=sample_rate, sigma=sigma, seed=seed))
     start = min([start] + [_knew(history, result) for control, result, history in simulated.values()
                            if control.strategy in ("realtime", "predictive")])
     runs = {name: StrategyRun(strategy=name, result=result, controller=history,
-                              metrics=absorption_metrics(result, start, usable),
+                              metrics=absorption_metrics(result, start, usable, window),
                               valve_opening_constant=control.opening if control.strategy == "constant" else math.nan)
             for name, (control, result, history) in simulated.items()}
     if math.isfinite(start) and start <= closed.time[-1]:
@@ -267,12 +302,9 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         bound = EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
     achievable = None
     if reference and math.isfinite(start) and start < closed.time[-1]:
-        i0 = int(np.searchsorted(closed.time, start))  # F_ref of the closed-valve state at the control start
-        level = scenario.mass * (max(float(closed.v1[i0]), 0.0) ** 2 / (2.0 * max(usable - float(closed.u1[i0]),
-                                                                                   1e-3)) + rig.gravity)
-        achievable = achievable_reference(scenario, rig, absorber, start, reference_force=level,
+        achievable = achievable_reference(scenario, rig, absorber, start, window=window,
                                           charge_pressure=float(closed.pressure_lower[0]), duration=duration,
-                                          sample_rate=sample_rate)
+                                          sample_rate=sample_rate, evaluations=reference_evaluations)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,
                             over_capacity=bool(over or bound.over_capacity), control_start=start,
-                            reference=achievable, notes=tuple(notes))
+                            reference=achievable, notes=tuple(notes), window=window)

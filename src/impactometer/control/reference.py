@@ -1,13 +1,21 @@
-"""The achievable reference: the best stage-B force ratio R an opening program of this valve reaches from a given
-control start.
+"""The achievable reference: the lowest R_B (on the impact's common window, :mod:`.event`) that an opening program of
+this valve reaches on the same plant, with full knowledge (true M1 and V0, noise-free sensors).
 
-The programs are those of the ideal absorber, run with full knowledge (true M1 and V0, noise-free sensors, the
-controller's lag and dead-time compensation, no supervisor): from the control start the valve opens as far as it
-must (fully, while the contact force is above the level) and then holds the contact force at a constant level F_c
-(the ``level`` strategy), the levels searched on a grid around the F_ref of the closed-valve state at the control
-start and refined by golden section around the best one; and the ``predictive`` law's moving target
-F* = M1·(v²/(2·s_rem) + g). Among the programs that stop the mass within the usable stroke without touching the
-bottom stop, the one with the lowest R is the reference: the best this search finds, not a proven bound.
+The family searched, every member judged on the same window and the same feasibility (the mass stops within the
+usable stroke + ``STROKE_TOLERANCE``, the piston never touches the bottom stop):
+
+1. **piecewise-constant openings on ``SEGMENTS`` (8) equal segments from first contact** to the horizon T (1.1 × the
+   time to the deepest point of the best program of 2-3; the last opening held after it), the valve command
+   optimised by ``scipy.optimize.minimize`` (Powell, bounds [0, 1], at most ``EVALUATIONS`` plant simulations at
+   ``SEARCH_RATE``) from the per-segment mean command of that program, the best found re-run at the loop's rate;
+2. the ideal absorber's programs from the control start: open as far as needed, then hold the contact force at a
+   level F_c (the ``level`` law with the predictive controller's lag compensation, no supervisor), F_c on a grid
+   around F_ref and refined by golden section;
+3. the ``predictive`` law's moving target F* = M1·(v²/(2·s_rem) + g) from the control start, with full knowledge.
+
+The reference is the lowest R_B among them: the best this search finds in a stated family, not a proof that no
+program does better (the closed-loop controllers are not in family 1; the study counts the impacts where they beat
+it).
 """
 
 from __future__ import annotations
@@ -17,9 +25,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import minimize
 
+from ..model.simulate import sample_times
 from ..rig import Rig, Scenario
-from .metrics import stage_b
+from .event import CommonWindow, body_load, window_peak
 from .settings import ControlSettings
 from .simulate import simulate_controlled
 from .strategies import predictive_tau_control
@@ -29,61 +39,109 @@ from .valve import Absorber
 SCAN = (0.8, 1.0, 1.2, 1.5, 2.0, 3.0)
 #: golden-section refinements after the scan
 REFINEMENTS = 3
-#: a program's run ends this long after the mass's deepest point [s] (R, the stroke and bottoming are known then)
+#: a program's run ends this long after the mass's deepest point [s] (R_B, the stroke and bottoming are known then)
 TAIL = 0.02
 #: overshoot of the usable stroke tolerated by the search [m]: the controllers hold the rod to the usable stroke, and
 #: the mass runs the contact's compression (a few millimetres) further, within the stroke margin, as theirs do
 STROKE_TOLERANCE = 5e-3
+#: segments of the piecewise-constant programs, plant simulations of their search, and its sample rate [Hz]
+SEGMENTS = 8
+EVALUATIONS = 240
+SEARCH_RATE = 10e3
+#: cost added to R_B per STROKE_TOLERANCE of overshoot beyond the tolerance (and once for touching the bottom)
+PENALTY = 10.0
 
 
 @dataclass(frozen=True, kw_only=True)
 class AchievableReference:
-    """The best program of the valve found: its force level [N] (NaN for the moving target), R [-], η_B [-], stroke
-    used [m] and the number of programs tried (R NaN when none stops the mass within the usable stroke, or the run
-    has no stage B)."""
+    """The best program found: R_B [-], whole-event peak / F0 [-], stroke used [m], which family gave it
+    (``segments``, ``level`` or ``moving target``), its level [N] (NaN unless ``level``), its openings per
+    segment [-] (empty unless ``segments``) and the number of plant simulations run (R_B NaN when no program is
+    feasible or the impact has no common window)."""
 
-    level: float
     force_ratio: float
-    efficiency: float
+    whole_event_peak_ratio: float
     stroke_used: float
+    family: str
+    level: float
+    openings: tuple[float, ...]
     runs: int
 
+    def to_dict(self) -> dict:
+        """JSON-ready summary with ``achievable_``-prefixed keys."""
+        finite = [None if not math.isfinite(v) else float(v) for v in
+                  (self.force_ratio, self.whole_event_peak_ratio, self.stroke_used, self.level)]
+        return {"achievable_force_ratio": finite[0], "achievable_whole_event_peak_ratio": finite[1],
+                "achievable_stroke_used_m": finite[2], "achievable_family": self.family,
+                "achievable_level_N": finite[3], "achievable_openings": list(self.openings),
+                "achievable_runs": self.runs}
 
-def _outcome(scenario, rig, absorber, settings, duration, sample_rate):
-    result, _ = simulate_controlled(scenario, rig, control=settings, drive=absorber.drive, duration=duration,
-                                    sample_rate=sample_rate, stop_after=TAIL)
+
+@dataclass(frozen=True, kw_only=True)
+class _Outcome:
+    ratio: float  # R_B, inf when infeasible or undefined
+    cost: float  # R_B plus the penalties (the search's objective)
+    peak_ratio: float
+    stroke: float
+    deepest_time: float
+    commands: np.ndarray
+    time: np.ndarray
+
+
+def _outcome(scenario, rig, absorber, settings, window, duration, sample_rate, program=None) -> _Outcome:
+    result, history = simulate_controlled(scenario, rig, control=settings, drive=absorber.drive, duration=duration,
+                                          sample_rate=sample_rate, stop_after=TAIL, program=program)
     usable = absorber.usable_stroke(rig)
-    feasible = (float(result.u1.max()) <= usable + STROKE_TOLERANCE and not np.any(result.bottom_stop_force > 0.0)
-                and "ended_at_bottom" not in result.extra)
-    return stage_b(result, settings.start, usable), feasible, float(result.u1.max())
+    stroke = float(result.u1.max())
+    bottomed = bool(np.any(result.bottom_stop_force > 0.0) or "ended_at_bottom" in result.extra)
+    over = max(stroke - usable - STROKE_TOLERANCE, 0.0) / STROKE_TOLERANCE
+    ratio = window_peak(result, window)[1]
+    f0 = scenario.mass * (scenario.velocity ** 2 / (2.0 * usable) + rig.gravity)
+    cost = (ratio if math.isfinite(ratio) else 100.0) + PENALTY * (over + (over > 0.0) + bottomed)
+    feasible = over == 0.0 and not bottomed and math.isfinite(ratio)
+    return _Outcome(ratio=ratio if feasible else math.inf, cost=cost, peak_ratio=float(body_load(result).max() / f0),
+                    stroke=stroke, deepest_time=float(result.time[np.argmax(result.u1)]),
+                    commands=history["valve_command"], time=result.time)
+
+
+def _segment_program(openings, horizon: float, time: np.ndarray) -> np.ndarray:
+    """Valve command per sample [-]: ``openings[k]`` on [k·T/n, (k+1)·T/n), the last one after T = ``horizon``."""
+    index = np.minimum((time / horizon * len(openings)).astype(int), len(openings) - 1)
+    return np.clip(np.asarray(openings, float), 0.0, 1.0)[index]
+
+
+def _segment_means(outcome: _Outcome, horizon: float) -> np.ndarray:
+    """Mean command of a run per segment (the start of the search)."""
+    index = np.minimum((outcome.time / horizon * SEGMENTS).astype(int), SEGMENTS - 1)
+    commands = np.nan_to_num(outcome.commands, nan=0.0)
+    return np.array([commands[index == k].mean() if np.any(index == k) else 0.0 for k in range(SEGMENTS)])
 
 
 def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, control_start: float, *,
-                         reference_force: float, charge_pressure: float, duration: float,
-                         sample_rate: float = 50e3) -> AchievableReference:
-    """Search the programs (see the module notes) from ``control_start`` [s]; ``reference_force`` [N] (F_ref
-    of the closed-valve state at the control start, or any force of its scale) centres the scan,
-    ``charge_pressure`` [Pa] is the lower chamber's pressure at first contact."""
-    nothing = AchievableReference(level=math.nan, force_ratio=math.nan, efficiency=math.nan, stroke_used=math.nan,
-                                  runs=0)
-    if not (math.isfinite(control_start) and math.isfinite(reference_force) and reference_force > 0.0):
+                         window: CommonWindow, charge_pressure: float, duration: float,
+                         sample_rate: float = 50e3, evaluations: int = EVALUATIONS) -> AchievableReference:
+    """Search the program families (module notes) for the impact ``scenario`` on ``rig``; ``control_start`` [s]
+    starts families 2 and 3, ``window`` is the impact's common window (F_ref centres the level scan),
+    ``charge_pressure`` [Pa] the lower chamber's pressure at first contact, ``evaluations`` the budget of plant
+    simulations of the piecewise-constant search (0: family 1 is skipped)."""
+    nothing = AchievableReference(force_ratio=math.nan, whole_event_peak_ratio=math.nan, stroke_used=math.nan,
+                                  family="", level=math.nan, openings=(), runs=0)
+    if not (math.isfinite(control_start) and math.isfinite(window.start)):
         return nothing
     base = ControlSettings(strategy="level", start=control_start, mass=scenario.mass, mass_std=0.0,
                            velocity=scenario.velocity, usable_stroke=absorber.usable_stroke(rig),
                            charge_pressure=charge_pressure, charge_temperature=rig.gas.temperature,
-                           force_level=reference_force, refine_mass=False, supervise=False,
+                           force_level=window.reference_force, refine_mass=False, supervise=False,
                            tau_control=predictive_tau_control(absorber.drive))
-    tried: dict[float, tuple[float, float, float]] = {}
+    tried: dict[float, _Outcome] = {}
 
     def cost(level: float) -> float:
         if level not in tried:
-            settings = dataclasses.replace(base, force_level=level)
-            b, feasible, stroke = _outcome(scenario, rig, absorber, settings, duration, sample_rate)
-            ratio = b.force_ratio if feasible and math.isfinite(b.force_ratio) else math.inf
-            tried[level] = (ratio, b.efficiency, stroke)
-        return tried[level][0]
+            tried[level] = _outcome(scenario, rig, absorber, dataclasses.replace(base, force_level=level), window,
+                                    duration, sample_rate)
+        return tried[level].ratio
 
-    levels = [factor * reference_force for factor in SCAN]
+    levels = [factor * window.reference_force for factor in SCAN]
     costs = [cost(level) for level in levels]
     best = int(np.argmin(costs))
     if math.isfinite(costs[best]):
@@ -95,15 +153,37 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
                 high = b
             else:
                 low = a
-    level = min(tried, key=lambda x: tried[x][0])
-    ratio, efficiency, stroke = tried[level]
-    if not math.isfinite(ratio):
-        level, efficiency, stroke = math.nan, math.nan, math.nan
+    level = min(tried, key=lambda x: tried[x].ratio)
+    candidates = {("level", level): tried[level]}
     tracking = dataclasses.replace(base, strategy="predictive", force_level=math.nan)  # the moving target
-    b, feasible, tracked_stroke = _outcome(scenario, rig, absorber, tracking, duration, sample_rate)
-    if feasible and b.force_ratio < ratio:
-        level, ratio, efficiency, stroke = math.nan, b.force_ratio, b.efficiency, tracked_stroke
-    if not math.isfinite(ratio):
-        ratio = math.nan
-    return AchievableReference(level=float(level), force_ratio=float(ratio), efficiency=float(efficiency),
-                               stroke_used=stroke, runs=len(tried) + 1)
+    candidates[("moving target", math.nan)] = _outcome(scenario, rig, absorber, tracking, window, duration,
+                                                       sample_rate)
+    runs = len(tried) + 1
+    openings: tuple[float, ...] = ()
+    if evaluations > 0:
+        seed = min(candidates.values(), key=lambda o: o.cost)
+        horizon = 1.1 * seed.deepest_time
+        program_settings = dataclasses.replace(base, strategy="closed", start=window.start)
+        searched: list[tuple[float, np.ndarray]] = []
+
+        def objective(x: np.ndarray) -> float:
+            o = _outcome(scenario, rig, absorber, program_settings, window, duration, SEARCH_RATE,
+                         _segment_program(x, horizon, sample_times(duration, SEARCH_RATE)))
+            searched.append((o.cost, np.clip(x, 0.0, 1.0)))
+            return o.cost
+
+        start = _segment_means(seed, horizon)
+        minimize(objective, start, method="Powell", bounds=[(0.0, 1.0)] * SEGMENTS,
+                 options={"maxfev": evaluations, "xtol": 1e-3, "ftol": 1e-4})
+        best_x = min(searched, key=lambda item: item[0])[1]
+        candidates[("segments", math.nan)] = _outcome(
+            scenario, rig, absorber, program_settings, window, duration, sample_rate,
+            _segment_program(best_x, horizon, sample_times(duration, sample_rate)))
+        openings = tuple(float(v) for v in best_x)
+        runs += len(searched) + 1
+    (family, level), chosen = min(candidates.items(), key=lambda item: item[1].ratio)
+    if not math.isfinite(chosen.ratio):
+        return dataclasses.replace(nothing, runs=runs)
+    return AchievableReference(force_ratio=float(chosen.ratio), whole_event_peak_ratio=chosen.peak_ratio,
+                               stroke_used=chosen.stroke, family=family, level=float(level),
+                               openings=openings if family == "segments" else (), runs=runs)

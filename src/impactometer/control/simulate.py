@@ -49,13 +49,14 @@ def _advance(y, p, u, interval, h, rtol, atol, k):
 
 
 @njit(cache=True, error_model="numpy")
-def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra, stop_after):
+def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra, stop_after, program):
     """Closed-loop simulation sampled at ``sample_rate`` [Hz] for ``out.shape[1]`` samples.
 
     ``noise`` (N_SENSOR, n) is added to the sensors the controller reads; ``out`` (N_CHANNEL, n) receives the
     model channels and ``extra`` (len(HISTORIES), n) the controller's histories. The run ends early, ``stop_after``
     [s] after the mass, in contact, turned back up (its deepest point) once the control has started (``inf``:
-    never). Returns a status code of the stepper and the index of the last sample written.
+    never). ``program`` (n commands [-], or empty) replaces the controller's commands by a fixed opening program
+    (the estimator still runs). Returns a status code of the stepper and the index of the last sample written.
     """
     n = out.shape[1]
     dt = 1.0 / sample_rate
@@ -90,6 +91,8 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra, sto
                    row[SENSOR_INDEX[2]] + noise[2, j], row[SENSOR_INDEX[3]] + noise[3, j],
                    row[SENSOR_INDEX[4]] + noise[4, j], p[d.GRAVITY], ctrl)
         command = ctl.command_of(t, dt, p, ctrl, drive, e, history, (j - 1) % size, predicted_delay)
+        if program.size:
+            command = program[j]
         history[j % size] = command
         extra[0, j] = y[actuated.OPENING]
         extra[1, j] = command
@@ -118,7 +121,8 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra, sto
 
 def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, control: ControlSettings | None = None,
                         drive: ValveDrive | None = None, duration: float = 0.3, sample_rate: float = 50e3,
-                        sensor_noise: np.ndarray | None = None, rtol: float = 1e-7, stop_after: float = math.inf):
+                        sensor_noise: np.ndarray | None = None, rtol: float = 1e-7, stop_after: float = math.inf,
+                        program: np.ndarray | None = None):
     """Simulate one drop test with valve Z driven by a controller.
 
     Parameters
@@ -142,6 +146,9 @@ def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, con
     stop_after : float
         End the run this long after the mass's deepest point once the control has started [s] (``inf``: at
         ``duration``); the histories are then shorter.
+    program : ndarray, optional
+        An opening program: the valve command [-] at every sample (within [0, 1]) in place of the controller's;
+        the actuator's dead time and lag still apply.
 
     Returns
     -------
@@ -172,8 +179,11 @@ def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, con
     extra = np.empty((len(HISTORIES), t.size))
     stop_after = check_real("stop_after", stop_after, low=0.0, finite=False, unit=" [s] (inf: never)",
                             state_range=True)
+    commands = np.zeros(0) if program is None else np.ascontiguousarray(program, float)
+    if program is not None and (commands.shape != t.shape or not np.all((commands >= 0.0) & (commands <= 1.0))):
+        raise ParameterError(f"program must hold {t.size} commands within [0, 1], got shape {commands.shape}")
     status, last = run_loop(p, y0, control.packed(), ctl.drive_vector(drive), noise, float(sample_rate), rtol, atol,
-                            chans, extra, stop_after)
+                            chans, extra, stop_after, commands)
     note = {}
     if status == stepper.OK and last < t.size - 1:
         t, chans, extra = t[:last + 1], chans[:, :last + 1], extra[:, :last + 1]

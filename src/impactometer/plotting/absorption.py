@@ -9,8 +9,7 @@ import math
 
 import numpy as np
 
-from ..control.metrics import BODY_CFC
-from ..filters import cfc_filter
+from ..control.event import BODY_CFC, body_load
 from . import _pyplot, legend_outside
 
 #: line colour per strategy (and per oracle run)
@@ -24,9 +23,10 @@ THIN, THICK = 0.4, 1.6
 
 def plot_absorption(result, ax=None):
     """The paper's Fig. 10b: contact force of every strategy vs time (thin: as simulated; thick: CFC 60, the load
-    the stage-B force ratio R is judged on), the control start and the reference force F_ref; the first
-    milliseconds zoomed (the collision the identification reads); the displacements of the mass (solid) and of
-    the piston (dashed) against the usable stroke and the bottom stop below. No force is clipped.
+    the metrics are judged on), the control start, the first sustained contact and the common window of R_B (shaded
+    to the deepest point of the last run to reach it), F_ref, F_floor and F0; the first milliseconds zoomed (the
+    collision the identification reads); the displacements of the mass (solid) and of the piston (dashed) against
+    the usable stroke and the bottom stop below. No force is clipped.
 
     Parameters
     ----------
@@ -53,10 +53,12 @@ def plot_absorption(result, ax=None):
     for name, run in result.runs.items():
         r = run.result
         colour = COLOURS.get(name)
-        body = cfc_filter(r.contact_force, r.sample_rate, BODY_CFC)
+        body = body_load(r)
         t = r.time * 1e3
         force.plot(t, r.contact_force / 1e3, lw=THIN, color=colour, alpha=0.5)
-        force.plot(t, body / 1e3, lw=THICK, color=colour, label=f"{name}: R = {run.metrics.stage_b_force_ratio:.2f}")
+        m = run.metrics
+        force.plot(t, body / 1e3, lw=THICK, color=colour,
+                   label=f"{name}: R_B = {m.stage_b_ratio:.2f}, peak / F0 = {m.whole_event_peak_ratio:.2f}")
         if zoom is not None:
             early = r.time <= window
             zoom.plot(t[early], r.contact_force[early] / 1e3, lw=THIN * 2, color=colour, alpha=0.6)
@@ -65,15 +67,26 @@ def plot_absorption(result, ax=None):
             motion.plot(t, r.u1 * 1e3, lw=1.1, color=colour)
             motion.plot(t, r.u2 * 1e3, lw=0.9, ls="--", color=colour)
         deepest = max(deepest, float(r.time[np.argmax(r.u1)]))
+    common = result.window
     for a in axes:
         if math.isfinite(start):
-            a.axvline(start * 1e3, color="k", ls=":", lw=1, label="control starts" if a is force else None)
+            a.axvline(start * 1e3, color="k", ls=":", lw=1,
+                      label=f"control starts ({start * 1e3:.1f} ms)" if a is force else None)
+        if math.isfinite(common.start):
+            a.axvline(common.start * 1e3, color="tab:green", ls="-.", lw=1,
+                      label=f"first sustained contact ({common.start * 1e3:.1f} ms)" if a is force else None)
+            a.axvspan(common.start * 1e3, deepest * 1e3, color="tab:green", alpha=0.06,
+                      label="common window of R_B (to the deepest point)" if a is force else None)
         a.grid(alpha=0.3)
-    judged = [run.metrics for run in result.runs.values() if math.isfinite(run.metrics.reference_force)]
-    if judged:
-        m = judged[-1]
-        force.axhline(m.reference_force / 1e3, color="tab:green", ls="--", lw=1,
-                      label=f"F_ref = {m.reference_force:.0f} N ({list(result.runs)[-1]})")
+    if math.isfinite(common.start):
+        force.axhline(common.reference_force / 1e3, color="tab:green", ls="--", lw=1,
+                      label=f"F_ref = {common.reference_force:.0f} N (closed valve at the first sustained contact)")
+        force.axhline(common.floor_force / 1e3, color="tab:brown", ls="--", lw=1,
+                      label=f"F_floor = {common.floor_force:.0f} N (valve wide open, bodies together)")
+    runs = list(result.runs.values())
+    if runs:
+        f0 = runs[0].metrics.impact_force
+        force.axhline(f0 / 1e3, color="k", ls="--", lw=0.8, label=f"F0 = {f0:.0f} N (whole event, ideal)")
     force.set_xlim(0.0, 1.1 * deepest * 1e3 if deepest > 0.0 else None)
     force.set_ylabel("contact force [kN]")
     ident = result.identified
@@ -82,7 +95,7 @@ def plot_absorption(result, ax=None):
                                                     f"M1 = {ident.mass:.3g} kg, V0 = {ident.velocity:.3g} m/s"
     fig.suptitle(f"{result.rig.name}: M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, "
                  f"p0 = {s.pressure_gauge / 1e3:g} kPa\n{how}", fontsize=10)
-    _style_keys(force, "thin: as simulated", f"thick: CFC {BODY_CFC} (R is judged on it)", (THIN, THICK),
+    _style_keys(force, "thin: as simulated", f"thick: CFC {BODY_CFC} (the metrics are judged on it)", (THIN, THICK),
                 ("-", "-"))
     legend_outside(force)
     if zoom is not None:

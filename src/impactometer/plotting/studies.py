@@ -230,72 +230,82 @@ def plot_map_recordings(rows: Sequence[Row]):
 
 
 def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
-    """Absorber strategies on stage B: the distribution of the force ratio R per strategy (oracle and achievable
-    reference included), and per impact the identified ``strategy`` against its oracle and against the achievable
-    reference."""
+    """Absorber strategies on the common set of impacts (``studies.absorption.common_set``): the distribution of
+    R_B per strategy (oracle and achievable reference included) and of the whole-event CFC 60 peak / F0, and per
+    impact the identified ``strategy`` against its oracle and against the achievable reference."""
+    from ..studies.absorption import REFERENCE, TARGETS, common_set, values_on
+
     plt = _pyplot()
     strategies = list(dict.fromkeys(r["strategy"] for r in rows))
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.6), constrained_layout=True,
-                             gridspec_kw={"width_ratios": [1.6, 1, 1]})
-
-    def ratio(row: Row | None) -> float:
-        return np.nan if row is None or not flag(row.get("stage_b")) else number(row.get("stage_b_force_ratio"))
-
-    data = [np.array([ratio(r) for r in rows if r["strategy"] == name]) for name in strategies]
-    axes[0].boxplot([d[np.isfinite(d)] if np.isfinite(d).any() else np.array([np.nan]) for d in data])
-    axes[0].set_xticks(range(1, len(strategies) + 1),
-                       [f"{name}\n({int(np.isfinite(d).sum())} with stage B)" for name, d in zip(strategies, data,
-                                                                                               strict=True)],
-                       rotation=20, fontsize=8)
-    axes[0].axhline(1.0, color="k", lw=0.8)
-    median_target, p90_target = 1.3, 1.6  # the acceptance targets (studies.absorption.TARGETS)
-    axes[0].axhline(median_target, color="tab:green", ls="--", lw=0.8, label=f"target median R {median_target:g}")
-    axes[0].axhline(p90_target, color="tab:olive", ls=":", lw=0.8, label=f"target 90th percentile R {p90_target:g}")
-    axes[0].set(ylabel="stage-B force ratio R [-] (ideal 1)", yscale="log")
-    ticks = [1.0, median_target, p90_target, 2.0, 3.0, 4.0, 6.0]
+    kept, left = common_set(rows)
+    impacts = list(dict.fromkeys(r["case"] for r in rows))
+    fig, axes = plt.subplots(1, 4, figsize=(19, 4.8), constrained_layout=True,
+                             gridspec_kw={"width_ratios": [1.5, 1.3, 1, 1]})
+    for ax, column, chosen, label in (
+            (axes[0], "stage_b_ratio", kept, f"R_B on the common window [-] (ideal 1), {len(kept)} impacts"),
+            (axes[1], "whole_event_peak_ratio", impacts, f"whole-event CFC 60 peak / F0 [-], {len(impacts)} impacts")):
+        data = [values_on(rows, chosen, name, column) for name in strategies]
+        data = [d[np.isfinite(d)] for d in data]
+        ax.boxplot([d if d.size else np.array([np.nan]) for d in data])
+        ax.set_xticks(range(1, len(strategies) + 1), strategies, rotation=20, fontsize=8)
+        ax.axhline(1.0, color="k", lw=0.8)
+        ax.set(ylabel=label, yscale="log")
+        ax.grid(alpha=0.3, which="both")
+    axes[0].axhline(TARGETS["median"], color="tab:green", ls="--", lw=0.8,
+                    label=f"target median R_B {TARGETS['median']:g}")
+    axes[0].axhline(TARGETS["p90"], color="tab:olive", ls=":", lw=0.8,
+                    label=f"target 90th percentile R_B {TARGETS['p90']:g}")
+    ticks = [1.0, TARGETS["median"], TARGETS["p90"], 2.0, 3.0, 5.0]
     axes[0].set_yticks(ticks, [f"{tick:g}" for tick in ticks])
     axes[0].yaxis.set_minor_formatter("")
-    axes[0].grid(alpha=0.3, which="both")
+    axes[0].set_title(f"common set: {len(kept)} of {len(impacts)} impacts ({len(left)} left out, named in the "
+                      "report)", fontsize=9)
+    axes[1].axhline(3.0, color="tab:green", ls="--", lw=0.8, label="design target: 90th percentile peak / F0 3")
     figure_legend(fig)
-    by = {(r["case"], r["strategy"]): r for r in rows}
-    cases = sorted({r["case"] for r in rows})
-    mine = np.array([ratio(by.get((c, strategy))) for c in cases])
-    mass = np.array([number(by[(c, strategy)]["mass_kg"]) if (c, strategy) in by else np.nan for c in cases])
-    for ax, other, label in ((axes[1], f"{strategy} (oracle)", f"R, {strategy} with the true M1, V0"),
-                             (axes[2], "achievable reference", "achievable R of the valve")):
-        theirs = np.array([ratio(by.get((c, other))) for c in cases])
+    mine = values_on(rows, kept, strategy, "stage_b_ratio")
+    mass = values_on(rows, kept, strategy, "mass_kg")
+    sc = None
+    for ax, other, label in ((axes[2], f"{strategy} (oracle)", f"R_B, {strategy} with the true M1, V0"),
+                             (axes[3], REFERENCE, "R_B of the achievable reference")):
+        theirs = values_on(rows, kept, other, "stage_b_ratio")
         sc = ax.scatter(theirs, mine, c=mass, cmap="viridis", s=16)
         finite = np.concatenate([mine[np.isfinite(mine)], theirs[np.isfinite(theirs)]])
         top = float(finite.max()) * 1.05 if finite.size else 2.0
-        line = np.array([1.0, top])
+        line = np.array([0.9, top])
         ax.plot(line, line, "k--", lw=0.8)
-        if other.endswith("(oracle)"):
-            ax.fill_between(line, 0.9 * line, 1.1 * line, color="tab:gray", alpha=0.2, lw=0)
-        ax.set(xlabel=label, ylabel=f"R, {strategy} (identified)", xlim=(0.9, top), ylim=(0.9, top))
+        band = TARGETS["oracle_deviation"] if other.endswith("(oracle)") else TARGETS["achievable"] - 1.0
+        ax.fill_between(line, (1.0 - band) * line, (1.0 + band) * line, color="tab:gray", alpha=0.2, lw=0)
+        ax.set(xlabel=label, ylabel=f"R_B, {strategy} (identified)", xlim=(0.9, top), ylim=(0.9, top))
         ax.grid(alpha=0.3)
-    fig.colorbar(sc, ax=axes[2], label="M1 [kg]")
-    fig.suptitle("Adaptive absorption judged on stage B (CFC 60 peak force / F_ref)")
+    if sc is not None:
+        fig.colorbar(sc, ax=axes[3], label="M1 [kg]")
+    fig.suptitle("Adaptive absorption: R_B = CFC 60 peak over [first sustained contact, deepest point] / "
+                 "max(F_ref, F_floor), and the whole event")
     return fig
 
 
 def plot_valve_design(rows: Sequence[Row]):
-    """Maps over valve size × response time: median and 90th-percentile R and the number of bottomed-out runs (the
-    last map only where a run bottomed out; otherwise the title says that none did). Each cell's number is written
-    in black or white, whichever stands out from the cell's colour."""
+    """Maps over valve size × response time: median and 90th-percentile R_B (on the common set of impacts) and the
+    number of bottomed-out runs (the last map only where a run bottomed out; otherwise the title says that none
+    did). Each cell's number is written in black or white, whichever stands out from the cell's colour."""
     plt = _pyplot()
     areas = sorted({r["effective_area_mm2"] for r in rows})
     times = sorted({r["response_time_ms"] for r in rows})
+    from ..studies.absorption import common_set, values_on
+    from ..studies.valve_design import valve_label
+
+    kept, _ = common_set(rows, key="impact", group="valve")
     grids = {key: np.full((len(times), len(areas)), np.nan) for key in ("median", "p90", "bottomed")}
     for i, t in enumerate(times):
         for j, a in enumerate(areas):
             chosen = [r for r in rows if r["effective_area_mm2"] == a and r["response_time_ms"] == t]
-            values = np.array([number(r.get("stage_b_force_ratio")) for r in chosen if flag(r.get("stage_b"))])
+            values = values_on(rows, kept, valve_label(a, t), "stage_b_ratio", key="impact", group="valve")
             values = values[np.isfinite(values)]
             if values.size:
                 grids["median"][i, j] = np.median(values)
                 grids["p90"][i, j] = np.percentile(values, 90)
             grids["bottomed"][i, j] = sum(flag(r.get("bottomed_out")) for r in chosen)
-    maps = [("median", "median R"), ("p90", "90th percentile R")]
+    maps = [("median", "median R_B"), ("p90", "90th percentile R_B")]
     bottomed = int(np.nansum(grids["bottomed"]))
     if bottomed:
         maps.append(("bottomed", "runs bottomed out"))
@@ -316,8 +326,8 @@ def plot_valve_design(rows: Sequence[Row]):
         ax.set(xlabel="effective area of the open valve [mm²]", ylabel="response time 10-90 % [ms]", title=title)
         fig.colorbar(image, ax=ax)
     none = "" if bottomed else f"; none of the {len(rows)} runs bottomed out (no map of them)"
-    fig.suptitle("Valve design: stage-B force ratio R of the predictive absorber over valve size and speed\n"
-                 f"(ISO 6358 valves, C ≈ S/5 dm³/(s·bar)){none}")
+    fig.suptitle(f"Valve design: R_B of the predictive absorber over valve size and speed, on the {len(kept)} "
+                 f"impacts every valve has it for\n(ISO 6358 valves, C ≈ S/5 dm³/(s·bar)){none}")
     return fig
 
 

@@ -1,16 +1,20 @@
-"""Study ``absorption`` (the paper's Fig. 10b over a grid): every absorber strategy judged on stage B.
+"""Study ``absorption`` (the paper's Fig. 10b over a grid): every absorber strategy judged on the whole event and,
+on one common window per impact, on the controller's R_B (:mod:`impactometer.control.event`).
 
 Per impact (one work unit, its own seed): ``closed``, ``constant``, ``realtime`` and ``predictive`` with M1 and V0
 identified from the noisy closed-valve record (:func:`impactometer.control.absorb`), ``predictive`` with the true
 M1 and V0 started at the same instant (the oracle: the cost of the identification), and the achievable reference
-of the valve from that instant (:mod:`impactometer.control.reference`). One row per strategy, plus one for the
-reference. Runs without a stage B are kept, flagged ``stage_b = False`` and counted apart. The summary sets the
-figures next to the acceptance criteria of the absorber.
+(:mod:`impactometer.control.reference`: the best opening program found on the same plant with full knowledge). One
+row per strategy, plus one for the reference, every one carrying the same per-impact columns as ``absorb --json``.
+
+Medians and percentiles of R_B are taken over the **common set**: the impacts on which every row has an R_B. The
+impacts left out are counted and named (case, M1, V0, p0 and why). The whole-event figures cover every impact.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -20,28 +24,34 @@ from ..control.strategies import ALL as ALL_STRATEGIES
 from ..rig import ABSORPTION_RIG, Scenario
 from ..validation import finite_or_none
 from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
-from .tables import finite_values, flag, number
+from .tables import flag, number
 
 NAME = "absorption"
 #: default values per grid axis (8 impacts at the corners of the ranges; ``--grid 5`` gives the paper's 125)
 GRID = 2
 DEFAULTS = {"noise": 0.02, "identification": "robust", "strategies": ["closed", "constant", "realtime",
-                                                                       "predictive"]}
+                                                                       "predictive"],
+            "reference_evaluations": 240}
 SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
             "identification": Setting("choice", choices=("robust", "paper", "oracle")),
-            "strategies": Setting("choices", choices=ALL_STRATEGIES)}
+            "strategies": Setting("choices", choices=ALL_STRATEGIES),
+            "reference_evaluations": Setting("integer", 0, 10_000)}
 #: the strategy run with the oracle, and the labels of the extra rows
 ORACLE_OF = "predictive"
 ORACLE = f"{ORACLE_OF} (oracle)"
 REFERENCE = "achievable reference"
-#: the metrics kept per row (keys of ``AbsorptionMetrics.to_dict()``)
-METRICS = ("control_start_s", "stage_b", "stage_b_start_s", "reference_force_N", "stage_b_peak_force_N",
-           "stage_b_force_ratio", "stage_b_efficiency", "stage_b_force_ratio_first", "bottomed_out", "rebound_m",
-           "time_to_stop_s", "peak_force_stage_a_N", "stroke_used_m", "efficiency", "peak_force_controlled_N")
-#: acceptance targets of the absorber (the issue's): median and 90th percentile of R, improvement over the closed
-#: valve, rebound limit [m] and the share of cases below it, identified vs oracle R
-TARGETS = {"median": 1.3, "p90": 1.6, "improvement": 2.0, "rebound": 5e-3, "rebound_share": 0.95,
-           "oracle_deviation": 0.10}
+#: the per-strategy columns of a row (keys of ``AbsorptionResult.to_dict()["strategies"][name]``): the headline
+#: first, then the run's own window (supplementary)
+METRICS = ("whole_event_peak_ratio", "peak_deceleration_g", "whole_event_efficiency", "stroke_used_m",
+           "stroke_utilisation", "stopped", "time_to_stop_s", "bottomed_out", "rebound_m", "stage_b_ratio",
+           "stage_b_peak_force_N", "common_window_start_s", "floor_force_N", "reference_force_N", "impact_force_N",
+           "control_start_s", "whole_event_peak_force_N", "own_window_force_ratio", "own_window_start_s",
+           "peak_force_stage_a_N")
+#: acceptance targets of the absorber (the issue's): median and 90th percentile of R_B, improvement over the closed
+#: valve, rebound limit [m] and the share of impacts below it, identified vs oracle R_B (deviation, share), median
+#: R_B against the achievable reference's, the identification's early answer [s] and its share
+TARGETS = {"median": 1.2, "p90": 1.5, "improvement": 2.0, "rebound": 5e-3, "rebound_share": 0.95,
+           "oracle_deviation": 0.05, "oracle_share": 0.95, "achievable": 1.10, "early": 0.010, "early_share": 0.90}
 
 
 def _cases(options: StudyOptions) -> list[Row]:
@@ -55,41 +65,36 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
     strategies = list(options.param(NAME, "strategies", DEFAULTS["strategies"]))
     found = absorb(scenario, options.rig, strategy=strategies, reference=True, noise=noise, seed=seed,
                    sample_rate=options.sample_rate,
-                   identification=options.param(NAME, "identification", DEFAULTS["identification"]))
+                   identification=options.param(NAME, "identification", DEFAULTS["identification"]),
+                   reference_evaluations=int(options.param(NAME, "reference_evaluations",
+                                                           DEFAULTS["reference_evaluations"])))
     start = found.control_start if math.isfinite(found.control_start) else None  # the oracle starts with the loop
     oracle = absorb(scenario, options.rig, strategy=ORACLE_OF, identification="oracle", control_start=start,
                     noise=noise, seed=seed, sample_rate=options.sample_rate)
+    summary = found.to_dict()
+    ident = summary["identification"]
     base = {"case": case["case"], "mass_kg": scenario.mass, "velocity_m_s": scenario.velocity,
-            "pressure_gauge_Pa": scenario.pressure_gauge, "rig": options.rig.name, "noise": noise, "seed": seed}
-    ident = found.identified.to_dict()
-    ident_columns = {"identified_mass_kg": ident["mass_kg"], "identified_mass_std_kg": ident["mass_std_kg"],
-                     "identified_velocity_m_s": ident["velocity_m_s"], "identification_error": ident["error"]}
-    reference = found.reference
+            "pressure_gauge_Pa": scenario.pressure_gauge, "rig": options.rig.name, "noise": noise, "seed": seed,
+            "identified_mass_kg": ident["mass_kg"], "identified_mass_std_kg": ident["mass_std_kg"],
+            "identified_velocity_m_s": ident["velocity_m_s"], "identified_available_at_s": ident["available_at_s"],
+            "identification_error": ident["error"], "common_window_excluded": summary["common_window_excluded"],
+            "over_capacity": summary["over_capacity"],
+            "achievable_force_ratio": summary.get("achievable_force_ratio")}
     rows = []
-    for result, label in ((found, None), (oracle, ORACLE)):
-        summary = result.to_dict()
-        for name, metrics in summary["strategies"].items():
-            rows.append({**base, "strategy": label or name, "identification": summary["identification"]["method"],
-                         **ident_columns, **{k: metrics.get(k) for k in METRICS},
-                         "estimated_mass_kg": metrics.get("estimated_mass_kg"),
-                         "achievable_force_ratio": None if reference is None else finite_or_none(reference.force_ratio),
-                         "over_capacity": summary["over_capacity"]})
+    for result, label in ((summary, None), (oracle.to_dict(), ORACLE)):
+        for name, metrics in result["strategies"].items():
+            rows.append({**base, "strategy": label or name, "identification": result["identification"]["method"],
+                         **{k: metrics.get(k) for k in METRICS}, "estimated_mass_kg": metrics.get("estimated_mass_kg")})
+    reference = found.reference
     if reference is not None:
-        rows.append({**base, "strategy": REFERENCE, "identification": "oracle", **ident_columns,
-                     **dict.fromkeys(METRICS), "control_start_s": finite_or_none(found.control_start),
-                     "stage_b": math.isfinite(reference.force_ratio),
-                     "stage_b_force_ratio": finite_or_none(reference.force_ratio),
-                     "stage_b_efficiency": finite_or_none(reference.efficiency),
-                     "stroke_used_m": finite_or_none(reference.stroke_used),
-                     "reference_level_N": finite_or_none(reference.level), "estimated_mass_kg": None,
-                     "achievable_force_ratio": finite_or_none(reference.force_ratio), "over_capacity": None})
+        shared = {k: summary[k] for k in ("common_window_start_s", "floor_force_N", "reference_force_N",
+                                          "control_start_s")}
+        rows.append({**base, "strategy": REFERENCE, "identification": "oracle", **dict.fromkeys(METRICS), **shared,
+                     "stage_b_ratio": finite_or_none(reference.force_ratio),
+                     "whole_event_peak_ratio": finite_or_none(reference.whole_event_peak_ratio),
+                     "stroke_used_m": finite_or_none(reference.stroke_used), "reference_family": reference.family,
+                     "reference_runs": reference.runs, "estimated_mass_kg": None})
     return rows
-
-
-def _median(rows: list[Row], column: str) -> float:
-    values = finite_values([r for r in rows if flag(r.get("stage_b"))], column)
-    return float(np.median(values)) if values.size else math.nan
-
 
 
 def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
@@ -100,79 +105,135 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
     return rows
 
 
-def _ratios(rows: list[Row], strategy: str) -> np.ndarray:
-    return finite_values([r for r in rows if r["strategy"] == strategy and flag(r.get("stage_b"))],
-                         "stage_b_force_ratio")
+def common_set(rows: Sequence[Row], column: str = "stage_b_ratio", *, key: str = "case",
+               group: str = "strategy") -> tuple[list[Any], list[Row]]:
+    """The impacts (values of ``key``) on which every ``group`` of the rows has a finite ``column``, and one line
+    per impact left out: ``{key, mass_kg, velocity_m_s, pressure_gauge_Pa, reason}``."""
+    groups = list(dict.fromkeys(r[group] for r in rows))
+    by = {(r[key], r[group]): r for r in rows}
+    kept, left = [], []
+    for impact in dict.fromkeys(r[key] for r in rows):
+        missing = [g for g in groups if not math.isfinite(number((by.get((impact, g)) or {}).get(column)))]
+        if not missing:
+            kept.append(impact)
+            continue
+        row = next(r for r in rows if r[key] == impact)
+        why = row.get("common_window_excluded") or f"no {column} for {', '.join(map(str, missing))}"
+        left.append({key: impact, **{k: row.get(k) for k in ("mass_kg", "velocity_m_s", "pressure_gauge_Pa")},
+                     "reason": why})
+    return kept, left
+
+
+def values_on(rows: Sequence[Row], impacts: Sequence[Any], strategy: str, column: str, *, key: str = "case",
+              group: str = "strategy") -> np.ndarray:
+    """``column`` of ``strategy`` on ``impacts`` (in that order; NaN where missing)."""
+    by = {(r[key], r[group]): r for r in rows}
+    return np.array([number((by.get((i, strategy)) or {}).get(column)) for i in impacts])
+
+
+def _stat(values: np.ndarray, q: float) -> float:
+    values = values[np.isfinite(values)]
+    return float(np.percentile(values, q)) if values.size else math.nan
 
 
 def _aggregate(rows: list[Row]) -> list[Row]:
+    kept, _ = common_set(rows)
+    impacts = list(dict.fromkeys(r["case"] for r in rows))
     out = []
     for strategy in dict.fromkeys(r["strategy"] for r in rows):
         chosen = [r for r in rows if r["strategy"] == strategy]
-        ratio = _ratios(rows, strategy)
-        efficiency = finite_values([r for r in chosen if flag(r.get("stage_b"))], "stage_b_efficiency")
-        rebound = np.array([number(r.get("rebound_m")) for r in chosen])
-        out.append({"strategy": strategy, "impacts": len(chosen),
-                    "without stage B": sum(1 for r in chosen if not flag(r.get("stage_b"))),
-                    "median R": float(np.median(ratio)) if ratio.size else math.nan,
-                    "90th pct R": float(np.percentile(ratio, 90)) if ratio.size else math.nan,
-                    "median η_B": float(np.median(efficiency)) if efficiency.size else math.nan,
-                    "median R, t_B at the first sustained contact": _median(chosen, "stage_b_force_ratio_first"),
-                    "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
-                    "rebound < 5 mm": int(np.sum(rebound < TARGETS["rebound"])) if strategy != REFERENCE else None})
+        ratio = values_on(rows, kept, strategy, "stage_b_ratio")
+        peak = values_on(rows, impacts, strategy, "whole_event_peak_ratio")
+        reference = strategy == REFERENCE
+        out.append({"strategy": strategy, "impacts": len(chosen), "common set": len(kept),
+                    "median R_B": _stat(ratio, 50), "90th pct R_B": _stat(ratio, 90),
+                    "median peak / F0": _stat(peak, 50), "90th pct peak / F0": _stat(peak, 90),
+                    "median peak deceleration [g]": _stat(values_on(rows, impacts, strategy, "peak_deceleration_g"),
+                                                          50),
+                    "median η (whole event)": _stat(values_on(rows, impacts, strategy, "whole_event_efficiency"),
+                                                    50),
+                    "median stroke used [mm]": _stat(values_on(rows, impacts, strategy, "stroke_used_m") * 1e3, 50),
+                    "not stopped": None if reference else sum(not flag(r.get("stopped")) for r in chosen),
+                    "bottomed out": None if reference else sum(flag(r.get("bottomed_out")) for r in chosen),
+                    "rebound < 5 mm": None if reference else
+                    int(np.sum(np.array([number(r.get("rebound_m")) for r in chosen]) < TARGETS["rebound"])),
+                    "median R, own window (supplementary)": None if reference else
+                    _stat(values_on(rows, impacts, strategy, "own_window_force_ratio"), 50)})
     return out
 
 
 def acceptance(rows: list[Row], strategy: str = "predictive") -> dict[str, Any]:
-    """The absorber's acceptance figures for ``strategy`` over ``rows`` (see :data:`TARGETS`)."""
-    mine, closed = _ratios(rows, strategy), _ratios(rows, "closed")
+    """The absorber's acceptance figures for ``strategy`` over ``rows`` on the common set (see :data:`TARGETS`)."""
+    kept, left = common_set(rows)
+    mine = values_on(rows, kept, strategy, "stage_b_ratio")
+    closed = values_on(rows, kept, "closed", "stage_b_ratio")
+    oracle = values_on(rows, kept, ORACLE, "stage_b_ratio")
+    reference = values_on(rows, kept, REFERENCE, "stage_b_ratio")
     chosen = [r for r in rows if r["strategy"] == strategy]
-    by_case = {(r["case"], r["strategy"]): r for r in rows}
-    deviation, gap = [], []
-    for r in chosen:
-        oracle = by_case.get((r["case"], ORACLE))
-        ratio = number(r.get("stage_b_force_ratio"))
-        if oracle and math.isfinite(ratio * number(oracle.get("stage_b_force_ratio"))):
-            deviation.append(abs(ratio / number(oracle["stage_b_force_ratio"]) - 1.0))
-        if math.isfinite(ratio * number(r.get("achievable_force_ratio"))):
-            gap.append(ratio / number(r["achievable_force_ratio"]))
-    rebound = [number(r.get("rebound_m")) for r in chosen]
-    median = float(np.median(mine)) if mine.size else math.nan
-    return {"impacts": len(chosen), "with stage B": int(mine.size), "median R": median,
-            "90th pct R": float(np.percentile(mine, 90)) if mine.size else math.nan,
-            "closed median R": float(np.median(closed)) if closed.size else math.nan,
-            "improvement": float(np.median(closed)) / median if mine.size and closed.size else math.nan,
+    deviation = np.abs(mine / oracle - 1.0)
+    early = np.array([number(r.get("identified_available_at_s")) for r in chosen])
+    rebound = np.array([number(r.get("rebound_m")) for r in chosen])
+    median = _stat(mine, 50)
+    return {"impacts": len(chosen), "common set": len(kept), "left out": left, "median R_B": median,
+            "90th pct R_B": _stat(mine, 90), "closed median R_B": _stat(closed, 50),
+            "improvement": _stat(closed, 50) / median, "oracle median R_B": _stat(oracle, 50),
+            "oracle 90th pct R_B": _stat(oracle, 90), "achievable median R_B": _stat(reference, 50),
+            "achievable 90th pct R_B": _stat(reference, 90),
+            "median R_B / achievable median": median / _stat(reference, 50),
+            "below the achievable by > 5 %": int(np.sum(mine < 0.95 * reference)),
+            "oracle below the achievable by > 5 %": int(np.sum(oracle < 0.95 * reference)),
+            "within 5 % of the oracle": int(np.sum(deviation <= TARGETS["oracle_deviation"])),
+            "largest deviation from the oracle": float(np.nanmax(deviation)) if deviation.size else math.nan,
             "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
-            "rebound below 5 mm": sum(1 for x in rebound if x < TARGETS["rebound"]),
-            "within 10 % of the oracle": sum(1 for x in deviation if x <= TARGETS["oracle_deviation"]),
-            "compared with the oracle": len(deviation),
-            "largest deviation from the oracle": max(deviation) if deviation else math.nan,
-            "median R / achievable R": float(np.median(gap)) if gap else math.nan}
+            "not stopped": sum(not flag(r.get("stopped")) for r in chosen),
+            "rebound below 5 mm": int(np.sum(rebound < TARGETS["rebound"])),
+            "largest rebound [mm]": float(np.nanmax(rebound)) * 1e3 if np.isfinite(rebound).any() else math.nan,
+            "early answers": int(np.sum(early <= TARGETS["early"])),
+            "median answer [ms]": _stat(early, 50) * 1e3,
+            "whole-event 90th pct peak / F0": _stat(np.array([number(r.get("whole_event_peak_ratio"))
+                                                              for r in chosen]), 90)}
+
+
+def left_out_text(left: Sequence[Row]) -> str:
+    """The impacts left out of a common set, named: ``case 3 (10 kg, 1 m/s, 400 kPa: why)``."""
+    return "; ".join(f"case {x['case']} ({number(x['mass_kg']):g} kg, {number(x['velocity_m_s']):.2g} m/s, "
+                     f"{number(x['pressure_gauge_Pa']) / 1e3:g} kPa: {x['reason']})" for x in left) or "none"
 
 
 def _summary(rows: list[Row]) -> list[Row]:
     a = acceptance(rows)
-    n = a["impacts"]
+    n, c = a["impacts"], a["common set"]
+    t = TARGETS
     return [
-        {"quantity": "stage-B force ratio R of the predictive strategy (identified): median / 90th percentile",
-         "ours": f"{a['median R']:.3g} / {a['90th pct R']:.3g} over {a['with stage B']} impacts with stage B "
-                 f"({n - a['with stage B']} without, counted apart)",
-         "paper": f"constant deceleration in stage B (Fig. 10b); targets <= {TARGETS['median']} / "
-                  f"<= {TARGETS['p90']}"},
-        {"quantity": "median R of the closed valve / predictive",
-         "ours": f"{a['closed median R']:.3g} / {a['median R']:.3g} ({a['improvement']:.2f}×)",
-         "paper": f"target >= {TARGETS['improvement']:g}×"},
-        {"quantity": "bottoming out; rebound below 5 mm",
-         "ours": f"{a['bottomed out']} of {n}; {a['rebound below 5 mm']} of {n}",
-         "paper": "targets: none; >= 95 %"},
-        {"quantity": "identified R within 10 % of the oracle's",
-         "ours": f"{a['within 10 % of the oracle']} of {a['compared with the oracle']} (largest deviation "
-                 f"{a['largest deviation from the oracle'] * 100:.3g} %)", "paper": "target: every impact"},
-        {"quantity": "median R / the valve's achievable R (same control start)",
-         "ours": f"{a['median R / achievable R']:.3g}", "paper": "1 = all the valve allows"}]
+        {"quantity": "R_B of the predictive strategy (identified) on the common window: median / 90th percentile",
+         "ours": f"{a['median R_B']:.3g} / {a['90th pct R_B']:.3g} over the {c} impacts of the common set "
+                 f"(oracle {a['oracle median R_B']:.3g} / {a['oracle 90th pct R_B']:.3g}, achievable "
+                 f"{a['achievable median R_B']:.3g} / {a['achievable 90th pct R_B']:.3g})",
+         "paper": f"targets <= {t['median']} / <= {t['p90']}"},
+        {"quantity": "impacts left out of the common set", "ours": f"{n - c}: {left_out_text(a['left out'])}",
+         "paper": "counted and named"},
+        {"quantity": "median R_B of the closed valve / predictive",
+         "ours": f"{a['closed median R_B']:.3g} / {a['median R_B']:.3g} ({a['improvement']:.2f}×)",
+         "paper": f"target >= {t['improvement']:g}×"},
+        {"quantity": "identified R_B within 5 % of the oracle's",
+         "ours": f"{a['within 5 % of the oracle']} of {c} (largest deviation "
+                 f"{a['largest deviation from the oracle'] * 100:.3g} %)", "paper": "target: >= 95 %"},
+        {"quantity": "median R_B / the achievable reference's median",
+         "ours": f"{a['median R_B / achievable median']:.3g} (predictive below the reference by > 5 % on "
+                 f"{a['below the achievable by > 5 %']}, oracle on {a['oracle below the achievable by > 5 %']})",
+         "paper": f"target <= {t['achievable']:g}"},
+        {"quantity": "bottoming out; not stopped; rebound below 5 mm",
+         "ours": f"{a['bottomed out']} of {n}; {a['not stopped']} of {n}; {a['rebound below 5 mm']} of {n} "
+                 f"(largest {a['largest rebound [mm]']:.2g} mm)", "paper": "targets: none; none; >= 95 %"},
+        {"quantity": "whole event: 90th percentile of the CFC 60 peak / F0 (predictive)",
+         "ours": f"{a['whole-event 90th pct peak / F0']:.3g}", "paper": "what a person or payload feels"},
+        {"quantity": "identification answered within 10 ms of first contact",
+         "ours": f"{a['early answers']} of {n} (median {a['median answer [ms]']:.3g} ms)",
+         "paper": f"design target >= {t['early_share'] * 100:g} %"}]
 
 
-STUDY = register(Study(name=NAME, title="Adaptive absorption judged on stage B: strategies, oracle, achievable R",
+STUDY = register(Study(name=NAME, title="Adaptive absorption: whole event and R_B on a common window, strategies, "
+                                        "oracle, achievable reference",
                        figure="Fig. 10b", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
                        plot=plotted_by("plot_absorption_study"), chunk_size=1, defaults=DEFAULTS, settings=SETTINGS,
                        rig=ABSORPTION_RIG))

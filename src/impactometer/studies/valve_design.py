@@ -4,8 +4,10 @@ The predictive absorber (M1 and V0 identified, or with ``--set valve-design.iden
 the same instant; 2 % sensor noise) over a subset of the impact grid, for every valve of
 a sweep of sizes (effective area of the open valve, an ISO 6358 valve with b = 0.3) and speeds (10-90 % response of
 a first-order actuator, after the built-in valve's dead time). The same noise realisation per impact for every
-valve, so the maps compare valves, not luck. Maps of the median and 90th-percentile stage-B force ratio R and of the
-bottomed-out runs; the summary names the smallest, slowest valve whose median R is 1.1 or less.
+valve, so the maps compare valves, not luck. Maps of the median and 90th-percentile R_B on the common window
+(:mod:`impactometer.control.event`), over the impacts every valve has one for (the common set; the others are
+counted), and of the bottomed-out runs; the summary names the smallest, slowest valve whose median R_B is 1.1 or
+less.
 """
 
 from __future__ import annotations
@@ -18,8 +20,9 @@ from ..control import Absorber, ValveDrive, absorb
 from ..control.valve import iso6358_valve
 from ..rig import ABSORPTION_RIG, Scenario
 from ..validation import finite_or_none
+from .absorption import common_set, values_on
 from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
-from .tables import finite_values, flag
+from .tables import flag
 
 NAME = "valve-design"
 #: impacts: values per axis of the M1 × V0 × p0 grid (8 impacts; the report's maps: ``--grid 3`` and the five sizes
@@ -66,31 +69,40 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
                      "velocity_m_s": scenario.velocity, "pressure_gauge_Pa": scenario.pressure_gauge,
                      "effective_area_mm2": case["effective_area_mm2"], "response_time_ms": case["response_time_ms"],
                      "dead_time_ms": dead * 1e3, "sonic_conductance_m3_sPa": rig.valve.sonic_conductance,
-                     "strategy": strategy, "identification": result.identification, "stage_b": m.stage_b,
-                     "stage_b_force_ratio": finite_or_none(m.stage_b_force_ratio),
-                     "stage_b_efficiency": finite_or_none(m.stage_b_efficiency), "bottomed_out": m.bottomed_out,
+                     "valve": valve_label(case["effective_area_mm2"], case["response_time_ms"]),
+                     "strategy": strategy, "identification": result.identification,
+                     "stage_b_ratio": finite_or_none(m.stage_b_ratio),
+                     "whole_event_peak_ratio": finite_or_none(m.whole_event_peak_ratio),
+                     "common_window_excluded": result.window.reason or None, "bottomed_out": m.bottomed_out,
                      "rebound_m": finite_or_none(m.rebound), "control_start_s": finite_or_none(m.control_start)})
     return rows
 
 
 
+def valve_label(area_mm2: float, response_ms: float) -> str:
+    """The valve of a row as one label: ``"100 mm², 3 ms"``."""
+    return f"{float(area_mm2):g} mm², {float(response_ms):g} ms"
+
+
 def _valves(rows: list[Row]) -> list[Row]:
     out = []
+    kept, _ = common_set(rows, key="impact", group="valve")
     for key in dict.fromkeys((r["effective_area_mm2"], r["response_time_ms"]) for r in rows):
         chosen = [r for r in rows if (r["effective_area_mm2"], r["response_time_ms"]) == key]
-        ratio = finite_values([r for r in chosen if flag(r.get("stage_b"))], "stage_b_force_ratio")
+        ratio = values_on(rows, kept, valve_label(*key), "stage_b_ratio", key="impact", group="valve")
+        ratio = ratio[np.isfinite(ratio)]
         out.append({"effective area [mm²]": key[0], "response 10-90 % [ms]": key[1], "impacts": len(chosen),
-                    "with stage B": int(ratio.size),
-                    "median R": float(np.median(ratio)) if ratio.size else math.nan,
-                    "90th pct R": float(np.percentile(ratio, 90)) if ratio.size else math.nan,
+                    "common set": len(kept),
+                    "median R_B": float(np.median(ratio)) if ratio.size else math.nan,
+                    "90th pct R_B": float(np.percentile(ratio, 90)) if ratio.size else math.nan,
                     "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen)})
     return out
 
 
 def needed_valve(rows: list[Row], target: float = TARGET) -> Row | None:
-    """The valve of the sweep with median R <= ``target`` and no bottoming that is smallest, then slowest; None
+    """The valve of the sweep with median R_B <= ``target`` and no bottoming that is smallest, then slowest; None
     when no valve of the sweep reaches it."""
-    ok = [v for v in _valves(rows) if v["median R"] <= target and v["bottomed out"] == 0]
+    ok = [v for v in _valves(rows) if v["median R_B"] <= target and v["bottomed out"] == 0]
     if not ok:
         return None
     return min(ok, key=lambda v: (v["effective area [mm²]"], -v["response 10-90 % [ms]"]))
@@ -98,20 +110,20 @@ def needed_valve(rows: list[Row], target: float = TARGET) -> Row | None:
 
 def _summary(rows: list[Row]) -> list[Row]:
     valves = _valves(rows)
-    best = min(valves, key=lambda v: v["median R"] if math.isfinite(v["median R"]) else math.inf)
+    best = min(valves, key=lambda v: v["median R_B"] if math.isfinite(v["median R_B"]) else math.inf)
     need = needed_valve(rows)
     if need is None:
-        verdict = (f"none of the sweep: the lowest median R is {best['median R']:.3g} "
+        verdict = (f"none of the sweep: the lowest median R_B is {best['median R_B']:.3g} "
                    f"({best['effective area [mm²]']:g} mm², {best['response 10-90 % [ms]']:g} ms)")
     else:
         verdict = (f"{need['effective area [mm²]']:g} mm² with a 10-90 % response of {need['response 10-90 % [ms]']:g}"
-                   f" ms or faster (median R {need['median R']:.3g}, 90th percentile {need['90th pct R']:.3g})")
+                   f" ms or faster (median R_B {need['median R_B']:.3g}, 90th percentile {need['90th pct R_B']:.3g})")
     impacts = len({r["impact"] for r in rows})
-    return [{"quantity": "the valve the stand needs for a median stage-B force ratio R <= 1.1 (no bottoming)",
+    return [{"quantity": "the valve the stand needs for a median R_B <= 1.1 (no bottoming)",
              "ours": f"{verdict}; over {impacts} impacts", "paper": "beyond the paper"}]
 
 
-STUDY = register(Study(name=NAME, title="Valve design: stage-B force ratio over valve size and response time",
+STUDY = register(Study(name=NAME, title="Valve design: R_B on the common window over valve size and response time",
                        figure="", cases=_cases, evaluate=_evaluate, aggregate=_valves, summary=_summary,
                        plot=plotted_by("plot_valve_design"), chunk_size=5, defaults=DEFAULTS, settings=SETTINGS,
                        rig=ABSORPTION_RIG))
