@@ -87,6 +87,25 @@ def test_closed_loop_with_closed_valve_reproduces_the_reference_simulation():
     assert np.max(np.abs(got.pressure_lower - ref.pressure_lower)) < 1e-6 * ref.pressure_lower.max()
 
 
+def test_an_opening_program_replaces_the_controller():
+    """A program of zeros is the closed valve, sample for sample, whatever the controller would do; a constant
+    program is the constant strategy's opening without its controller (no supervisor, no closing at the stop)."""
+    closed, _ = loop.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3)
+    n = closed.time.size
+    held, history = loop.simulate_controlled(SCENARIO, control=_control("predictive", start=0.0), duration=0.06,
+                                             sample_rate=20e3, program=np.zeros(n))
+    assert np.array_equal(held.u1, closed.u1) and np.array_equal(held.contact_force, closed.contact_force)
+    assert np.all(history["valve_opening"] == 0.0)
+    opened, history = loop.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, program=np.full(n, 0.5))
+    # after the dead time the opening follows the first-order lag towards the command
+    drive = ValveDrive()
+    t = opened.time - drive.dead_time
+    expected = np.where(t > 0.0, 0.5 * (1.0 - np.exp(-np.clip(t, 0.0, None) / drive.time_constant)), 0.0)
+    assert np.max(np.abs(history["valve_opening"] - expected)) < 0.5 * 20e3 ** -1 / drive.time_constant
+    with pytest.raises(ParameterError, match="program must hold"):
+        loop.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, program=np.full(n, 1.5))
+
+
 def test_flow_between_chambers_conserves_gas_mass_and_energy():
     result, history = loop.simulate_controlled(SCENARIO, control=_control("constant", opening=0.6),
                                                duration=0.08, sample_rate=20e3)

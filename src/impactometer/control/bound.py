@@ -83,7 +83,7 @@ def closed_curve(rig, mass: float, positions: np.ndarray, *, piston_position: fl
     share = mass / (mass + c.piston_mass)
     force = np.zeros_like(positions)
     for _ in range(4):  # fixed point on the contact compression (a small correction)
-        u2 = positions - _compression(force, rig)
+        u2 = np.clip(positions - _compression(force, rig), 0.0, c.stroke)  # the piston stays in its stroke
         lower = np.maximum(c.area * (c.lower_length - u2) + c.dead_volume_lower, 1e-9 * lower0)
         upper = c.annulus_area * (c.upper_length + u2) + c.dead_volume_upper
         p_lower = pressure_lower * (lower0 / lower) ** gamma

@@ -160,17 +160,21 @@ def sensor_noise(sigma: np.ndarray, samples: int, seed: int) -> np.ndarray:
 def run_until_stopped(scenario: Scenario, rig: Rig, control, absorber: Absorber, *, duration: float,
                       sample_rate: float, sigma: np.ndarray, seed: int):
     """A controlled run (``simulate_controlled``) simulated until the mass has stopped: a run whose mass still
-    moves at the end of its record is simulated again for twice as long, up to ``MAX_DURATION`` [s]."""
+    moves at the end of its record is simulated again for twice as long, up to ``MAX_DURATION`` [s] (and to the
+    end of its record, where it had ended ``REBOUND_WINDOW`` after a bounce taken for the stop)."""
+    stop_after = REBOUND_WINDOW
     while True:
         samples = loop.sample_times(duration, sample_rate).size
         result, history = loop.simulate_controlled(
             scenario, rig, control=control, drive=absorber.drive, duration=duration, sample_rate=sample_rate,
-            sensor_noise=sensor_noise(sigma, samples, seed), stop_after=REBOUND_WINDOW)
+            sensor_noise=sensor_noise(sigma, samples, seed), stop_after=stop_after)
         deepest = int(np.argmax(result.u1))
         moving = abs(result.v1[deepest]) > STOPPED_FRACTION * scenario.velocity
-        cut = result.time.size == samples and deepest >= samples - 2 and "ended_at_bottom" not in result.extra
-        if not (cut and moving) or duration >= MAX_DURATION:
+        if not moving or "ended_at_bottom" in result.extra or duration >= MAX_DURATION:
             return result, history
+        if result.time.size < samples:  # ended after a turn of the mass that was a bounce, not the stop
+            stop_after = math.inf
+            continue
         duration = min(2.0 * duration, MAX_DURATION)
 
 

@@ -89,8 +89,11 @@ class _Outcome:
 
 
 def _outcome(scenario, rig, absorber, settings, window, duration, sample_rate, program=None) -> _Outcome:
+    # the run ends TAIL after the mass turns up in contact once the program has started: from t_w at the latest, so
+    # that a bounce of stage A is not taken for the stop
+    tail = TAIL if settings.start >= window.start else math.inf
     result, history = simulate_controlled(scenario, rig, control=settings, drive=absorber.drive, duration=duration,
-                                          sample_rate=sample_rate, stop_after=TAIL, program=program)
+                                          sample_rate=sample_rate, stop_after=tail, program=program)
     usable = absorber.usable_stroke(rig)
     stroke = float(result.u1.max())
     bottomed = bool(np.any(result.bottom_stop_force > 0.0) or "ended_at_bottom" in result.extra)

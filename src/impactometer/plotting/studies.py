@@ -311,23 +311,74 @@ def plot_valve_design(rows: Sequence[Row]):
         maps.append(("bottomed", "runs bottomed out"))
     fig, axes = plt.subplots(1, len(maps), figsize=(5.0 * len(maps), 4.4), squeeze=False, constrained_layout=True)
     for ax, (key, title) in zip(axes[0], maps, strict=True):
-        grid = grids[key]
-        # the count map starts white at zero (a map of zeros is good news, not a colour of alarm)
-        limits = {} if key != "bottomed" else {"vmin": 0.0, "vmax": max(1.0, float(np.nanmax(grid)))}
-        image = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis_r" if key != "bottomed" else "Reds",
-                          **limits)
-        for i in range(len(times)):
-            for j in range(len(areas)):
-                if np.isfinite(grid[i, j]):
-                    ax.text(j, i, f"{grid[i, j]:.2f}" if key != "bottomed" else f"{grid[i, j]:.0f}", ha="center",
-                            va="center", fontsize=8, color=text_colour(image.cmap(image.norm(grid[i, j]))))
-        ax.set_xticks(range(len(areas)), [f"{a:g}" for a in areas])
-        ax.set_yticks(range(len(times)), [f"{t:g}" for t in times])
+        annotated_map(ax, grids[key], [f"{a:g}" for a in areas], [f"{t:g}" for t in times], count=key == "bottomed")
         ax.set(xlabel="effective area of the open valve [mm²]", ylabel="response time 10-90 % [ms]", title=title)
-        fig.colorbar(image, ax=ax)
     none = "" if bottomed else f"; none of the {len(rows)} runs bottomed out (no map of them)"
     fig.suptitle(f"Valve design: R_B of the predictive absorber over valve size and speed, on the {len(kept)} "
                  f"impacts every valve has it for\n(ISO 6358 valves, C ≈ S/5 dm³/(s·bar)){none}")
+    return fig
+
+
+def annotated_map(ax, grid: np.ndarray, xticks: Sequence[str], yticks: Sequence[str], *, count: bool = False,
+                  digits: int = 2, cmap: str = "viridis_r", vmin: float | None = None, vmax: float | None = None):
+    """A map of ``grid`` (rows: y) with each finite cell's value written on it in black or white, whichever stands
+    out from the cell's colour (:func:`text_colour`), and its colour bar. ``count``: a map of counts, white at zero
+    (a map of zeros is good news, not a colour of alarm)."""
+    limits = {"vmin": 0.0, "vmax": max(1.0, float(np.nanmax(grid)))} if count else {"vmin": vmin, "vmax": vmax}
+    image = ax.imshow(grid, origin="lower", aspect="auto", cmap="Reds" if count else cmap, **limits)
+    for i in range(grid.shape[0]):
+        for j in range(grid.shape[1]):
+            if np.isfinite(grid[i, j]):
+                ax.text(j, i, f"{grid[i, j]:.0f}" if count else f"{grid[i, j]:.{digits}f}", ha="center",
+                        va="center", fontsize=8, color=text_colour(image.cmap(image.norm(grid[i, j]))))
+    ax.set_xticks(range(grid.shape[1]), list(xticks))
+    ax.set_yticks(range(grid.shape[0]), list(yticks))
+    ax.figure.colorbar(image, ax=ax)
+    return image
+
+
+def plot_absorber_design(rows: Sequence[Row]):
+    """The absorber designs: every design on the plane whole-event p90 peak / F0 × p90 R_B (colour: the share of
+    early identification answers; the Pareto front joined, the target box shaded), and maps over pre-charge × pad
+    stiffness of the whole-event p90 peak / F0, the p90 R_B and the early answers, each cell the best valve of the
+    sweep for R_B (``studies.absorber_design.designs``)."""
+    from ..studies.absorber_design import EARLY, TARGETS, designs
+
+    plt = _pyplot()
+    table = designs(list(rows))
+    fig, axes = plt.subplots(1, 4, figsize=(21, 4.8), constrained_layout=True)
+    x = np.array([d["p90 peak / F0"] for d in table])
+    y = np.array([d["p90 R_B"] for d in table])
+    early = np.array([d["early answers"] for d in table])
+    sc = axes[0].scatter(x, y, c=early, cmap="viridis", vmin=0.0, vmax=1.0, s=30, edgecolors="k", linewidths=0.4)
+    front = sorted((d for d in table if d["Pareto"]), key=lambda d: d["p90 peak / F0"])
+    axes[0].plot([d["p90 peak / F0"] for d in front], [d["p90 R_B"] for d in front], "k--", lw=0.8,
+                 label="Pareto front (no run bottomed out)")
+    axes[0].fill_between([0.9, TARGETS["whole_event_p90"]], 0.9, TARGETS["stage_b_p90"], color="tab:green",
+                         alpha=0.12, label="targets: p90 peak / F0 <= 3 and p90 R_B <= 1.5")
+    for d in front:
+        axes[0].annotate(d["design"], (d["p90 peak / F0"], d["p90 R_B"]), fontsize=6, xytext=(3, 3),
+                         textcoords="offset points")
+    axes[0].set(xlabel="whole-event p90 of the CFC 60 peak / F0 [-]", ylabel="p90 R_B [-]", xscale="log")
+    axes[0].grid(alpha=0.3, which="both")
+    fig.colorbar(sc, ax=axes[0], label=f"share of answers within {EARLY * 1e3:g} ms")
+    pressures = sorted({d["p0 [kPa]"] for d in table})
+    pads = sorted({d["pad [N/m]"] for d in table})
+    best: dict[tuple[float, float], Row] = {}
+    for d in table:
+        cell = (d["p0 [kPa]"], d["pad [N/m]"])
+        if cell not in best or d["p90 R_B"] < best[cell]["p90 R_B"]:
+            best[cell] = d
+    for ax, key, title in ((axes[1], "p90 peak / F0", "whole-event p90 peak / F0"),
+                           (axes[2], "p90 R_B", "p90 R_B (common set)"),
+                           (axes[3], "early answers", f"answers within {EARLY * 1e3:g} ms")):
+        grid = np.array([[best[(p, k)][key] if (p, k) in best else np.nan for k in pads] for p in pressures])
+        annotated_map(ax, grid, [f"{k:.2g}" for k in pads], [f"{p:g}" for p in pressures],
+                      cmap="viridis" if key == "early answers" else "viridis_r")
+        ax.set(xlabel="pad stiffness [N/m]", ylabel="pre-charge p0 [kPa]", title=title)
+    figure_legend(fig)
+    fig.suptitle(f"Absorber design: {len(table)} designs, {len({r['impact'] for r in rows})} impacts each, "
+                 "identification in the loop (maps: the best valve of the sweep per cell)")
     return fig
 
 

@@ -6,6 +6,8 @@ identified from the noisy closed-valve record (:func:`impactometer.control.absor
 M1 and V0 started at the same instant (the oracle: the cost of the identification), and the achievable reference
 (:mod:`impactometer.control.reference`: the best opening program found on the same plant with full knowledge). One
 row per strategy, plus one for the reference, every one carrying the same per-impact columns as ``absorb --json``.
+``--set absorption.control_start_ms=T`` makes the answer known T ms after first contact (with
+``absorption.identification=oracle``: what a controller that knew M1 and V0 then would reach).
 
 Medians and percentiles of R_B are taken over the **common set**: the impacts on which every row has an R_B. The
 impacts left out are counted and named (case, M1, V0, p0 and why). The whole-event figures cover every impact.
@@ -31,11 +33,12 @@ NAME = "absorption"
 GRID = 2
 DEFAULTS = {"noise": 0.02, "identification": "robust", "strategies": ["closed", "constant", "realtime",
                                                                        "predictive"],
-            "reference_evaluations": 240}
+            "reference_evaluations": 240, "control_start_ms": None}
 SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
             "identification": Setting("choice", choices=("robust", "paper", "oracle")),
             "strategies": Setting("choices", choices=ALL_STRATEGIES),
-            "reference_evaluations": Setting("integer", 0, 10_000)}
+            "reference_evaluations": Setting("integer", 0, 10_000),
+            "control_start_ms": Setting("number", 0.0, 1e3)}
 #: the strategy run with the oracle, and the labels of the extra rows
 ORACLE_OF = "predictive"
 ORACLE = f"{ORACLE_OF} (oracle)"
@@ -63,7 +66,9 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
     scenario = Scenario(mass=case["mass"], velocity=case["velocity"], pressure_gauge=case["pressure_gauge"])
     noise = float(options.param(NAME, "noise", DEFAULTS["noise"]))
     strategies = list(options.param(NAME, "strategies", DEFAULTS["strategies"]))
+    forced = options.param(NAME, "control_start_ms", DEFAULTS["control_start_ms"])  # what acting earlier would give
     found = absorb(scenario, options.rig, strategy=strategies, reference=True, noise=noise, seed=seed,
+                   control_start=None if forced is None else float(forced) * 1e-3,
                    sample_rate=options.sample_rate,
                    identification=options.param(NAME, "identification", DEFAULTS["identification"]),
                    reference_evaluations=int(options.param(NAME, "reference_evaluations",

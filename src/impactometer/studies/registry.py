@@ -16,7 +16,8 @@ if TYPE_CHECKING:
     from .base import Study
 
 #: study modules, in report order
-MODULES = ("cases", "parameters", "noise", "sampling", "response_map", "absorption", "valve_design", "peak_force")
+MODULES = ("cases", "parameters", "noise", "sampling", "response_map", "absorption", "valve_design", "absorber_design",
+           "peak_force")
 
 #: study name -> Study (filled by the study modules)
 STUDIES: dict[str, Study] = {}
