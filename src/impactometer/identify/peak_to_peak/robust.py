@@ -368,6 +368,19 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
     nuisances: dict = dict(phi)
     if fit_b:
         nuisances["offset_m_s2"] = float(theta[2])
+    # slow errors of the channels (a drift; an offset where no pre-trigger measures one) are no white noise: the
+    # answer with them estimated differs from this one by what they may have done, and the difference joins the
+    # covariance, as the readings of the gaps do in solve_rows
+    room = rows - int(np.count_nonzero(dips)) - aw.shape[1] - 1
+    slow = _slow_errors(kin, pre_samples, tau, (cd, cv, ca), mixer, chol, aw[:rows], yw[:rows], white,
+                        room=room) if fit_b or room >= 1 else None
+    cov_out = bread[:2, :2]
+    if slow is not None:
+        found, cov_slow = slow
+        moved = sol[:2] - found[:2]
+        cov_out = slow_covariance(cov_out, cov_slow, moved, bounded=pre_samples > 0)
+        nuisances["slow_errors"] = {"offset_m_s2": float(found[2]), "drift_m_s3": float(found[3]),
+                                    "shift_v0_m_s": float(moved[0]), "shift_w_1_kg": float(moved[1])}
     nuisances["model_error"] = {"extrema_m_s": float(np.sqrt(model[EXTREMUM])),
                                 "separations_m": float(np.sqrt(model[SEPARATION]))}
     noise_var = np.array([float(np.mean(noise_diag[group == k])) if np.any(group == k) else 1.0 for k in range(3)])
@@ -375,8 +388,56 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
     used = {"onsets": int(n_on - np.count_nonzero(dips)), "extrema": int(n_ext),
             "stage_b_extrema": int(np.count_nonzero(eqs.stage_b) * use_ext),
             "separations": int(n_sep), "stage_b_samples": int(eqs.stage_b_samples * use_ext)}
-    return Solution(theta=theta[:2].copy(), cov=bread[:2, :2], chi2=chi2, dof=dof, nuisances=nuisances,
-                    used=used, gain=gain, tau=tau[:rows], scatter=scatter)
+    return Solution(theta=theta[:2].copy(), cov=cov_out, chi2=chi2, dof=dof, nuisances=nuisances, used=used,
+                    gain=gain, tau=tau[:rows], scatter=scatter)
+
+
+def slow_covariance(cov: np.ndarray, cov_slow: np.ndarray, moved: np.ndarray, *, bounded: bool) -> np.ndarray:
+    """The covariance of an answer (``cov``, of V0 and w) that leaves the slow errors out, carrying what they may do,
+    from the answer that estimates them (its covariance ``cov_slow``, ``moved`` from it to this answer).
+
+    Where the two lie further apart than the estimate's extra spread explains (q = movedᵀ·(cov_slow − cov)⁺·moved
+    > 1), the part of the shift beyond it, (1 − 1/q)·moved·movedᵀ, joins the covariance: a drift shows so. Where
+    the slow errors are not ``bounded`` (no pre-trigger measures the offset), the spread they may cause joins it
+    too (``cov_slow`` instead of ``cov``): an offset need not move the estimate that estimates it far enough to
+    be seen. A pre-trigger bounds them, and the answer keeps its own covariance where nothing is seen.
+    """
+    q = float(moved @ np.linalg.pinv(cov_slow - cov) @ moved)
+    base = cov if bounded else cov_slow
+    return base + max(1.0 - 1.0 / q, 0.0) * np.outer(moved, moved) if q > 0 else base
+
+
+def _slow_errors(kin: Kinematics, pre_samples: int, tau: np.ndarray, coefficients, mixer: np.ndarray,
+                 chol: np.ndarray, aw: np.ndarray, yw: np.ndarray, white: float, *,
+                 room: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(V0, w, b, b') and the covariance of (V0, w) from the whitened rows ``aw``, ``yw`` of a solution (its
+    parameters V0, w, [b,] nuisances) with the channels' slow errors estimated too: an offset b and a drift b'
+    [m/s³] in δ'' = g + b + b'·τ − w·Fc − a2.
+
+    With a pre-trigger, its mean (which the correction removed) says b + b'·τ̄ = 0 (τ̄ its centre from t00) within
+    √(white/n), and its length bounds the drift: b' = 0 within √(white/Σ(τ − τ̄)²), the error of a slope fitted to
+    it -- zero-centred, since a slope read from a short window follows hum and slow noise. Without one, b is
+    free and b' taken as zero. None where the rows leave no room for them (``room``: degrees of freedom left).
+    """
+    cd, cv, ca = coefficients
+    if pre_samples > 0:
+        pre = (np.arange(pre_samples) - kin.t00) * kin.dt
+        centre = float(np.mean(pre))
+        column = mixer @ (cd * tau ** 3 / 6.0 + cv * tau ** 2 / 2.0 + ca * tau)  # b' in every row
+        a = np.column_stack([aw, np.linalg.solve(chol, column)])
+        prior = np.zeros((2, a.shape[1]))
+        prior[0, 2], prior[0, -1] = 1.0, centre
+        prior[0] /= np.sqrt(white / pre_samples)
+        prior[1, -1] = 1.0 / np.sqrt(white / float(np.sum((pre - centre) ** 2)))
+        a = np.vstack([a, prior])
+        found = np.linalg.lstsq(a, np.r_[yw, 0.0, 0.0], rcond=None)[0]
+        return np.r_[found[:3], found[-1]], normal_inverse(a)[:2, :2]
+    if room < 1:
+        return None
+    column = mixer @ (cd * tau ** 2 / 2.0 + cv * tau + ca)  # b in every row
+    a = np.column_stack([aw, np.linalg.solve(chol, column)])
+    found = np.linalg.lstsq(a, yw, rcond=None)[0]
+    return np.r_[found[:2], found[-1], 0.0], normal_inverse(a)[:2, :2]
 
 
 #: a model at the edge of its range (a set or a lag at its bound) is taken only where the other reading of the gaps
