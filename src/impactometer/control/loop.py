@@ -305,7 +305,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     else:
         bound = EfficiencyBound(level=math.nan, efficiency=math.nan, stroke=0.0, energy=0.0, over_capacity=False)
     achievable = None
-    if reference and math.isfinite(start) and start < closed.time[-1]:
+    if reference:
         achievable = achievable_reference(scenario, rig, absorber, start, window=window,
                                           charge_pressure=float(closed.pressure_lower[0]), duration=duration,
                                           sample_rate=sample_rate, evaluations=reference_evaluations)

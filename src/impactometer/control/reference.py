@@ -8,10 +8,11 @@ usable stroke + ``STROKE_TOLERANCE``, the piston never touches the bottom stop):
    time to the deepest point of the best program of 2-3; the last opening held after it), the valve command
    optimised by ``scipy.optimize.minimize`` (Powell, bounds [0, 1], at most ``EVALUATIONS`` plant simulations at
    ``SEARCH_RATE``) from the per-segment mean command of that program, the best found re-run at the loop's rate;
-2. the ideal absorber's programs from the control start: open as far as needed, then hold the contact force at a
-   level F_c (the ``level`` law with the predictive controller's lag compensation, no supervisor), F_c on a grid
-   around F_ref and refined by golden section;
-3. the ``predictive`` law's moving target F* = M1·(v²/(2·s_rem) + g) from the control start, with full knowledge.
+2. the ideal absorber's programs from first contact and from the loop's control start: open as far as needed,
+   then hold the contact force at a level F_c (the ``level`` law with the predictive controller's lag
+   compensation, no supervisor), F_c on a grid around F_ref and refined by golden section;
+3. the ``predictive`` law's moving target F* = M1·(v²/(2·s_rem) + g) from first contact and from the control
+   start, with full knowledge.
 
 The reference is the lowest R_B among them: the best this search finds in a stated family, not a proof that no
 program does better (the closed-loop controllers are not in family 1; the study counts the impacts where they beat
@@ -120,48 +121,61 @@ def _segment_means(outcome: _Outcome, horizon: float) -> np.ndarray:
     return np.array([commands[index == k].mean() if np.any(index == k) else 0.0 for k in range(SEGMENTS)])
 
 
+def _golden_levels(cost, levels: list[float]) -> None:
+    """Scan ``cost`` over ``levels`` [N], then refine by golden section around the best feasible one (``cost``
+    keeps what it tried)."""
+    costs = [cost(level) for level in levels]
+    best = int(np.argmin(costs))
+    if not math.isfinite(costs[best]):
+        return
+    low, high = levels[max(best - 1, 0)], levels[min(best + 1, len(levels) - 1)]
+    golden = (math.sqrt(5.0) - 1.0) / 2.0
+    for _ in range(REFINEMENTS):
+        a, b = high - golden * (high - low), low + golden * (high - low)
+        if cost(a) <= cost(b):
+            high = b
+        else:
+            low = a
+
+
 def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, control_start: float, *,
                          window: CommonWindow, charge_pressure: float, duration: float,
                          sample_rate: float = 50e3, evaluations: int = EVALUATIONS) -> AchievableReference:
-    """Search the program families (module notes) for the impact ``scenario`` on ``rig``; ``control_start`` [s]
-    starts families 2 and 3, ``window`` is the impact's common window (F_ref centres the level scan),
-    ``charge_pressure`` [Pa] the lower chamber's pressure at first contact, ``evaluations`` the budget of plant
-    simulations of the piecewise-constant search (0: family 1 is skipped)."""
+    """Search the program families (module notes) for the impact ``scenario`` on ``rig``; families 2 and 3 start
+    at first contact and at ``control_start`` [s] (``inf``: first contact only), ``window`` is the impact's common
+    window (F_ref centres the level scan), ``charge_pressure`` [Pa] the lower chamber's pressure at first contact,
+    ``evaluations`` the budget of plant simulations of the piecewise-constant search (0: family 1 is skipped)."""
     nothing = AchievableReference(force_ratio=math.nan, whole_event_peak_ratio=math.nan, stroke_used=math.nan,
                                   family="", level=math.nan, openings=(), runs=0)
-    if not (math.isfinite(control_start) and math.isfinite(window.start)):
+    if not math.isfinite(window.start):
         return nothing
-    base = ControlSettings(strategy="level", start=control_start, mass=scenario.mass, mass_std=0.0,
+    base = ControlSettings(strategy="level", start=0.0, mass=scenario.mass, mass_std=0.0,
                            velocity=scenario.velocity, usable_stroke=absorber.usable_stroke(rig),
                            charge_pressure=charge_pressure, charge_temperature=rig.gas.temperature,
                            force_level=window.reference_force, refine_mass=False, supervise=False,
                            tau_control=predictive_tau_control(absorber.drive))
-    tried: dict[float, _Outcome] = {}
+    candidates: dict[tuple[str, float], _Outcome] = {}
+    runs = 0
+    starts = {"first contact": 0.0}
+    if math.isfinite(control_start) and control_start > 0.0:
+        starts["the control start"] = float(control_start)
+    for when, start in starts.items():
+        tried: dict[float, _Outcome] = {}
+        begun = dataclasses.replace(base, start=start)
 
-    def cost(level: float) -> float:
-        if level not in tried:
-            tried[level] = _outcome(scenario, rig, absorber, dataclasses.replace(base, force_level=level), window,
-                                    duration, sample_rate)
-        return tried[level].ratio
+        def cost(level: float, begun=begun, tried=tried) -> float:
+            if level not in tried:
+                tried[level] = _outcome(scenario, rig, absorber, dataclasses.replace(begun, force_level=level),
+                                        window, duration, sample_rate)
+            return tried[level].ratio
 
-    levels = [factor * window.reference_force for factor in SCAN]
-    costs = [cost(level) for level in levels]
-    best = int(np.argmin(costs))
-    if math.isfinite(costs[best]):
-        low, high = levels[max(best - 1, 0)], levels[min(best + 1, len(levels) - 1)]
-        golden = (math.sqrt(5.0) - 1.0) / 2.0
-        for _ in range(REFINEMENTS):
-            a, b = high - golden * (high - low), low + golden * (high - low)
-            if cost(a) <= cost(b):
-                high = b
-            else:
-                low = a
-    level = min(tried, key=lambda x: tried[x].ratio)
-    candidates = {("level", level): tried[level]}
-    tracking = dataclasses.replace(base, strategy="predictive", force_level=math.nan)  # the moving target
-    candidates[("moving target", math.nan)] = _outcome(scenario, rig, absorber, tracking, window, duration,
-                                                       sample_rate)
-    runs = len(tried) + 1
+        _golden_levels(cost, [factor * window.reference_force for factor in SCAN])
+        level = min(tried, key=lambda x: tried[x].ratio)
+        candidates[(f"level from {when}", level)] = tried[level]
+        tracking = dataclasses.replace(begun, strategy="predictive", force_level=math.nan)  # the moving target
+        candidates[(f"moving target from {when}", math.nan)] = _outcome(scenario, rig, absorber, tracking, window,
+                                                                        duration, sample_rate)
+        runs += len(tried) + 1
     openings: tuple[float, ...] = ()
     if evaluations > 0:
         seed = min(candidates.values(), key=lambda o: o.cost)
@@ -175,8 +189,7 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
             searched.append((o.cost, np.clip(x, 0.0, 1.0)))
             return o.cost
 
-        start = _segment_means(seed, horizon)
-        minimize(objective, start, method="Powell", bounds=[(0.0, 1.0)] * SEGMENTS,
+        minimize(objective, _segment_means(seed, horizon), method="Powell", bounds=[(0.0, 1.0)] * SEGMENTS,
                  options={"maxfev": evaluations, "xtol": 1e-3, "ftol": 1e-4})
         best_x = min(searched, key=lambda item: item[0])[1]
         candidates[("segments", math.nan)] = _outcome(

@@ -17,6 +17,8 @@ COLOURS = {"closed": "tab:gray", "constant": "tab:blue", "realtime": "tab:red", 
            "auto": "tab:purple", "realtime (oracle)": "tab:orange", "predictive (oracle)": "tab:pink"}
 #: the zoomed panel shows at least the first ZOOM [s] after first contact (the collision the identification reads)
 ZOOM = 0.02
+#: the time axis stops at this multiple of the runs' median time to their deepest point when one run takes longer
+LONG_RUN = 2.5
 #: line widths: the force as simulated, and the CFC-filtered body load
 THIN, THICK = 0.4, 1.6
 
@@ -49,7 +51,7 @@ def plot_absorption(result, ax=None):
                                                                              axes[1] if len(axes) > 1 else None)
     start = result.control_start
     window = max(ZOOM, 1.25 * start) if math.isfinite(start) else ZOOM
-    deepest = 0.0
+    deepest_of = {}
     for name, run in result.runs.items():
         r = run.result
         colour = COLOURS.get(name)
@@ -66,7 +68,11 @@ def plot_absorption(result, ax=None):
         if motion is not None:
             motion.plot(t, r.u1 * 1e3, lw=1.1, color=colour)
             motion.plot(t, r.u2 * 1e3, lw=0.9, ls="--", color=colour)
-        deepest = max(deepest, float(r.time[np.argmax(r.u1)]))
+        deepest_of[name] = float(r.time[np.argmax(r.u1)])
+    # the time axis ends after the deepest point of the last run, unless one run takes far longer than the others
+    # (a small constant opening creeps for seconds): then at LONG_RUN × their median, the slow run named
+    times = sorted(deepest_of.values())
+    deepest = min(times[-1], LONG_RUN * float(np.median(times))) if times else 0.0
     common = result.window
     for a in axes:
         if math.isfinite(start):
@@ -83,6 +89,9 @@ def plot_absorption(result, ax=None):
                       label=f"F_ref = {common.reference_force:.0f} N (closed valve at the first sustained contact)")
         force.axhline(common.floor_force / 1e3, color="tab:brown", ls="--", lw=1,
                       label=f"F_floor = {common.floor_force:.0f} N (valve wide open, bodies together)")
+    for name, at in deepest_of.items():
+        if at > deepest:
+            force.plot([], [], ls="none", label=f"{name}: deepest point at {at * 1e3:.0f} ms, beyond the axis")
     runs = list(result.runs.values())
     if runs:
         f0 = runs[0].metrics.impact_force

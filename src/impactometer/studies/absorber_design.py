@@ -7,11 +7,12 @@ ranges at the design's p0 are absorbed by the closed loop with identification (r
 seed per impact for every design): ``closed`` and ``predictive``.
 
 Per design: the whole-event 90th percentile of the CFC 60 peak / F0 (what a person or a payload feels), the 90th
-percentile of the controller's R_B over the impacts on which the design has a common window (counted: a light
-mass stopped in stage A has none), the share of impacts the identification answers within ``EARLY`` of first
-contact, bottoming. The Pareto set is taken on (whole-event p90 peak / F0, p90 R_B) among the designs that never
-bottom out; the recommended design is the one of the Pareto set that meets every target (:data:`TARGETS`) with
-the lowest whole-event p90, or, when none does, the report says so and shows the front.
+percentile of the controller's R_B (only where every impact of the design has a common window: one stopped in
+stage A has none, and a percentile over a subset would flatter the design; the count is shown), the share of
+impacts the identification answers within ``EARLY`` of first contact, bottoming. The Pareto set is taken on
+(whole-event p90 peak / F0, p90 R_B) among the designs that never bottom out; the recommended design is the one of
+the Pareto set that meets every target (:data:`TARGETS`) with the lowest whole-event p90, or, when none does, the
+report says so and shows the front.
 
 The trade-off it measures: a softer pad lowers the first collision (its peak ≈ V0·sqrt(k·μ), μ = M1·M2/(M1 + M2))
 but lengthens the stage-A pulses the identification reads, so its answer comes later; a stiffer one bounces more
@@ -111,8 +112,9 @@ def _p90(values: np.ndarray) -> float:
 
 
 def designs(rows: list[Row]) -> list[Row]:
-    """One row per design: its parameters, the whole-event and R_B 90th percentiles, early answers, bottoming, and
-    whether it is on the Pareto front and meets every target."""
+    """One row per design: its parameters, the whole-event and R_B 90th percentiles (R_B: NaN unless every impact
+    has a common window; ``with R_B`` counts those that have), early answers, bottoming, and whether it is on the
+    Pareto front and meets every target."""
     out = []
     for label in dict.fromkeys(r["design"] for r in rows):
         chosen = [r for r in rows if r["design"] == label]
@@ -124,7 +126,8 @@ def designs(rows: list[Row]) -> list[Row]:
                     "response [ms]": number(first["response_time_ms"]),
                     "piston [kg]": number(first["piston_mass_kg"]), "impacts": len(chosen),
                     "p90 peak / F0": _p90(np.array([number(r.get("whole_event_peak_ratio")) for r in chosen])),
-                    "p90 R_B": _p90(ratio), "with R_B": int(np.isfinite(ratio).sum()),
+                    "p90 R_B": _p90(ratio) if np.isfinite(ratio).all() else math.nan,
+                    "with R_B": int(np.isfinite(ratio).sum()),
                     "early answers": float(np.mean(early <= EARLY)) if early.size else math.nan,
                     "median answer [ms]": float(np.nanmedian(early)) * 1e3 if np.isfinite(early).any() else math.nan,
                     "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
