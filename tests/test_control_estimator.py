@@ -8,7 +8,7 @@ import pytest
 from impactometer.constants import STANDARD_GRAVITY
 from impactometer.control import ControlSettings, simulate_controlled, windows
 from impactometer.control import estimator as est
-from impactometer.control.loop import sensor_noise
+from impactometer.control.loop import sensor_noise, sensor_sigma
 from impactometer.model import dynamics as d
 from impactometer.model.setup import initial_state, pack
 from impactometer.rig import Scenario, get_rig
@@ -17,7 +17,8 @@ from impactometer.rig import Scenario, get_rig
 def _watch(scenario, rig="drop-stand-pad", *, noise=0.02, seed=0, **settings):
     """The estimator's histories on a closed-valve impact (the controller watches, the valve stays closed)."""
     closed, _ = simulate_controlled(scenario, rig, duration=0.3)
-    matrix, sigma = sensor_noise(closed, noise, seed)
+    sigma = sensor_sigma(closed, noise)
+    matrix = sensor_noise(sigma, closed.time.size, seed)
     control = ControlSettings(strategy="closed", force_noise=float(sigma[0]), acceleration_noise=float(sigma[1]),
                               **settings)
     return simulate_controlled(scenario, rig, control=control, duration=0.3, sensor_noise=matrix)

@@ -100,6 +100,17 @@ def test_a_run_that_has_not_stopped_is_simulated_until_it_has():
     assert m.stopped and m.time_to_stop > 0.05 and result.runs["constant"].result.time[-1] > 0.05
 
 
+def test_control_from_first_contact_is_judged_on_the_same_window(oracle_run):
+    """Whoever acts when, the impact's window is the same (the closed-valve run's first sustained contact); a
+    controller that acts from first contact runs through the stage-A bounces to the stop and meets the landing
+    collision that opens the window with the valve already working."""
+    early = absorb(SCENARIO, strategy="predictive", identification="oracle", control_start=0.0, noise=0.02)
+    assert early.window == oracle_run.window and early.control_start == 0.0
+    m = early.metrics["predictive"]
+    assert m.stopped and not m.bottomed_out and m.time_to_stop > 0.1
+    assert m.stage_b_ratio < oracle_run.metrics["predictive"].stage_b_ratio
+
+
 def test_untrusted_identification_waits_for_the_stage_b_mass(monkeypatch):
     """An early answer with a huge standard error is not acted on; the stage-B estimate takes over."""
     poor = Identification(method="peak-to-peak/robust", mass=6.7e8, velocity=0.69, mass_std=8e16,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from impactometer.control import ControlSettings, simulate_controlled, windows
-from impactometer.control.loop import sensor_noise
+from impactometer.control.loop import sensor_noise, sensor_sigma
 from impactometer.rig import Scenario
 
 
@@ -78,7 +78,8 @@ def test_the_stage_b_mass_is_calibrated_while_it_forms(mass, velocity, pressure)
     closed, _ = simulate_controlled(scenario, "drop-stand", duration=0.1)
     z = []
     for seed in range(4):
-        matrix, sigma = sensor_noise(closed, 0.02, seed)
+        sigma = sensor_sigma(closed, 0.02)
+        matrix = sensor_noise(sigma, closed.time.size, seed)
         control = ControlSettings(strategy="closed", force_noise=float(sigma[0]), acceleration_noise=float(sigma[1]))
         result, history = simulate_controlled(scenario, "drop-stand", control=control, duration=0.1,
                                               sensor_noise=matrix)
