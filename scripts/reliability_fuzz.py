@@ -1,8 +1,9 @@
 """Fuzz the command line with the reliability corpus and print the acceptance table.
 
 Runs every case of ``tests/reliability_cases.py`` (damaged recordings, stands, maps, options, output targets) in
-this process and random bad arguments to the Python functions (``tests/reliability_api.py``), then the cases that
-need processes of their own: two studies started together into one folder,
+this process and random bad arguments to the Python functions (``tests/reliability_api.py``), recordings with
+awkward channel names written and read back, then the cases that need processes of their own: two studies started
+together into one folder, two recordings written together into one file,
 outputs into a read-only folder (as a user without the right to override permissions), and the peak memory of
 ``impactometer identify`` on a CSV of 10 million rows. Prints, per category, the cases tried and those unhandled
 (traceback, several-line error), silently wrong (a wrong answer without a warning) or losing data, then every case
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import collections
+import json
 import os
 import shutil
 import subprocess
@@ -30,7 +32,7 @@ sys.path[:0] = [str(ROOT / "tests"), str(ROOT / "benchmarks")]  # the fuzz corpu
 
 from recorded import recorded  # noqa: E402
 from reliability_api import calls, fuzz  # noqa: E402
-from reliability_cases import Corpus  # noqa: E402
+from reliability_cases import Corpus, round_trips  # noqa: E402
 from reliability_corpus import VERDICTS, Case, Outcome, judge, run  # noqa: E402
 
 PYTHON = sys.executable
@@ -48,36 +50,58 @@ def cli(argv: list[str], *, prefix: tuple[str, ...] = (), timeout: float = 300) 
     return Outcome(code=done.returncode, output=done.stdout + done.stderr, stdout=done.stdout)
 
 
+def race(category: str, name: str, argv: list[str], seed_of) -> tuple[Case, str, str]:
+    """Two runs of ``impactometer ARGV`` with seeds 1 and 2 started together: handled where one wrote (its seed is the
+    one ``seed_of()`` finds) and the other was refused; data loss where both reported success."""
+    runs = [subprocess.Popen([PYTHON, "-m", "impactometer", *argv, "--seed", str(seed)], stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True, env=ENV) for seed in (1, 2)]
+    results = [(p.wait(timeout=600), p.stdout.read()) for p in runs]
+    case = Case(category, name, argv)
+    codes = [code for code, _ in results]
+    seed = seed_of()
+    if sorted(codes) == [0, 2] and seed == (1 if codes[0] == 0 else 2):
+        return case, "handled", f"one run wrote seed {seed}, the other was refused"
+    if codes == [0, 0]:
+        return case, "data-loss", f"both runs reported success; the output holds seed {seed}"
+    verdict = judge(case, Outcome(code=max(codes), output=results[-1][1]))[0]
+    return case, verdict if verdict != "handled" else "data-loss", f"exit {sorted(codes)}, seed {seed}"
+
+
 def concurrent_studies(folder: Path, attempts: int = 3) -> list[tuple[Case, str, str]]:
     """Two ``study peak-force`` runs with different seeds started together into one folder, ``attempts`` times."""
     out = []
     for k in range(attempts):
         target = folder / f"race{k}"
         shutil.rmtree(target, ignore_errors=True)
-        argv = ["-m", "impactometer", "study", "peak-force", "--out", str(target), "--grid", "2", "--workers", "1"]
-        runs = [subprocess.Popen([PYTHON, *argv, "--seed", str(seed)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                 text=True, env=ENV) for seed in (1, 2)]
-        results = [(p.wait(timeout=600), p.stdout.read()) for p in runs]
-        case = Case("concurrent studies", f"attempt {k + 1}", argv)
-        codes = sorted(code for code, _ in results)
-        seed = _seed(target)
-        winner = [code for code, _ in results]
-        if codes == [0, 2] and seed == (1 if winner[0] == 0 else 2):
-            out.append((case, "handled", f"one run wrote seed {seed}, the other was refused"))
-        elif codes == [0, 0]:
-            out.append((case, "data-loss", f"both runs reported success; the folder holds seed {seed}"))
-        else:
-            verdict = judge(case, Outcome(code=max(codes), output=results[-1][1]))[0]
-            out.append((case, verdict if verdict != "handled" else "data-loss", f"exit {codes}, seed {seed}"))
+        argv = ["study", "peak-force", "--out", str(target), "--grid", "2", "--workers", "1"]
+        out.append(race("concurrent studies", f"attempt {k + 1}", argv, lambda t=target: _seed(t)))
+    return out
+
+
+def concurrent_writers(folder: Path, attempts: int = 3) -> list[tuple[Case, str, str]]:
+    """Two ``record --out x.csv`` runs with different seeds started together, ``attempts`` times: one writes, the
+    other is refused (both reported success before, the later rename replacing the first file)."""
+    out = []
+    for k in range(attempts):
+        target = folder / f"writers{k}.csv"
+        for path in (target, target.with_suffix(".json")):
+            path.unlink(missing_ok=True)
+        argv = ["record", "--out", str(target), "--duration", "1s"]
+        out.append(race("concurrent writers", f"attempt {k + 1}", argv, lambda t=target: _sidecar_seed(t)))
     return out
 
 
 def _seed(folder: Path):
-    import json
-
     try:
         return json.loads((folder / "peak-force" / "result.json").read_text())["options"]["seed"]
     except (OSError, ValueError, KeyError):
+        return None
+
+
+def _sidecar_seed(path: Path):
+    try:
+        return json.loads(path.with_suffix(".json").read_text()).get("seed")
+    except (OSError, ValueError, AttributeError):
         return None
 
 
@@ -173,7 +197,8 @@ def measure(options) -> int:
         outcomes[case.name] = outcome
         verdict, reason = judge(case, outcome, outcomes.get(case.same_as) if case.same_as else None)
         results.append((case, verdict, reason))
-    results += slow_cases(cases) + concurrent_studies(folder) + read_only_outputs(corpus)
+    results += round_trips(folder) + slow_cases(cases) + concurrent_studies(folder) + concurrent_writers(folder)
+    results += read_only_outputs(corpus)
     made, failures = fuzz(calls(corpus.rec, corpus.base, corpus.map, folder), options.api_calls, seed=0)
     for k in range(made):  # one row per call: the distinct failures count once each
         case = Case("Python API", f"call {k}", [])

@@ -4,6 +4,7 @@ simulated impact (see :mod:`reliability_corpus` for how a run is judged)."""
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import h5py
@@ -11,10 +12,12 @@ import numpy as np
 import scipy.io
 
 from impactometer.cli import main
-from impactometer.io import write_recording
+from impactometer.errors import ImpactometerError
+from impactometer.io import read_recording, write_recording
+from impactometer.model import simulate
 from impactometer.recording import Recording
 from impactometer.rig import Scenario
-from impactometer.sensors import record
+from impactometer.sensors import apply_sensors, record
 from reliability_corpus import FS, Case, write_csv, write_h5, write_tdms
 
 
@@ -45,7 +48,8 @@ class Corpus:
         out: list[Case] = []
         for build in (self.stream_vs_identify, self.another_stand, self.duplicated, self.outputs, self.settings,
                       self.rates, self.maps, self.truth_metadata, self.implausible, self.smaller, self.stands,
-                      self.csv_structure, self.contents, self.options):
+                      self.csv_structure, self.contents, self.options, self.late_trigger, self.clipped_acceleration,
+                      self.slow_errors, self.map_pressure, self.csv_decimals, self.high_rates, self.special_targets):
             out += build()
         return out
 
@@ -398,3 +402,182 @@ class Corpus:
                  "--adc-bits 64": ["record", "--out", str(self.path("n.csv")), "--adc-bits", "64", "--force"],
                  "--extra nope": ["record", "--out", str(self.path("n.csv")), "--extra", "nope", "--force"]}
         return [Case("command options", label, argv) for label, argv in cases.items()]
+
+    # issue 30: records from outside our own corpus -------------------------------------------------------------
+    def _pair(self, category: str, label: str, path: Path, expect: str, truth=None, **judged) -> list[Case]:
+        """The case for identify and the same for stream, which must agree with it."""
+        return [Case(category, f"identify: {label}", ["identify", str(path), "--json"], expect, truth, **judged),
+                Case(category, f"stream: {label}", ["stream", str(path), "--json", "--chunk", "1024"], expect, truth,
+                     same_as=f"identify: {label}", **judged)]
+
+    def _from(self, first: int, name: str, force=None, acceleration=None) -> Path:
+        """The record from sample ``first`` on, with its time from 0 (a DAQ without pre-trigger)."""
+        force = self.f if force is None else force
+        acceleration = self.a if acceleration is None else acceleration
+        rec = Recording(sample_rate=FS, channels={"contact_force": force[first:],
+                                                  "piston_acceleration": acceleration[first:]},
+                        start_time=0.0, metadata=self.rec.metadata)
+        return write_recording(rec, self.path(name), overwrite=True)
+
+    def late_trigger(self) -> list[Case]:
+        """Records that begin inside the impact: V0 22.5 % low 2 ms late, without a word, before."""
+        first = int(np.flatnonzero(self.rec.time >= self.rec.metadata["anti_alias_delay_s"])[0])
+        out = []
+        for late in (1e-3, 2e-3, 10e-3):
+            path = self._from(first + int(round(late * FS)), f"late{late * 1e3:g}ms.h5")
+            label = f"{late * 1e3:g} ms after first contact"
+            out += self._pair("late trigger", label, path, "refuse", self.truth, reason="begins inside a contact pulse")
+            out.append(Case("late trigger", f"map: {label}", ["identify", str(path), "--method", "response-map",
+                                                              "--map", str(self.map), "--json"], "refuse", self.truth,
+                            reason="begins inside a contact pulse"))
+        out += self._pair("late trigger", "from first contact on", self._from(first - 4, "late0ms.h5"), "answer",
+                          self.truth, sigmas=3.0)
+        return out
+
+    def clipped_acceleration(self) -> list[Case]:
+        a = self.a
+        clipped = {"at 80 % of its peak": np.minimum(a, 0.8 * a.max()),
+                   "at 95 % of its peak": np.minimum(a, 0.95 * a.max()),
+                   "both rails at 80 %": np.clip(a, 0.8 * a.min(), 0.8 * a.max()),
+                   "its minimum at 60 %": np.maximum(a, 0.6 * a.min())}
+        out = []
+        for i, (label, acceleration) in enumerate(clipped.items()):
+            out += self._pair("clipped acceleration", label, self.recording(f"aclip{i}.h5", self.f, acceleration),
+                              "refuse", self.truth, reason="piston_acceleration is saturated")
+        return out
+
+    def slow_errors(self) -> list[Case]:
+        """Drift, an offset without pre-trigger and hum, on the issue's truth record (seed 0, 20 ms of pre-trigger):
+        within 3 standard errors, or refused naming the hum."""
+        truth = record(Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3), sample_rate=FS,
+                       duration=0.1, noise=0.01, seed=0, pre_trigger=0.02)
+        t, f, a = truth.time, truth.contact_force, truth.piston_acceleration
+        first = int(np.flatnonzero(t >= 0.0)[0])
+        expected = (30.0, truth.truth("velocity_m_s"))
+
+        def recording(name, acceleration, start=0):
+            channels = {"contact_force": f[start:], "piston_acceleration": acceleration[start:]}
+            rec = Recording(sample_rate=FS, channels=channels, start_time=t[0] if start == 0 else 0.0,
+                            metadata=truth.metadata)
+            return write_recording(rec, self.path(name), overwrite=True)
+
+        signals = {"drift of 1 m/s² over the record": ("drift.h5", a + np.linspace(0.0, 1.0, a.size), 0, "answer"),
+                   "drift of 1 m/s² per 150 ms from first contact": ("drift2.h5", a + np.clip(t, 0.0, None) / 0.15, 0,
+                                                                     "answer"),
+                   "no pre-trigger, offset 0.5 m/s²": ("offset.h5", a + 0.5, first, "answer")}
+        for frequency, level, expect in ((50.0, 0.001, "answer"), (50.0, 0.003, "refuse"), (60.0, 0.01, "refuse")):
+            hum = level * np.max(np.abs(a)) * np.sin(2.0 * np.pi * frequency * t + 0.3)
+            signals[f"{frequency:g} Hz hum at {level:.1%} of the peak"] = (f"hum{frequency:g}-{level:g}.h5", a + hum, 0,
+                                                                             expect)
+        out = []
+        for label, (name, acceleration, start, expect) in signals.items():
+            judged = {"sigmas": 3.0} if expect == "answer" else {"reason": "mains hum"}
+            out += self._pair("slow acceleration errors", label, recording(name, acceleration, start), expect, expected,
+                              **judged)
+        return out
+
+    def map_pressure(self) -> list[Case]:
+        """The response map read at its own pressure when the file stated none: M1 62 % low, silently."""
+        low = record(Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=100e3), sample_rate=FS, duration=0.1,
+                     noise=0.01, seed=1, pre_trigger=0.05)
+        stated = write_recording(low, self.path("p100.h5"), overwrite=True)
+        bare = write_recording(Recording(sample_rate=FS, channels=low.channels, start_time=low.start_time),
+                               self.path("p100-bare.h5"), overwrite=True)
+        bare200 = write_recording(Recording(sample_rate=FS, channels=self.rec.channels, start_time=self.rec.start_time),
+                                  self.path("p200-bare.h5"), overwrite=True)
+        command = ["--method", "response-map", "--map", str(self.map), "--json"]
+        truth = (30.0, low.truth("velocity_m_s"))
+        return [Case("map pressure", "no pressure stated or given", ["identify", str(bare), *command], "refuse", truth,
+                     reason="the charge pressure is not known"),
+                Case("map pressure", "--pressure 100kPa, a 200 kPa map", ["identify", str(bare), *command,
+                                                                          "--pressure", "100kPa"], "refuse", truth,
+                     reason="made for a charge pressure of 200 kPa"),
+                Case("map pressure", "--pressure 200kPa, the file states 100 kPa", ["identify", str(stated), *command,
+                                                                                    "--pressure", "200kPa"],
+                     "refuse", truth, reason="contradicts"),
+                Case("map pressure", "--pressure 200kPa, none stated", ["identify", str(bare200), *command,
+                                                                        "--pressure", "200kPa"], "answer", self.truth),
+                Case("map pressure", "--pressure 200kPa as stated", ["identify", str(self.base), *command,
+                                                                     "--pressure", "200kPa"], "answer", self.truth)]
+
+    def csv_decimals(self) -> list[Case]:
+        """Decimal commas whose first data row holds none (0;0;0) were refused."""
+        time = self.rec.time - self.rec.time[0]
+        f, a = self.f.copy(), self.a.copy()
+        f[0] = a[0] = 0.0
+        out = []
+        for separator, name in ((";", "decimal0.csv"), ("\t", "decimal0.tsv")):
+            path = write_csv(self.path(name), {"time [s]": time, "force [N]": f, "acc [m/s^2]": a},
+                             separator=separator, fmt="%.9g")
+            path.write_text(path.read_text().replace(".", ","))
+            out.append(Case("CSV decimal style", f"first row 0{separator}0{separator}0".replace("\t", "⇥"),
+                            ["identify", str(path), "--json"], "answer", self.truth))
+        return out
+
+    def high_rates(self) -> list[Case]:
+        """2 MHz with white noise was refused as low-pass filtered (0.5 and 1 MHz were answered)."""
+        scenario = Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3)
+        path = self.path("rate2MHz.h5")
+        if not path.exists():
+            sim = simulate(scenario, duration=0.05, sample_rate=4e6)
+            quiet = np.zeros(40000)
+            rec = apply_sensors({"contact_force": np.r_[quiet, sim.contact_force],
+                                 "piston_acceleration": np.r_[quiet, sim.a2]}, input_rate=4e6, sample_rate=2e6,
+                                start_time=-0.01, noise=0.01, seed=0)
+            write_recording(rec, path)
+        truth = (30.0, scenario.velocity)
+        return [Case("high sample rates", "identify: 2 MHz, white noise", ["identify", str(path), "--json"], "answer",
+                     truth, sigmas=3.0)]
+
+    def special_targets(self) -> list[Case]:
+        """Targets that are no regular files, replaced by a file under the overwrite flag before."""
+        folder = self.path("special")
+        folder.mkdir(exist_ok=True)
+        pipe, device = folder / "pipe.h5", folder / "null.csv"
+        if not pipe.exists():
+            os.mkfifo(pipe)
+        if not device.is_symlink():
+            device.symlink_to(os.devnull)
+        cases = {"record --out a named pipe, --overwrite": ["record", "--out", str(pipe), "--overwrite"],
+                 "record --out a link to /dev/null, --overwrite": ["record", "--out", str(device), "--overwrite"],
+                 "simulate --out a named pipe, --overwrite": ["simulate", "--out", str(pipe), "--overwrite"],
+                 "map build --out a named pipe, --overwrite": ["map", "build", "--out", str(pipe), "--grid", "3",
+                                                               "--overwrite"],
+                 "simulate --out x.csv": ["simulate", "--out", str(folder / "x.csv")]}
+        return [Case("special output targets", label, argv, protect=(pipe, device),
+                     reason="expected one of .h5, .hdf5" if label.endswith("x.csv") else "is not a regular file")
+                for label, argv in cases.items()]
+
+
+#: channel names that do not survive every format, and the formats they are written to
+NAMES = ("a,b", "a;b", 'say "hi"', "a\nb", "a/b", ".", "force [kN]", " force", "time")
+
+
+def round_trips(folder: Path) -> list[tuple[Case, str, str]]:
+    """Recordings with awkward channel names written and read back: handled where the channel comes back with its
+    name and samples, or the writer refuses it in one line; data loss otherwise (a CSV header that could not be
+    read back, an HDF5 channel that became a subgroup and disappeared)."""
+    folder = Path(folder) / "names"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = []
+    values = np.array([1.0, 2.0, 3.0])
+    for fmt in ("csv", "h5", "tdms"):
+        for k, name in enumerate(NAMES):
+            case = Case("channel names", f"{fmt}: {name!r}", [])
+            path = folder / f"n{k}.{fmt}"
+            rec = Recording(sample_rate=1e3, channels={"contact_force": np.arange(3.0), name: values})
+            try:
+                write_recording(rec, path, overwrite=True)
+            except ImpactometerError as exc:
+                text = str(exc)
+                out.append((case, "handled" if "\n" not in text else "unhandled", text[:200]))
+                continue
+            try:
+                back = read_recording(path)
+            except ImpactometerError as exc:
+                out.append((case, "data-loss", f"written, but not read back: {str(exc)[:160]}"))
+                continue
+            same = list(back.channels) == list(rec.channels) and np.array_equal(back.channels.get(name), values)
+            out.append((case, "handled" if same else "data-loss",
+                        "read back as written" if same else f"read back as {list(back.channels)}"))
+    return out

@@ -5,11 +5,13 @@ Shared by ``tests/test_reliability.py`` (every case, in-process) and ``scripts/r
 and heavier ones, with the acceptance table). A case is a command line with what it may do:
 
 - ``refuse``: exit 2 with one line -- or answer with a warning;
-- ``answer``: exit 0; an identified mass and velocity within tolerance of the truth, or carrying a warning;
+- ``answer``: exit 0; an identified mass and velocity within tolerance of the truth (and, where the case says so,
+  within a number of their standard errors), or carrying a warning;
 - ``either``: one of the two.
 
 A run is judged ``handled``, ``unhandled`` (a traceback, another exit status, an error of several lines or with a
-numpy repr, an error line on standard output instead of standard error), ``silent-wrong`` (exit 0 with a wrong
+numpy repr, an error line on standard output instead of standard error, a refusal that does not name the cause
+the case states), ``silent-wrong`` (exit 0 with a wrong
 answer and no warning, or where a refusal was due), ``data-loss`` (a protected file changed, a half-written file
 left) or ``over-refused`` (a valid input refused).
 """
@@ -48,6 +50,8 @@ class Case:
     protect: tuple[Path, ...] = ()
     same_as: str | None = None  # a case whose outcome this one must share (stream and identify)
     slow: bool = False
+    sigmas: float | None = None  # an answer must also lie within this many standard errors of the truth
+    reason: str | None = None  # a refusal must name this cause
 
 
 @dataclass
@@ -93,6 +97,17 @@ def answer(outcome: Outcome) -> tuple[float, float, list[str]] | None:
     return found
 
 
+def spread(outcome: Outcome) -> tuple[float | None, float | None]:
+    """(mass, velocity) standard errors of the last identification a --json run printed, or Nones."""
+    found: tuple[float | None, float | None] = (None, None)
+    for line in outcome.output.splitlines():
+        with contextlib.suppress(ValueError):
+            data = json.loads(line)
+            if isinstance(data, dict) and "mass_kg" in data:
+                found = (data.get("mass_std_kg"), data.get("velocity_std_m_s"))
+    return found
+
+
 _NUMPY_REPR = re.compile(r"\bnp\.\w+\(|array\(")
 
 
@@ -111,6 +126,8 @@ def judge(case: Case, outcome: Outcome, peer: Outcome | None = None) -> tuple[st
             return "unhandled", f"error output: {errors[:3]}"
         if case.expect == "answer":
             return "over-refused", errors[0][:200]
+        if case.reason and case.reason not in errors[0]:
+            return "unhandled", f"refused without naming {case.reason!r}: {errors[0][:160]}"
         return "handled", errors[0][:200]
     found = answer(outcome)
     if peer is not None and peer.code == 2 and found is not None and not found[2]:
@@ -122,6 +139,12 @@ def judge(case: Case, outcome: Outcome, peer: Outcome | None = None) -> tuple[st
         mass, velocity, warnings = found
         right = (mass is not None and velocity is not None and abs(mass / case.truth[0] - 1) <= TOLERANCE[0]
                  and abs(velocity / case.truth[1] - 1) <= TOLERANCE[1])
+        stds = spread(outcome)
+        if right and not warnings and case.sigmas is not None and None not in stds:
+            z = max(abs(mass - case.truth[0]) / stds[0], abs(velocity - case.truth[1]) / stds[1])
+            if z > case.sigmas:
+                return "silent-wrong", (f"M1 = {mass:.4g} ± {stds[0]:.2g} kg, V0 = {velocity:.4g} ± {stds[1]:.2g} m/s "
+                                        f"for {case.truth}: {z:.1f} standard errors off, no warning")
         if right or warnings:
             return "handled", f"M1 = {mass:.4g} kg, V0 = {velocity:.4g} m/s, {len(warnings)} warning(s)"
         return "silent-wrong", f"M1 = {mass:.4g} kg, V0 = {velocity:.4g} m/s for {case.truth}, no warning"

@@ -26,12 +26,14 @@ from impactometer.recording import Recording
 from impactometer.rig import load_toml, save_toml
 from impactometer.studies import run_study
 from reliability_api import calls, fuzz
-from reliability_cases import Corpus
+from reliability_cases import Corpus, round_trips
 from reliability_corpus import judge, run
 
 CATEGORIES = ("stream vs identify", "map of another stand", "duplicated statements", "output targets",
               "study settings", "sample rates", "map files", "truth metadata", "implausible answers",
-              "smaller breaks", "stand files", "CSV structure", "recording content", "command options")
+              "smaller breaks", "stand files", "CSV structure", "recording content", "command options",
+              "late trigger", "clipped acceleration", "slow acceleration errors", "map pressure", "CSV decimal style",
+              "high sample rates", "special output targets")
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 
@@ -59,6 +61,15 @@ def test_damaged_inputs_are_refused_in_one_line_or_answered_with_a_warning(categ
         if verdict != "handled":
             failures.append(f"{case.name}: {verdict}: {reason}")
     assert not failures, "\n".join(failures)
+
+
+def test_awkward_channel_names_come_back_or_are_refused_on_writing(tmp_path):
+    """A CSV header cell 'a,b' made the file unreadable; an HDF5 channel 'a/b' became a subgroup that reading left
+    out, silently."""
+    results = round_trips(tmp_path)
+    assert len(results) >= 27
+    lost = [f"{case.name}: {verdict}: {reason}" for case, verdict, reason in results if verdict != "handled"]
+    assert not lost, "\n".join(lost)
 
 
 def test_the_stream_and_identify_agree_on_every_damaged_impact(cases):
