@@ -230,8 +230,9 @@ def plot_map_recordings(rows: Sequence[Row]):
 
 
 def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
-    """Absorber strategies on the common set of impacts (``studies.absorption.common_set``): the distribution of
-    R_B per strategy (oracle and achievable reference included) and of the whole-event CFC 60 peak / F0, and per
+    """Absorber strategies on the common set of impacts (``studies.absorption.common_set``, where the reference
+    exists too): the distribution of R_B per strategy (oracle and achievable reference included) and of the
+    whole-event CFC 60 peak / F0, and per
     impact the identified ``strategy`` against its oracle and against the achievable reference."""
     from ..studies.absorption import REFERENCE, TARGETS, common_set, values_on
 
@@ -241,10 +242,9 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
     impacts = list(dict.fromkeys(r["case"] for r in rows))
     fig, axes = plt.subplots(1, 4, figsize=(19, 4.8), constrained_layout=True,
                              gridspec_kw={"width_ratios": [1.5, 1.3, 1, 1]})
-    for ax, column, chosen, label in (
-            (axes[0], "stage_b_ratio", kept, f"R_B on the common window [-] (ideal 1), {len(kept)} impacts"),
-            (axes[1], "whole_event_peak_ratio", impacts, f"whole-event CFC 60 peak / F0 [-], {len(impacts)} impacts")):
-        data = [values_on(rows, chosen, name, column) for name in strategies]
+    for ax, column, label in ((axes[0], "stage_b_ratio", "R_B on the common window [-] (ideal 1)"),
+                              (axes[1], "whole_event_peak_ratio", "whole-event CFC 60 peak / F0 [-]")):
+        data = [values_on(rows, kept, name, column) for name in strategies]
         data = [d[np.isfinite(d)] for d in data]
         ax.boxplot([d if d.size else np.array([np.nan]) for d in data])
         ax.set_xticks(range(1, len(strategies) + 1), strategies, rotation=20, fontsize=8)

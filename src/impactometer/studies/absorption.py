@@ -149,10 +149,14 @@ def _aggregate(rows: list[Row]) -> list[Row]:
         chosen = [r for r in rows if r["strategy"] == strategy]
         ratio = values_on(rows, kept, strategy, "stage_b_ratio")
         peak = values_on(rows, impacts, strategy, "whole_event_peak_ratio")
-        reference = strategy == REFERENCE
+        shared = values_on(rows, kept, strategy, "whole_event_peak_ratio")
+        reference = strategy == REFERENCE  # it exists on the common set only
         out.append({"strategy": strategy, "impacts": len(chosen), "common set": len(kept),
                     "median R_B": _stat(ratio, 50), "90th pct R_B": _stat(ratio, 90),
-                    "median peak / F0": _stat(peak, 50), "90th pct peak / F0": _stat(peak, 90),
+                    "median peak / F0, common set": _stat(shared, 50),
+                    "90th pct peak / F0, common set": _stat(shared, 90),
+                    "median peak / F0": None if reference else _stat(peak, 50),
+                    "90th pct peak / F0": None if reference else _stat(peak, 90),
                     "median peak deceleration [g]": _stat(values_on(rows, impacts, strategy, "peak_deceleration_g"),
                                                           50),
                     "median η (whole event)": _stat(values_on(rows, impacts, strategy, "whole_event_efficiency"),
