@@ -232,7 +232,7 @@ def test_readings_the_data_cannot_tell_apart_widen_the_answer(monkeypatch, judge
 def test_normal_inverse_keeps_a_parameter_beside_a_tight_prior():
     """(JᵀJ)⁻¹ where one column is 1e13 times the others (a tight prior row): the equilibrated form keeps the
     small parameters' variances, where the pseudo-inverse of JᵀJ cuts them to zero."""
-    from impactometer.identify.peak_to_peak.robust import normal_inverse
+    from impactometer.identify.peak_to_peak.covariance import normal_inverse
 
     rng = np.random.default_rng(3)
     scale = np.array([1.0, 2.0, 1e13])

@@ -90,12 +90,12 @@ def test_ctrl_c_exits_130_and_keeps_finished_chunks(tmp_path):
     slow_chunks = ("import signal\n"
                    "import time\n"
                    "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
-                   "import impactometer.studies.runner as runner\n"
-                   "evaluate = runner.evaluate_chunk\n"
+                   "import impactometer.studies.executors as executors\n"
+                   "evaluate = executors.evaluate_chunk\n"
                    "def slow(*args, **kwargs):\n"
                    "    time.sleep(0.02)\n"
                    "    return evaluate(*args, **kwargs)\n"
-                   "runner.evaluate_chunk = slow\n"
+                   "executors.evaluate_chunk = slow\n"
                    "from impactometer.cli import main\n"
                    "main()\n")
     command = [sys.executable, "-c", slow_chunks, "study", "peak-force", "--out",
@@ -120,7 +120,7 @@ import os
 import pathlib
 import threading
 
-import impactometer.studies.runner as runner
+import impactometer.studies.executors as executors
 
 MARKERS = pathlib.Path(__file__).with_name("markers")
 
@@ -130,7 +130,7 @@ def blocking_chunk(name, cases, options):
     threading.Event().wait()
 
 
-runner.evaluate_chunk = blocking_chunk
+executors.evaluate_chunk = blocking_chunk
 
 if __name__ == "__main__":
     from impactometer.cli import main

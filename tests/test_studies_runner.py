@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from impactometer.errors import ParameterError
-from impactometer.studies import StudyOptions, run_study, runner
-from impactometer.studies.runner import compiling
+from impactometer.studies import StudyOptions, executors, run_study
+from impactometer.studies.executors import compiling
 from impactometer.studies.store import LOCK, atomic_write, locked, read_chunk
 from impactometer.studies.tables import read_csv
 
@@ -170,7 +170,7 @@ def test_the_lock_is_removed_however_the_run_ends(tmp_path, monkeypatch):
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(runner, "evaluate_chunk", interrupted)
+    monkeypatch.setattr(executors, "evaluate_chunk", interrupted)
     with pytest.raises(KeyboardInterrupt):
         run_study("peak-force", tmp_path / "stopped", StudyOptions(**SMALL), workers=1)
     assert not (tmp_path / "stopped" / LOCK).exists()
@@ -224,5 +224,5 @@ def test_a_pool_says_what_it_does_until_its_first_chunk_lands(tmp_path):
     said = []
     run_study("peak-force", tmp_path, StudyOptions(**SMALL), workers=2, status=lambda name, text: said.append(text))
     doing = {"starting 2 worker processes", "running the first chunks",
-             f"compiling kernels in 2 workers (first run only, {runner.COMPILE_TIME})"}
+             f"compiling kernels in 2 workers (first run only, {executors.COMPILE_TIME})"}
     assert said[0] in doing and said[-1] == "" and set(said) <= doing | {""}

@@ -206,7 +206,7 @@ def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s", spi
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Column
 
-    from ..studies.runner import compiling
+    from ..studies.executors import compiling
 
     live = spinner and error_console.is_terminal
     note = f"compiling kernels, first run only ({compile_time})"

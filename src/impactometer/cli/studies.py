@@ -29,8 +29,8 @@ from ..errors import ParameterError
 from ..outputs import check_folder
 from ..rig import get_rig
 from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
+from ..studies.executors import check_backend
 from ..studies.report import markdown, write_report
-from ..studies.runner import check_backend
 from .app import OVERWRITE, app, console, error_console, given, quantity
 from .simulate import ContactOpt
 

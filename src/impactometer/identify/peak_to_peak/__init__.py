@@ -22,10 +22,11 @@ from ...constants import STANDARD_GRAVITY
 from ...errors import IdentificationError, RecordingError
 from ...recording import Recording
 from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
-from ..pulses import detection_levels, first_peak, sustained_index
+from ..pulses import sustained_index
 from ..result import Identification
 from .early import combine, solve_early
 from .options import check_options, check_unfiltered, check_white_noise, filtered_caution
+from .paper import PAPER_NOISE_LIMIT, paper_caution, solve_paper  # noqa: F401 - part of the package's API
 from .robust import Equations, Kinematics, solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
@@ -35,13 +36,16 @@ from .segment import (  # noqa: F401 - re-exported: the streaming identifier and
     TRIGGER_FLOOR,
     Segment,
     check_channels,
+    check_velocity,
     early_cut,
     early_ready,
     edges,
     extrema,
+    need_pulses,
     no_impact,
     prepare,
     quantum,
+    second_peak,
     segment_bounds,
     segment_of,
     segment_onset,
@@ -128,84 +132,6 @@ def _unit_slip(seg: Segment, gravity: float, chi2: float) -> tuple[str, ...]:
     return ()
 
 
-def _need_pulses(seg: Segment, needed: int, what: str) -> None:
-    complete = [p for p in seg.pulses if p.complete]
-    if not seg.pulses:
-        raise no_impact(seg.force, seg.noise_force)
-    if len(complete) < needed:
-        last = seg.pulses[-1]
-        span = (last.first - seg.pulses[0].first) / max(len(seg.pulses) - 1, 1) if len(seg.pulses) > 1 else None
-        more = "" if span is None else (f"; about {span / seg.sample_rate * 1e3 * (needed - len(complete)):.1f} "
-                                        "ms more signal is needed")
-        raise IdentificationError(f"{what} needs {needed} complete contact pulses, the record holds "
-                                  f"{len(complete)} (it ends at {seg.time_of(seg.force.size - 1):.6g} s){more}")
-
-
-def solve_paper(seg: Segment, gravity: float, early=None) -> Identification:
-    """Eqs. (3)-(5) of the reference paper and the momentum step for V0.
-
-    t00 = first contact, t01/t11 = force peaks of the first two pulses; M1 = −∫Fc / ((V2(t11) − V2(t01)) −
-    g·Δt) (eq. 4), V2 = ∫a2 from t00 (eq. 5), V0 = V2(t01) + ∫_{t00}^{t01}Fc/M1 − g·(t01 − t00).
-    """
-    peak2 = second_peak(seg)
-    if peak2 is None:
-        _need_pulses(seg, 2, "the paper variant")
-        raise IdentificationError("the paper variant needs the second force peak: the second pulse has not yet "
-                                  "fallen from a maximum")
-    p1 = seg.pulses[0]
-    t00, _ = segment_onset(seg, p1)
-    kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity)
-    tau, _, jf, _, _, va, _ = kin.at(np.array([p1.peak, peak2], dtype=float))
-    denominator = (va[1] - va[0]) - gravity * (tau[1] - tau[0])
-    impulse = jf[1] - jf[0]
-    if not denominator < 0.0 or impulse <= 0.0:
-        raise IdentificationError(f"the paper's eq. (4) has no positive mass here: ∫Fc = {impulse:.4g} N·s, "
-                                  f"ΔV2 − gΔt = {denominator:.4g} m/s (expected < 0)")
-    mass = -impulse / denominator
-    velocity = va[0] + jf[0] / mass - gravity * tau[0]
-    _check_velocity(velocity, "the paper's eqs. (3)-(5)")
-    details: dict[str, Any] = {"t00": seg.time_of(t00), "t01": seg.time_of(p1.peak), "t11": seg.time_of(peak2),
-                               "onsets": (), "noise_force_N": seg.noise_force,
-                               "noise_acceleration_m_s2": seg.noise_acceleration}
-    caution = paper_caution(seg)
-    if caution:
-        details["caution"] = caution
-    return Identification(mass=float(mass), velocity=float(velocity), available_at=seg.time_of(peak2),
-                          method="peak-to-peak/paper", details=details)
-
-
-def _check_velocity(velocity: float, source: str) -> None:
-    """IdentificationError unless an impact velocity is positive (the mass falls onto the rod)."""
-    if not (math.isfinite(velocity) and velocity > 0.0):
-        raise IdentificationError(f"{source} give an impact velocity of {float(velocity):.4g} m/s, not a falling "
-                                  "mass; the pulses found are not contact separations of a falling mass")
-
-
-def second_peak(seg: Segment) -> int | None:
-    """Sample of the second force peak of eqs. (3)-(5) (None while there is none): the peak of a complete second
-    pulse, or the first peak of a second pulse that runs into sustained contact (stage B)."""
-    if len(seg.pulses) < 2 or not seg.pulses[0].complete:
-        return None
-    detect, _ = detection_levels(seg.noise_force, float(np.max(seg.force)))
-    return first_peak(seg.force, seg.pulses[1], detect)
-
-
-#: noise, as a fraction of a channel's peak, above which the paper variant's answer carries a caution [-]
-PAPER_NOISE_LIMIT = 0.002
-
-
-def paper_caution(seg: Segment) -> str | None:
-    """A caution when the paper's assumption of noise-free channels is visibly violated, else None."""
-    force = seg.noise_force / max(float(np.max(np.abs(seg.force))), 1e-300)
-    acceleration = seg.noise_acceleration / max(float(np.max(np.abs(seg.acceleration))), 1e-300)
-    if max(force, acceleration) <= PAPER_NOISE_LIMIT:
-        return None
-    return (f"eqs. (3)-(5) read single samples at the force peaks and assume noise-free channels; here the noise "
-            f"is {force:.1%} of the peak force and {acceleration:.1%} of the peak acceleration, so this answer "
-            "may be far off (the robust variant accounts for the noise)")
-
-
-
 def equations(seg: Segment) -> tuple[Equations, float, float]:
     """Every row the segment holds: (equations, t00 and its standard error [samples])."""
     sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
@@ -246,7 +172,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     check_white_noise(seg)
     single = single_contact(seg)
     if not single and (not seg.pulses or not seg.pulses[0].complete or len(seg.pulses) < 2):
-        _need_pulses(seg, 2, "the robust variant")
+        need_pulses(seg, 2, "the robust variant")
     eqs, t00, std0 = equations(seg)
     agnostic = stage == "final" and _determined(eqs)
     if single and not agnostic:
@@ -255,7 +181,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
             f"{eqs.extrema.size} turning points of the force; without a second pulse the robust variant needs at "
             "least 4 turning points in that contact (a longer record), or use the response-map method")
     if not agnostic and not (seg.pulses[1].complete or early_ready(seg)):
-        _need_pulses(seg, 2, "the robust variant")
+        need_pulses(seg, 2, "the robust variant")
     kin = Kinematics(seg.force, seg.acceleration, 1.0 / seg.sample_rate, t00, gravity, onset_std0=std0)
     noise: dict[str, Any] = dict(noise_force=seg.noise_force, noise_acceleration=seg.noise_acceleration,
                                  pre_samples=seg.pre_samples)
@@ -294,7 +220,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity) or not np.all(np.isfinite(cov)):
         raise IdentificationError(f"the equations give no positive mass (1/M1 = {w:.4g} 1/kg); the pulses found "
                                   "are not contact separations of a falling mass")
-    _check_velocity(velocity, f"the {stage} equations")
+    check_velocity(velocity, f"the {stage} equations")
     spread = max(float(np.sqrt(cov[1, 1])) / w, float(np.sqrt(cov[0, 0])) / max(abs(velocity), 1e-12))
     if spread > MAX_RELATIVE_STD:
         why = "more of the record is needed"

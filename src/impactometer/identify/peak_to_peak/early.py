@@ -20,7 +20,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import contact_law
-from .robust import kernel_form, normal_inverse
+from .covariance import kernel_form, normal_inverse
 
 #: starting (n, m) exponents of the law: Kelvin-Voigt and Hunt-Crossley
 LAW_STARTS = ((1.0, 0.0), (1.5, 1.5))

@@ -64,7 +64,7 @@ def check_unfiltered(recording: Recording, variant: str) -> None:
 
 def filtered_caution(recording: Recording, variant: str) -> str | None:
     """A caution for the paper variant's answer from CFC-filtered channels, else None: the filter hides the noise
-    (so the noise caution of :func:`~impactometer.identify.peak_to_peak.paper_caution` stays silent) while it
+    (so the noise caution of :func:`~impactometer.identify.peak_to_peak.paper.paper_caution` stays silent) while it
     flattens and delays the force peaks that eqs. (3)-(5) read."""
     filtered = recording.metadata.get("cfc")
     if variant != "paper" or not isinstance(filtered, dict):

@@ -7,6 +7,7 @@ the pulses are detected and their onsets, separations and the turning points of 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -14,7 +15,16 @@ import numpy as np
 from ...errors import IdentificationError
 from ...recording import check_sample_rate
 from .. import trigger
-from ..pulses import RELEASE_SIGMAS, SUSTAINED_FACTOR, PulseSpan, detect_pulses, noise_std, sustained_index
+from ..pulses import (
+    RELEASE_SIGMAS,
+    SUSTAINED_FACTOR,
+    PulseSpan,
+    detect_pulses,
+    detection_levels,
+    first_peak,
+    noise_std,
+    sustained_index,
+)
 from .onsets import VERTEX_HALF_MAX, onset_index, separation_index, turning_points, vertex
 
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
@@ -315,3 +325,32 @@ def single_contact(seg: Segment) -> bool:
     """Whether the segment holds one contact that has not ended: the mass never left the rod (no rebound, stage B
     from first contact, as a heavy mass on a soft charge does), so the force's turning points are all there is."""
     return len(seg.pulses) == 1 and not seg.pulses[0].complete
+
+
+def need_pulses(seg: Segment, needed: int, what: str) -> None:
+    complete = [p for p in seg.pulses if p.complete]
+    if not seg.pulses:
+        raise no_impact(seg.force, seg.noise_force)
+    if len(complete) < needed:
+        last = seg.pulses[-1]
+        span = (last.first - seg.pulses[0].first) / max(len(seg.pulses) - 1, 1) if len(seg.pulses) > 1 else None
+        more = "" if span is None else (f"; about {span / seg.sample_rate * 1e3 * (needed - len(complete)):.1f} "
+                                        "ms more signal is needed")
+        raise IdentificationError(f"{what} needs {needed} complete contact pulses, the record holds "
+                                  f"{len(complete)} (it ends at {seg.time_of(seg.force.size - 1):.6g} s){more}")
+
+
+def check_velocity(velocity: float, source: str) -> None:
+    """IdentificationError unless an impact velocity is positive (the mass falls onto the rod)."""
+    if not (math.isfinite(velocity) and velocity > 0.0):
+        raise IdentificationError(f"{source} give an impact velocity of {float(velocity):.4g} m/s, not a falling "
+                                  "mass; the pulses found are not contact separations of a falling mass")
+
+
+def second_peak(seg: Segment) -> int | None:
+    """Sample of the second force peak of eqs. (3)-(5) (None while there is none): the peak of a complete second
+    pulse, or the first peak of a second pulse that runs into sustained contact (stage B)."""
+    if len(seg.pulses) < 2 or not seg.pulses[0].complete:
+        return None
+    detect, _ = detection_levels(seg.noise_force, float(np.max(seg.force)))
+    return first_peak(seg.force, seg.pulses[1], detect)
