@@ -213,21 +213,92 @@ class _Pool:
         self.events.close()
 
 
+#: seconds a Dask scheduler has to complete its handshake (the client's own timeout covers the TCP connect only: a
+#: listener that accepts and stays silent, or answers another protocol, would hold it for minutes)
+CONNECT_DEADLINE = 15.0
+#: seconds a Dask run waits, saying so, while the cluster has no worker alive, before it gives up
+NO_WORKER_DEADLINE = 300.0
+
+
+def connect(address: str, deadline: float | None = None):
+    """A ``dask.distributed.Client`` of the scheduler at ``address``, or a ParameterError within ``deadline`` [s]
+    (default :data:`CONNECT_DEADLINE`)."""
+    from dask.distributed import Client
+
+    deadline = CONNECT_DEADLINE if deadline is None else deadline
+    _probe(address, deadline)
+    outcome: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            outcome["client"] = Client(address, timeout="5s", set_as_default=False)
+        except Exception as exc:  # reported below, in one line
+            outcome["error"] = exc
+
+    attempt = threading.Thread(target=connect, name="impactometer-dask-connect", daemon=True)
+    attempt.start()
+    attempt.join(deadline)
+    expected = "expected the address of a running Dask scheduler, e.g. tcp://HOST:8786"
+    if attempt.is_alive():
+        raise ParameterError(f"--scheduler: {address!r} accepted the connection but no Dask scheduler answered within "
+                             f"{deadline:g} s (another service on that port?); {expected}")
+    if "error" in outcome:
+        raise ParameterError(f"--scheduler: cannot connect to {address!r} ({outcome['error']}); {expected}")
+    return outcome["client"]
+
+
+def _probe(address: str, deadline: float) -> None:
+    """ParameterError unless a ``tcp://`` address speaks first as a Dask scheduler does: on accepting, a scheduler
+    sends its handshake, a message whose first 8 bytes count its frames (little-endian, a handful). A listener that
+    stays silent (a web server waiting for its request, a stalled process) or sends something else is refused
+    before a client is made, which would otherwise wait on it in a thread of its own."""
+    import socket
+    import struct
+
+    scheme, _, rest = address.partition("://")
+    if scheme != "tcp":
+        return  # tls/ws/ucx: the client's own handshake decides
+    host, _, port = rest.rpartition(":")
+    expected = "expected the address of a running Dask scheduler, e.g. tcp://HOST:8786"
+    try:
+        with socket.create_connection((host.strip("[]"), int(port)), timeout=deadline) as probe:
+            probe.settimeout(deadline)
+            head = b""
+            while len(head) < 8:
+                chunk = probe.recv(8 - len(head))
+                if not chunk:
+                    break
+                head += chunk
+    except TimeoutError:
+        raise ParameterError(f"--scheduler: {address!r} accepted the connection but sent no Dask handshake within "
+                             f"{deadline:g} s (another service on that port?); {expected}") from None
+    except (OSError, ValueError) as exc:
+        raise ParameterError(f"--scheduler: cannot connect to {address!r} ({exc}); {expected}") from None
+    if len(head) < 8 or not 0 < struct.unpack("<Q", head)[0] <= 64:
+        raise ParameterError(f"--scheduler: {address!r} answered, but not as a Dask scheduler (it sent "
+                             f"{head[:8]!r}); {expected}")
+
+
 class _Dask:
     """An existing Dask distributed cluster reached through its scheduler address."""
 
-    def __init__(self, address: str) -> None:
+    #: seconds between looks at the cluster while no chunk finishes
+    poll = 0.2
+
+    def __init__(self, address: str, *, no_worker_deadline: float | None = None) -> None:
         try:
-            from dask.distributed import Client
+            import dask.distributed  # noqa: F401
         except ImportError:
             raise ParameterError("--scheduler needs Dask distributed; install the extra: "
                                  "pip install 'impactometer[dask]'") from None
-        try:
-            self.client = Client(address, timeout="5s", set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise ParameterError(f"--scheduler: cannot connect to {address!r} ({exc}); expected the address of a "
-                                 f"running Dask scheduler, e.g. tcp://HOST:8786") from None
+        self.client = connect(address)
+        self.address = address
+        self.no_worker_deadline = NO_WORKER_DEADLINE if no_worker_deadline is None else no_worker_deadline
         self.workers = max(1, sum(self.client.nthreads().values()))
+
+    def _alive(self) -> int:
+        """Workers the scheduler knows now."""
+        return len(self.client.nthreads())
 
     def run(self, name: str, tasks: Sequence[Task], options: StudyOptions,
             status: Status | None = None) -> Iterator[tuple[int, Any]]:
@@ -235,14 +306,42 @@ class _Dask:
 
         futures = {self.client.submit(evaluate_chunk, name, cases, options, pure=False): index
                    for index, cases in tasks}
+        waiting = f"waiting for the first chunks from the cluster ({self.workers} threads; a first run compiles " \
+                  "kernels on every worker)"
         if status:
-            status(name, f"waiting for the first chunks from the cluster ({self.workers} threads; a first run "
-                         "compiles kernels on every worker)")
+            status(name, waiting)
+        finished = as_completed(list(futures), loop=self.client.loop)
+        lonely_since: float | None = None  # when the cluster was first seen without a worker
+        last_look = time.monotonic()
         try:
-            for number, future in enumerate(as_completed(list(futures), loop=self.client.loop)):
-                if number == 0 and status:
-                    status(name, "")
-                yield futures[future], future.result()
+            while not finished.is_empty():
+                batch = finished.next_batch(block=False)
+                for future in batch:
+                    if status and waiting:
+                        status(name, "")
+                        waiting = ""
+                    yield futures[future], future.result()
+                if batch:
+                    lonely_since = None
+                    continue
+                time.sleep(self.poll)
+                now = time.monotonic()
+                if now - last_look < 10 * self.poll:
+                    continue
+                last_look = now
+                if self._alive():
+                    if lonely_since is not None and status:
+                        status(name, waiting)
+                    lonely_since = None
+                    continue
+                lonely_since = now if lonely_since is None else lonely_since
+                if now - lonely_since > self.no_worker_deadline:
+                    raise SimulationError(f"no Dask worker has been alive at {self.address!r} for "
+                                          f"{self.no_worker_deadline:g} s while study {name!r} waited; finished "
+                                          "chunks are kept: start workers and rerun to resume")
+                if status:
+                    status(name, f"no Dask worker is alive at {self.address}: waiting for one "
+                                 f"({now - lonely_since:.0f} s of {self.no_worker_deadline:g} s)")
         finally:
             for future in futures:
                 future.cancel()
