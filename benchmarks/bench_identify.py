@@ -93,15 +93,15 @@ def measure(rec) -> None:
         rate64, _, times, answered = throughput(f[window], a[window], 64)
         print(f"64-sample chunks over one impact (40 ms before, 100 ms after contact): {rate64:,.0f} samples/s; "
               f"push calls returning an answer: {distribution(times[answered])}")
-        rec = slice(start - 2500, start + int(0.1 * FS))
+        record = slice(start - 2500, start + int(0.1 * FS))
         for variant in ("robust", "paper"):
-            identify_arrays(f[rec], a[rec], FS, variant=variant)
+            identify_arrays(f[record], a[record], FS, variant=variant)
             t = time.perf_counter()
             reps = 10
             for _ in range(reps):
-                identify_arrays(f[rec], a[rec], FS, variant=variant)
+                identify_arrays(f[record], a[record], FS, variant=variant)
             print(f"batch {variant}: {(time.perf_counter() - t) / reps * 1e3:.1f} ms per "
-                  f"{rec.stop - rec.start}-sample recording")
+                  f"{record.stop - record.start}-sample recording")
 
 
 if __name__ == "__main__":
