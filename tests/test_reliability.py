@@ -90,6 +90,9 @@ def test_bad_arguments_to_the_python_functions_raise_impactometer_errors(corpus)
     # each raised a builtin error before (MemoryError for 745 GiB, ValueError from float(), TypeError)
     (lambda tmp: simulate_batch(np.full(10**6, 30.0), 2.0, 200e3, duration=1.0), ParameterError,
      r"would take 745.1 GiB \(1000000 scenarios × 2 channels × 50001 samples × 8 bytes\)"),
+    # a duration whose sample count overflows to inf raised OverflowError from int()
+    (lambda tmp: simulate_batch(np.int64(-2), 2.0, 200e3, duration=1e308), ParameterError,
+     r"duration·sample_rate must give at most 5e7 samples, got 1e\+308 s"),
     (lambda tmp: cfc_corridor(60, "abc"), ParameterError, "frequency must be finite numbers >= 0 .Hz., got 'abc'"),
     (lambda tmp: save_toml(None, tmp / "stand.toml"), ParameterError, "rig must be a Rig, got NoneType"),
     (lambda tmp: load_toml(5), ParameterError, r"rig file must be a file name \(str or path\), got int"),

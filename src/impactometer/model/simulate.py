@@ -47,12 +47,14 @@ def sample_times(duration: float, sample_rate: float) -> np.ndarray:
     """Sample instants 0, 1/fs, ... up to ``duration`` [s]."""
     check_real("duration", duration, low=0.0, low_open=True, unit=" [s]")
     check_real("sample_rate", sample_rate, low=0.0, low_open=True, unit=" [Hz]")
-    n = int(np.floor(duration * sample_rate + 1e-9)) + 1
+    product = duration * sample_rate
+    if not product < 5e7:  # also an overflow to inf
+        raise ParameterError(f"duration·sample_rate must give at most 5e7 samples, got {duration!r} s at "
+                             f"{sample_rate!r} Hz")
+    n = int(np.floor(product + 1e-9)) + 1
     if n < 2:
         raise ParameterError(f"duration·sample_rate must give at least 2 samples, got {duration!r} s at "
                              f"{sample_rate!r} Hz")
-    if n > 50_000_000:
-        raise ParameterError(f"duration·sample_rate must give at most 5e7 samples, got {n}")
     return np.arange(n) / sample_rate
 
 
