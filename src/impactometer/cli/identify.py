@@ -20,7 +20,7 @@ from .reading import DEFAULT_READER, ReaderOptions, reader_options
 if TYPE_CHECKING:
     from ..identify.result import Identification
 
-METHODS = ("peak-to-peak", "response-map")
+METHODS = ("peak-to-peak", "response-map", "model")
 VariantOpt = Annotated[str, typer.Option("--variant", help="robust (default) or paper.")]
 ContactOpt = Annotated[bool, typer.Option("--contact-phase", help="robust: add the contact-phase fit of the first "
                                                                    "two pulses to the final answer.")]
@@ -69,7 +69,8 @@ def equations_text(used: dict) -> str:
 @app.command()
 @reader_options
 def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording (csv, h5, tdms, mat).")],
-             method: Annotated[str, typer.Option("--method", help="peak-to-peak or response-map.")] = "peak-to-peak",
+             method: Annotated[str, typer.Option("--method", help="peak-to-peak, response-map or model.")
+                               ] = "peak-to-peak",
              variant: VariantOpt = "robust",
              contact_phase: ContactOpt = False,
              map_path: Annotated[Path | None, typer.Option("--map", help="Response map (.h5).")] = None,
@@ -77,6 +78,11 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
              allow_extrapolation: Annotated[bool, typer.Option(
                  "--allow-extrapolation",
                  help="response-map: answer outside the map's grid (else an error).")] = False,
+             rig: Annotated[str | None, typer.Option("--rig", help="model: the stand, a preset name or a TOML "
+                                                                   "file.")] = None,
+             pressure: Annotated[str | None, typer.Option("--pressure", help="model: charge pressure (e.g. 200kPa; "
+                                                                             "default the file's, else fitted).")
+                                 ] = None,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Path | None, typer.Option("--plot", help="Save a figure of the instants used.")] = None,
              force: Annotated[bool, typer.Option("--force", help="Overwrite the --plot file.")] = False,
@@ -86,6 +92,8 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
     if plot is not None and method != "peak-to-peak":
         raise ParameterError("--plot is available for --method peak-to-peak")
+    if (rig is not None or pressure is not None) and method != "model":
+        raise ParameterError("--rig and --pressure are options of --method model")
     output_path(plot, force, field="--plot", kind="figure")
     rec = reader.read(file)
     result: Identification
@@ -96,6 +104,12 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         from ..identify.response_map import identify_recording
 
         result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation)
+    elif method == "model":
+        from ..identify.model_fit import identify as identify_model
+        from ..units import parse_quantity
+
+        p0 = None if pressure is None else parse_quantity(pressure, "pressure", field="--pressure")
+        result = identify_model(rec, rig=rig, pressure=p0)
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 
@@ -105,6 +119,8 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         typer.echo(json.dumps(data))
     else:
         detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
+        if data.get("contact_law"):
+            detail += f", {data['contact_law']} contact, {data.get('path')}"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
         save_figure(result.plot(rec), plot)

@@ -342,7 +342,7 @@ def early_answer(cut: Segment | None, gravity: float) -> Identification | None:
 
 
 def identify_arrays(force, acceleration, sample_rate: float, start_time: float = 0.0, *, variant: str = "robust",
-                    gravity: float = GRAVITY, contact_phase: bool = False) -> Identification:
+                    gravity: float = GRAVITY, contact_phase: bool = False, early: bool = True) -> Identification:
     """Identify M1 and V0 from contact force [N] and kinematic piston acceleration [m/s²] arrays.
 
     Parameters
@@ -360,11 +360,15 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     contact_phase : bool
         ``robust`` only: combine the onset equations with the contact-phase fit of the first two pulses
         (see :func:`solve_robust`).
+    early : bool
+        ``robust`` only: also give the early answer (the model-based method, which needs the final one only as
+        its start, saves its cost).
 
     Returns
     -------
     Identification
-        For ``robust`` with an ``early`` answer (data up to the end of the second pulse).
+        For ``robust`` with an ``early`` answer (data up to the end of the second pulse) unless ``early`` is
+        False.
 
     Notes
     -----
@@ -375,14 +379,14 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
-    early = None
-    if variant == "robust":
-        early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
-    return solve(seg, variant, gravity, early=early, contact_phase=contact_phase)
+    first = None
+    if variant == "robust" and early:
+        first = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
+    return solve(seg, variant, gravity, early=first, contact_phase=contact_phase)
 
 
 def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY,
-             contact_phase: bool = False) -> Identification:
+             contact_phase: bool = False, early: bool = True) -> Identification:
     """Identify M1 and V0 from a :class:`~impactometer.recording.Recording` (see :func:`identify_arrays`)."""
     if not isinstance(recording, Recording):
         raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
@@ -398,7 +402,8 @@ def identify(recording: Recording, *, variant: str = "robust", gravity: float = 
     note = recording.units_note
     try:
         answer = identify_arrays(channels["contact_force"], channels["piston_acceleration"], recording.sample_rate,
-                                 recording.start_time, variant=variant, gravity=gravity, contact_phase=contact_phase)
+                                 recording.start_time, variant=variant, gravity=gravity, contact_phase=contact_phase,
+                                 early=early)
     except IdentificationError as exc:
         if note:
             raise IdentificationError(f"{exc}; {note}") from None
