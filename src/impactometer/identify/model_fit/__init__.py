@@ -26,9 +26,10 @@ from ...sensors import anti_alias_delay
 from ..plausibility import check_answer
 from ..pulses import noise_std
 from ..result import Identification
-from .fit import LawFit, Observed, fit_law, weighted_jacobian
+from .fit import LawFit, Observed, weighted_jacobian
 from .forward import check_uncertain, free_parameters, make_grid, make_layout, stand_values
 from .information import CramerRao, bound_of, covariance
+from .select import SCREEN_MARGIN, SCREEN_WINDOW, STAGES, Start, fit_laws
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2"]
 
@@ -47,6 +48,8 @@ PRESSURE_TOLERANCE = 0.02
 #: noise σ assumed for a channel without noise (a simulated record), as a fraction of its peak [-]
 NOISE_FLOOR = 1e-6
 CHANNELS = ("contact_force", "piston_acceleration")
+#: where a fitted pre-charge starts when the recording states none [Pa gauge]
+DEFAULT_PRESSURE_START = 200e3
 
 
 def _pressure(recording: Recording, pressure: float | None, rig: Rig) -> float | None:
@@ -210,28 +213,19 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         raise IdentificationError(f"the model fit starts from the robust answer, which failed: {exc}") from None
     start_time = robust.t00 - anti_alias_delay(design, recording.sample_rate)
     data = _observe(recording, design, robust.t00)
-    fits: dict[str, LawFit] = {}
-    failures: dict[str, str] = {}
-    for law in laws:
-        free = free_parameters(law, free_names)
-        layout = make_layout(rig, law, free, pressure=p0, contact_time=start_time, sample_rate=recording.sample_rate)
-        start = {"mass": robust.mass, "velocity": robust.velocity, "contact_time": start_time,
-                 **stand_values(rig, law, free)}
-        if p0 is None:
-            start["pressure_gauge"] = recording.metadata.get("pressure_gauge_Pa") or 200e3
-        try:
-            fits[law] = fit_law(data, layout, start)
-        except IdentificationError as exc:
-            failures[law] = str(exc)
-    selection = {law: fit.summary() for law, fit in fits.items()} | {law: {"error": e} for law, e in failures.items()}
-    common = {"model_selection": selection, "criterion": "BIC = chi2 + k ln N",
+    pressure_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_START
+    fits, selection = fit_laws(data, rig, laws, free_names, Start(mass=robust.mass, velocity=robust.velocity,
+                                                                   contact_time=start_time, pressure=p0,
+                                                                   pressure_start=pressure_start))
+    common = {"model_selection": selection, "criterion": "BIC = chi2 + k ln N, whole record; laws more than "
+              f"{SCREEN_MARGIN:g} above the best on the first {STAGES[SCREEN_WINDOW][0] * 1e3:g} ms dropped",
               "robust": {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
                          "velocity_std_m_s": robust.velocity_std},
               "noise_force_N": float(data.noise[0]), "noise_acceleration_m_s2": float(data.noise[1]),
               "anti_alias": design}
     best = min(fits.values(), key=lambda f: f.bic) if fits else None
     if best is None or best.reduced_chi2 > max_reduced_chi2:
-        reason = ("every contact law's fit failed: " + "; ".join(f"{k}: {v}" for k, v in failures.items())
+        reason = ("every contact law's fit failed: " + "; ".join(f"{k}: {v.get('error')}" for k, v in selection.items())
                   if best is None else
                   f"the best model ({best.law}) leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g}: "
                   "it does not describe this record, so the robust answer is given")

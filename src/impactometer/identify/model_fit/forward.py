@@ -27,9 +27,14 @@ from ...sensors import ANTI_ALIAS, causal_taps, internal_layout
 #: relative tolerance of the integrations of the fit (the model error it leaves is ~1e-9 of each channel, far
 #: below any sensor noise)
 FIT_RTOL = 1e-9
-#: budget of integration steps of one prediction (a pad record takes ~500; parameters far off, e.g. a contact
-#: thousands of times too stiff, are refused rather than integrated for seconds)
-MAX_FIT_STEPS = 200_000
+#: budget of integration steps of one prediction (a 50 ms record takes 450-560 at FIT_RTOL, whatever the law;
+#: parameters far off, e.g. a contact thousands of times too stiff, are refused rather than integrated for seconds)
+MAX_FIT_STEPS = 20_000
+#: packed parameter -> the range a trial point of a fit may take [SI]; outside it the model is not integrated (the
+#: fit steps back), so that no trial point far off costs seconds of integration or breaks the integrator
+TRIAL_RANGES = {d.MASS: (1e-3, 1e6), d.VELOCITY: (1e-4, 100.0), d.CONTACT_K: (1.0, 1e15),
+                d.CONTACT_C: (0.0, 1e15), d.FRICTION: (0.0, 1e6), d.FRICTION_SCALE: (1e-7, 10.0),
+                d.PISTON_MASS: (1e-3, 1e6), d.PRESSURE_GAUGE: (0.0, 1e9)}
 #: model channels predicted, in the order of the recorded channels (contact force, piston acceleration)
 CHANNEL_INDEX = np.array([d.CHANNELS.index("contact_force"), d.CHANNELS.index("a2")], dtype=np.int64)
 
@@ -58,12 +63,14 @@ def to_variable(value, kind: str, param: float):
     if kind == "log":
         return np.log(value + param)
     if kind == "logit":
+        value = np.clip(value, 1e-12, 1.0 - 1e-12)
         return np.log(value / (1.0 - value))
     return value / param
 
 
 def from_variable(x, kind: str, param: float):
     """Physical value of a fit variable (inverse of :func:`to_variable`)."""
+    x = np.clip(x, -700.0, 700.0)  # a trial point far off: a huge or tiny value, no overflow
     if kind == "log":
         return np.exp(x) - param
     if kind == "logit":
@@ -263,6 +270,13 @@ def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray) -> np.nda
         When the stand cannot carry the piston at a row's pressure or the integrator fails.
     """
     params = np.ascontiguousarray(params, dtype=float)
+    for index, (low, high) in TRIAL_RANGES.items():
+        bad = ~((params[:, index] >= low) & (params[:, index] <= high))
+        if bad.any():
+            raise IdentificationError(f"the model is not integrated at packed parameter {index} = "
+                                      f"{params[bad, index][0]!r}, outside [{low:g}, {high:g}]")
+    if not np.all(np.isfinite(contact_times)):
+        raise IdentificationError("the model is not integrated at a contact instant that is not finite")
     try:
         y0 = initial_states(params)
     except ParameterError as exc:
