@@ -157,9 +157,11 @@ def window(data: Observed, end: float) -> Observed:
     return replace(data, channels=data.channels[:, :n], grid=replace(data.grid, size=n))
 
 
-def fit_law(data: Observed, layout: Layout, start: dict[str, float]) -> LawFit:
+def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, evaluations: int = MAX_EVALUATIONS,
+            information: bool = True) -> LawFit:
     """Weighted least-squares fit of ``layout`` to ``data`` from ``start`` (physical values of its unknowns; the
-    offsets start from ``data.offsets``).
+    offsets start from ``data.offsets``), in at most ``evaluations`` residual evaluations; with ``information``
+    the covariance from the Jacobian at the optimum (else NaN: a window whose answer only starts the next).
 
     Raises
     ------
@@ -170,13 +172,15 @@ def fit_law(data: Observed, layout: Layout, start: dict[str, float]) -> LawFit:
     x0 = np.r_[layout.variables(start), data.offsets / data.noise]
     # Levenberg-Marquardt (MINPACK): the variables are unbounded by their transforms, and its QR of the Jacobian
     # costs a fraction of the SVDs the bounded trust-region method takes at every iteration
-    result = least_squares(model.residuals, x0, jac=model.jacobian, method="lm", max_nfev=MAX_EVALUATIONS,
+    result = least_squares(model.residuals, x0, jac=model.jacobian, method="lm", max_nfev=evaluations,
                            x_scale=1.0, ftol=TOLERANCE, xtol=TOLERANCE)
     if result.status < 0 or np.all(result.fun == PENALTY):
         raise IdentificationError(f"the {layout.law} fit failed: {result.message}")
     x = result.x
-    jac = model.jacobian(x)  # at the optimum
-    cov, rank = covariance(jac)
+    if information:
+        cov, rank = covariance(model.jacobian(x))  # at the optimum
+    else:
+        cov, rank = np.full((x.size, x.size), np.nan), 0
     q = len(layout.names)
     return LawFit(layout=layout, x=x, values=layout.values(x[:q]), offsets=x[q:] * data.noise, cov=cov, rank=rank,
                   chi2=float(np.dot(result.fun, result.fun)), residuals=data.size, evaluations=int(result.nfev),

@@ -311,10 +311,16 @@ def sensed(grid: Grid, internal: np.ndarray) -> np.ndarray:
 @njit(cache=True, error_model="numpy")
 def _fir_decimate(x, reversed_taps, first, step, out):
     """out[r, i] = Σ_m reversed_taps[m]·x[r, first + i·step + m]: a causal FIR evaluated at every ``step``-th
-    sample only."""
+    sample only (zero, uncomputed, where the window holds only the zeros before contact)."""
     for r in range(x.shape[0]):
+        nonzero = 0
+        while nonzero < x.shape[1] and x[r, nonzero] == 0.0:
+            nonzero += 1
         for i in range(out.shape[1]):
             k = first + i * step
+            if k + reversed_taps.size <= nonzero:
+                out[r, i] = 0.0
+                continue
             acc = 0.0
             for m in range(reversed_taps.size):
                 acc += reversed_taps[m] * x[r, k + m]

@@ -16,14 +16,17 @@ RANK_TOLERANCE = 1e-10
 def covariance(jacobian: np.ndarray) -> tuple[np.ndarray, int]:
     """Inverse Fisher information (JᵀJ)⁻¹ of a weighted Jacobian J (residuals/σ by variables) and its rank.
 
-    Computed stably: the columns are scaled to unit norm, the scaled matrix is decomposed (SVD) and inverted
+    Computed stably: the columns are scaled to unit norm, the scaled matrix is decomposed (QR, then the SVD of
+    its triangle) and inverted
     through its singular values, and the scaling is undone, so that variables of very different sizes lose no
     digits. Variables in a direction the record does not determine (a singular value below ``RANK_TOLERANCE`` of
     the largest) get an infinite variance.
     """
     scale = np.linalg.norm(jacobian, axis=0)
     scale[scale == 0.0] = 1.0
-    _, s, vt = np.linalg.svd(jacobian / scale, full_matrices=False)
+    # the triangle of a Householder QR has the singular values and right singular vectors of the tall matrix, at a
+    # fraction of the cost of its thin SVD (which builds the tall left factor)
+    _, s, vt = np.linalg.svd(np.linalg.qr(jacobian / scale, mode="r"))
     kept = s > RANK_TOLERANCE * s[0]
     cov = (vt[kept].T / s[kept] ** 2) @ vt[kept] / np.outer(scale, scale)
     if not kept.all():  # variables with a share in an undetermined direction are undetermined

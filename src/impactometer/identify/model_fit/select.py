@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .fit import LawFit, Observed, fit_law, window
+from .fit import MAX_EVALUATIONS, LawFit, Observed, fit_law, window
 from .forward import free_parameters, make_layout, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
@@ -27,6 +27,9 @@ SCREEN_WINDOW = 2
 #: a law whose BIC on the screening window exceeds the best law's by more than this is dropped [-] (a difference
 #: of 10 is "very strong" evidence on Kass and Raftery's scale; the wrong laws of the pad stand lose by 10^4)
 SCREEN_MARGIN = 100.0
+#: most residual evaluations of each window up to the screening one (the law of a pad record converges in 3-12;
+#: the wrong laws stop at the cap, far above the best)
+SCREEN_EVALUATIONS = 15
 
 
 @dataclass(frozen=True)
@@ -59,7 +62,8 @@ def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[s
                                contact_time=start.contact_time, sample_rate=data.grid.sample_rate)
                    for free_stand in (False, True)]
         try:
-            fit, values, offsets = _stages(data, layouts, values, data.offsets, STAGES[:SCREEN_WINDOW + 1], start)
+            fit, values, offsets = _stages(data, layouts, values, data.offsets, STAGES[:SCREEN_WINDOW + 1], start,
+                                           evaluations=SCREEN_EVALUATIONS)
         except IdentificationError as exc:
             report[law] = {"error": str(exc)}
             continue
@@ -84,12 +88,14 @@ def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[s
     return fits, report
 
 
-def _stages(data: Observed, layouts, values: dict, offsets, stages, start: Start):
+def _stages(data: Observed, layouts, values: dict, offsets, stages, start: Start, *,
+            evaluations: int = MAX_EVALUATIONS):
     """Fit the windows of ``stages`` in turn (None: the whole record), each from the last one's answer; returns the
-    last fit, its values and its offsets."""
+    last fit (its covariance only for the whole record), its values and its offsets."""
     fit = None
     for end, free_stand in stages:
         part = data if end is None else window(data, start.contact_time + end)
-        fit = fit_law(replace(part, offsets=offsets), layouts[free_stand], values)
+        fit = fit_law(replace(part, offsets=offsets), layouts[free_stand], values, evaluations=evaluations,
+                      information=end is None)
         values, offsets = {**values, **fit.values}, fit.offsets
     return fit, values, offsets
