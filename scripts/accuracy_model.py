@@ -68,8 +68,9 @@ def evaluate(stand: str, law: str, noise: float, seed: int, grid, duration: floa
         seconds = time.perf_counter() - start
         bound = cramer_rao(rec, rig=rig)
         robust = answer.details["robust"]
-        rows.append((answer.mass / mass - 1, answer.velocity / velocity - 1, robust["mass_kg"] / mass - 1,
-                     robust["velocity_m_s"] / velocity - 1, abs(answer.mass - mass) <= 2 * answer.mass_std,
+        rows.append((answer.mass / mass - 1, answer.velocity / velocity - 1,
+                     robust.get("mass_kg", np.nan) / mass - 1, robust.get("velocity_m_s", np.nan) / velocity - 1,
+                     abs(answer.mass - mass) <= 2 * answer.mass_std,
                      abs(answer.velocity - velocity) <= 2 * answer.velocity_std, bound.mass_relative,
                      bound.velocity_relative, answer.details.get("contact_law"), answer.details["path"], seconds))
     return rows
@@ -86,7 +87,8 @@ def summarise(stand: str, law: str, noise: float, rows: list) -> str:
     chosen = sum(r[8] == law for r in ok)
     fallbacks = sum(r[9] == "fallback" for r in ok)
     return (f"| {stand} | {law} | {noise:.0%} | {len(ok)} | {dm.mean():.3f} | {dm.max():.2f} | {dv.mean():.3f} | "
-            f"{dv.max():.3f} | {rm.mean():.2f} / {rv.mean():.3f} | {a[:, 4].mean():.0%} / {a[:, 5].mean():.0%} | "
+            f"{dv.max():.3f} | {np.nanmean(rm):.2f} / {np.nanmean(rv):.3f} | "
+            f"{a[:, 4].mean():.0%} / {a[:, 5].mean():.0%} | "
             f"{dm.mean() / crb_m.mean():.2f} / {dv.mean() / crb_v.mean():.2f} | {crb_m.mean():.3f} / "
             f"{crb_v.mean():.3f} | {chosen} | {fallbacks} | {refused} | "
             f"{np.median([r[10] for r in ok]) * 1e3:.0f} |")

@@ -118,6 +118,22 @@ def test_zero_phase_record_and_fitted_pressure():
     assert abs(answer.mass - 30.0) <= Z * answer.mass_std
 
 
+def test_a_start_from_a_grid_where_the_robust_answer_fails(monkeypatch):
+    import impactometer.identify.peak_to_peak as peak_to_peak
+
+    def refuse(*args, **kwargs):
+        raise IdentificationError("refused for the test")
+
+    rec = _record(20.0, 2.0, 115e3, 42)
+    monkeypatch.setattr(peak_to_peak, "identify", refuse)
+    answer = identify(rec, contact="hysteretic")
+    assert answer.details["start"]["from"] == "grid" and answer.details["robust"] == {"error": "refused for the test"}
+    assert abs(answer.mass - 20.0) <= Z * answer.mass_std
+    assert abs(answer.velocity - 2.0) <= Z * answer.velocity_std
+    with pytest.raises(IdentificationError, match="no answer: the robust method failed"):
+        identify(rec, contact="kelvin-voigt")
+
+
 def test_cramer_rao_bound_of_a_pad_record():
     rec = _record(30.0, 2.0, 200e3, 51)
     bound = cramer_rao(rec)
@@ -126,6 +142,7 @@ def test_cramer_rao_bound_of_a_pad_record():
     assert bound.at == "truth" and bound.contact_law == "hysteretic"
     fixed = cramer_rao(rec, uncertain=[])
     assert fixed.mass_std < bound.mass_std  # fewer unknowns, more precision
+    assert cramer_rao(rec, pressure_unknown=True).mass_std > bound.mass_std
 
 
 def test_bad_input_is_refused_in_one_line():

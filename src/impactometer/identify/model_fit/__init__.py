@@ -3,12 +3,13 @@ record, both channels and every sample, with the stand model of paper eqs. (1)-(
 
 The record is predicted through the stand model and the recording's own sensor model (:mod:`.forward`) and fitted
 by weighted least squares (:mod:`.fit`, each channel weighted by its noise σ from the pre-trigger), started from the
-robust peak-to-peak answer. Unknowns: M1, V0, the contact instant (between samples), both sensor offsets, the stand
-parameters marked uncertain (default: the contact law's parameters and the seal friction) and the charge pressure
-unless it is known. Each contact-law family of the project is fitted; the smallest BIC chooses. Standard errors come
-from the Fisher information at the optimum (:mod:`.information`), inflated by sqrt(χ²/dof) where that exceeds 1.
-When even the best law leaves χ²/dof above :data:`MAX_REDUCED_CHI2` (the model does not describe the record) the
-answer is the robust one, and its details say so and why.
+robust peak-to-peak answer (from a grid of impacts where that fails). Unknowns: M1, V0, the contact instant
+(between samples), both sensor offsets, the stand parameters marked uncertain (default: the contact law's parameters
+and the seal friction) and the charge pressure unless it is known. Each contact-law family of the project is fitted
+(:mod:`.select`); the smallest BIC chooses. Standard errors come from the Fisher information at the optimum
+(:mod:`.information`), inflated by sqrt(χ²/dof) where that exceeds 1. When even the best law leaves χ²/dof above
+:data:`MAX_REDUCED_CHI2` (the model does not describe the record) the answer is the robust one, and its details say
+so and why.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from ..result import Identification
 from .fit import LawFit, Observed, weighted_jacobian
 from .forward import check_uncertain, free_parameters, make_grid, make_layout, stand_values
 from .information import CramerRao, bound_of, covariance
-from .select import SCREEN_MARGIN, SCREEN_WINDOW, STAGES, Start, fit_laws
+from .select import SCREEN_MARGIN, SCREEN_WINDOW, STAGES, Start, fit_laws, grid_start
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2"]
 
@@ -48,6 +49,8 @@ PRESSURE_TOLERANCE = 0.02
 #: noise σ assumed for a channel without noise (a simulated record), as a fraction of its peak [-]
 NOISE_FLOOR = 1e-6
 CHANNELS = ("contact_force", "piston_acceleration")
+#: samples the contact instant starts before the crude trigger when the robust answer fails
+TRIGGER_LEAD = 2
 #: where a fitted pre-charge starts when the recording states none [Pa gauge]
 DEFAULT_PRESSURE_START = 200e3
 
@@ -118,8 +121,9 @@ def _observe(recording: Recording, design: str, contact_time: float) -> Observed
     return Observed(channels=data, noise=noise, grid=grid, offsets=np.median(data[:, :pre], axis=1))
 
 
-def _check_length(recording: Recording) -> None:
-    """IdentificationError for a record without the pre-trigger or the length after first contact the fit needs.
+def _check_length(recording: Recording) -> float:
+    """IdentificationError for a record without the pre-trigger or the length after first contact the fit needs;
+    else the crude instant of first contact [s].
 
     Checked before the robust answer (which fails on such records with reasons of its own): the first
     ``MIN_PRE_SAMPLES`` + ``GUARD_SAMPLES`` samples of the force must be quiet (within 8 σ of their median, σ by
@@ -136,10 +140,13 @@ def _check_length(recording: Recording) -> None:
                                   f"model fit needs at least {need} samples before first contact (the noise of "
                                   "each channel is measured there) -- record with a pre-trigger")
     above = np.flatnonzero(np.abs(force - level) > 10.0 * sd)
-    after = (force.size - 1 - (above[0] if above.size else 0)) / recording.sample_rate
+    if not above.size:
+        raise IdentificationError(f"{recording.source}: no impact: the force never leaves its noise ({sd:.3g} N)")
+    after = (force.size - 1 - above[0]) / recording.sample_rate
     if after < MIN_DURATION:
         raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
                                   f"the model fit needs at least {MIN_DURATION * 1e3:g} ms")
+    return recording.start_time + above[0] / recording.sample_rate
 
 
 def _channels_of(recording: Recording) -> None:
@@ -193,8 +200,9 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     ParameterError
         For a pressure that contradicts the metadata, an unknown uncertain parameter or another bad option.
     IdentificationError
-        For a record the fit cannot use (too short, no pre-trigger, a filter it cannot reproduce) or whose robust
-        answer, the start of the fit, fails.
+        For a record the fit cannot use (too short, no pre-trigger, a filter it cannot reproduce), or when
+        neither the robust answer nor the model (started from a grid of impacts when the robust answer fails)
+        gives one.
     """
     from ..peak_to_peak import identify as identify_robust
 
@@ -206,24 +214,36 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         raise ParameterError(f"max_reduced_chi2 must be a number >= 1, got {shown(max_reduced_chi2)}")
     p0 = _pressure(recording, pressure, rig)
     design = _design(recording)
-    _check_length(recording)
+    trigger = _check_length(recording)
+    pressure_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_START
+    delay = anti_alias_delay(design, recording.sample_rate)
     try:
         robust = identify_robust(recording, early=False)
     except IdentificationError as exc:
-        raise IdentificationError(f"the model fit starts from the robust answer, which failed: {exc}") from None
-    start_time = robust.t00 - anti_alias_delay(design, recording.sample_rate)
-    data = _observe(recording, design, robust.t00)
-    pressure_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_START
-    fits, selection = fit_laws(data, rig, laws, free_names, Start(mass=robust.mass, velocity=robust.velocity,
-                                                                   contact_time=start_time, pressure=p0,
-                                                                   pressure_start=pressure_start))
+        robust, failed = None, str(exc)
+    if robust is not None:
+        data = _observe(recording, design, robust.t00)
+        start = Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay, pressure=p0,
+                      pressure_start=pressure_start)
+    else:  # a few samples before the crude trigger: the first window's fit finds the instant
+        data = _observe(recording, design, trigger)
+        start = grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0, pressure_start)
+    fits, selection = fit_laws(data, rig, laws, free_names, start)
     common = {"model_selection": selection, "criterion": "BIC = chi2 + k ln N, whole record; laws more than "
               f"{SCREEN_MARGIN:g} above the best on the first {STAGES[SCREEN_WINDOW][0] * 1e3:g} ms dropped",
-              "robust": {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
-                         "velocity_std_m_s": robust.velocity_std},
+              "start": {"mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time,
+                        "from": "robust" if robust is not None else "grid"},
+              "robust": {"error": failed} if robust is None else
+              {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
+               "velocity_std_m_s": robust.velocity_std},
               "noise_force_N": float(data.noise[0]), "noise_acceleration_m_s2": float(data.noise[1]),
               "anti_alias": design}
     best = min(fits.values(), key=lambda f: f.bic) if fits else None
+    if robust is None and (best is None or best.reduced_chi2 > max_reduced_chi2):
+        raise IdentificationError(f"{recording.source}: no answer: the robust method failed ({failed}) and the "
+                                  "model fit, started from a grid, " + (
+                                      "failed for every contact law" if best is None else
+                                      f"leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g}"))
     if best is None or best.reduced_chi2 > max_reduced_chi2:
         reason = ("every contact law's fit failed: " + "; ".join(f"{k}: {v.get('error')}" for k, v in selection.items())
                   if best is None else
@@ -271,7 +291,8 @@ def _unknowns(names: Sequence[str]) -> tuple[str, ...]:
 
 def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: float | None = None,
                contact_time: float = 0.0, rig: Rig | str | None = None, pressure: float | None = None,
-               uncertain: Sequence[str] | None = None, at: str = "truth") -> CramerRao:
+               uncertain: Sequence[str] | None = None, pressure_unknown: bool = False,
+               at: str = "truth") -> CramerRao:
     """Cramér-Rao bound of M1 and V0 for ``recording`` under the stand model, at a given impact.
 
     Every unknown of the fit is estimated alongside (the contact instant, the stand parameters marked uncertain,
@@ -290,7 +311,10 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
     rig : Rig or str, optional
         The stand, with the contact law and the values of its parameters (default ``drop-stand``).
     pressure, uncertain
-        As in :func:`identify`.
+        As in :func:`identify`; the pressure is where the bound is evaluated [Pa gauge] (default the metadata's).
+    pressure_unknown : bool
+        Count the pre-charge among the unknowns (as :func:`identify` does when neither ``pressure`` nor the
+        metadata gives it).
     at : str
         Label of the point: ``"truth"`` or ``"estimate"``.
 
@@ -314,7 +338,8 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
                              "is evaluated at a known impact on a known stand")
     design = _design(recording)
     data = _observe(recording, design, contact_time + anti_alias_delay(design, recording.sample_rate))
-    layout = make_layout(rig, law, free, pressure=p0, contact_time=contact_time, sample_rate=recording.sample_rate)
-    point = {**values, "contact_time": contact_time, **stand_values(rig, law, free)}
+    layout = make_layout(rig, law, free, pressure=None if pressure_unknown else p0, contact_time=contact_time,
+                         sample_rate=recording.sample_rate)
+    point = {**values, "contact_time": contact_time, **stand_values(rig, law, free), "pressure_gauge": p0}
     cov, _ = covariance(weighted_jacobian(data, layout, point))
     return bound_of(cov, values["mass"], values["velocity"], law=law, at=at, unknowns=_unknowns(layout.names))

@@ -14,9 +14,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from ...errors import IdentificationError
 from ...rig import Rig
-from .fit import MAX_EVALUATIONS, LawFit, Observed, fit_law, window
+from .fit import MAX_EVALUATIONS, LawFit, Observed, _Model, fit_law, window
 from .forward import free_parameters, make_layout, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
@@ -99,3 +101,31 @@ def _stages(data: Observed, layouts, values: dict, offsets, stages, start: Start
                       information=end is None)
         values, offsets = {**values, **fit.values}, fit.offsets
     return fit, values, offsets
+
+
+#: the grid of impacts a start is sought on when the robust answer fails: M1 [kg] × V0 [m/s], geometric
+START_MASSES = np.geomspace(2.0, 200.0, 9)
+START_VELOCITIES = np.geomspace(0.3, 8.0, 9)
+
+
+def grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | None,
+               pressure_start: float) -> Start:
+    """A start for :func:`fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
+    :data:`START_VELOCITIES` whose prediction of the first window (``STAGES[0]``) with the stand's own law and
+    parameters fits best (offsets from the pre-trigger), first contact at ``contact_time`` [s]."""
+    law = rig.contact.law
+    layout = make_layout(rig, law, (), pressure=pressure, contact_time=contact_time,
+                         sample_rate=data.grid.sample_rate)
+    model = _Model(window(data, contact_time + STAGES[0][0]), layout)
+    best, chi2 = None, np.inf
+    for mass in START_MASSES:
+        for velocity in START_VELOCITIES:
+            values = {"mass": mass, "velocity": velocity, "contact_time": contact_time}
+            if pressure is None:
+                values["pressure_gauge"] = pressure_start
+            x = np.r_[layout.variables(values), data.offsets / data.noise]
+            r = model.residuals(x)
+            if float(r @ r) < chi2:
+                best, chi2 = (mass, velocity), float(r @ r)
+    return Start(mass=float(best[0]), velocity=float(best[1]), contact_time=contact_time, pressure=pressure,
+                 pressure_start=pressure_start)
