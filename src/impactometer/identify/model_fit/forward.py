@@ -70,11 +70,10 @@ def to_variable(value, kind: str, param: float):
 
 def from_variable(x, kind: str, param: float):
     """Physical value of a fit variable (inverse of :func:`to_variable`)."""
-    x = np.clip(x, -700.0, 700.0)  # a trial point far off: a huge or tiny value, no overflow
-    if kind == "log":
-        return np.exp(x) - param
-    if kind == "logit":
-        return 1.0 / (1.0 + np.exp(-x))
+    if kind == "log":  # a trial point far off: a huge or tiny value, no overflow
+        return np.exp(np.clip(x, -700.0, 700.0)) - param
+    if kind == "logit":  # e within [1e-13, 1 - 1e-13]: k1/e² stays finite
+        return 1.0 / (1.0 + np.exp(-np.clip(x, -30.0, 30.0)))
     return x * param
 
 

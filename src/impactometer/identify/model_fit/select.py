@@ -31,7 +31,7 @@ SCREEN_WINDOW = 2
 SCREEN_MARGIN = 100.0
 #: most residual evaluations of each window up to the screening one (the law of a pad record converges in 3-12;
 #: the wrong laws stop at the cap, far above the best)
-SCREEN_EVALUATIONS = 15
+SCREEN_EVALUATIONS = 8
 
 
 @dataclass(frozen=True)
