@@ -82,6 +82,19 @@ def test_a_fit_restricted_to_the_wrong_law_falls_back():
     _never_much_worse(answer, robust, 30.0, 2.0)
 
 
+def test_a_pad_with_other_parameters_is_fitted():
+    # the contact's parameters are fitted: another pad is within the family
+    rig = get_rig().replace(**{"contact.stiffness": 1.2e6, "contact.restitution": 0.55})
+    rec = _record(30.0, 2.0, 100e3, 33, rig)
+    answer = identify(rec)
+    assert answer.details["path"] == "ml" and answer.details["contact_law"] == "hysteretic"
+    assert abs(answer.mass - 30.0) <= Z * answer.mass_std
+    assert abs(answer.velocity - 2.0) <= Z * answer.velocity_std
+    fitted = answer.details["parameters"]["contact.stiffness"]
+    assert abs(fitted["value"] - 1.2e6) <= Z * fitted["std"]
+    assert any("other parameters" in w for w in answer.warnings)  # the record states another stand
+
+
 def test_a_pad_outside_the_fitted_family_is_flagged():
     # another pad, its parameters held at the default stand's: the model cannot describe the record
     rig = get_rig().replace(**{"contact.stiffness": 1.2e6, "contact.restitution": 0.55})
