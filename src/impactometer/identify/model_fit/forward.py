@@ -184,16 +184,20 @@ class Layout:
 
 
 def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | None, contact_time: float,
-                sample_rate: float) -> Layout:
+                sample_rate: float, mass: float | None = None) -> Layout:
     """The :class:`Layout` of a fit on ``rig`` with contact ``law`` freeing the stand parameters ``free``, the
     charge pressure known (``pressure`` [Pa gauge]) or fitted (None; the variable is ln of the absolute pressure),
-    counting the contact instant from ``contact_time`` [s]."""
+    counting the contact instant from ``contact_time`` [s]; M1 held at ``mass`` [kg] when that is given."""
     stand = rig if rig.contact.law == law else rig.with_contact(law)
     base = pack(stand, Scenario(mass=1.0, velocity=1.0, pressure_gauge=pressure or 0.0))
     if law == "hysteretic":  # packed as e (see Layout.packed)
         base[d.CONTACT_C] = float(stand.contact.restitution)
-    names = [*CORE_PARAMETERS, *free]
-    specs = [*CORE_PARAMETERS.values(), *(STAND_PARAMETERS[name] for name in free)]
+    core = dict(CORE_PARAMETERS)
+    if mass is not None:
+        base[d.MASS] = mass
+        del core["mass"]
+    names = [*core, *free]
+    specs = [*core.values(), *(STAND_PARAMETERS[name] for name in free)]
     if pressure is None:
         names.append("pressure_gauge")
         specs.append((d.PRESSURE_GAUGE, "log", rig.gas.atmospheric_pressure))

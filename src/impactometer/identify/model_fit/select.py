@@ -4,12 +4,13 @@ Each law is fitted by continuation in the record's length (:data:`STAGES`): the 
 dozens of contact pulses long, has local minima a start a few per cent off falls into (on a 10 kg, 3 m/s pad
 record started from the robust answer, 2.6 % and 2.1 % off, the whole-record fit stopped at chi2/dof = 130, or 1.006
 after 40 evaluations, against 0.983 from the truth); the first pulse alone has none of them. The windows up to
-15 ms fit M1, V0 and the contact instant with the stand parameters held: with the contact's parameters free, the
+8 ms fit M1, V0 and the contact instant with the stand parameters held: with the contact's parameters free, the
 first pulses hardly tell M1 from the contact (a 10 kg, 3 m/s Hunt-Crossley record fitted 29 kg, 2.43 m/s on its
-first 20 ms as well as the truth, and the whole record never came back: chi2/dof = 113). From 30 ms on every unknown
-is free. On the 15 ms window the laws are compared by BIC, and a law whose BIC exceeds the best by more than
-``SCREEN_MARGIN`` is not carried to the whole record (its full fit would cost the most and lose anyway); the
-whole-record BIC chooses among the others.
+first 20 ms as well as the truth, and the whole record never came back: chi2/dof = 113); so the 15 ms window frees
+the stand parameters with M1 held (a stand whose pad differs from the one assumed gets its pad before M1 is
+freed), and from 30 ms on every unknown is free. On the 15 ms window the laws are compared by BIC, and a law
+whose BIC exceeds the best by more than ``SCREEN_MARGIN`` is not carried to the whole record (its full fit would
+cost the most and lose anyway); the whole-record BIC chooses among the others.
 """
 
 from __future__ import annotations
@@ -25,18 +26,19 @@ from .forward import free_parameters, make_layout, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
 #: the whole record follows
-STAGES = ((0.004, False), (0.008, False), (0.015, False), (0.03, True))
+STAGES = ((0.004, "core"), (0.008, "core"), (0.015, "stand"), (0.03, "all"))
 #: the stage on which the laws are screened (index into STAGES)
 SCREEN_WINDOW = 2
 #: a law whose BIC on the screening window exceeds the best law's by more than this is dropped [-] (a difference
 #: of 10 is "very strong" evidence on Kass and Raftery's scale; the wrong laws of the pad stand lose by 10^4)
 SCREEN_MARGIN = 100.0
 #: a whole-record fit that leaves χ²/dof above this, or stops before it converges, is tried again from the start
-#: with the finer windows of FINE_STAGES (light, fast impacts bounce dozens of times: 2 ms steps of the window
-#: keep each new pulse within reach)
+#: with the finer windows of FINE_STAGES, the stand parameters free from the first (M1 held up to 20 ms): light,
+#: fast impacts bounce dozens of times (2 ms steps of the window keep each new pulse within reach), and a pad far
+#: from the one assumed (3.6 times stiffer, e = 0.25) leads the first windows astray when it is held
 RETRY_REDUCED_CHI2 = 1.1
-FINE_STAGES = (*((end, False) for end in (0.002, 0.004, 0.006, 0.008, 0.011, 0.015, 0.02, 0.025)),
-               *((end, True) for end in (0.03, 0.035, 0.04, 0.045)))
+FINE_STAGES = (*((end, "stand") for end in (0.002, 0.004, 0.006, 0.008, 0.011, 0.015, 0.02)),
+               *((end, "all") for end in (0.025, 0.03, 0.035, 0.04, 0.045)))
 #: most residual evaluations of each window up to the screening one (the law of a pad record converges in 3-12;
 #: the wrong laws stop at the cap, far above the best)
 SCREEN_EVALUATIONS = 8
@@ -68,9 +70,7 @@ def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[s
                   **stand_values(rig, law, free)}
         if start.pressure is None:
             values["pressure_gauge"] = start.pressure_start
-        layouts = [make_layout(rig, law, free if free_stand else (), pressure=start.pressure,
-                               contact_time=start.contact_time, sample_rate=data.grid.sample_rate)
-                   for free_stand in (False, True)]
+        layouts = _Layouts(rig, law, free, start, data.grid.sample_rate)
         try:
             fit, values, offsets = _stages(data, layouts, values, data.offsets, STAGES[:SCREEN_WINDOW + 1], start,
                                            evaluations=SCREEN_EVALUATIONS)
@@ -89,7 +89,7 @@ def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[s
                                                 f"{fit.bic - best:.4g} > {SCREEN_MARGIN:g}"}
             continue
         try:
-            fits[law], _, _ = _stages(data, layouts, values, offsets, (*STAGES[SCREEN_WINDOW + 1:], (None, True)),
+            fits[law], _, _ = _stages(data, layouts, values, offsets, (*STAGES[SCREEN_WINDOW + 1:], (None, "all")),
                                       start)
         except IdentificationError as exc:
             report[law] = {**screen, "error": str(exc)}
@@ -101,6 +101,22 @@ def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[s
     return fits, report
 
 
+class _Layouts:
+    """The layouts of one law's windows: ``core`` (M1, V0, contact instant; the stand held), ``stand`` (V0, the
+    contact instant and the stand parameters; M1 held at its last value) and ``all``."""
+
+    def __init__(self, rig: Rig, law: str, free: tuple[str, ...], start: Start, sample_rate: float):
+        self.rig, self.law, self.free, self.start, self.sample_rate = rig, law, free, start, sample_rate
+        self.fixed = {kind: self._make(() if kind == "core" else free) for kind in ("core", "all")}
+
+    def _make(self, free: tuple[str, ...], mass: float | None = None):
+        return make_layout(self.rig, self.law, free, pressure=self.start.pressure,
+                           contact_time=self.start.contact_time, sample_rate=self.sample_rate, mass=mass)
+
+    def __call__(self, kind: str, values: dict):
+        return self._make(self.free, values["mass"]) if kind == "stand" else self.fixed[kind]
+
+
 def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
     """The fit of :data:`FINE_STAGES` from the start, where ``fit`` stopped before it converged or leaves
     χ²/dof above ``RETRY_REDUCED_CHI2`` and the finer continuation does better; else None."""
@@ -109,7 +125,7 @@ def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
     values = {name: value for name, value in fit.values.items() if name not in ("mass", "velocity", "contact_time")}
     values.update(mass=start.mass, velocity=start.velocity, contact_time=start.contact_time)
     try:
-        other, _, _ = _stages(data, layouts, values, data.offsets, (*FINE_STAGES, (None, True)), start)
+        other, _, _ = _stages(data, layouts, values, data.offsets, (*FINE_STAGES, (None, "all")), start)
     except IdentificationError:
         return None
     return other if other.chi2 < fit.chi2 else None
@@ -120,9 +136,9 @@ def _stages(data: Observed, layouts, values: dict, offsets, stages, start: Start
     """Fit the windows of ``stages`` in turn (None: the whole record), each from the last one's answer; returns the
     last fit (its covariance only for the whole record), its values and its offsets."""
     fit = None
-    for end, free_stand in stages:
+    for end, kind in stages:
         part = data if end is None else window(data, start.contact_time + end)
-        fit = fit_law(replace(part, offsets=offsets), layouts[free_stand], values, evaluations=evaluations,
+        fit = fit_law(replace(part, offsets=offsets), layouts(kind, values), values, evaluations=evaluations,
                       information=end is None)
         values, offsets = {**values, **fit.values}, fit.offsets
     return fit, values, offsets
