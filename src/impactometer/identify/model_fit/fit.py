@@ -177,8 +177,8 @@ def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, evaluati
     if result.status < 0 or np.all(result.fun == PENALTY):
         raise IdentificationError(f"the {layout.law} fit failed: {result.message}")
     x = result.x
-    if information:
-        cov, rank = covariance(model.jacobian(x))  # at the optimum
+    if information:  # scipy's answer holds the Jacobian at the optimum (it evaluates it there after MINPACK)
+        cov, rank = covariance(result.jac)
     else:
         cov, rank = np.full((x.size, x.size), np.nan), 0
     q = len(layout.names)
