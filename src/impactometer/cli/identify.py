@@ -120,7 +120,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     else:
         detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
         if data.get("contact_law"):
-            detail += f", {data['contact_law']} contact, {data.get('path')}"
+            detail += f", {data['contact_law']} contact"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
         save_figure(result.plot(rec), plot)
