@@ -59,8 +59,7 @@ def _zero_phase(x: np.ndarray, factor: int) -> np.ndarray:
 
 
 def causal_taps(factor: int) -> np.ndarray:
-    """Taps of the causal anti-alias FIR at ``factor`` times the output rate (``CAUSAL_PERIODS`` output periods
-    long, linear phase)."""
+    """Taps of the causal anti-alias FIR at ``factor`` times the output rate (also the model fit's)."""
     return signal.firwin(CAUSAL_PERIODS * factor + 1, 2.0 * CUTOFF_FRACTION / factor, window=("kaiser", 8.0))
 
 
@@ -80,19 +79,9 @@ def anti_alias_delay(anti_alias: str | bool, sample_rate: float) -> float:
 
 
 def internal_layout(design: str, sample_rate: float) -> tuple[int, int]:
-    """How :func:`record_batch` simulates for an anti-alias ``design`` (a name of :data:`ANTI_ALIAS`) at the output
-    ``sample_rate`` [Hz]: (decimation factor, samples simulated beyond each end for the filter to settle [internal
-    samples])."""
-    if design == "none":
-        return 1, 0
-    factor = max(4, math.ceil(MIN_INTERNAL_RATE / sample_rate))
-    return factor, (CAUSAL_PERIODS + 16) * factor
-
-
-def anti_alias_design(anti_alias: str | bool) -> str:
-    """The design name (``"causal"``, ``"zero-phase"``, ``"none"``) of an ``anti_alias`` option; ParameterError for
-    another value."""
-    return _design(anti_alias)
+    """(decimation factor, internal samples simulated beyond each end) of :func:`record_batch` for ``design``."""
+    factor = 1 if design == "none" else max(4, math.ceil(MIN_INTERNAL_RATE / sample_rate))
+    return factor, 0 if design == "none" else (CAUSAL_PERIODS + 16) * factor
 
 
 def _design(anti_alias: str | bool) -> str:
