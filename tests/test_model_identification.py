@@ -138,7 +138,7 @@ def test_a_start_from_a_grid_where_the_robust_answer_fails(monkeypatch):
         raise IdentificationError("refused for the test")
 
     rec = _record(20.0, 2.0, 115e3, 42)
-    monkeypatch.setattr(peak_to_peak, "identify", refuse)
+    monkeypatch.setattr(peak_to_peak, "identify_arrays", refuse)
     answer = identify(rec, contact="hysteretic")
     assert answer.details["start"]["from"] == "grid" and answer.details["robust"] == {"error": "refused for the test"}
     assert abs(answer.mass - 20.0) <= Z * answer.mass_std

@@ -204,7 +204,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         neither the robust answer nor the model (started from a grid of impacts when the robust answer fails)
         gives one.
     """
-    from ..peak_to_peak import identify as identify_robust
+    from ..peak_to_peak import identify_arrays as identify_robust
 
     _channels_of(recording)
     rig = get_rig(rig)
@@ -218,7 +218,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     pressure_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_START
     delay = anti_alias_delay(design, recording.sample_rate)
     try:
-        robust = identify_robust(recording, early=False)
+        robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
+                                 recording.start_time, early=False)
     except IdentificationError as exc:
         robust, failed = None, str(exc)
     if robust is not None:

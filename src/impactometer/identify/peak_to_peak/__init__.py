@@ -357,18 +357,14 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
         The robust method (default) or eqs. (3)-(5) of the reference paper.
     gravity : float
         Gravitational acceleration [m/s²].
-    contact_phase : bool
+    contact_phase, early : bool
         ``robust`` only: combine the onset equations with the contact-phase fit of the first two pulses
-        (see :func:`solve_robust`).
-    early : bool
-        ``robust`` only: also give the early answer (the model-based method, which needs the final one only as
-        its start, saves its cost).
+        (see :func:`solve_robust`); give the early answer (default True; the model fit needs the final one only).
 
     Returns
     -------
     Identification
-        For ``robust`` with an ``early`` answer (data up to the end of the second pulse) unless ``early`` is
-        False.
+        For ``robust`` with an ``early`` answer (data up to the end of the second pulse).
 
     Notes
     -----
@@ -379,14 +375,13 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
-    first = None
-    if variant == "robust" and early:
-        first = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
+    first = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache),
+                         gravity) if variant == "robust" and early else None
     return solve(seg, variant, gravity, early=first, contact_phase=contact_phase)
 
 
 def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY,
-             contact_phase: bool = False, early: bool = True) -> Identification:
+             contact_phase: bool = False) -> Identification:
     """Identify M1 and V0 from a :class:`~impactometer.recording.Recording` (see :func:`identify_arrays`)."""
     if not isinstance(recording, Recording):
         raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
@@ -402,8 +397,7 @@ def identify(recording: Recording, *, variant: str = "robust", gravity: float = 
     note = recording.units_note
     try:
         answer = identify_arrays(channels["contact_force"], channels["piston_acceleration"], recording.sample_rate,
-                                 recording.start_time, variant=variant, gravity=gravity, contact_phase=contact_phase,
-                                 early=early)
+                                 recording.start_time, variant=variant, gravity=gravity, contact_phase=contact_phase)
     except IdentificationError as exc:
         if note:
             raise IdentificationError(f"{exc}; {note}") from None
