@@ -27,7 +27,7 @@ REPORTED_DETAILS = {"t00": "t00_s", "t01": "t01_s", "t11": "t11_s", "onsets": "o
                     "feature_set": "feature_set", "pressure_gauge": "pressure_gauge_Pa",
                     "extrapolated": "extrapolated", "path": "path", "reason": "reason", "contact_law": "contact_law",
                     "criterion": "criterion", "model_selection": "model_selection", "reduced_chi2": "reduced_chi2",
-                    "parameters": "parameters", "crb": "crb", "robust": "robust"}
+                    "parameters": "parameters", "crb": "crb", "robust": "robust", "start": "start"}
 #: JSON key of the part of the method's name after its family: the peak-to-peak variant, the map's search
 VARIANT_KEYS = {"peak-to-peak": "variant", "response-map": "search", "model": "variant"}
 
@@ -60,7 +60,8 @@ class Identification:
         map: ``residual`` (eq. (7) [-]), ``features``, ``feature_set``, ``pressure_gauge`` [Pa gauge],
         ``extrapolated``. Model: ``path`` (``ml`` or ``fallback``) and ``reason``, ``contact_law``,
         ``criterion`` and ``model_selection`` (each law's fit), ``reduced_chi2``, ``parameters`` (the stand
-        parameters fitted), ``crb`` (Cramér-Rao σ of M1 and V0), ``robust`` (the start).
+        parameters fitted), ``crb`` (Cramér-Rao σ of M1 and V0), ``robust`` (its answer or why it failed),
+        ``start`` (where the fit started: the robust answer or a grid).
     error : str or None
         Why there is no answer (or why it never became available), where a caller keeps a failed identification
         (the closed loop); None for an answer.
