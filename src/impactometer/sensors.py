@@ -58,9 +58,13 @@ def _zero_phase(x: np.ndarray, factor: int) -> np.ndarray:
     return signal.sosfiltfilt(sos, x, axis=-1)
 
 
+def causal_taps(factor: int) -> np.ndarray:
+    """Taps of the causal anti-alias FIR at ``factor`` times the output rate (also the model fit's)."""
+    return signal.firwin(CAUSAL_PERIODS * factor + 1, 2.0 * CUTOFF_FRACTION / factor, window=("kaiser", 8.0))
+
+
 def _causal(x: np.ndarray, factor: int) -> np.ndarray:
-    taps = signal.firwin(CAUSAL_PERIODS * factor + 1, 2.0 * CUTOFF_FRACTION / factor, window=("kaiser", 8.0))
-    return signal.lfilter(taps, [1.0], x, axis=-1)
+    return signal.lfilter(causal_taps(factor), [1.0], x, axis=-1)
 
 
 #: anti-alias design name -> filter(x at the internal rate, decimation factor) -> filtered x
@@ -72,6 +76,12 @@ DEFAULT_ANTI_ALIAS = "causal"
 def anti_alias_delay(anti_alias: str | bool, sample_rate: float) -> float:
     """Delay the anti-alias design adds to every channel [s] (0 except for ``"causal"``)."""
     return CAUSAL_PERIODS / 2 / sample_rate if _design(anti_alias) == "causal" else 0.0
+
+
+def internal_layout(design: str, sample_rate: float) -> tuple[int, int]:
+    """(decimation factor, internal samples simulated beyond each end) of :func:`record_batch` for ``design``."""
+    factor = 1 if design == "none" else max(4, math.ceil(MIN_INTERNAL_RATE / sample_rate))
+    return factor, 0 if design == "none" else (CAUSAL_PERIODS + 16) * factor
 
 
 def _design(anti_alias: str | bool) -> str:
@@ -280,11 +290,10 @@ def record_batch(mass, velocity, pressure_gauge, rig: Rig | None = None, *, samp
         raise ParameterError(f"extra_channels must not repeat a recorded channel, got {extras}")
     levels = noise_levels(noise, names)
 
-    factor = 1 if design == "none" else max(4, math.ceil(MIN_INTERNAL_RATE / sample_rate))
+    factor, pad = internal_layout(design, sample_rate)  # pad: filter settling before and after
     rate = factor * sample_rate
     n_pre = int(round(pre_trigger * sample_rate))
     n_out = int(math.floor(duration * sample_rate + 1e-9)) + 1
-    pad = 0 if design == "none" else (CAUSAL_PERIODS + 16) * factor  # filter settling before and after
     batch = simulate_batch(mass, velocity, pressure_gauge, rig, overrides=overrides,
                            duration=(n_out - 1) / sample_rate + pad / rate, sample_rate=rate,
                            channels=tuple(model_channels))

@@ -20,7 +20,7 @@ from .reading import DEFAULT_READER, ReaderOptions, reader_options
 if TYPE_CHECKING:
     from ..identify.result import Identification
 
-METHODS = ("peak-to-peak", "response-map")
+METHODS = ("peak-to-peak", "response-map", "model")
 VariantOpt = Annotated[str, typer.Option("--variant", metavar="NAME", help="robust (default) or paper.")]
 ContactOpt = Annotated[bool, typer.Option("--contact-phase", help="robust: add the contact-phase fit of the first "
                                                                    "two pulses to the final answer.")]
@@ -71,8 +71,8 @@ def equations_text(used: dict) -> str:
 @app.command()
 @reader_options
 def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording (csv, h5, tdms, mat).")],
-             method: Annotated[str, typer.Option("--method", metavar="NAME", help="peak-to-peak or response-map.")]
-             = "peak-to-peak",
+             method: Annotated[str, typer.Option("--method", metavar="NAME",
+                                                 help="peak-to-peak, response-map or model.")] = "peak-to-peak",
              variant: VariantOpt = "robust",
              contact_phase: ContactOpt = False,
              map_path: Annotated[Path | None, typer.Option("--map", metavar="FILE", help="Response map (.h5).")]
@@ -82,9 +82,12 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
              allow_extrapolation: Annotated[bool, typer.Option(
                  "--allow-extrapolation",
                  help="response-map: answer outside the map's grid (else an error).")] = False,
+             rig: Annotated[str | None, typer.Option("--rig", metavar="STAND", help="model: the stand, a preset name "
+                                                                                 "or a TOML file.")] = None,
              pressure: Annotated[str | None, typer.Option(
                  "--pressure", metavar="PRESSURE",
-                 help="response-map: charge pressure p0, gauge (e.g. 200kPa); else the file's statement.")] = None,
+                 help="response-map, model: charge pressure p0, gauge (e.g. 200kPa); else the file's statement "
+                      "(model: else fitted).")] = None,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Path | None, typer.Option("--plot", metavar="FILE",
                                                        help="Save a figure of the instants used.")] = None,
@@ -95,8 +98,10 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError(f"--method must be one of {list(METHODS)}, got {method!r}")
     if plot is not None and method != "peak-to-peak":
         raise ParameterError("--plot is available for --method peak-to-peak")
-    if pressure is not None and method != "response-map":
-        raise ParameterError("--pressure is available for --method response-map")
+    if pressure is not None and method == "peak-to-peak":
+        raise ParameterError("--pressure is an option of --method response-map and --method model")
+    if rig is not None and method != "model":
+        raise ParameterError("--rig is an option of --method model")
     pressure_gauge = quantity(pressure, "pressure", "--pressure")
     output_path(plot, overwrite, field="--plot", kind="figure")
     rec = reader.read(file)
@@ -110,6 +115,12 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         with given(search=search, pressure=pressure), announce_compilation("searching the response map"):
             result = identify_recording(rec, map_path, search=search, allow_extrapolation=allow_extrapolation,
                                         pressure_gauge=pressure_gauge)
+    elif method == "model":
+        from ..identify.model_fit import identify as identify_model
+
+        with given(rig=rig, pressure=pressure), \
+                announce_compilation("fitting the stand model to the record", compile_time="about 10-40 s"):
+            result = identify_model(rec, rig=rig, pressure=pressure_gauge)
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 
@@ -120,6 +131,8 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         typer.echo(json.dumps(data))
     else:
         detail = data.get("variant") or f"{data.get('feature_set', '')}, {data.get('search', '')} search"
+        if data.get("contact_law"):
+            detail += f", {data['contact_law']} contact"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
         save_figure(result.plot(rec), plot)

@@ -2,8 +2,9 @@
 answer was known, the early answer, warnings and the method's own details.
 
 Every method returns an :class:`Identification`: the peak-to-peak method (``peak-to-peak/robust``,
-``peak-to-peak/paper``, batch or streaming), the response map (``response-map/fast``, ``response-map/brute``), and
-the closed loop's oracle (``oracle``), which knows the true impact.
+``peak-to-peak/paper``, batch or streaming), the response map (``response-map/fast``, ``response-map/brute``), the
+model-based fit of the whole record (``model/ml``, or ``model/fallback`` when it gives the robust answer), and the
+closed loop's oracle (``oracle``), which knows the true impact.
 
 Unknown numbers are NaN (a standard error the method does not give, a time never reached); :meth:`to_dict` gives
 them as None, ready for JSON.
@@ -24,9 +25,11 @@ VARIANTS = ("robust", "paper")
 REPORTED_DETAILS = {"t00": "t00_s", "t01": "t01_s", "t11": "t11_s", "onsets": "onsets_s", "stage": "stage",
                     "equations": "equations", "caution": "caution", "residual": "residual", "features": "features",
                     "feature_set": "feature_set", "pressure_gauge": "pressure_gauge_Pa",
-                    "extrapolated": "extrapolated"}
+                    "extrapolated": "extrapolated", "path": "path", "reason": "reason", "contact_law": "contact_law",
+                    "criterion": "criterion", "model_selection": "model_selection", "reduced_chi2": "reduced_chi2",
+                    "parameters": "parameters", "crb": "crb", "robust": "robust", "start": "start"}
 #: JSON key of the part of the method's name after its family: the peak-to-peak variant, the map's search
-VARIANT_KEYS = {"peak-to-peak": "variant", "response-map": "search"}
+VARIANT_KEYS = {"peak-to-peak": "variant", "response-map": "search", "model": "variant"}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -43,7 +46,7 @@ class Identification:
         Time at which the data used had all arrived [s], same clock as the recording (``inf``: never).
     method : str
         ``family/variant``: ``peak-to-peak/robust``, ``peak-to-peak/paper``, ``response-map/fast``,
-        ``response-map/brute``; or ``oracle`` (the true impact, in the closed loop).
+        ``response-map/brute``, ``model/ml``, ``model/fallback``; or ``oracle`` (the true impact, in the closed loop).
     mass_std, velocity_std : float
         Standard errors [kg], [m/s]; NaN when the method gives none (``peak-to-peak/paper``, the response map).
     early : Identification or None
@@ -59,7 +62,10 @@ class Identification:
         of the first two pulses [s]), ``onsets`` (contact onsets [s], robust), ``stage`` (``early`` or
         ``final``), ``equations`` (what the answer used), ``chi2``, ``dof``, noise levels, ``caution``. Response
         map: ``residual`` (eq. (7) [-]), ``features``, ``feature_set``, ``pressure_gauge`` [Pa gauge],
-        ``extrapolated``.
+        ``extrapolated``. Model: ``path`` (``ml`` or ``fallback``) and ``reason``, ``contact_law``,
+        ``criterion`` and ``model_selection`` (each law's fit), ``reduced_chi2``, ``parameters`` (the stand
+        parameters fitted), ``crb`` (Cramér-Rao σ of M1 and V0), ``robust`` (its answer or why it failed),
+        ``start`` (where the fit started: the robust answer or a grid).
     error : str or None
         Why there is no answer (or why it never became available), where a caller keeps a failed identification
         (the closed loop); None for an answer.

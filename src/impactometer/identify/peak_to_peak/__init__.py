@@ -284,7 +284,7 @@ def early_refusal(seg: Segment, variant: str) -> str:
 
 
 def identify_arrays(force, acceleration, sample_rate: float, start_time: float = 0.0, *, variant: str = "robust",
-                    gravity: float = GRAVITY, contact_phase: bool = False) -> Identification:
+                    gravity: float = GRAVITY, contact_phase: bool = False, early: bool = True) -> Identification:
     """Identify M1 and V0 from contact force [N] and kinematic piston acceleration [m/s²] arrays.
 
     Parameters
@@ -299,9 +299,9 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
         The robust method (default) or eqs. (3)-(5) of the reference paper.
     gravity : float
         Gravitational acceleration [m/s²].
-    contact_phase : bool
+    contact_phase, early : bool
         ``robust`` only: combine the onset equations with the contact-phase fit of the first two pulses
-        (see :func:`solve_robust`).
+        (see :func:`solve_robust`); give the early answer (default True; the model fit needs the final one only).
 
     Returns
     -------
@@ -317,10 +317,9 @@ def identify_arrays(force, acceleration, sample_rate: float, start_time: float =
     f, a, fs = check_channels(force, acceleration, sample_rate)
     start, stop, ends, pre = segment_bounds(f, fs)
     seg = segment_of(f, a, fs, float(start_time), start, stop, pre, {})
-    early = None
-    if variant == "robust":
-        early = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache), gravity)
-    return solve(seg, variant, gravity, early=early, contact_phase=contact_phase)
+    first = early_answer(early_cut(f, a, fs, float(start_time), start, ends, pre, seg.onset_cache),
+                         gravity) if variant == "robust" and early else None
+    return solve(seg, variant, gravity, early=first, contact_phase=contact_phase)
 
 
 def identify(recording: Recording, *, variant: str = "robust", gravity: float = GRAVITY,

@@ -1,0 +1,330 @@
+"""The forward model of the model-based identification: the recorded channels a drop test gives, predicted with
+the stand model (paper eqs. (1)-(2), the compiled integrator of :mod:`impactometer.model.fast`) and passed through
+the sensor model of :mod:`impactometer.sensors` (the same anti-alias filter and decimation as
+:func:`~impactometer.sensors.record_batch`), for any contact instant on or between the samples.
+
+The unknowns are held in a parameter vector ``theta`` (:class:`Layout`): M1, V0, the contact instant, the stand
+parameters marked uncertain and, when it is not known, the charge pressure; the two sensor offsets are linear and
+are handled by the fit (:mod:`.fit`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from ...errors import IdentificationError, ParameterError
+from ...model import dynamics as d
+from ...model import fast
+from ...model.setup import initial_states, pack
+from ...model.simulate import MAX_STEP, absolute_tolerance
+from ...rig import CONTACT_LAWS, Rig, Scenario
+from ...sensors import ANTI_ALIAS, causal_taps, internal_layout
+
+#: relative tolerance of the integrations of the fit (the model error it leaves is ~1e-9 of each channel, far
+#: below any sensor noise)
+FIT_RTOL = 1e-9
+#: budget of integration steps of one prediction (a 50 ms record takes 450-560 at FIT_RTOL, whatever the law;
+#: parameters far off, e.g. a contact thousands of times too stiff, are refused rather than integrated for seconds)
+MAX_FIT_STEPS = 20_000
+#: packed parameter -> the range a trial point of a fit may take [SI]; outside it the model is not integrated (the
+#: fit steps back), so that no trial point far off costs seconds of integration or breaks the integrator
+TRIAL_RANGES = {d.MASS: (1e-3, 1e6), d.VELOCITY: (1e-4, 100.0), d.CONTACT_K: (1.0, 1e15),
+                d.CONTACT_C: (0.0, 1e15), d.FRICTION: (0.0, 1e6), d.FRICTION_SCALE: (1e-7, 10.0),
+                d.PISTON_MASS: (1e-3, 1e6), d.PRESSURE_GAUGE: (0.0, 1e9)}
+#: model channels predicted, in the order of the recorded channels (contact force, piston acceleration)
+CHANNEL_INDEX = np.array([d.CHANNELS.index("contact_force"), d.CHANNELS.index("a2")], dtype=np.int64)
+
+#: stand parameter -> (packed index, transform, shift or scale) of the fitted variable, which is unbounded:
+#: ``log``: ln(value + shift); ``logit``: ln(value/(1 − value)) for a value in (0, 1); ``linear``: value/scale.
+#: ``contact.restitution`` is e of the hysteretic law (packed as its unloading stiffness k1/e²).
+STAND_PARAMETERS: dict[str, tuple[int, str, float]] = {
+    "contact.stiffness": (d.CONTACT_K, "log", 0.0),
+    "contact.damping": (d.CONTACT_C, "log", 0.0),
+    "contact.restitution": (d.CONTACT_C, "logit", 0.0),
+    "friction.force": (d.FRICTION, "log", 0.0),
+    "friction.velocity_scale": (d.FRICTION_SCALE, "log", 0.0),
+    "cylinder.piston_mass": (d.PISTON_MASS, "log", 0.0),
+}
+#: the unknowns every fit has (as :data:`STAND_PARAMETERS`); ``contact_time`` is the instant of first contact on
+#: the recording's clock, the variable in sample periods from the start value
+CORE_PARAMETERS: dict[str, tuple[int, str, float]] = {
+    "mass": (d.MASS, "log", 0.0),
+    "velocity": (d.VELOCITY, "log", 0.0),
+    "contact_time": (-1, "linear", 1.0),
+}
+
+
+def to_variable(value, kind: str, param: float):
+    """Fit variable of a physical value (see :data:`STAND_PARAMETERS`)."""
+    if kind == "log":
+        return np.log(value + param)
+    if kind == "logit":
+        value = np.clip(value, 1e-12, 1.0 - 1e-12)
+        return np.log(value / (1.0 - value))
+    return value / param
+
+
+def from_variable(x, kind: str, param: float):
+    """Physical value of a fit variable (inverse of :func:`to_variable`)."""
+    if kind == "log":  # a trial point far off: a huge or tiny value, no overflow
+        return np.exp(np.clip(x, -700.0, 700.0)) - param
+    if kind == "logit":  # e within [1e-13, 1 - 1e-13]: k1/e² stays finite
+        return 1.0 / (1.0 + np.exp(-np.clip(x, -30.0, 30.0)))
+    return x * param
+
+
+def contact_parameters(law: str) -> tuple[str, ...]:
+    """Dotted names of the parameters of the contact ``law``."""
+    return tuple(f"contact.{name}" for name in CONTACT_LAWS[law])
+
+
+def check_uncertain(uncertain: Sequence[str] | None, laws: Sequence[str]) -> tuple[str, ...] | None:
+    """The stand parameters marked uncertain, checked (None: each law's contact parameters and the seal friction).
+
+    ``"contact"`` stands for every parameter of the fitted law. A name that is no parameter the fit can free, or
+    a contact parameter of none of the fitted ``laws``, is a ParameterError naming the valid ones.
+    """
+    if uncertain is None:
+        return None
+    if isinstance(uncertain, str):
+        uncertain = [name.strip() for name in uncertain.split(",") if name.strip()]
+    valid = ["contact", *STAND_PARAMETERS]
+    names = tuple(dict.fromkeys(str(name) for name in uncertain))
+    for name in names:
+        if name not in valid:
+            raise ParameterError(f"uncertain names an unknown stand parameter {name!r}; expected any of {valid}")
+        if name.startswith("contact.") and not any(name in contact_parameters(law) for law in laws):
+            raise ParameterError(f"uncertain names {name!r}, a parameter of none of the contact laws fitted "
+                                 f"({', '.join(laws)}); their parameters: "
+                                 f"{sorted({p for law in laws for p in contact_parameters(law)})}")
+    return names
+
+
+def free_parameters(law: str, uncertain: tuple[str, ...] | None) -> tuple[str, ...]:
+    """The stand parameters a fit with contact ``law`` frees (see :func:`check_uncertain`)."""
+    own = contact_parameters(law)
+    if uncertain is None:
+        return (*own, "friction.force")
+    out: list[str] = []
+    for name in uncertain:
+        if name == "contact":
+            out += own
+        elif not name.startswith("contact.") or name in own:
+            out.append(name)
+    return tuple(dict.fromkeys(out))
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Which unknowns a fit has and how its variables map onto the packed stand parameters.
+
+    ``names`` lists the nonlinear unknowns (the core ones, then the stand parameters, then ``pressure_gauge`` when
+    it is fitted) and ``specs`` their (packed index, transform, parameter); ``base`` is the packed parameter vector
+    of the stand with the law and known values; ``origin`` is the contact instant [s] from which the
+    ``contact_time`` variable counts sample periods.
+    """
+
+    names: tuple[str, ...]
+    specs: tuple[tuple[int, str, float], ...]
+    base: np.ndarray
+    law: str
+    origin: float
+    sample_rate: float
+
+    def variables(self, values: dict[str, float]) -> np.ndarray:
+        """Fit variables of physical values (name -> value [SI])."""
+        out = np.empty(len(self.names))
+        for i, (name, (_, kind, param)) in enumerate(zip(self.names, self.specs, strict=True)):
+            value = values[name]
+            if name == "contact_time":
+                value = (value - self.origin) * self.sample_rate
+            out[i] = to_variable(value, kind, param)
+        return out
+
+    def values(self, x: np.ndarray) -> dict[str, float]:
+        """Physical values [SI] of fit variables ``x``."""
+        out = {}
+        for name, xi, (_, kind, param) in zip(self.names, x, self.specs, strict=False):
+            value = float(from_variable(xi, kind, param))
+            out[name] = self.origin + value / self.sample_rate if name == "contact_time" else value
+        return out
+
+    def derivative(self, name: str, x: float) -> float:
+        """d(value)/d(variable) of the unknown ``name`` at variable ``x`` [SI per variable unit]."""
+        _, kind, param = self.specs[self.names.index(name)]
+        if kind == "log":
+            return float(np.exp(x))
+        if kind == "logit":
+            e = float(from_variable(x, kind, param))
+            return e * (1.0 - e)
+        return param / self.sample_rate if name == "contact_time" else param
+
+    def packed(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Packed parameter rows (m, N_PARAM) and contact instants (m,) [s] of fit variable rows (m, q)."""
+        rows = np.atleast_2d(rows)
+        params = np.repeat(self.base[None, :], rows.shape[0], axis=0)
+        times = np.zeros(rows.shape[0])
+        restitution = None
+        for j, (name, (index, kind, param)) in enumerate(zip(self.names, self.specs, strict=True)):
+            value = from_variable(rows[:, j], kind, param)
+            if name == "contact_time":
+                times = self.origin + value / self.sample_rate
+            elif name == "contact.restitution":
+                restitution = value
+            else:
+                params[:, index] = value
+        if self.law == "hysteretic":  # the unloading stiffness k2 = k1/e² follows k1 and e
+            e = restitution if restitution is not None else self.base[d.CONTACT_C]
+            params[:, d.CONTACT_C] = params[:, d.CONTACT_K] / np.square(e)
+        return params, times
+
+
+def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | None, contact_time: float,
+                sample_rate: float, mass: float | None = None) -> Layout:
+    """The :class:`Layout` of a fit on ``rig`` with contact ``law`` freeing the stand parameters ``free``, the
+    charge pressure known (``pressure`` [Pa gauge]) or fitted (None; the variable is ln of the absolute pressure),
+    counting the contact instant from ``contact_time`` [s]; M1 held at ``mass`` [kg] when that is given."""
+    stand = rig if rig.contact.law == law else rig.with_contact(law)
+    base = pack(stand, Scenario(mass=1.0, velocity=1.0, pressure_gauge=pressure or 0.0))
+    if law == "hysteretic":  # packed as e (see Layout.packed)
+        base[d.CONTACT_C] = float(stand.contact.restitution or 0.0)
+    core = dict(CORE_PARAMETERS)
+    if mass is not None:
+        base[d.MASS] = mass
+        del core["mass"]
+    names = [*core, *free]
+    specs = [*core.values(), *(STAND_PARAMETERS[name] for name in free)]
+    if pressure is None:
+        names.append("pressure_gauge")
+        specs.append((d.PRESSURE_GAUGE, "log", rig.gas.atmospheric_pressure))
+    return Layout(names=tuple(names), specs=tuple(specs), base=base, law=law, origin=float(contact_time),
+                  sample_rate=float(sample_rate))
+
+
+def stand_values(rig: Rig, law: str, free: tuple[str, ...]) -> dict[str, float]:
+    """Start values [SI] of the freed stand parameters: those of ``rig`` for its own law, else the law's
+    defaults."""
+    contact = rig.contact if rig.contact.law == law else rig.with_contact(law).contact
+    out = {}
+    for name in free:
+        section, _, attr = name.partition(".")
+        out[name] = float(getattr(contact if section == "contact" else getattr(rig, section), attr))
+    return out
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The sample instants of a recording and the sensor model its channels went through.
+
+    ``design`` is the anti-alias design (:data:`impactometer.sensors.ANTI_ALIAS`); the model is evaluated at
+    ``factor`` times the sample rate over the record and ``pad`` internal samples beyond each end, filtered as
+    :func:`~impactometer.sensors.record_batch` filters, and decimated.
+    """
+
+    start_time: float
+    sample_rate: float
+    size: int
+    design: str
+    factor: int
+    pad: int
+    taps: np.ndarray
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """Internal instants relative to the first sample [s]."""
+        n_int = 2 * self.pad + (self.size - 1) * self.factor + 1
+        return (np.arange(n_int) - self.pad) / (self.factor * self.sample_rate)
+
+
+def make_grid(start_time: float, sample_rate: float, size: int, design: str) -> Grid:
+    """The :class:`Grid` of a recording of ``size`` samples from ``start_time`` [s] at ``sample_rate`` [Hz]."""
+    if design not in ANTI_ALIAS:
+        raise IdentificationError(f"anti_alias must be one of {sorted(ANTI_ALIAS)}, got {design!r}")
+    factor, pad = internal_layout(design, sample_rate)
+    taps = causal_taps(factor) if design == "causal" else np.ones(1)
+    return Grid(start_time=float(start_time), sample_rate=float(sample_rate), size=int(size), design=design,
+                factor=factor, pad=pad, taps=taps[::-1].copy())
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _integrate_rows(params, y0, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
+    """Integrate each row from its contact instant: row s at the instants ``offsets - shifts[s]`` after contact,
+    zero before it."""
+    for s in prange(params.shape[0]):
+        t = offsets - shifts[s]
+        first = np.searchsorted(t, 0.0, side="right")
+        for j in range(channel_index.size):
+            out[s, j, :first] = 0.0
+        status[s], _ = fast.integrate_one(params[s], y0[s], t[first:], channel_index, rtol, atol, max_step,
+                                          max_steps, out[s, :, first:])
+
+
+def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray) -> np.ndarray:
+    """Recorded contact force [N] and piston acceleration [m/s²] without offsets and noise, shape (m, 2, size), of
+    packed parameter rows (m, N_PARAM) with first contact at ``contact_times`` (m,) [s] on the recording's clock.
+
+    Raises
+    ------
+    IdentificationError
+        When the stand cannot carry the piston at a row's pressure or the integrator fails.
+    """
+    params = np.ascontiguousarray(params, dtype=float)
+    for index, (low, high) in TRIAL_RANGES.items():
+        bad = ~((params[:, index] >= low) & (params[:, index] <= high))
+        if bad.any():
+            raise IdentificationError(f"the model is not integrated at packed parameter {index} = "
+                                      f"{params[bad, index][0]!r}, outside [{low:g}, {high:g}]")
+    if not np.all(np.isfinite(contact_times)):
+        raise IdentificationError("the model is not integrated at a contact instant that is not finite")
+    try:
+        y0 = initial_states(params)
+    except ParameterError as exc:
+        raise IdentificationError(f"the model cannot start: {exc}") from None
+    offsets = grid.offsets
+    out = np.empty((params.shape[0], 2, offsets.size))
+    status = np.zeros(params.shape[0], dtype=np.int64)
+    shifts = np.asarray(contact_times, dtype=float) - grid.start_time
+    _integrate_rows(params, y0, offsets, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL),
+                    MAX_STEP, MAX_FIT_STEPS, out, status)
+    if np.any(status != fast.OK):
+        i = int(np.flatnonzero(status != fast.OK)[0])
+        raise IdentificationError(f"the model's integration failed ({fast.STATUS_TEXT[int(status[i])]}) at "
+                                  f"M1 = {params[i, d.MASS]:.4g} kg, V0 = {params[i, d.VELOCITY]:.4g} m/s")
+    return sensed(grid, out)
+
+
+def sensed(grid: Grid, internal: np.ndarray) -> np.ndarray:
+    """Channels (..., size) of internal histories (..., len(grid.offsets)) through the grid's anti-alias filter
+    and decimation (the causal FIR evaluated at the kept samples only)."""
+    end = grid.pad + (grid.size - 1) * grid.factor + 1
+    if grid.design == "causal":
+        flat = np.ascontiguousarray(internal).reshape(-1, internal.shape[-1])
+        out = np.empty((flat.shape[0], grid.size))
+        _fir_decimate(flat, grid.taps, grid.pad - grid.taps.size + 1, grid.factor, out)
+        return out.reshape(*internal.shape[:-1], grid.size)
+    filt = ANTI_ALIAS[grid.design]
+    y = internal if filt is None or grid.factor == 1 else filt(internal, grid.factor)
+    return np.ascontiguousarray(y[..., grid.pad:end:grid.factor])
+
+
+@njit(cache=True, error_model="numpy")
+def _fir_decimate(x, reversed_taps, first, step, out):
+    """out[r, i] = Σ_m reversed_taps[m]·x[r, first + i·step + m]: a causal FIR evaluated at every ``step``-th
+    sample only (zero, uncomputed, where the window holds only the zeros before contact)."""
+    for r in range(x.shape[0]):
+        nonzero = 0
+        while nonzero < x.shape[1] and x[r, nonzero] == 0.0:
+            nonzero += 1
+        for i in range(out.shape[1]):
+            k = first + i * step
+            if k + reversed_taps.size <= nonzero:
+                out[r, i] = 0.0
+                continue
+            acc = 0.0
+            for m in range(reversed_taps.size):
+                acc += reversed_taps[m] * x[r, k + m]
+            out[r, i] = acc

@@ -1,0 +1,193 @@
+"""The model-based identification (``identify --method model``): round trips on simulated records, the contact law
+chosen by BIC, the fall-back to the robust answer where the model does not describe the record, the Cramér-Rao
+bound, the sensor model reproduced sample for sample, and the refusals of bad input.
+
+Tolerances are stated in standard errors: an error within ``Z`` = 4 stated σ fails by chance with probability
+6e-5 per comparison for a Gaussian estimate; the stated σ must lie within a factor ``CRB_FACTOR`` of the Cramér-Rao
+bound at the truth (the Fisher information at the estimate and at the truth differ by the estimate's error and
+the χ² inflation). The reduced χ² of a correct model is 1 within the scatter of the pre-trigger noise estimate
+(1000 samples: σ² known to 4.5 %, so ±15 % is over 3 of its standard deviations).
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from impactometer.cli import main
+from impactometer.errors import IdentificationError, ParameterError
+from impactometer.identify.model_fit import cramer_rao, identify
+from impactometer.identify.model_fit import forward as fw
+from impactometer.identify.peak_to_peak import identify as identify_robust
+from impactometer.io import write_recording
+from impactometer.rig import Scenario, get_rig
+from impactometer.sensors import record
+
+Z = 4.0
+CRB_FACTOR = (0.7, 1.5)
+CHI2_BAND = (0.85, 1.15)
+RECORD = {"sample_rate": 50e3, "duration": 0.05, "noise": 0.05, "pre_trigger": 0.02}
+
+
+def _record(mass, velocity, pressure, seed, rig=None, **options):
+    return record(Scenario(mass=mass, velocity=velocity, pressure_gauge=pressure), rig, seed=seed,
+                  **{**RECORD, **options})
+
+
+@pytest.mark.parametrize(("mass", "velocity", "pressure", "seed"),
+                         [(30.0, 2.0, 100e3, 11), (10.0, 1.0, 20e3, 12), (50.0, 3.0, 400e3, 13)])
+def test_round_trip_on_the_pad_stand(mass, velocity, pressure, seed):
+    rec = _record(mass, velocity, pressure, seed)
+    answer = identify(rec)
+    assert answer.method == "model/ml" and answer.details["path"] == "ml"
+    assert answer.details["contact_law"] == "hysteretic"
+    assert abs(answer.mass - mass) <= Z * answer.mass_std
+    assert abs(answer.velocity - velocity) <= Z * answer.velocity_std
+    assert CHI2_BAND[0] <= answer.details["reduced_chi2"] <= CHI2_BAND[1]
+    bound = cramer_rao(rec)
+    assert CRB_FACTOR[0] <= answer.mass_std / bound.mass_std <= CRB_FACTOR[1]
+    assert CRB_FACTOR[0] <= answer.velocity_std / bound.velocity_std <= CRB_FACTOR[1]
+    assert answer.warnings == ()
+    data = answer.to_dict()
+    assert data["method"] == "model" and data["variant"] == "ml"
+    assert data["crb"]["mass_std_kg"] == pytest.approx(answer.mass_std / max(1.0, data["reduced_chi2"]) ** 0.5)
+    assert set(data["model_selection"]) == {"hysteretic", "kelvin-voigt", "hunt-crossley"}
+
+
+@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley"])
+def test_the_contact_law_of_the_record_is_chosen(law):
+    rig = get_rig(contact=law)
+    rec = _record(25.0, 1.8, 150e3, 21, rig)
+    answer = identify(rec, rig=rig)
+    assert answer.details["contact_law"] == law and answer.details["path"] == "ml"
+    bics = {name: fit["bic"] for name, fit in answer.details["model_selection"].items() if "bic" in fit}
+    assert min(bics, key=bics.get) == law
+    assert abs(answer.mass - 25.0) <= Z * answer.mass_std
+    assert abs(answer.velocity - 1.8) <= Z * answer.velocity_std
+
+
+def _never_much_worse(answer, robust, mass, velocity):
+    """The answer is never worse than the robust one by more than the robust σ."""
+    assert abs(answer.mass - mass) <= abs(robust.mass - mass) + robust.mass_std
+    assert abs(answer.velocity - velocity) <= abs(robust.velocity - velocity) + robust.velocity_std
+
+
+def test_a_fit_restricted_to_the_wrong_law_falls_back():
+    rec = _record(30.0, 2.0, 100e3, 31)
+    answer = identify(rec, contact="kelvin-voigt")
+    assert answer.method == "model/fallback" and answer.details["path"] == "fallback"
+    assert "chi2/dof" in answer.details["reason"] and any("robust answer" in w for w in answer.warnings)
+    robust = identify_robust(rec)
+    assert answer.mass == robust.mass and answer.velocity == robust.velocity
+    _never_much_worse(answer, robust, 30.0, 2.0)
+
+
+def test_a_pad_with_other_parameters_is_fitted():
+    # the contact's parameters are fitted: another pad is within the family
+    rig = get_rig().replace(**{"contact.stiffness": 1.2e6, "contact.restitution": 0.55})
+    rec = _record(30.0, 2.0, 100e3, 33, rig)
+    answer = identify(rec)
+    assert answer.details["path"] == "ml" and answer.details["contact_law"] == "hysteretic"
+    assert abs(answer.mass - 30.0) <= Z * answer.mass_std
+    assert abs(answer.velocity - 2.0) <= Z * answer.velocity_std
+    fitted = answer.details["parameters"]["contact.stiffness"]
+    assert abs(fitted["value"] - 1.2e6) <= Z * fitted["std"]
+    assert any("other parameters" in w for w in answer.warnings)  # the record states another stand
+
+
+def test_a_pad_outside_the_fitted_family_is_flagged():
+    # another pad, its parameters held at the default stand's: the model cannot describe the record
+    rig = get_rig().replace(**{"contact.stiffness": 1.2e6, "contact.restitution": 0.55})
+    rec = _record(30.0, 2.0, 100e3, 32, rig)
+    answer = identify(rec, contact="hysteretic", uncertain=["friction.force"])
+    flagged = answer.details["path"] == "fallback" or any("chi2/dof" in w for w in answer.warnings)
+    assert flagged
+    _never_much_worse(answer, identify_robust(rec), 30.0, 2.0)
+
+
+def test_the_forward_model_reproduces_the_sensor_model():
+    for design in ("causal", "zero-phase", "none"):
+        rec = _record(20.0, 1.5, 200e3, 0, noise=0.0, anti_alias=design)
+        rig = get_rig()
+        free = fw.free_parameters("hysteretic", None)
+        layout = fw.make_layout(rig, "hysteretic", free, pressure=200e3, contact_time=0.0, sample_rate=50e3)
+        x = layout.variables({"mass": 20.0, "velocity": 1.5, "contact_time": 0.0,
+                              **fw.stand_values(rig, "hysteretic", free)})
+        grid = fw.make_grid(rec.start_time, rec.sample_rate, rec.contact_force.size, design)
+        predicted = fw.predict(grid, *layout.packed(x[None, :]))[0]
+        for row, name in zip(predicted, ("contact_force", "piston_acceleration"), strict=True):
+            recorded = rec.channel(name)
+            # the integrations sample the same trajectory at instants that differ by rounding: 1e-5 of the peak
+            assert np.max(np.abs(row - recorded)) <= 1e-5 * np.max(np.abs(recorded)), (design, name)
+
+
+def test_zero_phase_record_and_fitted_pressure():
+    rec = _record(30.0, 2.0, 100e3, 41, anti_alias="zero-phase")
+    rec.metadata.pop("pressure_gauge_Pa")
+    answer = identify(rec, contact="hysteretic")
+    assert answer.details["path"] == "ml" and answer.details["anti_alias"] == "zero-phase"
+    fitted = answer.details["parameters"]["pressure_gauge"]
+    assert abs(fitted["value"] - 100e3) <= Z * fitted["std"]
+    assert abs(answer.mass - 30.0) <= Z * answer.mass_std
+
+
+def test_a_start_from_a_grid_where_the_robust_answer_fails(monkeypatch):
+    import impactometer.identify.peak_to_peak as peak_to_peak
+
+    def refuse(*args, **kwargs):
+        raise IdentificationError("refused for the test")
+
+    rec = _record(20.0, 2.0, 115e3, 42)
+    monkeypatch.setattr(peak_to_peak, "identify_arrays", refuse)
+    answer = identify(rec, contact="hysteretic")
+    assert answer.details["start"]["from"] == "grid" and answer.details["robust"] == {"error": "refused for the test"}
+    assert abs(answer.mass - 20.0) <= Z * answer.mass_std
+    assert abs(answer.velocity - 2.0) <= Z * answer.velocity_std
+    with pytest.raises(IdentificationError, match="no answer: the robust method failed"):
+        identify(rec, contact="kelvin-voigt")
+
+
+def test_cramer_rao_bound_of_a_pad_record():
+    rec = _record(30.0, 2.0, 200e3, 51)
+    bound = cramer_rao(rec)
+    # the issue's figures for the pad stand at 5 % noise: σ(M1) ≈ 0.37 %, σ(V0) ≈ 0.13 % on average over the grid
+    assert 0.001 < bound.mass_relative < 0.01 and 0.0005 < bound.velocity_relative < 0.003
+    assert bound.at == "truth" and bound.contact_law == "hysteretic"
+    fixed = cramer_rao(rec, uncertain=[])
+    assert fixed.mass_std < bound.mass_std  # fewer unknowns, more precision
+    assert cramer_rao(rec, pressure_unknown=True).mass_std > bound.mass_std
+
+
+def test_bad_input_is_refused_in_one_line():
+    rec = _record(30.0, 2.0, 100e3, 61)
+    with pytest.raises(ParameterError, match="contradicts the recording's metadata pressure_gauge_Pa"):
+        identify(rec, pressure=150e3)
+    with pytest.raises(ParameterError, match="unknown stand parameter 'contact.colour'"):
+        identify(rec, uncertain=["contact.colour"])
+    with pytest.raises(ParameterError, match="a parameter of none of the contact laws fitted"):
+        identify(rec, contact="kelvin-voigt", uncertain=["contact.restitution"])
+    with pytest.raises(ParameterError, match="contact.law must be one of"):
+        identify(rec, contact="rubber")
+    short = _record(30.0, 2.0, 100e3, 62, duration=0.004)
+    with pytest.raises(IdentificationError, match="ms after first contact; the model fit needs at least 10 ms"):
+        identify(short)
+    with pytest.raises(IdentificationError, match="before first contact"):
+        identify(_record(30.0, 2.0, 100e3, 63, pre_trigger=0.0))
+    rec.metadata["anti_alias"] = "analog-bessel"
+    with pytest.raises(IdentificationError, match="names a filter the model cannot reproduce"):
+        identify(rec)
+    for error in (ParameterError, IdentificationError):
+        assert issubclass(error, ValueError)
+
+
+def test_cli_identify_method_model(tmp_path, capsys):
+    path = tmp_path / "drop.h5"
+    write_recording(_record(30.0, 2.0, 100e3, 71), path)
+    main(["identify", str(path), "--method", "model", "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert data["method"] == "model" and data["variant"] == "ml" and data["contact_law"] == "hysteretic"
+    assert data["crb"]["mass_std_kg"] > 0 and data["model_selection"]["hysteretic"]["bic"] is not None
+    with pytest.raises(SystemExit) as exc:
+        main(["identify", str(path), "--method", "model", "--pressure", "250kPa"])
+    assert exc.value.code == 2
+    assert "contradicts" in capsys.readouterr().err
