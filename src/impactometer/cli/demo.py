@@ -70,7 +70,8 @@ def demo(
 
 
 def identification_table(scenario, stand) -> Table:
-    """Peak-to-peak identification of ``scenario`` from simulated sensors with noise, next to the truth."""
+    """Peak-to-peak (paper, robust) and model-based identification of ``scenario`` from simulated sensors with
+    noise, next to the truth."""
     from ..identify.peak_to_peak import identify
     from ..sensors import record
 
@@ -95,6 +96,13 @@ def identification_table(scenario, stand) -> Table:
             notes.append(f"robust, early: none -- {found.early_reason}; refused rather than answered far off, the "
                          "final answer rests on the turning points of stage B")
         answers.append((variant if variant == "paper" else "robust, final", found))
+    from ..identify.model_fit import identify as identify_model
+
+    try:  # the whole record fitted with the stand model, the contact law chosen by BIC
+        model = identify_model(recording, rig=stand)
+        answers.append((f"model ({model.details.get('contact_law')})", model))
+    except IdentificationError as exc:
+        table.add_row("model", f"failed: {exc}", "", "", "", "", "")
     for label, found in answers:
         table.add_row(label, with_uncertainty(found.mass, found.mass_std),
                       f"{100 * (found.mass / scenario.mass - 1):+.1f}",
