@@ -128,4 +128,4 @@ def test_identify_with_a_map_needs_the_charge_pressure(tmp_path, capsys):
     assert "contradicts the recording's pressure_gauge_Pa of 100 kPa" in err
     status, text, err = run(["identify", str(stated), "--pressure", "100kPa"], capsys)
     assert_error_line(status, text, err)
-    assert "--pressure is available for --method response-map" in err
+    assert "--pressure is an option of --method response-map and --method model" in err
