@@ -7,7 +7,7 @@ import math
 import os
 import re
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Annotated, overload
 
@@ -221,7 +221,8 @@ def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s", spi
         else:
             error_console.print(f"{doing}: {note} ...", highlight=False, markup=False, soft_wrap=True)
 
-    with bar, compiling(compiling_now):
+    # a disabled bar is never entered: rich 13.0 prints an empty line when one stops off a terminal
+    with bar if live else nullcontext(), compiling(compiling_now):
         yield
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
 
@@ -133,8 +134,9 @@ def build(
         if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
             print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
                   "pressure(s)) ...", file=sys.stderr, flush=True)
-        with Progress(console=error_console, transient=True, disable=not error_console.is_terminal,
-                      redirect_stdout=False) as bar, \
+        bar = Progress(console=error_console, transient=True, redirect_stdout=False)
+        # entered on a terminal only: off one, rich 13.0 prints an empty line when a disabled bar stops
+        with bar if error_console.is_terminal else nullcontext(), \
                 announce_compilation("simulating the response map", spinner=False):
             task = bar.add_task("simulating the response map", total=None)
 

@@ -104,14 +104,16 @@ class _Progress:
         self.start = time.perf_counter()
 
     def __enter__(self) -> _Progress:
-        self.bar.start()
+        if self.live:  # a disabled bar is never started: rich 13.0 prints an empty line when one stops
+            self.bar.start()
         return self
 
     def __exit__(self, *exc) -> None:
         self.stop()
 
     def stop(self) -> None:
-        self.bar.stop()
+        if self.live:
+            self.bar.stop()
 
     def _line(self, text: str) -> None:
         if not self.live:
