@@ -7,13 +7,14 @@ import math
 import os
 import re
 from collections.abc import Iterator
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Annotated, overload
 
 import typer
 import typer.core
 from rich.console import Console, ConsoleDimensions
+from rich.progress import Progress
 
 from .. import __version__
 from ..errors import ImpactometerError
@@ -97,6 +98,15 @@ class _Console(Console):
 console = _Console(soft_wrap=True)  # paths and one-line messages are never broken (the terminal wraps)
 #: errors go to standard error, so that standard output holds only results (``--json`` pipes stay parsable)
 error_console = _Console(soft_wrap=True, stderr=True)
+
+
+class QuietProgress(Progress):
+    """A rich Progress that, disabled, writes nothing at all: rich 13.0 (the declared floor) prints an empty line
+    when a disabled bar stops, which would break the one-line output of errors and notices off a terminal."""
+
+    def stop(self) -> None:
+        if not self.disable:
+            super().stop()
 
 
 def _version(value: bool) -> None:
@@ -203,16 +213,16 @@ def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s", spi
     on a cold cache): a spinner with the elapsed time on a terminal; elsewhere (a log, a pipe), or without
     ``spinner`` (a block that prints as it goes or shows its own progress bar), one plain line, and only when it
     compiles (``doing: compiling kernels, first run only (about 10-30 s) ...``)."""
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+    from rich.progress import SpinnerColumn, TextColumn, TimeElapsedColumn
     from rich.table import Column
 
     from ..studies.executors import compiling
 
     live = spinner and error_console.is_terminal
     note = f"compiling kernels, first run only ({compile_time})"
-    bar = Progress(SpinnerColumn(), TimeElapsedColumn(),
-                       TextColumn("{task.description}", table_column=Column(overflow="fold")), console=error_console,
-                       transient=True, disable=not live, redirect_stdout=False, redirect_stderr=False)
+    bar = QuietProgress(SpinnerColumn(), TimeElapsedColumn(),
+                        TextColumn("{task.description}", table_column=Column(overflow="fold")), console=error_console,
+                        transient=True, disable=not live, redirect_stdout=False, redirect_stderr=False)
     task = bar.add_task(doing, total=None)
 
     def compiling_now() -> None:
@@ -221,8 +231,7 @@ def announce_compilation(doing: str, *, compile_time: str = "about 10-30 s", spi
         else:
             error_console.print(f"{doing}: {note} ...", highlight=False, markup=False, soft_wrap=True)
 
-    # a disabled bar is never entered: rich 13.0 prints an empty line when one stops off a terminal
-    with bar if live else nullcontext(), compiling(compiling_now):
+    with bar, compiling(compiling_now):
         yield
 
 

@@ -5,16 +5,25 @@ from __future__ import annotations
 import json
 import math
 import sys
-from contextlib import nullcontext
 from pathlib import Path
 from typing import Annotated
 
 import typer
-from rich.progress import Progress
 from rich.table import Table
 
 from ..errors import ParameterError
-from .app import OVERWRITE, App, announce_compilation, app, console, error_console, given, output_path, quantity
+from .app import (
+    OVERWRITE,
+    App,
+    QuietProgress,
+    announce_compilation,
+    app,
+    console,
+    error_console,
+    given,
+    output_path,
+    quantity,
+)
 from .simulate import ContactOpt, RigOpt
 
 map_app = App(help="Response maps: build a database of features, inspect it.")
@@ -134,9 +143,8 @@ def build(
         if n_m * n_v * len(pressures) <= MAX_SIMULATED:  # (a larger grid is refused with the reason)
             print(f"simulating {n_m * n_v * len(pressures)} impacts ({n_m}×{n_v} grid, {len(pressures)} "
                   "pressure(s)) ...", file=sys.stderr, flush=True)
-        bar = Progress(console=error_console, transient=True, redirect_stdout=False)
-        # entered on a terminal only: off one, rich 13.0 prints an empty line when a disabled bar stops
-        with bar if error_console.is_terminal else nullcontext(), \
+        with QuietProgress(console=error_console, transient=True, disable=not error_console.is_terminal,
+                           redirect_stdout=False) as bar, \
                 announce_compilation("simulating the response map", spinner=False):
             task = bar.add_task("simulating the response map", total=None)
 

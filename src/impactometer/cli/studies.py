@@ -16,7 +16,6 @@ from rich.markup import escape
 from rich.progress import (
     BarColumn,
     MofNCompleteColumn,
-    Progress,
     SpinnerColumn,
     TextColumn,
     TimeElapsedColumn,
@@ -31,7 +30,7 @@ from ..rig import get_rig
 from ..studies import STUDIES, StudyOptions, available_studies, get_study, load_studies, run_studies
 from ..studies.executors import check_backend
 from ..studies.report import markdown, write_report
-from .app import OVERWRITE, app, console, error_console, given, quantity
+from .app import OVERWRITE, QuietProgress, app, console, error_console, given, quantity
 from .simulate import ContactOpt
 
 
@@ -95,25 +94,23 @@ class _Progress:
 
     def __init__(self, names: list[str]) -> None:
         self.live = error_console.is_terminal
-        self.bar = Progress(SpinnerColumn(), TextColumn("{task.description:<14}"), MofNCompleteColumn(),
-                            TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), _BarOrDoing(),
-                            console=error_console, disable=not self.live, redirect_stdout=False,
-                            redirect_stderr=False)
+        self.bar = QuietProgress(SpinnerColumn(), TextColumn("{task.description:<14}"), MofNCompleteColumn(),
+                                 TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(), _BarOrDoing(),
+                                 console=error_console, disable=not self.live, redirect_stdout=False,
+                                 redirect_stderr=False)
         self.tasks = {n: self.bar.add_task(n, total=None, doing="") for n in names}
         self.said: dict[str, tuple[int, str]] = {}  # study -> (tenths of its cases said, last text said)
         self.start = time.perf_counter()
 
     def __enter__(self) -> _Progress:
-        if self.live:  # a disabled bar is never started: rich 13.0 prints an empty line when one stops
-            self.bar.start()
+        self.bar.start()
         return self
 
     def __exit__(self, *exc) -> None:
         self.stop()
 
     def stop(self) -> None:
-        if self.live:
-            self.bar.stop()
+        self.bar.stop()
 
     def _line(self, text: str) -> None:
         if not self.live:
