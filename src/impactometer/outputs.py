@@ -19,6 +19,8 @@ from typing import Any
 from .errors import OutputError, ParameterError
 from .validation import check_flag
 
+#: what lets a caller of the Python writers replace an existing file, as their refusals name it
+API_OVERWRITE = "overwrite=True (--overwrite)"
 #: extensions of the HDF5 files written besides recordings (simulation histories, response maps)
 HDF5_EXTENSIONS = (".h5", ".hdf5")
 

@@ -107,8 +107,8 @@ def in_contact(force: float, noise: float, peak: float, where: str) -> str | Non
 
 #: a record without pre-trigger may start at most at this fraction of its first pulse's peak force [-]
 FIRST_SAMPLE_FRACTION = 0.05
-#: what a saturated channel is called and measured in
-_CHANNELS = {"contact_force": "N", "piston_acceleration": "m/s²"}
+#: the unit symbol of each sensor channel, as messages print it
+CHANNEL_SYMBOLS = {"contact_force": "N", "piston_acceleration": "m/s²"}
 
 
 def flat_top(x: np.ndarray, noise: float, pulses, sign: int = 1) -> tuple[int, int, float, float] | None:
@@ -161,9 +161,9 @@ def check_clipping(seg) -> None:
             run, k, level, expected = found
             extreme = "maximum" if sign > 0 else "minimum"
             raise IdentificationError(f"{name} is saturated: {run} samples sit at its {extreme} "
-                                      f"{level:.6g} {_CHANNELS[name]} from t = {seg.time_of(k):.6g} s (a peak of that "
-                                      f"curvature stays about {expected:.1f} samples within the resolution); the "
-                                      "channel was clipped, its range must be raised")
+                                      f"{level:.6g} {CHANNEL_SYMBOLS[name]} from t = {seg.time_of(k):.6g} s (a peak "
+                                      f"of that curvature stays about {expected:.1f} samples within the resolution); "
+                                      "the channel was clipped, its range must be raised")
 
 
 def _slip(value: float, low: float, high: float, slips: dict[float, str]) -> str:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ImpactometerError, RecordingError
-from ..outputs import as_path, check_file, publish, write_failed
+from ..outputs import API_OVERWRITE, as_path, check_file, publish, write_failed
 from ..recording import TRUTH_KEYS, Recording, truth_value
 from ..validation import check_flag
 from . import csv, hdf5, mat, tdms
@@ -133,7 +133,7 @@ def write_recording(recording: Recording, path: str | Path, *, overwrite: bool =
     fmt = format_of(path)
     targets = _targets(path, fmt)
     check_names(recording, fmt, path)
-    flag = "overwrite=True (--overwrite)"
+    flag = API_OVERWRITE
     for target in targets:
         check_file(target, overwrite=overwrite, flag=flag, error=RecordingError)
     temporary = [t.with_name(f".{t.stem}.partial-{os.getpid()}{t.suffix}") for t in targets]

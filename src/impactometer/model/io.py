@@ -6,7 +6,7 @@ import dataclasses
 import json
 from pathlib import Path
 
-from ..outputs import HDF5_EXTENSIONS, check_file, write_atomically
+from ..outputs import API_OVERWRITE, HDF5_EXTENSIONS, check_file, write_atomically
 from ..rig import to_dict
 from .result import ARRAY_FIELDS, SimulationResult
 
@@ -17,7 +17,7 @@ def save_simulation(result: SimulationResult, path: str | Path, *, overwrite: bo
     an existing file is replaced only with ``overwrite``, and never one that is not a regular file."""
     import h5py
 
-    path = check_file(path, overwrite=overwrite, extensions=HDF5_EXTENSIONS, flag="overwrite=True (--overwrite)")
+    path = check_file(path, overwrite=overwrite, extensions=HDF5_EXTENSIONS, flag=API_OVERWRITE)
 
     def write(temporary: Path) -> None:
         with h5py.File(temporary, "w") as f:
@@ -30,4 +30,4 @@ def save_simulation(result: SimulationResult, path: str | Path, *, overwrite: bo
             for name in ARRAY_FIELDS:
                 f.create_dataset(name, data=getattr(result, name), compression="gzip", shuffle=True)
 
-    return write_atomically(path, write, overwrite=overwrite, flag="overwrite=True (--overwrite)")
+    return write_atomically(path, write, overwrite=overwrite, flag=API_OVERWRITE)

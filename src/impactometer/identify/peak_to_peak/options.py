@@ -10,6 +10,7 @@ import numpy as np
 from ...errors import IdentificationError, shown
 from ...recording import START_TIME_LIMIT, Recording
 from ...validation import check_real
+from ..plausibility import CHANNEL_SYMBOLS
 from ..result import VARIANTS
 from .segment import Segment, lag_correlation
 
@@ -84,8 +85,6 @@ COLOURED_LIMIT = 0.5
 
 #: mains frequencies [Hz] a correlated pre-trigger is looked at for hum (with their second harmonics)
 MAINS = (50.0, 60.0)
-#: what a channel is measured in
-UNITS = {"contact_force": "N", "piston_acceleration": "m/s²"}
 
 
 def check_white_noise(seg: Segment) -> None:
@@ -138,12 +137,12 @@ def correlated_cause(seg: Segment) -> str | None:
             span = (time[-1] - time[0]) * 1e3
             return (f"the pre-trigger holds mains hum: {name} oscillates at the mains frequency (50/60 Hz; "
                     f"{frequency:g} Hz fits its {span:.3g} ms best) with an amplitude of {amplitude:.3g} "
-                    f"{UNITS[name]} ({amplitude / peak:.2%} of its peak); remove the hum at its source (grounding, "
-                    "shielding) or with a notch filter")
+                    f"{CHANNEL_SYMBOLS[name]} ({amplitude / peak:.2%} of its peak); remove the hum at its source "
+                    "(grounding, shielding) or with a notch filter")
         fit = np.linalg.lstsq(line, x, rcond=None)[0]
         if lag_correlation(x - line @ fit) <= COLOURED_LIMIT:
             moved = float(fit[1] * (time[-1] - time[0]))
-            return (f"the pre-trigger is not at rest: {name} moves by {moved:.3g} {UNITS[name]} over its "
+            return (f"the pre-trigger is not at rest: {name} moves by {moved:.3g} {CHANNEL_SYMBOLS[name]} over its "
                     f"{(time[-1] - time[0]) * 1e3:.3g} ms (a channel that drifts, or a record that begins inside the "
                     "impact)")
     return None

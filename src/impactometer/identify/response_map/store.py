@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import ImpactometerError, ParameterError, ResponseMapError
-from ...outputs import as_path, check_file, write_atomically
+from ...outputs import API_OVERWRITE, as_path, check_file, write_atomically
 from ...recording import check_sample_rate
 from .database import SCHEMA_VERSION, ResponseMap
 from .features import get_feature_set
@@ -50,7 +50,7 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
 
     if not isinstance(rmap, ResponseMap):
         raise ParameterError(f"rmap must be a ResponseMap, got {type(rmap).__name__}")
-    path = check_file(path, overwrite=overwrite, flag="overwrite=True (--overwrite)")
+    path = check_file(path, overwrite=overwrite, flag=API_OVERWRITE)
 
     def write(temporary: Path) -> None:
         with h5py.File(temporary, "w") as h5:
@@ -66,7 +66,7 @@ def save_map(rmap: ResponseMap, path: str | Path, *, overwrite: bool = False) ->
                 h5.create_dataset(name, data=getattr(rmap, name))
             h5.attrs[CHECKSUM] = _digest(h5.attrs, {name: np.asarray(h5[name][()], dtype=float) for name in _DATASETS})
 
-    return write_atomically(path, write, overwrite=overwrite, flag="overwrite=True (--overwrite)")
+    return write_atomically(path, write, overwrite=overwrite, flag=API_OVERWRITE)
 
 
 def _json(attrs, key: str, where: str):
