@@ -31,7 +31,7 @@ from dataclasses import replace
 import numba
 import numpy as np
 
-from accuracy_peak_to_peak import DRAW, cases  # the same records as the peak-to-peak table
+from accuracy_peak_to_peak import DRAW, cases, grid_arguments  # the same records as the peak-to-peak table
 from impactometer.errors import IdentificationError
 from impactometer.identify.model_fit import cramer_rao, identify
 from impactometer.rig import get_rig
@@ -93,14 +93,7 @@ def summarise(stand: str, law: str, noise: float, rows: list) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--stands", nargs="+", default=["drop-stand"])
-    ap.add_argument("--laws", nargs="+", default=["hysteretic", "kelvin-voigt", "hunt-crossley"])
-    ap.add_argument("--noise", type=float, nargs="+", default=[0.05], help="noise levels (fraction of RMS)")
-    ap.add_argument("--seeds", type=int, default=1, help="noise realisations per case")
-    ap.add_argument("--values", type=int, default=5, help="values per grid axis (5 -> 125 cases)")
-    ap.add_argument("--subset", type=int, default=None, help="use this many cases spread over the grid")
-    ap.add_argument("--duration", type=float, default=0.05, help="record length after first contact [s]")
-    ap.add_argument("--pre-trigger", type=float, default=0.02, help="record length before first contact [s]")
+    grid_arguments(ap, stands=["drop-stand"], laws=["hysteretic", "kelvin-voigt", "hunt-crossley"], seeds=1)
     ap.add_argument("--fit-pressure", action="store_true",
                     help="records without their pre-charge in the metadata: the fit estimates it (and the bound "
                          "counts it among the unknowns)")

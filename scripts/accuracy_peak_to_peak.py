@@ -110,16 +110,22 @@ def equations_used(rows) -> str:
     return ", ".join(f"{k} {np.median([u.get(k, 0) for u in used]):g}" for k in keys) if used else "-"
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--stands", nargs="+", default=["drop-stand-pad", "drop-stand-stiff"])
-    ap.add_argument("--laws", nargs="+", default=["kelvin-voigt", "hunt-crossley", "hysteretic"])
+def grid_arguments(ap: argparse.ArgumentParser, *, stands: list[str], laws: list[str], seeds: int) -> None:
+    """The options of an accuracy table over the paper's grid: stands, laws, noise, seeds, grid, record length."""
+    ap.add_argument("--stands", nargs="+", default=stands)
+    ap.add_argument("--laws", nargs="+", default=laws)
     ap.add_argument("--noise", type=float, nargs="+", default=[0.05], help="noise levels (fraction of RMS)")
-    ap.add_argument("--seeds", type=int, default=5, help="noise realisations per noisy case")
+    ap.add_argument("--seeds", type=int, default=seeds, help="noise realisations per noisy case")
     ap.add_argument("--values", type=int, default=5, help="values per grid axis (5 -> 125 cases)")
     ap.add_argument("--subset", type=int, default=None, help="use this many cases spread over the grid")
     ap.add_argument("--duration", type=float, default=0.05, help="record length after first contact [s]")
     ap.add_argument("--pre-trigger", type=float, default=0.02, help="record length before first contact [s]")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    grid_arguments(ap, stands=["drop-stand-pad", "drop-stand-stiff"],
+                   laws=["kelvin-voigt", "hunt-crossley", "hysteretic"], seeds=5)
     ap.add_argument("--contact-phase", action="store_true", help="robust: add the contact-phase fit")
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="worker processes")
     ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
