@@ -18,6 +18,7 @@ from ..model.actuated import ROUTES
 from ..model.forces import friction_force, pneumatic_force
 from . import estimator as est
 from . import settings as s
+from .target import stopping_force
 
 # drive vector: dead time [s], lag time constant [s], largest opening rate [1/s], discharge route (model.actuated)
 DEAD_TIME, TIME_CONSTANT, MAX_RATE, ROUTE = range(4)
@@ -77,8 +78,8 @@ def force_target(p, ctrl, mass, velocity, displacement):
     if velocity > 0.0:
         if remaining <= 0.0:
             return ctrl[s.F_MAX]
-        deceleration = max(velocity * velocity / (2.0 * remaining), velocity / STOP_TIME, MIN_DECELERATION)
-        return min(mass * (deceleration + p[d.GRAVITY]), ctrl[s.F_MAX])
+        floor = mass * (max(velocity / STOP_TIME, MIN_DECELERATION) + p[d.GRAVITY])
+        return min(max(stopping_force(mass, velocity, remaining, p[d.GRAVITY]), floor), ctrl[s.F_MAX])
     return min(mass * p[d.GRAVITY], ctrl[s.F_MAX])
 
 

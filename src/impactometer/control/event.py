@@ -42,6 +42,7 @@ import numpy as np
 from ..filters import cfc_filter
 from ..identify.pulses import contact_pulses, is_sustained
 from .bound import open_curve
+from .target import stopping_force
 
 #: channel frequency class of the filtered (body-load) contact force
 BODY_CFC = 60
@@ -94,7 +95,7 @@ class WholeEvent:
 
 def impact_force(mass: float, velocity: float, usable_stroke: float, gravity: float) -> float:
     """F0 = M1·(V0²/(2·s_usable) + g) [N] for M1 [kg], V0 [m/s], s_usable [m] and g [m/s²]."""
-    return float(mass * (velocity ** 2 / (2.0 * usable_stroke) + gravity))
+    return float(stopping_force(float(mass), float(velocity), float(usable_stroke), float(gravity)))
 
 
 def body_load(result) -> np.ndarray:

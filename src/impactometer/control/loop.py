@@ -26,7 +26,7 @@ from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
 from ..validation import check_flag, check_integer, check_real, finite_or_none
 from . import simulate as loop
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
-from .event import STOPPED_FRACTION, CommonWindow, common_window
+from .event import STOPPED_FRACTION, CommonWindow, common_window, impact_force
 from .identified import (
     IDENTIFICATION_WINDOW,
     identify_impact,
@@ -266,7 +266,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     elif not math.isfinite(usable_mass(found)) or not math.isfinite(usable_velocity(found)):
         notes.append(f"identified M1 = {found.mass:.3g} ± {found.mass_std:.2g} kg, V0 = {found.velocity:.3g} ± "
                      f"{found.velocity_std:.2g} m/s not trusted: the controller waits for its stage-B estimate")
-    required = (0.5 * scenario.mass * scenario.velocity ** 2 + scenario.mass * rig.gravity * usable) / usable
+    required = impact_force(scenario.mass, scenario.velocity, usable, rig.gravity)
     over = required > absorber.rated_force
     if over:
         notes.append(f"impact energy needs a constant force of {required:.0f} N over the usable stroke "

@@ -37,6 +37,7 @@ from .event import (
     whole_event,
     window_peak,
 )
+from .target import stopping_force
 
 __all__ = ["BODY_CFC", "REBOUND_THRESHOLD", "STOPPED_FRACTION", "SUSTAINED_FACTOR", "AbsorptionMetrics", "StageB",
            "absorption_metrics", "stage_b"]
@@ -151,7 +152,7 @@ def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.
         remaining = usable_stroke - u1[i0] if i0 < deepest else 0.0
         if remaining <= 0.0:
             return math.nan, math.nan, math.nan, math.nan
-        reference = mass * (max(v1[i0], 0.0) ** 2 / (2.0 * remaining) + g)
+        reference = stopping_force(mass, max(float(v1[i0]), 0.0), remaining, g)
         peak = float(body[i0:deepest + 1].max())
         work = 0.5 * mass * (v1[i0] ** 2 - v1[deepest] ** 2) + mass * g * (u1[deepest] - u1[i0])
         return float(reference), peak, float(peak / reference), float(work / (peak * remaining))

@@ -30,7 +30,7 @@ from scipy.optimize import minimize
 
 from ..model.simulate import sample_times
 from ..rig import Rig, Scenario
-from .event import CommonWindow, body_load, window_peak
+from .event import CommonWindow, body_load, impact_force, window_peak
 from .settings import ControlSettings
 from .simulate import simulate_controlled
 from .strategies import predictive_tau_control
@@ -100,7 +100,7 @@ def _outcome(scenario, rig, absorber, settings, window, duration, sample_rate, p
     bottomed = bool(np.any(result.bottom_stop_force > 0.0) or "ended_at_bottom" in result.extra)
     over = max(stroke - usable - STROKE_TOLERANCE, 0.0) / STROKE_TOLERANCE
     ratio = window_peak(result, window)[1]
-    f0 = scenario.mass * (scenario.velocity ** 2 / (2.0 * usable) + rig.gravity)
+    f0 = impact_force(scenario.mass, scenario.velocity, usable, rig.gravity)
     cost = (ratio if math.isfinite(ratio) else 100.0) + PENALTY * (over + (over > 0.0) + bottomed)
     feasible = over == 0.0 and not bottomed and math.isfinite(ratio)
     return _Outcome(ratio=ratio if feasible else math.inf, cost=cost, peak_ratio=float(body_load(result).max() / f0),
