@@ -129,7 +129,7 @@ def test_absorb_takes_the_response_map_as_identify_spells_it(capsys):
         status, out, err = run(["absorb", *argv], capsys)
         assert status == 2 and err == "error: --map: 'missing.h5' does not exist\n", err
     status, out, err = run(["absorb", "--map", "missing.h5"], capsys)
-    assert status == 2 and "--map is only used with --method response-map, got --method robust" in err
+    assert status == 2 and "--map is only used with --method response-map, got --method model" in err
     text = _help(["absorb"])
     assert "--method NAME" in text and "--map FILE" in text and "--identify" not in text and "--response-map" \
         not in text

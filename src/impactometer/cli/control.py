@@ -77,7 +77,8 @@ def absorb(
         "--strategy", metavar="NAME", help="all, closed, constant, realtime, predictive or auto (the better of the "
                                            "two).")] = "all",
     method: Annotated[str, typer.Option("--method", "--identify", metavar="NAME",
-                                        help="Identification: robust, paper, oracle or response-map.")] = "robust",
+                                        help="Identification: model (the stand's model fitted as the record "
+                                             "grows), robust, paper, oracle or response-map.")] = "model",
     map_path: Annotated[Path | None, typer.Option("--map", "--response-map", metavar="FILE",
                                                   help="Response map (.h5) for --method response-map.")] = None,
     noise: Annotated[str, typer.Option("--noise", metavar="FRACTION",

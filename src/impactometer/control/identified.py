@@ -1,5 +1,5 @@
-"""M1 and V0 as the closed loop gets them: the streaming identification of the noisy closed-valve record (or a
-response map, or the oracle), and what the controller may trust of it.
+"""M1 and V0 as the closed loop gets them: the model fit or the streaming identification of the noisy closed-valve
+record (or a response map, or the oracle), and what the controller may trust of it.
 
 Until the control starts the valve is closed, so the identification reads a record of the closed-valve impact (made
 by :func:`impactometer.sensors.record`, anti-alias filter and noise included).
@@ -27,6 +27,10 @@ IDENTIFICATION_WINDOW = 0.1
 PRE_TRIGGER = 0.025
 #: samples per chunk pushed into the streaming identifier (a DAQ block)
 STREAM_CHUNK = 16
+#: the first model answer whose mass has a standard error below this fraction of it is acted on [-]
+MODEL_MASS_TRUST = 0.2
+#: ... and whose χ²/dof is at most this (the model of the stand describes the record) [-]
+MODEL_REDUCED_CHI2 = 1.5
 #: the controller trusts an identified velocity whose standard error is below this fraction of it [-] (and a mass
 #: by the estimator's ``MASS_TRUST``)
 VELOCITY_TRUST = 0.5
@@ -66,15 +70,17 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
                     sample_rate: float, response_map=None) -> Identification:
     """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would.
 
-    The record streams through :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdentifier` and the
-    first estimate (the early answer, at the end of the second contact pulse) is taken when it arrives. A response
-    map is applied to the whole record and reports its own ``available_at``.
+    ``model``: the stand's model is fitted to the record as it grows (:func:`first_model_answer`); the first answer
+    the controller can act on is taken when its fit is done. ``robust``/``paper``: the record streams through
+    :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdentifier` and the first estimate (the early
+    answer, at the end of the second contact pulse) is taken when it arrives. A response map is applied to the
+    whole record and reports its own ``available_at``.
 
     Parameters
     ----------
     scenario, rig : Scenario, Rig
         The impact and the stand.
-    method : {"robust", "paper", "response-map"}
+    method : {"model", "robust", "paper", "response-map"}
         The loop's identification.
     noise : float
         Relative sensor noise [-].
@@ -93,10 +99,12 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     """
     rec = record(scenario, rig, sample_rate=sample_rate, duration=IDENTIFICATION_WINDOW, noise=noise, seed=seed,
                  pre_trigger=PRE_TRIGGER)
-    name = "response-map/fast" if method == "response-map" else f"peak-to-peak/{method}"
+    name = {"response-map": "response-map/fast", "model": "model/early"}.get(method, f"peak-to-peak/{method}")
     found: Identification | None
     try:
-        if method == "response-map":
+        if method == "model":
+            found = first_model_answer(rec, rig, pressure=scenario.pressure_gauge)
+        elif method == "response-map":
             if response_map is None:
                 raise ParameterError("identification 'response-map' needs response_map= (a map or its file)")
             found = identify_recording(rec, response_map)
@@ -118,3 +126,18 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     if not math.isfinite(found.available_at):
         return replace(found, available_at=math.inf, error="identification gave no time of availability")
     return replace(found, available_at=max(float(found.available_at), 0.0))
+
+
+def first_model_answer(recording, rig: Rig, *, pressure: float) -> Identification:
+    """The first answer of the model fit that the controller can act on, as a real-time system on one core gets it
+    (:func:`impactometer.identify.model_fit.early.early_fits`: the stand's model, its contact law and parameters
+    known, fitted to the record as it grows; each answer known when its fit is done): the first whose mass has a
+    standard error below :data:`MODEL_MASS_TRUST` of it and whose χ²/dof is at most :data:`MODEL_REDUCED_CHI2`.
+    """
+    from ..identify.model_fit.early import LAST_WINDOW, early_fits
+
+    for fit in early_fits(recording, rig, pressure=pressure):
+        if fit.mass_std < MODEL_MASS_TRUST * fit.mass and fit.reduced_chi2 <= MODEL_REDUCED_CHI2:
+            return fit.answer()
+    raise IdentificationError(f"no model answer with a mass known within {MODEL_MASS_TRUST:.0%} within "
+                              f"{LAST_WINDOW * 1e3:g} ms of the trigger")

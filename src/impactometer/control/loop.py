@@ -42,7 +42,7 @@ from .strategies import ControlContext, get_strategy, strategy_names
 from .valve import Absorber
 
 #: identification methods of the loop
-IDENTIFICATIONS = ("robust", "paper", "oracle", "response-map")
+IDENTIFICATIONS = ("robust", "paper", "model", "oracle", "response-map")
 #: a valve strategy's run ends this long after the mass's deepest point [s]: long enough for the rebound of a mass
 #: resting on the closed gas spring (a period of 0.1-0.3 s) to show
 REBOUND_WINDOW = 0.15
@@ -192,7 +192,7 @@ def _check(scenario, noise, seed, identification, absorber, control_start) -> No
 
 
 def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | list[str] = "all",
-           identification: str = "robust", noise: float = 0.02, seed: int = 0, absorber: Absorber | None = None,
+           identification: str = "model", noise: float = 0.02, seed: int = 0, absorber: Absorber | None = None,
            sample_rate: float = 50e3, duration: float | None = None, control_start: float | None = None,
            response_map=None, reference: bool = False,
            reference_evaluations: int = REFERENCE_EVALUATIONS) -> AbsorptionResult:
@@ -206,9 +206,11 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         The stand (default ``drop-stand-pad``, :data:`ABSORPTION_RIG`).
     strategy : str or list of str
         ``"closed"``, ``"constant"``, ``"realtime"``, ``"predictive"``, ``"auto"``, a list of them, or ``"all"``.
-    identification : {"robust", "paper", "oracle", "response-map"}
-        How M1 and V0 are obtained: peak-to-peak identification on the noisy closed-valve record (its early
-        answer when it has one), the true values (oracle), or a response map (``response_map=``).
+    identification : {"model", "robust", "paper", "oracle", "response-map"}
+        How M1 and V0 are obtained from the noisy closed-valve record: the model fit of the stand as the record grows
+        (its first answer with the mass known within 20 %, when its fit is done; the default), the peak-to-peak
+        identification (its early answer when it has one), the true values (oracle), or a response map
+        (``response_map=``).
     noise : float
         Sensor noise as a fraction of each channel's RMS [-] (identification record and controller sensors).
     seed : int

@@ -31,11 +31,11 @@ from .tables import flag, number
 NAME = "absorption"
 #: default values per grid axis (8 impacts at the corners of the ranges; ``--grid 5`` gives the paper's 125)
 GRID = 2
-DEFAULTS = {"noise": 0.02, "identification": "robust", "strategies": ["closed", "constant", "realtime",
+DEFAULTS = {"noise": 0.02, "identification": "model", "strategies": ["closed", "constant", "realtime",
                                                                        "predictive"],
             "reference_evaluations": 240, "control_start_ms": None}
 SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
-            "identification": Setting("choice", choices=("robust", "paper", "oracle")),
+            "identification": Setting("choice", choices=("robust", "paper", "model", "oracle")),
             "strategies": Setting("choices", choices=ALL_STRATEGIES),
             "reference_evaluations": Setting("integer", 0, 10_000),
             "control_start_ms": Setting("number", 0.0, 1e3)}
