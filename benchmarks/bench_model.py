@@ -6,25 +6,40 @@ For each record, in turn: the robust answer (``peak-to-peak/robust`` with its ea
 it), the model's answer with every contact law fitted and the smallest BIC kept (the default), and the model's
 answer with the stand's own law only (``contact="hysteretic"``). Printed: median and 90th percentile of the wall
 time per record (the least of ``--repeat`` runs, as other processes share the cores) and the ratio to the robust
-method. The compiled code runs on one thread (numba); the first
-record of each method is run once beforehand (compilation and caches).
+method. The compiled code runs on one thread (numba) and so does the linear algebra (BLAS: a second thread fighting
+other processes for the cores made one QR of the covariance 5-30 times slower); the first record of each method is
+run once beforehand (compilation and caches).
 
-    python benchmarks/bench_model.py [--records 20] [--record]
+Streaming, side by side on the same records replayed in chunks of 64 samples: the robust
+:class:`StreamingIdentifier` (the time of each push that gave an estimate) and the model's :class:`ModelStream` at
+``--cadence`` (the wall time of each update against the cadence; the first answer's time, and when its data ended
+after first contact, apart).
+
+    python benchmarks/bench_model.py [--records 20] [--cadence 0.005] [--record]
 """
 
 from __future__ import annotations
 
-import argparse
-import time
+import os
 
-import numba
-import numpy as np
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # one core, before numpy loads BLAS
+    os.environ.setdefault(_name, "1")
 
-from impactometer.identify.model_fit import identify as identify_model
-from impactometer.identify.peak_to_peak import identify as identify_robust
-from impactometer.sensors import record_batch
-from impactometer.studies.base import StudyOptions, scenario_grid
-from recorded import recorded
+import argparse  # noqa: E402 - after the thread settings
+import time  # noqa: E402
+
+import numba  # noqa: E402
+import numpy as np  # noqa: E402
+
+from impactometer.identify.model_fit import identify as identify_model  # noqa: E402
+from impactometer.identify.model_fit.streaming import CADENCE, ModelStream  # noqa: E402
+from impactometer.identify.peak_to_peak import identify as identify_robust  # noqa: E402
+from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier  # noqa: E402
+from impactometer.sensors import record_batch  # noqa: E402
+from impactometer.studies.base import StudyOptions, scenario_grid  # noqa: E402
+from recorded import recorded  # noqa: E402
+
+CHUNK = 64
 
 METHODS = {
     "peak-to-peak/robust": lambda rec: identify_robust(rec),
@@ -37,6 +52,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--records", type=int, default=20, help="records spread over the paper's grid")
     ap.add_argument("--repeat", type=int, default=3, help="runs per record and method; the least counts")
+    ap.add_argument("--cadence", type=float, default=CADENCE, help="model stream: record between updates [s]")
     ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
     with recorded("bench_model", "Model-based identification: time per record beside the robust method",
@@ -76,6 +92,57 @@ def measure(args, rec) -> None:
     rec.headline("model fit of a 70 ms pad record, median time per record (3 laws / one law), one core",
                  f"{np.median(times['model (3 laws, BIC)']) * 1e3:.0f} ms / "
                  f"{np.median(times['model (hysteretic only)']) * 1e3:.0f} ms", target="100 ms")
+    stream(recordings, args.cadence, rec)
+
+
+def replay(ident, recording) -> list[tuple[float, list]]:
+    """Push ``recording`` through ``ident`` in chunks; (wall time, estimates) of each push."""
+    f, a = recording.contact_force, recording.piston_acceleration
+    out = []
+    for k in range(0, f.size, CHUNK):
+        start = time.perf_counter()
+        new = ident.push(f[k:k + CHUNK], a[k:k + CHUNK])
+        out.append((time.perf_counter() - start, new))
+    return out
+
+
+def stream(recordings, cadence: float, rec) -> None:
+    """The robust and the model streams side by side: time per update, the model's against its cadence."""
+    replay(StreamingIdentifier(recordings[0].sample_rate, start_time=recordings[0].start_time), recordings[0])
+    replay(ModelStream(recordings[0].sample_rate, start_time=recordings[0].start_time,
+                       metadata=recordings[0].metadata, cadence=cadence), recordings[0])
+    robust: list[float] = []
+    updates: list[float] = []
+    first: list[tuple[float, float, float, float]] = []  # compute time, data after contact, |dM|, |dV| [-]
+    for recording in recordings:
+        robust += [took for took, new in replay(StreamingIdentifier(recording.sample_rate,
+                                                                     start_time=recording.start_time), recording)
+                   if new]
+        model = ModelStream(recording.sample_rate, start_time=recording.start_time, metadata=recording.metadata,
+                            cadence=cadence)
+        replay(model, recording)
+        for est in model.estimates:
+            took = est.details["update_time_s"]
+            if est.details["stage"] == "update":
+                updates.append(took)
+            elif est.details["stage"] == "first":
+                first.append((took, est.available_at, abs(est.mass / recording.truth("mass_kg") - 1),
+                              abs(est.velocity / recording.truth("velocity_m_s") - 1)))
+    u, r, f = np.array(updates), np.array(robust), np.array(first)
+    print(f"\nStreaming, chunks of {CHUNK} samples; model cadence {cadence * 1e3:g} ms of record\n")
+    print("| stream | updates | median [ms] | 90th percentile [ms] | max [ms] | median / cadence |")
+    print("|---|---|---|---|---|---|")
+    print(f"| robust (push with an estimate) | {r.size} | {np.median(r) * 1e3:.2f} | "
+          f"{np.percentile(r, 90) * 1e3:.2f} | {r.max() * 1e3:.2f} | - |")
+    print(f"| model update | {u.size} | {np.median(u) * 1e3:.2f} | {np.percentile(u, 90) * 1e3:.2f} | "
+          f"{u.max() * 1e3:.2f} | {np.median(u) / cadence:.2f} |")
+    print(f"| model first answer | {f.shape[0]} | {np.median(f[:, 0]) * 1e3:.2f} | "
+          f"{np.percentile(f[:, 0], 90) * 1e3:.2f} | {f[:, 0].max() * 1e3:.2f} | - |")
+    print(f"\nmodel update / robust push (medians): {np.median(u) / np.median(r):.2f}; first answer: its data end "
+          f"{np.median(f[:, 1]) * 1e3:.2f} ms after first contact (median), mean |dM| {np.mean(f[:, 2]):.2%}, "
+          f"mean |dV| {np.mean(f[:, 3]):.2%}")
+    rec.headline(f"model stream update, median / 90th percentile, cadence {cadence * 1e3:g} ms, one core",
+                 f"{np.median(u) * 1e3:.1f} ms / {np.percentile(u, 90) * 1e3:.1f} ms", target=f"{cadence * 1e3:g} ms")
 
 
 if __name__ == "__main__":

@@ -140,48 +140,116 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
             console.print(f"figure written to {plot}")
 
 
+STREAM_METHODS = ("peak-to-peak", "model")
+
+
 @app.command()
 @reader_options
 def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording to replay.")],
+           method: Annotated[str, typer.Option("--method", metavar="NAME", help="peak-to-peak (default) or model: "
+                                                                                 "the stand model's updates.")]
+           = "peak-to-peak",
            variant: VariantOpt = "robust",
            contact_phase: ContactOpt = False,
+           cadence: Annotated[str | None, typer.Option(
+               "--cadence", metavar="TIME", help="model: record between updates (default 5ms).")] = None,
+           rig: Annotated[str | None, typer.Option("--rig", metavar="STAND", help="model: the stand, a preset name "
+                                                                               "or a TOML file.")] = None,
+           pressure: Annotated[str | None, typer.Option(
+               "--pressure", metavar="PRESSURE", help="model: charge pressure p0, gauge (e.g. 200kPa); else the "
+                                                      "file's statement, else fitted.")] = None,
            chunk: Annotated[int, typer.Option("--chunk", metavar="SAMPLES", help="Samples per push.")] = 64,
            realtime: Annotated[bool, typer.Option("--realtime", help="Replay at the file's sample rate.")] = False,
            as_json: Annotated[bool, typer.Option("--json", help="One JSON object per estimate, its stage (early, "
-                                                                "update or final) named.")] = False,
+                                                                "first, update or final) named.")] = False,
            reader: ReaderOptions = DEFAULT_READER) -> None:
     """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
-    from ..identify.peak_to_peak.streaming import StreamingIdentifier
-
+    if method not in STREAM_METHODS:
+        raise ParameterError(f"--method must be one of {list(STREAM_METHODS)}, got {method!r}")
+    if method != "model" and (cadence, rig, pressure) != (None, None, None):
+        raise ParameterError("--cadence, --rig and --pressure are options of --method model")
     if chunk < 1:
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
     rec = reader.read(file)
+    if method == "model":
+        _stream_model(file, rec, quantity(cadence, "time", "--cadence"), rig, pressure, chunk, realtime, as_json)
+        return
     from ..identify.peak_to_peak import check_unfiltered
+    from ..identify.peak_to_peak.streaming import StreamingIdentifier
 
     with given(variant=variant):
         check_unfiltered(rec, variant)
         ident = StreamingIdentifier(rec.sample_rate, variant=variant, start_time=rec.start_time,
                                     contact_phase=contact_phase)
+    concluded = 0
+
+    def report(new: list, at: float) -> None:
+        nonlocal concluded
+        concluded = _report(ident, new, concluded, at, as_json)
+
+    _replay(rec, ident, chunk, realtime, report)
+    shown = len(ident.estimates)
+    final = ident.finish()  # raises the refusal of the last impact
+    _report(ident, ident.estimates[shown:], concluded, rec.start_time + rec.contact_force.size / rec.sample_rate,
+            as_json)
+    if final is None:
+        raise IdentificationError("no estimate: the stream holds no impact with enough contact pulses")
+    if not as_json:
+        console.print(_table(final.to_dict(), f"{file.name}: final answer of the stream ({variant})"))
+
+
+def _replay(rec, ident, chunk: int, realtime: bool, report) -> None:
+    """Push the recording through ``ident`` in chunks (at the file's pace with ``realtime``), reporting each push's
+    estimates with the time of its last sample."""
     f, a = rec.contact_force, rec.piston_acceleration
     t_wall = clock.perf_counter()
-    concluded = 0
     # a line on standard error if the first impact compiles the kernels; estimates print as they come
-    with announce_compilation("streaming", compile_time="about 5-20 s", spinner=False):
+    with announce_compilation("streaming", compile_time="about 5-40 s", spinner=False):
         for k in range(0, f.size, chunk):
             if realtime:
                 lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
                 if lag > 0:
                     clock.sleep(lag)
-            new = ident.push(f[k:k + chunk], a[k:k + chunk])
-            concluded = _report(ident, new, concluded, rec.start_time + min(k + chunk, f.size) / rec.sample_rate,
-                                as_json)
+            report(ident.push(f[k:k + chunk], a[k:k + chunk]),
+                   rec.start_time + min(k + chunk, f.size) / rec.sample_rate)
+
+
+def _stream_model(file: Path, rec, cadence: float | None, rig: str | None, pressure: str | None, chunk: int,
+                  realtime: bool, as_json: bool) -> None:
+    """``stream --method model``: the model's first answer, its updates every cadence and the final answer, each
+    with the wall time it took; a closing line with the median and 90th percentile of the updates' times."""
+    import numpy as np
+
+    from ..identify.model_fit.streaming import CADENCE, ModelStream
+
+    with given(rig=rig, pressure=pressure, cadence=None if cadence is None else f"{cadence:g}s"):
+        ident = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, rig=rig,
+                            pressure=quantity(pressure, "pressure", "--pressure"),
+                            cadence=CADENCE if cadence is None else cadence)
+
+    def report(new: list, at: float) -> None:
+        for est in new:
+            _print_estimate(est, est.details.get("stage", "update"), as_json)
+
+    _replay(rec, ident, chunk, realtime, report)
     shown = len(ident.estimates)
     final = ident.finish()  # raises the refusal of the last impact
-    _report(ident, ident.estimates[shown:], concluded, rec.start_time + f.size / rec.sample_rate, as_json)
+    report(ident.estimates[shown:], 0.0)
     if final is None:
-        raise IdentificationError("no estimate: the stream holds no impact with enough contact pulses")
-    if not as_json:
-        console.print(_table(final.to_dict(), f"{file.name}: final answer of the stream ({variant})"))
+        raise IdentificationError("no estimate: the stream holds no impact")
+    times = np.array([est.details["update_time_s"] for est in ident.estimates if est.details.get("stage") == "update"])
+    median, p90 = (float(np.median(times)), float(np.percentile(times, 90))) if times.size else (None, None)
+    if as_json:
+        typer.echo(json.dumps({"kind": "summary", "cadence_s": ident.cadence, "updates": int(times.size),
+                               "update_time_median_s": median, "update_time_p90_s": p90,
+                               "first_available_at_s": ident.estimates[0].available_at if ident.estimates else None}))
+        return
+    if median is not None and p90 is not None:
+        console.print(f"{times.size} updates every {ident.cadence * 1e3:g} ms of record; time per update: median "
+                      f"{median * 1e3:.2f} ms, 90th percentile {p90 * 1e3:.2f} ms (this machine, one process)",
+                      highlight=False)
+    data = final.to_dict()
+    console.print(_table(data, f"{file.name}: final answer of the stream (model, {data.get('contact_law')} contact)"))
 
 
 def _print_refusal(error: IdentificationError, at: float, as_json: bool) -> None:
@@ -217,14 +285,20 @@ def _stage(est, ident) -> str:
 def _print_estimate(est, stage: str, as_json: bool) -> None:
     d = est.to_dict()
     kind = "early" if stage == "early" else "estimate"
+    took = est.details.get("update_time_s")
     if as_json:
         d["kind"] = kind
         d["stage"] = stage
+        if took is not None:  # the model stream's own figures
+            d.update(update_time_s=took, cadence_s=est.details.get("cadence_s"), window_ms=est.details.get("window_ms"),
+                     law_choice=est.details.get("law_choice"), sigma_given=est.details.get("sigma_given"))
         typer.echo(json.dumps(d))
         return
+    model = "" if took is None else (f"  [{stage}, {est.details.get('contact_law')}, chi2/dof "
+                                     f"{est.details.get('reduced_chi2', float('nan')):.3g}, took {took * 1e3:.1f} ms]")
     console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} "
                   f"M1 = {with_uncertainty(est.mass, est.mass_std, 'kg')}  "
-                  f"V0 = {with_uncertainty(est.velocity, est.velocity_std, 'm/s')}  E = {est.energy:.1f} J",
-                  highlight=False, soft_wrap=True)
+                  f"V0 = {with_uncertainty(est.velocity, est.velocity_std, 'm/s')}  E = {est.energy:.1f} J{model}",
+                  highlight=False, markup=False, soft_wrap=True)
     for warning in est.warnings:
         console.print(f"{'':15s}warning: {warning}", highlight=False, markup=False, soft_wrap=True)

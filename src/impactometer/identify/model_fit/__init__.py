@@ -30,7 +30,7 @@ from ..result import Identification
 from .fit import LawFit, Observed, weighted_jacobian
 from .forward import check_uncertain, free_parameters, make_grid, make_layout, stand_values
 from .information import CramerRao, bound_of, covariance
-from .select import SCREEN_MARGIN, SCREEN_WINDOW, STAGES, Start, fit_laws, grid_start
+from .select import CRITERION, Start, fit_laws, grid_start
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2"]
 
@@ -97,15 +97,16 @@ def _design(recording: Recording) -> str:
     return design
 
 
-def _observe(recording: Recording, design: str, contact_time: float) -> Observed:
-    """The record as the fit reads it, with each channel's noise σ from the samples before ``contact_time``."""
+def _observe(recording: Recording, design: str, contact_time: float, min_duration: float = MIN_DURATION) -> Observed:
+    """The record as the fit reads it, with each channel's noise σ from the samples before ``contact_time``, and
+    at least ``min_duration`` [s] after it."""
     data = np.vstack([np.asarray(recording.channel(name), dtype=float) for name in CHANNELS])
     fs = recording.sample_rate
     onset = int(math.floor((contact_time - recording.start_time) * fs))
     after = (data.shape[1] - 1 - onset) / fs
-    if after < MIN_DURATION:
+    if after < min_duration:
         raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
-                                  f"the model fit needs at least {MIN_DURATION * 1e3:g} ms")
+                                  f"the model fit needs at least {min_duration * 1e3:g} ms")
     pre = onset - GUARD_SAMPLES
     if pre < MIN_PRE_SAMPLES:
         raise IdentificationError(f"{recording.source}: {max(pre, 0)} samples before first contact; the model fit "
@@ -230,8 +231,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         data = _observe(recording, design, trigger)
         start = grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0, pressure_start)
     fits, selection = fit_laws(data, rig, laws, free_names, start)
-    common = {"model_selection": selection, "criterion": "BIC = chi2 + k ln N, whole record; laws more than "
-              f"{SCREEN_MARGIN:g} above the best on the first {STAGES[SCREEN_WINDOW][0] * 1e3:g} ms dropped",
+    common = {"model_selection": selection, "criterion": CRITERION,
               "start": {"mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time,
                         "from": "robust" if robust is not None else "grid"},
               "robust": {"error": failed} if robust is None else

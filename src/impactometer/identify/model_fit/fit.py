@@ -188,6 +188,51 @@ def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, evaluati
                   converged=result.status > 0)
 
 
+#: Marquardt damping a step of :func:`refine` tries in turn until χ² falls (relative to the diagonal of JᵀJ)
+DAMPING = (1e-3, 1e-1, 10.0)
+
+
+def refine(data: Observed, layout: Layout, start: dict[str, float], offsets: np.ndarray, *,
+           steps: int = 1) -> LawFit:
+    """``steps`` Levenberg-Marquardt steps of ``layout`` on ``data`` from ``start`` (physical values) and
+    ``offsets`` [N], [m/s²]: the update of a fit whose window grew a little (each step one Jacobian and one or a
+    few residual evaluations, against the several of :func:`fit_law` and its Jacobian at the optimum). The
+    covariance comes from the Jacobian the last step started from; ``converged`` is True (an update does not
+    claim convergence, nor does it warn of its absence).
+
+    Raises
+    ------
+    IdentificationError
+        When the model cannot be integrated at the start.
+    """
+    model = _Model(data, layout)
+    x = np.r_[layout.variables(start), offsets / data.noise]
+    r = model.residuals(x)
+    if np.all(r == PENALTY):
+        raise IdentificationError(f"the {layout.law} model cannot be integrated at the update's start")
+    chi2, evaluations = float(r @ r), 1
+    for _ in range(steps):
+        jac = model.jacobian(x)
+        scale = np.linalg.norm(jac, axis=0)
+        scale[scale == 0.0] = 1.0
+        scaled = jac / scale
+        normal, gradient = scaled.T @ scaled, scaled.T @ r
+        for damping in DAMPING:
+            lifted = normal + damping * np.diag(np.diag(normal))
+            trial = x - np.linalg.lstsq(lifted, gradient, rcond=None)[0] / scale
+            r_trial = model.residuals(trial)
+            evaluations += 1
+            if float(r_trial @ r_trial) < chi2:
+                x, r, chi2 = trial, r_trial, float(r_trial @ r_trial)
+                break
+        else:
+            break
+    cov, rank = covariance(jac)
+    q = len(layout.names)
+    return LawFit(layout=layout, x=x, values=layout.values(x[:q]), offsets=x[q:] * data.noise, cov=cov, rank=rank,
+                  chi2=chi2, residuals=data.size, evaluations=evaluations, converged=True)
+
+
 def weighted_jacobian(data: Observed, layout: Layout, values: dict[str, float]) -> np.ndarray:
     """The weighted Jacobian of ``layout`` on ``data`` at physical ``values`` (offsets zero: they enter linearly,
     so the Jacobian does not depend on them)."""

@@ -21,8 +21,8 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .fit import MAX_EVALUATIONS, LawFit, Observed, _Model, fit_law, window
-from .forward import free_parameters, make_layout, stand_values
+from .fit import MAX_EVALUATIONS, PENALTY, LawFit, Observed, _Model, fit_law, window
+from .forward import free_parameters, make_layout, predict, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
 #: the whole record follows
@@ -32,6 +32,17 @@ SCREEN_WINDOW = 2
 #: a law whose BIC on the screening window exceeds the best law's by more than this is dropped [-] (a difference
 #: of 10 is "very strong" evidence on Kass and Raftery's scale; the wrong laws of the pad stand lose by 10^4)
 SCREEN_MARGIN = 100.0
+#: the first screen, on the first window (index into STAGES) with the stand parameters held: a law whose BIC there
+#: exceeds the best law's by more than EARLY_MARGIN is dropped, where the best law explains the window down to the
+#: noise (χ²/dof <= EARLY_REDUCED_CHI2). On the pad stand the wrong laws lose by 7e3-9e5 on the first 4 ms and
+#: would cost two more windows each (a third of the time of a record)
+EARLY_WINDOW = 0
+EARLY_MARGIN = 1000.0
+EARLY_REDUCED_CHI2 = 1.1
+#: the rule, as the details of an answer state it
+CRITERION = (f"BIC = chi2 + k ln N, whole record; laws more than {EARLY_MARGIN:g} above a best law that explains "
+             f"the first {STAGES[EARLY_WINDOW][0] * 1e3:g} ms (chi2/dof <= {EARLY_REDUCED_CHI2:g}) or "
+             f"{SCREEN_MARGIN:g} above the best on the first {STAGES[SCREEN_WINDOW][0] * 1e3:g} ms dropped")
 #: a whole-record fit that leaves χ²/dof above this, or stops before it converges, is tried again from the start
 #: with the finer windows of FINE_STAGES, the stand parameters free from the first (M1 held up to 20 ms): light,
 #: fast impacts bounce dozens of times (2 ms steps of the window keep each new pulse within reach), and a pad far
@@ -56,52 +67,83 @@ class Start:
     pressure_start: float
 
 
+def screen(fits: dict[str, LawFit], span: float, margin: float, *, within: float | None = None) -> dict[str, str]:
+    """The laws of ``fits`` (law -> its fit on the window of ``span`` [s] after contact) to drop, each with why:
+    those whose BIC exceeds the best law's by more than ``margin``; with ``within``, only where the best law
+    leaves χ²/dof <= ``within`` (it explains the window down to the noise, so a law far above it cannot catch up
+    once its parameters are freed)."""
+    if not fits:
+        return {}
+    best = min(fits.values(), key=lambda fit: fit.bic)
+    if within is not None and best.reduced_chi2 > within:
+        return {}
+    return {law: f"BIC on the first {span * 1e3:g} ms exceeds the best law's ({best.law}) by "
+                 f"{fit.bic - best.bic:.4g} > {margin:g}"
+            for law, fit in fits.items() if fit.bic > best.bic + margin}
+
+
+def start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: Start,
+              sample_rate: float) -> tuple[Layouts, dict]:
+    """The layouts of ``law``'s windows and the physical values its fit starts from."""
+    free = free_parameters(law, uncertain)
+    values = {"mass": start.mass, "velocity": start.velocity, "contact_time": start.contact_time,
+              **stand_values(rig, law, free)}
+    if start.pressure is None:
+        values["pressure_gauge"] = start.pressure_start
+    return Layouts(rig, law, free, start, sample_rate), values
+
+
 def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[str, ...] | None,
              start: Start) -> tuple[dict[str, LawFit], dict[str, dict]]:
-    """Fit every law of ``laws`` (screened on the window ``STAGES[SCREEN_WINDOW]``); returns the whole-record fits
-    of the laws kept and, for every law, what became of it (a summary of its fit, the screening window's BIC,
-    or why it failed)."""
+    """Fit every law of ``laws`` (screened on the windows ``STAGES[EARLY_WINDOW]`` and ``STAGES[SCREEN_WINDOW]``);
+    returns the whole-record fits of the laws kept and, for every law, what became of it (a summary of its fit,
+    the screening window's BIC, or why it failed or was dropped)."""
     fits: dict[str, LawFit] = {}
     report: dict[str, dict] = {}
-    screened: dict[str, tuple[LawFit, dict, tuple[_Layouts, np.ndarray]]] = {}
-    for law in laws:
-        free = free_parameters(law, uncertain)
-        values = {"mass": start.mass, "velocity": start.velocity, "contact_time": start.contact_time,
-                  **stand_values(rig, law, free)}
-        if start.pressure is None:
-            values["pressure_gauge"] = start.pressure_start
-        layouts = _Layouts(rig, law, free, start, data.grid.sample_rate)
+    running: dict[str, tuple[LawFit, dict, Layouts, np.ndarray]] = {}
+    done = 0
+    for stop, margin, within in ((EARLY_WINDOW + 1, EARLY_MARGIN, EARLY_REDUCED_CHI2),
+                                 (SCREEN_WINDOW + 1, SCREEN_MARGIN, None)):
+        for law in laws if not done else tuple(running):
+            if done:
+                _, values, layouts, offsets = running[law]
+            else:
+                layouts, values = start_law(rig, law, uncertain, start, data.grid.sample_rate)
+                offsets = data.offsets
+            try:
+                fit, values, offsets = fit_stages(data, layouts, values, offsets, STAGES[done:stop], start,
+                                                  evaluations=SCREEN_EVALUATIONS)
+            except IdentificationError as exc:
+                report[law] = {"error": str(exc)}
+                running.pop(law, None)
+                continue
+            running[law] = (fit, values, layouts, offsets)
+        span = STAGES[stop - 1][0]
+        for law, why in screen({law: item[0] for law, item in running.items()}, span, margin,
+                               within=within).items():
+            fit = running.pop(law)[0]
+            report[law] = {**_screened(fit, span), "dropped": why}
+        done = stop
+    for law, (fit, values, layouts, offsets) in running.items():
+        screened = _screened(fit, STAGES[SCREEN_WINDOW][0])
         try:
-            fit, values, offsets = _stages(data, layouts, values, data.offsets, STAGES[:SCREEN_WINDOW + 1], start,
-                                           evaluations=SCREEN_EVALUATIONS)
+            fits[law], _, _ = fit_stages(data, layouts, values, offsets, (*STAGES[SCREEN_WINDOW + 1:], (None, "all")),
+                                         start)
         except IdentificationError as exc:
-            report[law] = {"error": str(exc)}
-            continue
-        screened[law] = (fit, values, (layouts, offsets))
-    if not screened:
-        return fits, report
-    best = min(fit.bic for fit, _, _ in screened.values())
-    window_end = STAGES[SCREEN_WINDOW][0] * 1e3
-    for law, (fit, values, (layouts, offsets)) in screened.items():
-        screen = {"screen_window_ms": window_end, "screen_bic": fit.bic, "screen_reduced_chi2": fit.reduced_chi2}
-        if fit.bic > best + SCREEN_MARGIN:
-            report[law] = {**screen, "dropped": f"BIC on the first {window_end:g} ms exceeds the best law's by "
-                                                f"{fit.bic - best:.4g} > {SCREEN_MARGIN:g}"}
-            continue
-        try:
-            fits[law], _, _ = _stages(data, layouts, values, offsets, (*STAGES[SCREEN_WINDOW + 1:], (None, "all")),
-                                      start)
-        except IdentificationError as exc:
-            report[law] = {**screen, "error": str(exc)}
+            report[law] = {**screened, "error": str(exc)}
             continue
         retried = _retry(data, layouts, fits[law], start)
         if retried is not None:
             fits[law] = retried
-        report[law] = {**fits[law].summary(), **screen, "retried": retried is not None}
+        report[law] = {**fits[law].summary(), **screened, "retried": retried is not None}
     return fits, report
 
 
-class _Layouts:
+def _screened(fit: LawFit, span: float) -> dict:
+    return {"screen_window_ms": span * 1e3, "screen_bic": fit.bic, "screen_reduced_chi2": fit.reduced_chi2}
+
+
+class Layouts:
     """The layouts of one law's windows: ``core`` (M1, V0, contact instant; the stand held), ``stand`` (V0, the
     contact instant and the stand parameters; M1 held at its last value) and ``all``."""
 
@@ -125,13 +167,13 @@ def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
     values = {name: value for name, value in fit.values.items() if name not in ("mass", "velocity", "contact_time")}
     values.update(mass=start.mass, velocity=start.velocity, contact_time=start.contact_time)
     try:
-        other, _, _ = _stages(data, layouts, values, data.offsets, (*FINE_STAGES, (None, "all")), start)
+        other, _, _ = fit_stages(data, layouts, values, data.offsets, (*FINE_STAGES, (None, "all")), start)
     except IdentificationError:
         return None
     return other if other.chi2 < fit.chi2 else None
 
 
-def _stages(data: Observed, layouts, values: dict, offsets, stages, start: Start, *,
+def fit_stages(data: Observed, layouts: Layouts, values: dict, offsets, stages, start: Start, *,
             evaluations: int = MAX_EVALUATIONS):
     """Fit the windows of ``stages`` in turn (None: the whole record), each from the last one's answer; returns the
     last fit (its covariance only for the whole record), its values and its offsets."""
@@ -154,19 +196,51 @@ def grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | 
     """A start for :func:`fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
     :data:`START_VELOCITIES` whose prediction of the first window (``STAGES[0]``) with the stand's own law and
     parameters fits best (offsets from the pre-trigger), first contact at ``contact_time`` [s]."""
-    law = rig.contact.law
-    layout = make_layout(rig, law, (), pressure=pressure, contact_time=contact_time,
+    return grid_starts(data, rig, contact_time, pressure, pressure_start)[0]
+
+
+def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_start: float,
+                count: int = 1) -> list[Start]:
+    """The ``count`` best starts of :func:`grid_start`, best first, none next to (one grid step from) a better
+    one: the first window of a light, fast impact can hold more than one minimum."""
+    layout = make_layout(rig, rig.contact.law, (), pressure=pressure, contact_time=contact_time,
                          sample_rate=data.grid.sample_rate)
-    model = _Model(window(data, contact_time + STAGES[0][0]), layout)
-    best, chi2 = (float(START_MASSES[0]), float(START_VELOCITIES[0])), np.inf
-    for mass in START_MASSES:
-        for velocity in START_VELOCITIES:
-            values = {"mass": mass, "velocity": velocity, "contact_time": contact_time}
-            if pressure is None:
-                values["pressure_gauge"] = pressure_start
-            x = np.r_[layout.variables(values), data.offsets / data.noise]
-            r = model.residuals(x)
-            if float(r @ r) < chi2:
-                best, chi2 = (mass, velocity), float(r @ r)
-    return Start(mass=float(best[0]), velocity=float(best[1]), contact_time=contact_time, pressure=pressure,
-                 pressure_start=pressure_start)
+    part = window(data, contact_time + STAGES[0][0])
+    masses, velocities = np.meshgrid(START_MASSES, START_VELOCITIES, indexing="ij")
+    rows = np.zeros((masses.size, len(layout.names)))
+    for j, value in enumerate((masses.ravel(), velocities.ravel())):
+        rows[:, j] = np.log(value)  # the core variables: ln M1, ln V0, the contact instant (0 from its start)
+    if pressure is None:
+        rows[:, -1] = np.log(pressure_start + rig.gas.atmospheric_pressure)
+    params, times = layout.packed(rows)
+    try:
+        predicted = predict(part.grid, params, times) / part.noise[None, :, None]
+        chi2 = np.sum(np.square(part.channels / part.noise[:, None] - part.offsets[:, None] / part.noise[:, None]
+                                - predicted), axis=(1, 2)).reshape(masses.shape)
+    except IdentificationError:  # a grid point the model cannot carry: one by one, that point left out
+        chi2 = _each_chi2(part, layout, rows, masses.shape)
+    starts: list[Start] = []
+    taken: list[tuple[int, int]] = []
+    for flat in np.argsort(chi2, axis=None, kind="stable"):
+        i, j = np.unravel_index(flat, chi2.shape)
+        if len(starts) == count or not np.isfinite(chi2[i, j]):
+            break
+        if any(abs(i - a) <= 1 and abs(j - b) <= 1 for a, b in taken):
+            continue
+        taken.append((int(i), int(j)))
+        starts.append(Start(mass=float(masses[i, j]), velocity=float(velocities[i, j]), contact_time=contact_time,
+                            pressure=pressure, pressure_start=pressure_start))
+    if not starts:
+        raise IdentificationError("no impact of the start grid can be integrated on this stand")
+    return starts
+
+
+def _each_chi2(part: Observed, layout, rows: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """χ² of each row's prediction of ``part``, one integration each (inf where the model cannot be integrated)."""
+    model = _Model(part, layout)
+    out = np.full(rows.shape[0], np.inf)
+    for k, row in enumerate(rows):
+        r = model.residuals(np.r_[row, part.offsets / part.noise])
+        if not np.all(r == PENALTY):
+            out[k] = float(r @ r)
+    return out.reshape(shape)

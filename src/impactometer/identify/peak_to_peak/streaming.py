@@ -111,6 +111,25 @@ class StreamingIdentifier:
         """True while waiting for an impact."""
         return self._start is None
 
+    @property
+    def trigger_index(self) -> int | None:
+        """Stream index of the running impact's trigger sample (None while armed)."""
+        return None if self._start is None else self._start + self._pre
+
+    @property
+    def impact_start(self) -> int | None:
+        """Stream index of the running impact's first buffered sample (None while armed)."""
+        return self._start
+
+    def buffered(self, start: int, stop: int) -> tuple[np.ndarray, np.ndarray]:
+        """Copies of the force [N] and acceleration [m/s²] samples of stream indices ``start`` to ``stop``
+        (exclusive), which must still be in the ring buffer (the last ``capacity`` samples pushed)."""
+        if not (0 <= start <= stop <= self.seen and self.seen - start <= self.capacity):
+            raise IdentificationError(f"samples {start}..{stop} are not in the buffer (it holds "
+                                      f"{max(self.seen - self.capacity, 0)}..{self.seen})")
+        idx = np.arange(start, stop) % self.capacity
+        return self._force[idx], self._acc[idx]
+
     def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
         """Feed samples (any number, down to one); return the estimates that became available."""
         try:
@@ -169,8 +188,7 @@ class StreamingIdentifier:
 
     def _segment(self, stop: int) -> p2p.Segment:
         assert self._start is not None  # called only while an impact runs
-        idx = np.arange(self._start, stop) % self.capacity
-        return p2p.prepare(self._force[idx], self._acc[idx], self.sample_rate,
+        return p2p.prepare(*self.buffered(self._start, stop), self.sample_rate,
                            self.start_time + self._start / self.sample_rate, self._pre, cache=self._onsets)
 
     def _event(self, code: int, index: int) -> list[Identification]:
@@ -245,12 +263,16 @@ class StreamingIdentifier:
         """
         if self._start is not None:
             self._conclude(self.seen, self.seen - 1)
-        if not self.outcomes:
-            return None
-        last = self.outcomes[-1]
-        if isinstance(last, IdentificationError):
-            raise last
-        return last
+        return last_outcome(self.outcomes)
+
+
+def last_outcome(outcomes: list[Identification | IdentificationError]) -> Identification | None:
+    """The last impact's final answer (None without an impact), or its refusal raised."""
+    if not outcomes:
+        return None
+    if isinstance(outcomes[-1], IdentificationError):
+        raise outcomes[-1]
+    return outcomes[-1]
 
 
 def stream_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64, **options) -> list[Identification]:

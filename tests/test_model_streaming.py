@@ -1,0 +1,136 @@
+"""The model's streaming identification: a first answer from the first milliseconds, updates at the stated cadence
+within their stated σ, and a final answer equal to the batch fit of the same samples."""
+
+import json
+
+import numpy as np
+import pytest
+
+from impactometer.cli import main
+from impactometer.errors import IdentificationError, ParameterError
+from impactometer.identify.model_fit import identify
+from impactometer.identify.model_fit.select import STAGES
+from impactometer.identify.model_fit.streaming import ModelStream, stream_model_arrays
+from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
+from impactometer.io import write_recording
+from impactometer.recording import Recording
+from impactometer.rig import Scenario
+from impactometer.sensors import record
+
+#: errors within this many stated σ (a test that fails once in ~16 000 draws for a Gaussian σ)
+Z = 4.0
+RECORD = {"sample_rate": 50e3, "duration": 0.04, "noise": 0.05, "pre_trigger": 0.02}
+
+
+def _record(mass, velocity, pressure, seed, **options):
+    return record(Scenario(mass=mass, velocity=velocity, pressure_gauge=pressure), None, seed=seed,
+                  **{**RECORD, **options})
+
+
+def _stream(rec, chunk=64, **options):
+    stream = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, **options)
+    got = []
+    for k in range(0, rec.contact_force.size, chunk):
+        got += stream.push(rec.contact_force[k:k + chunk], rec.piston_acceleration[k:k + chunk])
+    return stream, got
+
+
+@pytest.mark.parametrize(("mass", "velocity", "pressure", "seed"), [(30.0, 2.0, 100e3, 11), (15.0, 2.5, 300e3, 12)])
+def test_first_answer_and_updates_round_trip(mass, velocity, pressure, seed):
+    rec = _record(mass, velocity, pressure, seed)
+    stream, got = _stream(rec, window=0.03)
+    stages = [est.details["stage"] for est in got]
+    assert stages[0] == "first" and stages[-1] == "final" and set(stages[1:-1]) == {"update"}
+    # the first answer reads the first window after first contact (a sample or two of trigger lead beyond it)
+    assert got[0].available_at <= STAGES[0][0] + 1e-3
+    cadence = np.diff([est.available_at for est in got[:-1]])
+    assert cadence == pytest.approx(stream.cadence, abs=1.01 / rec.sample_rate)
+    for est in got:
+        assert est.method == "model/ml" and est.details["contact_law"] == "hysteretic"
+        assert abs(est.mass - mass) <= Z * est.mass_std, est.details["stage"]
+        assert abs(est.velocity - velocity) <= Z * est.velocity_std, est.details["stage"]
+        assert est.details["update_time_s"] > 0 and est.details["cadence_s"] == stream.cadence
+    assert "only law left" in got[0].details["law_choice"]
+    assert got[0].details["sigma_given"].startswith("the stand's parameters held")
+    assert got[-2].details["sigma_given"] == "every unknown of the batch fit free"
+    # the answers sharpen: the last update's σ of M1 is a fraction of the first's
+    assert got[-2].mass_std < 0.5 * got[0].mass_std
+    assert len(stream.update_times) == len(got) - 1
+
+
+def test_the_final_answer_is_the_batch_fit_of_the_same_samples_whatever_the_chunks():
+    rec = _record(30.0, 2.0, 100e3, 21)
+    finals = []
+    for chunk in (64, 4096):
+        stream, got = _stream(rec, chunk=chunk, window=0.025)
+        finals.append(got[-1])
+        if chunk == 64:
+            updates = [(est.mass, est.velocity, est.mass_std) for est in got[:-1]]
+        else:  # chunks of any size give the same updates: each reads the record up to its own instant
+            assert [(est.mass, est.velocity, est.mass_std) for est in got[:-1]] == updates
+    final = finals[0]
+    assert final.details["stage"] == "final" and final.mass == finals[1].mass
+    # the samples it read: 20 ms before the trigger (0.3-0.6 ms after first contact) up to the window's end
+    read = stream.last_record
+    first = int(round((read.start_time - rec.start_time) * rec.sample_rate))
+    stop = int(round((final.available_at - rec.start_time) * rec.sample_rate)) + 1
+    assert stop - first == read.contact_force.size and read.start_time < -0.019
+    cut = Recording(sample_rate=rec.sample_rate, start_time=rec.start_time + first / rec.sample_rate,
+                    channels={name: rec.channel(name)[first:stop] for name in ("contact_force", "piston_acceleration")},
+                    metadata=rec.metadata)
+    batch = identify(cut)
+    assert (final.mass, final.velocity, final.mass_std, final.velocity_std) == \
+        (batch.mass, batch.velocity, batch.mass_std, batch.velocity_std)
+
+
+def test_stream_model_arrays_ends_with_the_final_answer_and_a_quiet_stream_has_none():
+    rec = _record(30.0, 2.0, 100e3, 31, duration=0.02)
+    got = stream_model_arrays(rec.contact_force, rec.piston_acceleration, rec.sample_rate, chunk=500,
+                              start_time=rec.start_time, metadata=rec.metadata)
+    assert got[-1].details["stage"] == "final" and abs(got[-1].mass - 30.0) <= Z * got[-1].mass_std
+    quiet = ModelStream(50e3)
+    assert quiet.push(np.zeros(5000), np.zeros(5000)) == [] and quiet.finish() is None
+
+
+def test_a_record_too_short_for_the_batch_fit_is_refused_at_finish():
+    rec = _record(30.0, 2.0, 100e3, 41, duration=0.008)
+    stream, got = _stream(rec)
+    assert got and all(est.details["stage"] != "final" for est in got)
+    with pytest.raises(IdentificationError, match="needs at least 10 ms"):
+        stream.finish()
+
+
+def test_bad_options_and_chunks_are_refused():
+    with pytest.raises(ParameterError, match="cadence must be"):
+        ModelStream(50e3, cadence=0.0)
+    with pytest.raises(ParameterError, match="window must be"):
+        ModelStream(50e3, window=0.005)
+    with pytest.raises(ParameterError, match="contradicts"):
+        ModelStream(50e3, metadata={"pressure_gauge_Pa": 100e3}, pressure=200e3)
+    with pytest.raises(ParameterError, match="unknown stand parameter"):
+        ModelStream(50e3, uncertain=["contact.colour"])
+    with pytest.raises(IdentificationError, match="equal length"):
+        ModelStream(50e3).push(np.zeros(3), np.zeros(4))
+    ident = StreamingIdentifier(50e3)
+    ident.push(np.zeros(10), np.zeros(10))
+    with pytest.raises(IdentificationError, match="not in the buffer"):
+        ident.buffered(5, 11)
+
+
+def test_cli_stream_method_model(tmp_path, capsys):
+    path = tmp_path / "drop.h5"
+    write_recording(_record(30.0, 2.0, 100e3, 51, duration=0.02), path)
+    main(["stream", str(path), "--method", "model", "--cadence", "5ms", "--json"])
+    lines = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+    assert [line["stage"] for line in lines[:-1]] == ["first", "update", "update", "update", "final"]
+    assert lines[-1]["kind"] == "summary" and lines[-1]["cadence_s"] == 0.005 and lines[-1]["updates"] == 3
+    assert lines[-1]["update_time_median_s"] > 0 and lines[0]["sigma_given"]
+    main(["stream", str(path), "--method", "model"])
+    out = capsys.readouterr().out
+    assert "updates every 5 ms of record" in out and "final answer of the stream (model" in out
+    for args, message in ((["--cadence", "5ms"], "options of --method model"),
+                          (["--method", "model", "--cadence", "0s"], "cadence"),
+                          (["--method", "fast"], "--method must be one of")):
+        with pytest.raises(SystemExit) as exc:
+            main(["stream", str(path), *args])
+        assert exc.value.code == 2 and message in capsys.readouterr().err
