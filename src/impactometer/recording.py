@@ -51,20 +51,15 @@ def truth_value(key: str, value: Any, where: str = "") -> float:
     dimension, low, high = TRUTH_RANGES[key]
     plain = value.item() if isinstance(value, np.generic) else value
     if not (is_real(plain) or isinstance(plain, str)):
-        raise RecordingError(f"{where}metadata {key} must be a number, got {_short(plain)}")
+        raise RecordingError(f"{where}metadata {key} must be a number, got {shown(plain)}")
     try:
         number = parse_quantity(plain, dimension, field=f"metadata {key}")
     except UnitError as exc:
         raise RecordingError(f"{where}{exc}") from None
     if not low <= number <= high:
         raise RecordingError(f"{where}metadata {key} must be within [{low:g}, {high:g}] {TRUTH_UNITS[key]}, got "
-                             f"{_short(plain)}")
+                             f"{shown(plain)}")
     return number
-
-
-def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np.ndarray:

@@ -249,12 +249,12 @@ def fingerprint(rig: Rig | dict[str, Any]) -> str:
     """
     stand = rig if isinstance(rig, Rig) else from_dict(rig, source="stand")
 
-    def plain(value: Any) -> Any:
+    def canonical(value: Any) -> Any:  # every number as a float: 2e6 and 2000000 hash alike
         if isinstance(value, dict):
-            return {k: plain(v) for k, v in value.items()}
+            return {k: canonical(v) for k, v in value.items()}
         return float(value) if is_real(value) else value
 
-    data = plain({k: v for k, v in to_dict(stand).items() if k != "name"})
+    data = canonical({k: v for k, v in to_dict(stand).items() if k != "name"})
     return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
 
 

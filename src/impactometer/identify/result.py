@@ -17,6 +17,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from ..jsonable import plain
 from ..validation import finite_or_none
 
 #: names of the peak-to-peak variants
@@ -173,21 +174,3 @@ class Identification:
         from ..plotting.identification import plot_identification
 
         return plot_identification(self, recording, ax=ax)
-
-
-def plain(value: Any) -> Any:
-    """JSON-ready copy of nested details: numpy numbers as Python numbers, non-finite numbers as None."""
-    if isinstance(value, Mapping):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    if isinstance(value, (bool, str)) or value is None:
-        return value
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return str(value)
-    if not math.isfinite(number):
-        return None
-    return int(number) if isinstance(value, int) or (hasattr(value, "dtype") and value.dtype.kind in "iu") \
-        else number

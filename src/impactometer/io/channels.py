@@ -18,6 +18,7 @@ import numpy as np
 
 from ..constants import STANDARD_GRAVITY
 from ..errors import RecordingError, UnitError
+from ..jsonable import plain
 from ..recording import (
     ACCELERATION,
     CHANNEL_UNITS,
@@ -153,23 +154,14 @@ def time_base_of(time: np.ndarray, unit: str | None, source: str) -> tuple[float
     return time_base(samples(time, "time", source, squeeze=True), source, scale=1.0 if known is None else known[1])
 
 
-def plain(value: Any) -> Any:
-    """A JSON-friendly copy of a metadata value (numpy scalars/arrays, bytes, datetimes -> builtins/str)."""
-    if isinstance(value, Mapping):
-        return {str(k): plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return plain(value.tolist()) if value.size <= 1000 else f"<array {value.shape}>"
-    if isinstance(value, np.generic):
-        return plain(value.item())
-    if isinstance(value, bytes):
-        return value.decode("utf-8", "replace")
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
-    return str(value)
+#: a metadata array with more elements is stored as its shape only
+METADATA_ARRAY_ITEMS = 1000
+
+
+def plain_metadata(value: Any) -> Any:
+    """A JSON-friendly copy of a metadata value (:func:`impactometer.jsonable.plain`; NaN and infinities as their
+    text, arrays of more than :data:`METADATA_ARRAY_ITEMS` elements as their shape)."""
+    return plain(value, nonfinite="text", max_items=METADATA_ARRAY_ITEMS)
 
 
 def metadata_from_json(text: Any, source: str, field: str) -> dict[str, Any]:
@@ -196,7 +188,7 @@ START_KEYS = ("start_time", "t0", "wf_start_offset")
 def _scalar(value: Any, source: str, field: str) -> float:
     arr = np.asarray(value)
     if arr.size != 1 or arr.dtype.kind not in "iuf":
-        text = repr(plain(value))
+        text = repr(plain_metadata(value))
         text = text if len(text) <= 60 else text[:57] + "..."
         raise RecordingError(f"{source}: {field} must be a number, got {text}")
     number = float(arr.reshape(-1)[0])
@@ -254,7 +246,7 @@ def time_attributes(levels: Levels, source: str) -> tuple[float | None, float | 
                                          f"{start!r}")
                 starts.append((where, start))
             else:
-                rest[str(key)] = plain(value)
+                rest[str(key)] = plain_metadata(value)
     return (one_value(rates, source, "sample rate", "Hz", 1e-6), one_value(starts, source, "start time", "s", 1e-9),
             merge_metadata(rests, source))
 
@@ -386,4 +378,4 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
 
 def metadata_to_json(recording: Recording) -> str:
     """Metadata of ``recording`` as JSON (numpy values made plain)."""
-    return json.dumps(plain(recording.metadata), sort_keys=True)
+    return json.dumps(plain_metadata(recording.metadata), sort_keys=True)

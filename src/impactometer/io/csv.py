@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import RecordingError
 from ..recording import Recording
 from ..validation import is_real
-from .channels import RawData, metadata_from_json, plain
+from .channels import RawData, metadata_from_json, plain_metadata
 
 SEPARATORS = (";", "\t", ",")
 
@@ -221,5 +221,6 @@ def write(recording: Recording, path: Path) -> None:
 
 def write_sidecar(recording: Recording, path: Path) -> None:
     """Write the JSON sidecar (metadata, sample rate, start time) of ``recording``."""
-    data = plain(recording.metadata) | {"sample_rate": recording.sample_rate, "start_time": recording.start_time}
+    data = plain_metadata(recording.metadata) | {"sample_rate": recording.sample_rate,
+                                                 "start_time": recording.start_time}
     path.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n", encoding="utf-8")

@@ -21,7 +21,7 @@ import scipy.io
 
 from ..errors import RecordingError
 from ..recording import Recording
-from .channels import RawData, merge_metadata, metadata_from_json, metadata_to_json, plain, time_attributes
+from .channels import RawData, merge_metadata, metadata_from_json, metadata_to_json, plain_metadata, time_attributes
 
 #: MATLAB char arrays in v7.3 files are stored as uint16 with this attribute
 _MATLAB_CLASS = "MATLAB_class"
@@ -83,7 +83,7 @@ def read(path: Path) -> RawData:
             columns[name] = (arr.reshape(-1).astype(float), str(unit) if isinstance(unit, str) and unit else None)
     rate, start, rest = time_attributes(scalars, source)
     return RawData(columns=columns, source=source, sample_rate=rate, start_time=start,
-                   metadata=merge_metadata([("variable", {k: plain(v) for k, v in rest.items()}),
+                   metadata=merge_metadata([("variable", {k: plain_metadata(v) for k, v in rest.items()}),
                                                    ("variable", texts), ("variable 'metadata_json'", metadata)],
                                                   source))
 

@@ -17,9 +17,8 @@ from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager
 from typing import Any
 
-import numpy as np
-
 from ..errors import ImpactometerError, ParameterError, SimulationError
+from ..jsonable import plain
 from ..validation import check_integer
 from .base import Row, StudyOptions
 from .registry import get_study, load_studies
@@ -45,13 +44,9 @@ def evaluate_chunk(name: str, cases: list[Row], options: StudyOptions) -> tuple[
 
 
 def plain_row(row: Row) -> Row:
-    """Row with numpy scalars turned into Python numbers (JSON-ready)."""
-    out = {}
-    for key, value in row.items():
-        if isinstance(value, np.generic):
-            value = value.item()
-        out[key] = value
-    return out
+    """Row with numpy scalars and arrays turned into Python numbers and lists (JSON-ready; NaN kept: the chunk
+    store and the CSV writer spell it)."""
+    return plain(row, nonfinite="keep")
 
 
 def _compile_listener(callback: Callable[[], None]):
