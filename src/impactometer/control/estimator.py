@@ -7,8 +7,9 @@ Sensors (with noise): contact force Fc, piston acceleration a2, chamber pressure
   rod displacement (a second-order complementary filter of bandwidth ``observer_bandwidth``, critically damped):
   no drift, and far less noise than a differentiated displacement.
 - Contact: on above 5 σ of the force sensor for 3 samples, off below 2 σ for 3 samples (the levels of the
-  identification's pulse detector). Sustained contact (stage B) is a contact after the first that has lasted 1.5 ×
-  the first contact pulse: the collision that starts it is over and the two bodies move together.
+  identification's pulse detector). Sustained contact (stage B) is a contact after the first that has lasted
+  ``pulses.SUSTAINED_CONTROL_FACTOR`` × the first contact pulse: the collision that starts it is over and the two
+  bodies move together.
 - Mass refinement: between two instants at which the bodies have the same velocity M1·(g − a2) = Fc integrates
   exactly, whatever happens between them; the estimate is Σ Fc / Σ (g − a2) between two such instants (the
   force's maxima, and its minima within a contact), chosen for the smallest error, with its standard error from
@@ -35,7 +36,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..identify.pulses import DETECT_SIGMAS, HOLD, RELEASE_SIGMAS
+from ..identify.pulses import DETECT_SIGMAS, HOLD, RELEASE_SIGMAS, SUSTAINED_CONTROL_FACTOR
 from ..model import dynamics as d
 from . import settings as s
 from . import windows
@@ -49,12 +50,6 @@ N_ESTIMATOR = WINDOWS + windows.N_STATE
 SLOW_VELOCITY_TIME = 5e-3
 #: bandwidth of the correction of the mass velocity (momentum balance) towards the observer's in stage B [rad/s]
 VELOCITY_CORRECTION = 2.0 * math.pi * 5.0
-#: sustained contact: a contact after the first one that has lasted this multiple of the first pulse [-]. The rule
-#: of ``identify.pulses.is_sustained`` (measured against the first pulse), compiled here because the loop cannot
-#: call that Python function, and judged sample by sample while the contact runs (>=). Lower than
-#: ``pulses.SUSTAINED_FACTOR`` (2 × the longest pulse before) on purpose: the loop needs the instant the collision
-#: that starts the contact is over and the bodies move together, not the identification's stricter test of a bounce
-SUSTAIN_FACTOR = 1.5
 #: floor of the relative standard error of the mass known at the control start [-]
 PRIOR_FLOOR = 0.25
 #: the prior is dropped when it and the stage-B estimate differ by more than this many combined standard errors
@@ -116,7 +111,8 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
             if math.isnan(e[FIRST_PULSE]):
                 e[FIRST_PULSE] = t - (HOLD - 1) * dt - e[CONTACT_START]
     # pulses.is_sustained for the running contact (NaN FIRST_PULSE: still the first pulse, never sustained)
-    e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and t - e[CONTACT_START] >= SUSTAIN_FACTOR * e[FIRST_PULSE] else 0.0
+    held = t - e[CONTACT_START]
+    e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and held >= SUSTAINED_CONTROL_FACTOR * e[FIRST_PULSE] else 0.0
     together = e[SUSTAINED] != 0.0
     if ctrl[s.REFINE_MASS] != 0.0:  # a window within one contact also shows the bodies moving together
         together |= windows.push(e[WINDOWS:], t, force, gravity - acceleration, DETECT_SIGMAS * sigma,

@@ -17,9 +17,9 @@ Whole event (each run on its own, from first contact until the mass has stopped)
 Controller (R_B, on a window common to every strategy, the oracle and the reference of one impact):
 
 - the window starts at the first sustained contact of the impact with the valve closed, t_w (the start of the first
-  contact pulse after the first one that lasts, to the deepest point, longer than ``SUSTAINED_FACTOR`` × the first
-  pulse; the closed-valve run is the same for every strategy of the impact) and is never restarted; it ends at each
-  run's deepest point;
+  contact pulse after the first one that lasts, to the deepest point, longer than
+  ``pulses.SUSTAINED_WINDOW_FACTOR`` × the first pulse; the closed-valve run is the same for every strategy of the
+  impact) and is never restarted; it ends at each run's deepest point;
 - F_ref = M1·(v1(t_w)²/(2·(s_usable − u1(t_w))) + g) from the closed-valve state at t_w: the lowest constant force
   that stops the mass in the stroke left;
 - F_floor = M1·(F_friction + (p − p_atm)·A_rod)/(M1 + M2): while mass and piston move together the contact force
@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..filters import cfc_filter
-from ..identify.pulses import contact_pulses, is_sustained
+from ..identify.pulses import SUSTAINED_WINDOW_FACTOR, contact_pulses, is_sustained
 from .bound import open_curve
 from .target import stopping_force
 
@@ -48,10 +48,6 @@ from .target import stopping_force
 BODY_CFC = 60
 #: the mass counts as stopped at its deepest point when its velocity there is below this fraction of V0
 STOPPED_FRACTION = 0.01
-#: sustained contact: a pulse after the first that has lasted longer than this multiple of the first pulse (the
-#: rule ``pulses.is_sustained`` measured against the first pulse; stricter than the identification's 2 × the
-#: longest pulse before, since it judges a finished, noise-free run)
-SUSTAINED_FACTOR = 4.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -125,7 +121,7 @@ def first_sustained_contact(time: np.ndarray, force: np.ndarray, u1: np.ndarray)
     for k, p in enumerate(pulses):
         if p.start > deepest:
             break
-        if is_sustained(k, min(p.end, deepest) - p.start, first, SUSTAINED_FACTOR):
+        if is_sustained(k, min(p.end, deepest) - p.start, first, SUSTAINED_WINDOW_FACTOR):
             return float(p.start)
     return math.nan
 

@@ -25,12 +25,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..identify.pulses import contact_pulses, is_sustained
+from ..identify.pulses import SUSTAINED_WINDOW_FACTOR, contact_pulses, is_sustained
 from ..validation import finite_or_none
 from .event import (
     BODY_CFC,
     STOPPED_FRACTION,
-    SUSTAINED_FACTOR,
     CommonWindow,
     body_load,
     first_sustained_contact,
@@ -39,7 +38,7 @@ from .event import (
 )
 from .target import stopping_force
 
-__all__ = ["BODY_CFC", "REBOUND_THRESHOLD", "STOPPED_FRACTION", "SUSTAINED_FACTOR", "AbsorptionMetrics", "StageB",
+__all__ = ["BODY_CFC", "REBOUND_THRESHOLD", "STOPPED_FRACTION", "AbsorptionMetrics", "StageB",
            "absorption_metrics", "stage_b"]
 
 #: upward travel of the mass after it stopped that counts as a rebound [m]
@@ -141,7 +140,7 @@ def stage_b(result, control_start: float, usable_stroke: float, *, filtered: np.
         return none
     first = pulses[0].end - pulses[0].start
     pulse = pulses[held[0]]
-    if not is_sustained(held[0], t[deepest] - pulse.start, first, SUSTAINED_FACTOR):
+    if not is_sustained(held[0], t[deepest] - pulse.start, first, SUSTAINED_WINDOW_FACTOR):
         return none  # the first pulse or a bounce holds the deepest point
     body = body_load(result) if filtered is None else filtered
 

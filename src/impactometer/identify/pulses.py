@@ -29,8 +29,18 @@ class Pulse:
     sustained: bool = False
 
 
-#: stage B is the first pulse after the first that lasts longer than this many times the longest pulse before it
+#: The one rule of stage B (:func:`is_sustained`): a contact pulse after the first that lasts longer than a factor
+#: times a pulse before it. Its presets, one per caller, all here:
+#: the identification's (the first pulse longer than 2 × the LONGEST pulse before it: a bounce of a noisy record
+#: is never taken for sustained contact),
 SUSTAINED_FACTOR = 2.0
+#: the absorber's common window (``control.event``: a pulse that lasts, to the deepest point, 4 × the FIRST pulse;
+#: it judges a finished, noise-free run, so it asks for the contact that holds the bodies together for good),
+SUSTAINED_WINDOW_FACTOR = 4.0
+#: the controller's estimator (``control.estimator``, compiled: a running contact that has lasted 1.5 × the FIRST
+#: pulse, judged sample by sample; the loop needs the instant the collision that starts the contact is over and the
+#: bodies move together, not the identification's stricter test of a bounce)
+SUSTAINED_CONTROL_FACTOR = 1.5
 
 
 def is_sustained(k: int, length: float, longest: float, factor: float = SUSTAINED_FACTOR) -> bool:
@@ -39,9 +49,9 @@ def is_sustained(k: int, length: float, longest: float, factor: float = SUSTAINE
 
     A bounce lasts as long as the contact's stiffness makes it, whatever the law; sustained contact lasts as long
     as the gas spring holds the bodies together, many bounces long. The one rule of stage B for the simulation's
-    pulses (:func:`contact_pulses`), the detected ones (:func:`sustained_index`), ``inspect`` and the absorption
-    metric (``control.metrics``, with its own factor and the first pulse as ``longest``); the controller's compiled
-    estimator (``control.estimator.SUSTAIN_FACTOR``) mirrors it.
+    pulses (:func:`contact_pulses`), the detected ones (:func:`sustained_index`), ``inspect``, the absorber's
+    common window and metrics (:data:`SUSTAINED_WINDOW_FACTOR`, the first pulse as ``longest``); the controller's
+    compiled estimator judges the same inequality with :data:`SUSTAINED_CONTROL_FACTOR`.
     """
     return k > 0 and length > factor * longest
 
