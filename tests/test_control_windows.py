@@ -29,7 +29,7 @@ def test_a_cusp_is_timed_where_one_parabola_leans_to_its_flatter_side():
     The two-sided vertex finds it to the sample; one least-squares parabola over the same samples does not."""
     force = _cusp(140, apex=100.0, left=0.1, right=2.0)
     w = _state(force)
-    at, timing = windows.vertex(w, 100.0, 110.0, 1.0, -1.0, 20.0)
+    at, timing = windows.ring_vertex(w, 100.0, 110.0, 1.0, 1.0, 20.0)
     assert at == 100.0 and timing <= 1.0
     k = np.arange(90, 111, dtype=float)  # the same stretch after the apex, and as far before it
     c2, c1, _ = np.polyfit(k, force[k.astype(int) - 1], 2)
@@ -48,7 +48,7 @@ def test_the_timing_error_of_a_noisy_flat_extremum_is_stated_honestly():
         extreme = float(np.argmin(force) + 1)
         beyond = (np.arange(1, 201) > extreme) & (force > force[int(extreme) - 1] + 50.0)
         confirm = float(np.argmax(np.convolve(beyond, np.ones(windows.HOLD))[:200] >= windows.HOLD) + 1)
-        at, timing = windows.vertex(_state(force[:int(confirm)]), extreme, confirm, 10.0, 1.0, 50.0)
+        at, timing = windows.ring_vertex(_state(force[:int(confirm)]), extreme, confirm, 10.0, -1.0, 50.0)
         hits += abs(at - apex) <= 2.0 * timing + 0.5
         timings.append(timing)
     assert hits >= 0.85 * runs

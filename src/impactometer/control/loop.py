@@ -24,7 +24,7 @@ from ..identify.pulses import contact_pulses
 from ..identify.result import Identification
 from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
 from ..validation import check_flag, check_integer, check_real, finite_or_none
-from . import simulate as loop
+from . import simulate as plant
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
 from .event import STOPPED_FRACTION, CommonWindow, common_window, impact_force
 from .identified import (
@@ -147,7 +147,7 @@ def sensor_sigma(closed_result, noise: float) -> np.ndarray:
     ``noise`` × each channel's RMS over the closed-valve record's first ``IDENTIFICATION_WINDOW``."""
     window = closed_result.time <= IDENTIFICATION_WINDOW
     return np.array([noise * float(np.sqrt(np.mean(getattr(closed_result, name)[window] ** 2)))
-                     for name in loop.SENSOR_CHANNELS])
+                     for name in plant.SENSOR_CHANNELS])
 
 
 def sensor_noise(sigma: np.ndarray, samples: int, seed: int) -> np.ndarray:
@@ -164,8 +164,8 @@ def run_until_stopped(scenario: Scenario, rig: Rig, control, absorber: Absorber,
     end of its record, where it had ended ``REBOUND_WINDOW`` after a bounce taken for the stop)."""
     stop_after = REBOUND_WINDOW
     while True:
-        samples = loop.sample_times(duration, sample_rate).size
-        result, history = loop.simulate_controlled(
+        samples = plant.sample_times(duration, sample_rate).size
+        result, history = plant.simulate_controlled(
             scenario, rig, control=control, drive=absorber.drive, duration=duration, sample_rate=sample_rate,
             sensor_noise=sensor_noise(sigma, samples, seed), stop_after=stop_after)
         deepest = int(np.argmax(result.u1))
@@ -246,7 +246,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     scenario.check_against(rig)
     usable = absorber.usable_stroke(rig)
     duration = default_duration(scenario, usable) if duration is None else duration
-    closed, _ = loop.simulate_controlled(scenario, rig, drive=absorber.drive, duration=duration,
+    closed, _ = plant.simulate_controlled(scenario, rig, drive=absorber.drive, duration=duration,
                                          sample_rate=sample_rate)
     if identification == "oracle":
         if control_start is None:  # from the start of the second contact pulse (stage B, or the last rebound)
@@ -291,7 +291,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         if found.error is not None and control.strategy not in ("realtime", "predictive"):
             control = context.base("closed")  # no early answer: only the force strategies act, on their own estimates
         if control.strategy == "closed":
-            simulated[name] = (control, closed, {key: np.full_like(closed.time, np.nan) for key in loop.HISTORIES})
+            simulated[name] = (control, closed, {key: np.full_like(closed.time, np.nan) for key in plant.HISTORIES})
         else:
             simulated[name] = (control, *run_until_stopped(scenario, rig, control, absorber, duration=duration,
                                                            sample_rate=sample_rate, sigma=sigma, seed=seed))

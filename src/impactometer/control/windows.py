@@ -109,9 +109,10 @@ def _fit(n, f0, ff, left, right, sign):
 
 
 @njit(cache=True, error_model="numpy")
-def vertex(w, at, count, sigma, sign, drop):
-    """Sample count of the force extremum near ``at`` (``sign`` −1: a maximum, +1: a minimum) and the standard
-    error of that timing [samples].
+def ring_vertex(w, at, count, sigma, sign, drop):
+    """Sample count of the force extremum near ``at`` (``sign`` +1: a maximum, −1: a minimum, as
+    :func:`impactometer.identify.peak_to_peak.onsets.vertex` takes it) and the standard error of that timing
+    [samples], from the ring buffer of the window state ``w``.
 
     The vertex E of F_E + a±·(t − E)², a curvature of its own on each side, of the extremum's sign or zero (a
     contact loads and unloads along different lines, so its turning points are cusps), fitted by least squares to
@@ -156,7 +157,7 @@ def vertex(w, at, count, sigma, sign, drop):
         left = _side(c[0, i], c[1, i], c[2, i], c[3, i], c[4, i], c[5, i], c[6, i], c[7, i], apex)
         right = _side(c[0, size] - c[0, i], c[1, size] - c[1, i], c[2, size] - c[2, i], c[3, size] - c[3, i],
                       c[4, size] - c[4, i], c[5, size] - c[5, i], c[6, size] - c[6, i], c[7, size] - c[7, i], apex)
-        costs[i] = _fit(n, f0, ff, left, right, sign)
+        costs[i] = _fit(n, f0, ff, left, right, -sign)  # a maximum: a curvature of sign −1
     best = int(np.argmin(costs))
     if best <= EDGE or best >= size - 1 - EDGE:
         return low + best, float(size)
@@ -184,7 +185,7 @@ def _at(w, ring_count, count):
 
 
 @njit(cache=True, error_model="numpy")
-def _store(w, t, source, force_at, shared_at, timing, sigma_f, sigma_a):
+def _store_end(w, t, source, force_at, shared_at, timing, sigma_f, sigma_a):
     """An end at the running sums in slot ``source``; then the estimate from the stored ends."""
     slot = min(int(w[N_ENDS]), MAX_ENDS - 1)
     base = ENDS + slot * END_SLOTS
@@ -283,14 +284,14 @@ def push(w, t, force, shared, drop, in_contact, sustained, sigma_f, sigma_a):
         w[BEYOND] += 1.0
     if w[BEYOND] >= HOLD:  # the extremum is confirmed: an end at its vertex
         w[BEYOND] = 0.0
-        at, timing = vertex(w, w[EXTREME_AT], count, sigma_f, -w[LOOKING], drop)
+        at, timing = ring_vertex(w, w[EXTREME_AT], count, sigma_f, w[LOOKING], drop)
         together = w[OPENED] == 0.0 and w[N_ENDS] > 0.0
         force_at, shared_at = _at(w, at, count)
-        _store(w, t, SUMS_RING + (int(at) % RING) * N_SUMS, force_at, shared_at, timing, sigma_f, sigma_a)
+        _store_end(w, t, SUMS_RING + (int(at) % RING) * N_SUMS, force_at, shared_at, timing, sigma_f, sigma_a)
         w[LOOKING] = -w[LOOKING]
         w[EXTREME] = force
         w[EXTREME_AT] = count
     if sustained and t - w[LAST_COMMIT] > COMMIT_TIME:
         force_at, shared_at = _at(w, count, count)
-        _store(w, t, RUNNING, force_at, shared_at, MAX_HALF_WIDTH, sigma_f, sigma_a)
+        _store_end(w, t, RUNNING, force_at, shared_at, MAX_HALF_WIDTH, sigma_f, sigma_a)
     return together

@@ -98,7 +98,7 @@ def check_channels(force, acceleration, sample_rate) -> tuple[np.ndarray, np.nda
 TRIGGER_BLOCK = 1 << 16
 
 
-def run_trigger(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
+def trigger_events(force: np.ndarray, sample_rate: float, *, floor: float) -> np.ndarray:
     """Trigger events (code, sample index) of a record, up to the end of its first impact."""
     fstate, istate = trigger.new_state()
     events = np.empty((3 * TRIGGER_BLOCK + 2, 2), dtype=np.int64)
@@ -212,7 +212,7 @@ def no_impact(force: np.ndarray, noise: float | None = None) -> IdentificationEr
 
 def segment_bounds(force: np.ndarray, sample_rate: float) -> tuple[int, int, list[int], int]:
     """First impact: (start, stop) sample indices of its segment and the pulse-end indices in it."""
-    events = run_trigger(force, sample_rate, floor=TRIGGER_FLOOR)
+    events = trigger_events(force, sample_rate, floor=TRIGGER_FLOOR)
     trig = [int(i) for c, i in events if c == trigger.EVENT_TRIGGER]
     if not trig:
         raise no_impact(force)
