@@ -6,6 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
+#: the least overlap of the bodies over a gap between two pulses is taken as surely negative (a flight) or surely
+#: positive (the pad stayed loaded) when it lies this many of its standard errors from zero [-] (the early answer's
+#: test of a dip and the robust fit's test of a flight)
+DIP_SIGMAS = 2.0
 
 def atom_kernel(tau: np.ndarray, cd: np.ndarray, cv: np.ndarray, dt: float) -> np.ndarray:
     """Covariance of cd_i·e(τi) + cv_i·e'(τi), e the double integral from 0 of unit white noise at step ``dt``.

@@ -20,7 +20,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from . import contact_law
-from .covariance import kernel_form, normal_inverse
+from .covariance import DIP_SIGMAS, kernel_form, normal_inverse
 
 #: starting (n, m) exponents of the law: Kelvin-Voigt and Hunt-Crossley
 LAW_STARTS = ((1.0, 0.0), (1.5, 1.5))
@@ -37,9 +37,6 @@ FIT_SIGMAS = 4.0
 #: of the force (RMS over the fitted samples) or more: the law family does not describe the contact; below it the
 #: model error is too small to matter, as in noise-free records, whose chi-square fails on any model error [-]
 MISFIT_LIMIT = 0.01
-#: the overlap in the gap counts as positive throughout when its least value is this many standard errors above
-#: zero [-]
-DIP_SIGMAS = 2.0
 
 
 def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, peaks, gap):

@@ -36,7 +36,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .covariance import atom_kernel, normal_inverse, slow_covariance, slow_errors
+from .covariance import DIP_SIGMAS, atom_kernel, normal_inverse, slow_covariance, slow_errors
 
 #: Gauss-Newton / reweighting iterations, at most: fewer once the solution changes by less than CONVERGED
 #: (relative) from one to the next
@@ -354,9 +354,6 @@ BOUNDED_SCATTER = 4.0
 #: turning points in stage B from which its own estimate judges the gaps before the onsets are used [-]: two
 #: consecutive ones bound one window of M1·∫(g − a2) dt = ∫Fc dt, the least that gives stage B a mass of its own
 STAGE_B_ROWS = 2
-#: a gap is surely a flight (or surely not) when its least overlap is negative (positive) by this many standard
-#: errors of the estimate from the other rows [-]
-DIP_SIGMAS = 2.0
 
 
 def _least_overlap(gap_basis, theta, cov, g, fit_b) -> tuple[np.ndarray, np.ndarray]:
