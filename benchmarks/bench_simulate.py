@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp
 from impactometer.model import dynamics as d
 from impactometer.model import reference, simulate_batch
 from impactometer.model.setup import initial_states
-from impactometer.model.simulate import INTEGRATORS, MAX_STEP, absolute_tolerance, compare_integrators
+from impactometer.model.simulate import DEFAULT_RTOL, MAX_STEP, absolute_tolerance, compare_integrators
 from impactometer.rig import get_rig
 from recorded import recorded
 
@@ -125,7 +125,7 @@ def speed(n_fast, n_scipy, rtol, rec):
         rate, cpu_rate = n_scipy / elapsed, n_scipy / cpu
         print(f"| {name} | {n_scipy} | {elapsed:.3f} | {rate:,.1f} | {fast_rate / rate:,.0f} | {cpu_rate:,.1f} | "
               f"{fast_cpu_rate / cpu_rate:,.0f} | {peak_error(forces, exact):.1e} |")
-        if "plain-Python" in name and rtol == INTEGRATORS["fast"]:
+        if "plain-Python" in name and rtol == DEFAULT_RTOL["fast"]:
             rec.headline(f"simulation: fast batch / solve_ivp RK45 (rtol {rtol:g}, wall)",
                          f"{fast_rate / rate:,.0f}× ({fast_rate:,.0f} scenarios/s)", target="1000×")
     print(f"\nmean accepted steps per scenario (fast): {batch.steps.mean():.0f}")
@@ -149,8 +149,8 @@ def throughput(n, dtype):
 def agreement():
     grid = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0],
                        [20e3, 115e3, 210e3, 305e3, 400e3], indexing="ij")
-    print(f"\n## Fast (rtol {INTEGRATORS['fast']:g} unless stated) vs reference (DOP853, rtol "
-          f"{INTEGRATORS['reference']:g}), 125 scenarios, 50 ms at 200 kHz")
+    print(f"\n## Fast (rtol {DEFAULT_RTOL['fast']:g} unless stated) vs reference (DOP853, rtol "
+          f"{DEFAULT_RTOL['reference']:g}), 125 scenarios, 50 ms at 200 kHz")
     print("| stand | contact law | fast rtol | pulses compared | max rel. diff. peak force | max rel. diff. impulse | "
           "max diff. pulse-peak time [µs] | pulse-count mismatches |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
@@ -159,7 +159,7 @@ def agreement():
                              ("drop-stand", "hysteretic", None), ("drop-stand", "hysteretic", 1e-10),
                              ("drop-stand-stiff", "kelvin-voigt", None)):
         a = compare_integrators(*grid, get_rig(stand, contact=law), duration=0.05, sample_rate=200e3, rtol=rtol)
-        print(f"| {stand} | {law} | {rtol or INTEGRATORS['fast']:g} | {a.pulses} | {a.peak_force:.1e} | "
+        print(f"| {stand} | {law} | {rtol or DEFAULT_RTOL['fast']:g} | {a.pulses} | {a.peak_force:.1e} | "
               f"{a.impulse:.1e} | {a.peak_time * 1e6:.3f} | {a.pulse_count_mismatches} |")
 
 
@@ -189,7 +189,7 @@ def gpu_versus_cpu(n_gpu, n_cpu, agree=True, repeat=3):
     name = getattr(cuda.get_current_device(), "name", "CUDA simulator")
     name = name.decode() if isinstance(name, bytes) else name
     print(f"\n## GPU vs CPU batch: {DURATION * 1e3:g} ms at {SAMPLE_RATE / 1e3:g} kHz, contact force + piston "
-          f"acceleration (float64 histories copied back), rtol {INTEGRATORS['fast']:g}; GPU: {name}; CPU: "
+          f"acceleration (float64 histories copied back), rtol {DEFAULT_RTOL['fast']:g}; GPU: {name}; CPU: "
           f"{numba.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f}")
     print("| device | scenarios | wall [s] | scenarios/s | mean accepted steps |")
     print("|---|---:|---:|---:|---:|")
@@ -234,9 +234,9 @@ def main():
         return
     with recorded("bench_simulate", "Simulation: fast integrator against solve_ivp, agreement with the reference",
                   args.record) as rec:
-        for rtol in (INTEGRATORS["fast"], 1e-8):
+        for rtol in (DEFAULT_RTOL["fast"], 1e-8):
             speed(args.fast_scenarios, args.scipy_scenarios, rtol, rec)
-        print(f"\n## Throughput and memory (rtol {INTEGRATORS['fast']:g}, contact force + piston acceleration)")
+        print(f"\n## Throughput and memory (rtol {DEFAULT_RTOL['fast']:g}, contact force + piston acceleration)")
         print("| scenarios | histories dtype | wall time [s] | scenarios/s | histories [MiB] | "
               "tracemalloc peak [MiB] | process peak RSS [MiB] |")
         print("|---:|---|---:|---:|---:|---:|---:|")

@@ -2,7 +2,7 @@
 
 from .dynamics import CHANNELS
 from .result import BatchResult, SimulationResult
-from .simulate import INTEGRATORS, simulate, simulate_batch, simulate_blocks
+from .simulate import DEFAULT_RTOL, simulate, simulate_batch, simulate_blocks
 
-__all__ = ["CHANNELS", "BatchResult", "SimulationResult", "INTEGRATORS", "simulate", "simulate_batch",
+__all__ = ["CHANNELS", "BatchResult", "SimulationResult", "DEFAULT_RTOL", "simulate", "simulate_batch",
            "simulate_blocks"]

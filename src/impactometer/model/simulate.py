@@ -17,8 +17,8 @@ from . import fast, gpu, reference
 from .result import BatchResult, SimulationResult
 from .setup import initial_state, initial_states, pack, pack_batch
 
-#: integrator name -> default relative tolerance
-INTEGRATORS = {"fast": 1e-9, "reference": 1e-10}
+#: the integrators (their names) and the relative tolerance each runs at by default [-]
+DEFAULT_RTOL = {"fast": 1e-9, "reference": 1e-10}
 DEFAULT_BATCH_CHANNELS = ("contact_force", "a2")
 #: default bound of the step size [s] (a contact pulse lasts milliseconds, so none is stepped over)
 MAX_STEP = 1e-3
@@ -60,9 +60,9 @@ def sample_times(duration: float, sample_rate: float) -> np.ndarray:
 
 def _check_integrator(integrator: str, rtol: float | None, max_step: float = MAX_STEP,
                       max_steps: int = MAX_STEPS) -> float:
-    if integrator not in INTEGRATORS:
-        raise ParameterError(f"integrator must be one of {sorted(INTEGRATORS)}, got {integrator!r}")
-    rtol = INTEGRATORS[integrator] if rtol is None else rtol
+    if integrator not in DEFAULT_RTOL:
+        raise ParameterError(f"integrator must be one of {sorted(DEFAULT_RTOL)}, got {integrator!r}")
+    rtol = DEFAULT_RTOL[integrator] if rtol is None else rtol
     check_real("max_step", max_step, low=0.0, low_open=True, finite=False, unit=" [s] (inf for no bound)")
     check_integer("max_steps", max_steps, low=1)
     return check_real("rtol", rtol, low=1e-14, high=1e-3)
