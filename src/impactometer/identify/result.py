@@ -84,15 +84,6 @@ class Identification:
     details: Mapping[str, Any] = field(default_factory=dict)
     error: str | None = None
 
-    @classmethod
-    def _make(cls, **values: Any) -> Identification:
-        """Build without the dataclass ``__init__`` (the response map's fast search costs less than setting each
-        frozen field); every field not given takes its default."""
-        obj = cls.__new__(cls)
-        obj.__dict__.update({"mass_std": math.nan, "velocity_std": math.nan, "early": None, "early_reason": None,
-                             "warnings": (), "details": {}, "error": None, **values})
-        return obj
-
     @property
     def family(self) -> str:
         """The method's family: ``peak-to-peak``, ``response-map`` or ``oracle``."""

@@ -126,9 +126,9 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         available_at = check_real("available_at", available_at, unit=" [s] or None")
     details = {"residual": residual, "features": dict(zip(labels, y.tolist(), strict=False)),
                "feature_set": rmap.feature_set, "pressure_gauge": p, "extrapolated": outside}
-    return Identification._make(mass=mass, velocity=velocity, available_at=float(available_at),
-                                method=f"response-map/{search}", details=details,
-                                warnings=check_answer(mass, velocity))
+    return Identification(mass=mass, velocity=velocity, available_at=float(available_at),
+                          method=f"response-map/{search}", details=details,
+                          warnings=check_answer(mass, velocity))
 
 
 def _refuse_or_warn(rmap, y, mass, velocity, residual, outside, allow_extrapolation) -> None:
