@@ -200,17 +200,19 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
             used["gap_readings"] = readings
         if contact_phase and second is not None and peak2 is not None:
             contact = _contact_phase(seg, kin, peak2, noise)
-            joined = combine((theta, cov, (sol.gain, sol.tau)), (contact[0], contact[1], contact[4]),
+            joined = combine((theta, cov, (sol.gain, sol.tau)), (contact.theta, contact.cov,
+                                                                 (contact.weights, contact.taus)),
                              noise_acceleration=seg.noise_acceleration, pre_samples=seg.pre_samples, dt=kin.dt)
             if joined is not None:
                 theta, cov = joined
             # without a contact-phase fit, or one whose covariance cannot be joined, the agnostic answer stands
-            used["contact_phase"] = {**contact[5], "combined": joined is not None}
+            used["contact_phase"] = {**contact.info, "combined": joined is not None}
         last = max([p.end if p.complete else seg.force.size - 1 for p in seg.pulses])
     else:
         stage = "early" if stage == "early" else "final"
         assert second is not None and peak2 is not None  # a single contact is answered above or refused
-        theta, cov, chi2, dof, _, info = _contact_phase(seg, kin, peak2, noise)
+        contact = _contact_phase(seg, kin, peak2, noise)
+        theta, cov, chi2, dof, info = contact.theta, contact.cov, contact.chi2, contact.dof, contact.info
         if info["branches"] == "none":
             raise IdentificationError(f"the contact phase does not determine the mass here: {info['refusal']}")
         used = {"onsets": int(info["onset_row"]), "extrema": 0, "stage_b_extrema": 0, "separations": 0,

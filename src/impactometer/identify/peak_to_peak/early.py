@@ -15,6 +15,8 @@ noise the two share.
 from __future__ import annotations
 
 import contextlib
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -39,6 +41,34 @@ FIT_SIGMAS = 4.0
 MISFIT_LIMIT = 0.01
 
 
+@dataclass(frozen=True)
+class ContactFit:
+    """The contact-phase fit: ``theta`` = (V0 [m/s], w = 1/M1 [1/kg]) and its covariance ``cov``, the fit's
+    chi-square and degrees of freedom, d theta / d(error of δ) ``weights`` (2, n) at the times ``taus`` (n,) [s],
+    what was used ``info`` (``samples``, ``onset_row``, ``branches``; ``branches`` is ``none`` where there is no
+    answer, and ``refusal`` then says why; ``misfit`` of a fit) and the fit's parameters ``start`` (the seven
+    unknowns and the overlap scale) from which another fit may start."""
+
+    theta: np.ndarray
+    cov: np.ndarray
+    chi2: float = np.inf
+    dof: int = 0
+    weights: np.ndarray = field(default_factory=lambda: np.zeros((2, 0)))
+    taus: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    info: dict[str, Any] = field(default_factory=dict)
+    start: tuple[np.ndarray, float] | None = None
+
+    @property
+    def passes(self) -> bool:
+        """The chi-square test: at most ``FIT_SIGMAS`` standard deviations √(2ν) above ν = ``dof``."""
+        return bool(self.chi2 <= self.dof + FIT_SIGMAS * np.sqrt(2.0 * max(self.dof, 1)))
+
+
+def _failed(theta=None) -> ContactFit:
+    """A fit without an answer (``theta`` NaN unless given; an infinite covariance)."""
+    return ContactFit(theta=np.full(2, np.nan) if theta is None else theta, cov=np.full((2, 2), np.inf))
+
+
 def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, peaks, gap):
     """(V0, w) from the contact phase of the first two pulses and the onset of the second.
 
@@ -53,48 +83,43 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
     a fresh contact) there is no answer either: the first pulse alone determines V0 but hardly the mass (theta is
     NaN).
 
-    Returns (theta, cov, chi2, dof, (weights, taus), info): the estimate (V0 [m/s], w [1/kg]), its covariance,
-    the fit's chi-square and degrees of freedom, d theta / d(error of δ) at the times ``taus`` [s], and what was
-    used (``samples``, ``onset_row``, ``branches``; ``branches`` is ``none`` where there is no answer, and
-    ``refusal`` then says why).
+    Returns the :class:`ContactFit`.
     """
     common = dict(noise_force=noise_force, noise_acceleration=noise_acceleration, pre_samples=pre_samples)
     whole = _fit(kin, pulses, [p.end for p in pulses], onset1, onset1_std, **common)
-    fits = np.all(np.isfinite(whole[0])) and whole[2] <= whole[3] + FIT_SIGMAS * np.sqrt(2.0 * max(whole[3], 1))
-    chosen = whole if fits else _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole[6],
+    fits = bool(np.all(np.isfinite(whole.theta))) and whole.passes
+    chosen = whole if fits else _fit(kin, pulses, [pk + 1 for pk in peaks], onset1, onset1_std, start=whole.start,
                                      **common)
-    if not fits and not chosen[2] <= chosen[3] + FIT_SIGMAS * np.sqrt(2.0 * max(chosen[3], 1)) \
-            and (chosen[5] or {}).get("misfit", 0.0) > MISFIT_LIMIT:
+    if not fits and not chosen.passes and chosen.info.get("misfit", 0.0) > MISFIT_LIMIT:
         # not even the loading parts follow one law of the family, beyond the noise and by a visible part of the
         # force: the contact phase says nothing reliable
         return _no_answer(f"the first two pulses follow no law Fc = k·δ^n + c·δ^m·δ' of the early fit's family "
-                          f"(even their loading parts miss it by {chosen[5]['misfit']:.1%} of the force beyond the "
+                          f"(even their loading parts miss it by {chosen.info['misfit']:.1%} of the force beyond the "
                           "noise): a hysteretic contact such as a pad, or pulses that are not whole contacts")
     gap_index = np.arange(gap[0], gap[1], dtype=float)
-    if gap_index.size and np.all(np.isfinite(chosen[0])):
+    if gap_index.size and np.all(np.isfinite(chosen.theta)):
         tau, _, _, i_f, _, _, da = kin.at(gap_index)
-        v0, w = chosen[0]
+        v0, w = chosen.theta
         delta = v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da
         k = int(np.argmin(delta))
         grad = np.array([tau[k], -i_f[k]])
-        if delta[k] > DIP_SIGMAS * np.sqrt(max(float(grad @ chosen[1] @ grad), 0.0)):
+        if delta[k] > DIP_SIGMAS * np.sqrt(max(float(grad @ chosen.cov @ grad), 0.0)):
             # the first pulse alone determines V0 but hardly the mass: no answer
             return _no_answer("the second pulse is not a fresh contact (the overlap stayed positive through the gap "
                               "before it), and the first pulse alone fixes the velocity but hardly the mass")
-    return (*chosen[:5], {"samples": int(chosen[4][1].size - 1), "onset_row": True,
-                          "branches": "whole" if fits else "loading"})
+    return replace(chosen, info={"samples": int(chosen.taus.size - 1), "onset_row": True,
+                                 "branches": "whole" if fits else "loading"})
 
 
-def _no_answer(reason: str):
+def _no_answer(reason: str) -> ContactFit:
     """What :func:`solve_early` returns where the contact phase gives no answer, and why (``info["refusal"]``)."""
-    return (np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)),
-            {"samples": 0, "onset_row": False, "branches": "none", "refusal": reason})
+    return replace(_failed(), info={"samples": 0, "onset_row": False, "branches": "none", "refusal": reason})
 
 
 def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_acceleration, pre_samples, start=None):
     """The law fit to the samples of ``pulses`` up to ``stops`` and, unless ``onset1`` is None, the second
     onset's row (see :func:`solve_early`), started from each law of ``LAW_STARTS`` or from ``start`` (the
-    parameters of another fit). Returns (theta, cov, chi2, dof, (weights, taus), info, parameters).
+    parameters of another fit). Returns the :class:`ContactFit`.
 
     The first contact t00 is refined by the fit: a shift d0 of the compression (an error ε of t00 shifts δ by
     −V0·ε at every sample) is a seventh unknown, with the foot fit's standard error of t00 as its prior.
@@ -158,7 +183,7 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
             best = (least_squares(residuals, fit.x, jac=jacobian, args=(dscale, s1), bounds=(lower, upper),
                                   x_scale="jac", max_nfev=50), dscale, s1)
     if best is None:
-        return np.full(2, np.nan), np.full((2, 2), np.inf), np.inf, 0, (np.zeros((2, 0)), np.zeros(0)), None, None
+        return _failed()
     fit, dscale, s1 = best
     jac = fit.jac
     chi2 = float(fit.fun @ fit.fun)
@@ -166,7 +191,7 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     try:
         bread = normal_inverse(jac)
     except np.linalg.LinAlgError:
-        return fit.x[:2], np.full((2, 2), np.inf), chi2, dof, (np.zeros((2, 0)), np.zeros(0)), None, None
+        return replace(_failed(fit.x[:2]), chi2=chi2, dof=dof)
     cov = bread * max(1.0, chi2 / max(dof, 1))
     # the residual beyond the noise, as a fraction of the force (RMS over the fitted samples)
     excess = max(float(np.mean((fit.fun[:-2] * sigma_f) ** 2)) - noise_force ** 2, 0.0)
@@ -184,7 +209,8 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
     if pre_samples > 0:
         shift = weights @ (taus ** 2 / 2.0)
         cov = cov + noise_acceleration ** 2 / pre_samples * np.outer(shift, shift)
-    return fit.x[:2], cov[:2, :2], chi2, dof, (weights[:2], taus), info, (fit.x, dscale)
+    return ContactFit(theta=fit.x[:2], cov=cov[:2, :2], chi2=chi2, dof=dof, weights=weights[:2], taus=taus, info=info,
+                      start=(fit.x, dscale))
 
 
 def combine(first, second, *, noise_acceleration, pre_samples, dt):
