@@ -178,6 +178,55 @@ def run_until_stopped(scenario: Scenario, rig: Rig, control, absorber: Absorber,
         duration = min(2.0 * duration, MAX_DURATION)
 
 
+def _identified(scenario: Scenario, rig: Rig, closed, identification: str, *, noise: float, seed: int,
+                sample_rate: float, control_start: float | None, response_map) -> Identification:
+    """What the loop knows of M1 and V0 and when: the identification's answer (known at ``control_start`` [s]
+    where that is given), or the oracle's (from the start of the closed-valve run's second contact pulse)."""
+    if identification == "oracle":
+        if control_start is None:  # from the start of the second contact pulse (stage B, or the last rebound)
+            pulses = contact_pulses(closed.time, closed.contact_force)
+            at, error = (pulses[1].start, None) if len(pulses) > 1 else (math.inf, "a single contact pulse")
+        else:
+            at, error = float(control_start), None
+        return Identification(method="oracle", mass=scenario.mass, velocity=scenario.velocity, mass_std=0.0,
+                              velocity_std=0.0, available_at=at, error=error)
+    found = identify_impact(scenario, rig, method=identification, noise=noise, seed=seed, sample_rate=sample_rate,
+                            response_map=response_map)
+    if control_start is not None and found.error is None:
+        found = dataclasses.replace(found, available_at=float(control_start))
+    return found
+
+
+def _notes(found: Identification, required: float, usable: float, absorber: Absorber) -> list[str]:
+    """What the user should know of the run: an identification that failed or is not trusted, an impact beyond
+    the absorber's rated force (``required`` [N] over the ``usable`` stroke [m])."""
+    notes = []
+    if found.error is not None:
+        notes.append(f"identification failed ({found.error}): the force strategies act on their own stage-B "
+                     f"estimates, the others keep the valve closed")
+    elif not math.isfinite(usable_mass(found)) or not math.isfinite(usable_velocity(found)):
+        notes.append(f"identified M1 = {found.mass:.3g} ± {found.mass_std:.2g} kg, V0 = {found.velocity:.3g} ± "
+                     f"{found.velocity_std:.2g} m/s not trusted: the controller waits for its stage-B estimate")
+    if required > absorber.rated_force:
+        notes.append(f"impact energy needs a constant force of {required:.0f} N over the usable stroke "
+                     f"({usable:.3f} m), above the rated {absorber.rated_force:.0f} N: the best achievable outcome "
+                     f"is shown")
+    return notes
+
+
+def _strategy_run(name: str, context: ControlContext, found: Identification, closed, scenario: Scenario,
+                  absorber: Absorber, *, sigma: np.ndarray, seed: int):
+    """(settings, run, controller histories) of strategy ``name``: the closed-valve run itself for ``closed`` (and
+    for every strategy but the force ones when the identification failed), else a run until the mass stops."""
+    control = get_strategy(name)(context)
+    if found.error is not None and control.strategy not in ("realtime", "predictive"):
+        control = context.base("closed")  # no early answer: only the force strategies act, on their own estimates
+    if control.strategy == "closed":
+        return control, closed, {key: np.full_like(closed.time, np.nan) for key in plant.HISTORIES}
+    return (control, *run_until_stopped(scenario, context.rig, control, absorber, duration=context.duration,
+                                        sample_rate=context.sample_rate, sigma=sigma, seed=seed))
+
+
 def _check(scenario, noise, seed, identification, absorber, control_start) -> None:
     if not isinstance(scenario, Scenario):
         raise ParameterError(f"scenario must be a Scenario, got {scenario!r}")
@@ -248,32 +297,11 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     duration = default_duration(scenario, usable) if duration is None else duration
     closed, _ = plant.simulate_controlled(scenario, rig, drive=absorber.drive, duration=duration,
                                          sample_rate=sample_rate)
-    if identification == "oracle":
-        if control_start is None:  # from the start of the second contact pulse (stage B, or the last rebound)
-            pulses = contact_pulses(closed.time, closed.contact_force)
-            at, error = (pulses[1].start, None) if len(pulses) > 1 else (math.inf, "a single contact pulse")
-        else:
-            at, error = float(control_start), None
-        found = Identification(method="oracle", mass=scenario.mass, velocity=scenario.velocity, mass_std=0.0,
-                               velocity_std=0.0, available_at=at, error=error)
-    else:
-        found = identify_impact(scenario, rig, method=identification, noise=noise, seed=seed,
-                                sample_rate=sample_rate, response_map=response_map)
-        if control_start is not None and found.error is None:
-            found = dataclasses.replace(found, available_at=float(control_start))
-    notes = []
-    if found.error is not None:
-        notes.append(f"identification failed ({found.error}): the force strategies act on their own stage-B "
-                     f"estimates, the others keep the valve closed")
-    elif not math.isfinite(usable_mass(found)) or not math.isfinite(usable_velocity(found)):
-        notes.append(f"identified M1 = {found.mass:.3g} ± {found.mass_std:.2g} kg, V0 = {found.velocity:.3g} ± "
-                     f"{found.velocity_std:.2g} m/s not trusted: the controller waits for its stage-B estimate")
+    found = _identified(scenario, rig, closed, identification, noise=noise, seed=seed, sample_rate=sample_rate,
+                        control_start=control_start, response_map=response_map)
     required = impact_force(scenario.mass, scenario.velocity, usable, rig.gravity)
     over = required > absorber.rated_force
-    if over:
-        notes.append(f"impact energy needs a constant force of {required:.0f} N over the usable stroke "
-                     f"({usable:.3f} m), above the rated {absorber.rated_force:.0f} N: the best achievable outcome "
-                     f"is shown")
+    notes = _notes(found, required, usable, absorber)
     start = found.available_at if found.error is None else math.inf
     sigma = sensor_sigma(closed, noise)
     window = common_window(closed, usable, vented=absorber.drive.route == "atmosphere")
@@ -285,16 +313,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),
                              charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]),
                              acceleration_noise=float(sigma[1]))
-    simulated = {}
-    for name in names:
-        control = get_strategy(name)(context)
-        if found.error is not None and control.strategy not in ("realtime", "predictive"):
-            control = context.base("closed")  # no early answer: only the force strategies act, on their own estimates
-        if control.strategy == "closed":
-            simulated[name] = (control, closed, {key: np.full_like(closed.time, np.nan) for key in plant.HISTORIES})
-        else:
-            simulated[name] = (control, *run_until_stopped(scenario, rig, control, absorber, duration=duration,
-                                                           sample_rate=sample_rate, sigma=sigma, seed=seed))
+    simulated = {name: _strategy_run(name, context, found, closed, scenario, absorber, sigma=sigma, seed=seed)
+                 for name in names}
     start = min([start] + [_knew(history, result) for control, result, history in simulated.values()
                            if control.strategy in ("realtime", "predictive")])
     runs = {name: StrategyRun(strategy=name, result=result, controller=history,
