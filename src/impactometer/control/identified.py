@@ -22,7 +22,7 @@ from .estimator import MASS_TRUST
 
 #: length of the closed-valve record given to the identification [s], and the quiet record before first contact
 #: [s] (a streaming DAQ has it; the identification takes the offsets and the noise level from its last ~1000
-#: samples: with 2 ms instead of 25 ms it gave no estimate in 7 of the 125 grid impacts and 2.5× the mass error)
+#: samples: a 2 ms one leaves 7 of the 125 grid impacts without an estimate and gives 2.5× the mass error)
 IDENTIFICATION_WINDOW = 0.1
 PRE_TRIGGER = 0.025
 #: samples per chunk pushed into the streaming identifier (a DAQ block)

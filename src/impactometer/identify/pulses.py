@@ -117,10 +117,10 @@ FLOOR_FRACTION = 5e-3
 MEDIAN_EFFICIENCY = 1.2533141373155003
 #: a gap between pulses is a separation unless the median force of its middle half lies more than this many of its
 #: standard errors above zero [-]. One-sided Gaussian false-alarm rate 3e-5 per gap, so that a force-free flight is
-#: practically never merged into one pulse with its neighbours (at 3, 16 of 8960 force-free gaps of the 50 ms
-#: acceptance grid were, each losing an onset and a separation: up to 51 % velocity error, 4.6 standard errors);
-#: a contact that does not part but whose force stays this close to zero carries too little force for its onset
-#: row to be off by more than the noise
+#: practically never merged into one pulse with its neighbours (a merged flight loses an onset and a separation,
+#: which can cost tens of per cent of the velocity; docs/identification.md, step 3, gives the measurement); a contact
+#: that does not part but whose force stays this close to zero carries too little force for its onset row to be off
+#: by more than the noise
 SEPARATION_SIGMAS = 4.0
 
 

@@ -29,8 +29,8 @@ EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE, EVENT_PAST_PEAK = 1, 2, 3, 4
 #: a pulse is past its peak when the force has fallen below this fraction of its maximum so far
 PAST_PEAK_FRACTION = 0.5
 #: time constant of the running baseline and noise level [samples] up to BASELINE_RATE [Hz]; above it the same
-#: time (5.12 ms): at 2 MHz the first contact takes thousands of samples to rise, and a baseline of 256 samples
-#: followed that rise, its running σ growing with it, so that the trigger never fired
+#: time (BASELINE_SAMPLES / BASELINE_RATE): at MHz rates the first contact takes thousands of samples to rise, and
+#: a baseline with a fixed number of samples would follow that rise, its running σ growing with it, and never fire
 BASELINE_SAMPLES, BASELINE_RATE = 256, 50e3
 #: samples the baseline learns from before the trigger may fire
 WARM_SAMPLES = 64

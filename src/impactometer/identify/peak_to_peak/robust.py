@@ -148,6 +148,10 @@ class Solution:
 ONSET, EXTREMUM, SEPARATION, PEAK = 0, 1, 2, 3
 #: largest set fraction μ of the separations [-]
 SET_MAX = 0.95
+#: fewest turning points and separations for their groups to be used: a group must outnumber its own nuisances
+#: (the turning points bring the lag λe, the separations the lag λs and the set μ)
+MIN_EXTREMA = 2
+MIN_SEPARATIONS = 3
 
 
 def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acceleration: float,
@@ -212,7 +216,8 @@ def _solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_ac
     """
     dt, g = kin.dt, kin.gravity
     n_on = eqs.onsets.size
-    use_ext, use_sep = eqs.extrema.size >= 2 and lag_max > 0, eqs.separations.size >= 3 and lag_max > 0
+    use_ext = eqs.extrema.size >= MIN_EXTREMA and lag_max > 0
+    use_sep = eqs.separations.size >= MIN_SEPARATIONS and lag_max > 0
     n_ext, n_sep = eqs.extrema.size * use_ext, eqs.separations.size * use_sep
     rows = n_on + n_ext + n_sep
     group = np.r_[np.full(n_on, ONSET), np.full(n_ext, EXTREMUM), np.full(n_sep, SEPARATION)]

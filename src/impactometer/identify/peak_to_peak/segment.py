@@ -133,10 +133,10 @@ def quiet_samples(force: np.ndarray, acceleration: np.ndarray, pre: int) -> int:
 
     The trigger fires ``TRIGGER_SIGMAS`` noise σ above the baseline, a fixed time into the rise of the contact
     whatever the sample rate: at 2 MHz the foot spans hundreds of samples, far more than the guard, and its slow
-    rise read as noise looked low-pass filtered (a lag-1 correlation of 0.8 for white noise). In each channel the
-    foot starts after the last sample at which the mean of the ``GUARD_SAMPLES`` samples up to it lay within
-    ``RELEASE_SIGMAS`` of their noise of the level before (the median of the first half of the window; σ from
-    second differences, which a smooth rise hardly has); the earlier foot of the two channels ends the window.
+    rise, read as noise, would make white noise look low-pass filtered (a lag-1 correlation near 0.8). In each
+    channel the foot starts after the last sample at which the mean of the ``GUARD_SAMPLES`` samples up to it lay
+    within ``RELEASE_SIGMAS`` of their noise of the level before (the median of the first half of the window; σ
+    from second differences, which a smooth rise hardly has); the earlier foot of the two channels ends the window.
     """
     guarded = pre - GUARD_SAMPLES
     if guarded < MIN_PRE_SAMPLES:
