@@ -31,7 +31,8 @@ README = ROOT / "README.md"
 ORDER = ("stand_criteria", "bench_simulate", "bench_simulate_gpu", "accuracy_peak_to_peak",
          "accuracy_peak_to_peak_100ms", "accuracy_model", "independent_stand", "bench_identify", "bench_model",
          "bench_response_map",
-         "study_map_size", "study_map_recordings", "study_all", "study_absorption", "study_valve_design",
+         "study_map_size", "study_map_recordings", "study_all", "study_absorption", "study_absorber_design",
+         "study_valve_design",
          "reliability_fuzz")
 HEADLINE_START = "<!-- headline figures: rendered by benchmarks/recorded.py from docs/results/*.json -->"
 HEADLINE_END = "<!-- end of headline figures -->"
