@@ -16,14 +16,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ...errors import IdentificationError, ParameterError, shown
 from ...recording import Recording
 from ...rig import Rig, get_rig
 from ...sensors import anti_alias_delay
 from ..result import Identification
-from .fit import LawFit, fit_law, window
+from .fit import LawFit, Observed, fit_law, window
 from .forward import make_layout
 from .information import bound_of
 
@@ -34,6 +34,9 @@ FIRST_WINDOW = 0.0025
 LAST_WINDOW = 0.012
 #: shortest step between the ends of two windows [s]
 MIN_STEP = 2.5e-4
+#: record before the trigger that the fits read [s] (the offsets start from the whole pre-trigger's median; more
+#: of it would cost time in every prediction and hardly change M1 or V0)
+LOOK_BACK = 0.002
 
 
 @dataclass(frozen=True)
@@ -67,6 +70,15 @@ class EarlyFit:
                               velocity_std=self.velocity_std, available_at=self.available_at, method="model/early",
                               details={"path": "early", "contact_law": self.law, "t00": self.contact_time,
                                        "reduced_chi2": self.reduced_chi2, "reason": reason})
+
+
+def _from(data: Observed, start: float) -> Observed:
+    """``data`` from the instant ``start`` [s] on the recording's clock (all of it when that is before its
+    start)."""
+    k = max(0, int(math.ceil((start - data.grid.start_time) * data.grid.sample_rate)))
+    grid = data.grid
+    return replace(data, channels=data.channels[:, k:],
+                   grid=replace(grid, start_time=grid.start_time + k / grid.sample_rate, size=grid.size - k))
 
 
 def _early_fit(fit: LawFit, end: float, latency: float, arming: float) -> EarlyFit:
@@ -124,7 +136,7 @@ def early_fits(recording: Recording, rig: Rig | str | None, *, pressure: float, 
         raise ParameterError(f"pressure must be a number >= 0 [Pa gauge], got {shown(pressure)}")
     design = _design(recording)
     trigger = _check_length(recording)
-    data = _observe(recording, design, trigger)
+    data = _from(_observe(recording, design, trigger), trigger - LOOK_BACK)
     lead = anti_alias_delay(design, recording.sample_rate) + TRIGGER_LEAD / recording.sample_rate
     armed = time.process_time()
     start = grid_start(window(data, trigger + first), rig, trigger - lead, float(pressure), float(pressure))
