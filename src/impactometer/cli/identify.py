@@ -152,7 +152,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
            variant: VariantOpt = "robust",
            contact_phase: ContactOpt = False,
            cadence: Annotated[str | None, typer.Option(
-               "--cadence", metavar="TIME", help="model: record between updates (default 5ms).")] = None,
+               "--cadence", metavar="TIME", help="model: record between updates (default 10ms).")] = None,
            rig: Annotated[str | None, typer.Option("--rig", metavar="STAND", help="model: the stand, a preset name "
                                                                                "or a TOML file.")] = None,
            pressure: Annotated[str | None, typer.Option(

@@ -210,7 +210,7 @@ def refine(data: Observed, layout: Layout, start: dict[str, float], offsets: np.
     r = model.residuals(x)
     if np.all(r == PENALTY):
         raise IdentificationError(f"the {layout.law} model cannot be integrated at the update's start")
-    chi2, evaluations = float(r @ r), 1
+    chi2, evaluations, jac = float(r @ r), 1, None
     for _ in range(steps):
         jac = model.jacobian(x)
         scale = np.linalg.norm(jac, axis=0)
@@ -227,7 +227,7 @@ def refine(data: Observed, layout: Layout, start: dict[str, float], offsets: np.
                 break
         else:
             break
-    cov, rank = covariance(jac)
+    cov, rank = covariance(model.jacobian(x) if jac is None else jac)
     q = len(layout.names)
     return LawFit(layout=layout, x=x, values=layout.values(x[:q]), offsets=x[q:] * data.noise, cov=cov, rank=rank,
                   chi2=chi2, residuals=data.size, evaluations=evaluations, converged=True)

@@ -311,10 +311,11 @@ def sensed(grid: Grid, internal: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(y[..., grid.pad:end:grid.factor])
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", fastmath=True)
 def _fir_decimate(x, reversed_taps, first, step, out):
     """out[r, i] = Σ_m reversed_taps[m]·x[r, first + i·step + m]: a causal FIR evaluated at every ``step``-th
-    sample only (zero, uncomputed, where the window holds only the zeros before contact)."""
+    sample only (zero, uncomputed, where the window holds only the zeros before contact). ``fastmath`` lets the
+    compiler reorder the sum of each output (SIMD lanes): the last bits change, the time falls by half."""
     for r in range(x.shape[0]):
         nonzero = 0
         while nonzero < x.shape[1] and x[r, nonzero] == 0.0:

@@ -21,8 +21,8 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .fit import MAX_EVALUATIONS, PENALTY, LawFit, Observed, _Model, fit_law, window
-from .forward import free_parameters, make_layout, predict, stand_values
+from .fit import MAX_EVALUATIONS, LawFit, Observed, fit_law, window
+from .forward import Grid, free_parameters, make_layout, predict, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
 #: the whole record follows
@@ -200,47 +200,54 @@ def grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | 
 
 
 def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_start: float,
-                count: int = 1) -> list[Start]:
+                count: int = 1, predicted: np.ndarray | None = None) -> list[Start]:
     """The ``count`` best starts of :func:`grid_start`, best first, none next to (one grid step from) a better
-    one: the first window of a light, fast impact can hold more than one minimum."""
-    layout = make_layout(rig, rig.contact.law, (), pressure=pressure, contact_time=contact_time,
-                         sample_rate=data.grid.sample_rate)
+    one: the first window of a light, fast impact can hold more than one minimum. ``predicted`` (from
+    :func:`grid_predictions` on the same window) spares the integrations."""
     part = window(data, contact_time + STAGES[0][0])
-    masses, velocities = np.meshgrid(START_MASSES, START_VELOCITIES, indexing="ij")
-    rows = np.zeros((masses.size, len(layout.names)))
-    for j, value in enumerate((masses.ravel(), velocities.ravel())):
-        rows[:, j] = np.log(value)  # the core variables: ln M1, ln V0, the contact instant (0 from its start)
-    if pressure is None:
-        rows[:, -1] = np.log(pressure_start + rig.gas.atmospheric_pressure)
-    params, times = layout.packed(rows)
-    try:
-        predicted = predict(part.grid, params, times) / part.noise[None, :, None]
-        chi2 = np.sum(np.square(part.channels / part.noise[:, None] - part.offsets[:, None] / part.noise[:, None]
-                                - predicted), axis=(1, 2)).reshape(masses.shape)
-    except IdentificationError:  # a grid point the model cannot carry: one by one, that point left out
-        chi2 = _each_chi2(part, layout, rows, masses.shape)
+    if predicted is None or predicted.shape[-1] != part.grid.size:
+        predicted = grid_predictions(part.grid, rig, contact_time, pressure, pressure_start)
+    chi2 = np.sum(np.square((part.channels - part.offsets[:, None]) / part.noise[:, None]
+                            - predicted / part.noise[None, :, None]), axis=(1, 2))
+    chi2 = np.where(np.isfinite(chi2), chi2, np.inf).reshape(START_MASSES.size, START_VELOCITIES.size)
     starts: list[Start] = []
     taken: list[tuple[int, int]] = []
     for flat in np.argsort(chi2, axis=None, kind="stable"):
-        i, j = np.unravel_index(flat, chi2.shape)
+        i, j = (int(k) for k in np.unravel_index(flat, chi2.shape))
         if len(starts) == count or not np.isfinite(chi2[i, j]):
             break
         if any(abs(i - a) <= 1 and abs(j - b) <= 1 for a, b in taken):
             continue
-        taken.append((int(i), int(j)))
-        starts.append(Start(mass=float(masses[i, j]), velocity=float(velocities[i, j]), contact_time=contact_time,
-                            pressure=pressure, pressure_start=pressure_start))
+        taken.append((i, j))
+        starts.append(Start(mass=float(START_MASSES[i]), velocity=float(START_VELOCITIES[j]),
+                            contact_time=contact_time, pressure=pressure, pressure_start=pressure_start))
     if not starts:
         raise IdentificationError("no impact of the start grid can be integrated on this stand")
     return starts
 
 
-def _each_chi2(part: Observed, layout, rows: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """χ² of each row's prediction of ``part``, one integration each (inf where the model cannot be integrated)."""
-    model = _Model(part, layout)
-    out = np.full(rows.shape[0], np.inf)
-    for k, row in enumerate(rows):
-        r = model.residuals(np.r_[row, part.offsets / part.noise])
-        if not np.all(r == PENALTY):
-            out[k] = float(r @ r)
-    return out.reshape(shape)
+def grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure: float | None,
+                     pressure_start: float) -> np.ndarray:
+    """The recorded channels (offsets zero) of every impact of :data:`START_MASSES` × :data:`START_VELOCITIES`,
+    shape (masses × velocities, 2, samples), on ``grid`` with the stand's own law and parameters, first contact at
+    ``contact_time`` [s]; NaN for an impact the model cannot carry. They depend on the stand and the samples'
+    place after first contact only: a stream computes them before the impact."""
+    layout = make_layout(rig, rig.contact.law, (), pressure=pressure, contact_time=contact_time,
+                         sample_rate=grid.sample_rate)
+    masses, velocities = np.meshgrid(START_MASSES, START_VELOCITIES, indexing="ij")
+    rows = np.zeros((masses.size, len(layout.names)))
+    rows[:, 0], rows[:, 1] = np.log(masses.ravel()), np.log(velocities.ravel())  # ln M1, ln V0; contact at 0
+    if pressure is None:
+        rows[:, -1] = np.log(pressure_start + rig.gas.atmospheric_pressure)
+    params, times = layout.packed(rows)
+    try:
+        return predict(grid, params, times)
+    except IdentificationError:  # a grid point the model cannot carry: one by one, that point left out
+        return np.stack([_one(grid, params[k:k + 1], times[k:k + 1]) for k in range(rows.shape[0])])
+
+
+def _one(grid: Grid, params: np.ndarray, times: np.ndarray) -> np.ndarray:
+    try:
+        return predict(grid, params, times)[0]
+    except IdentificationError:
+        return np.full((2, grid.size), np.nan)

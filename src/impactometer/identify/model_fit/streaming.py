@@ -2,24 +2,28 @@
 stated cadence, and the batch fit of the record as the final answer.
 
 The robust :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdentifier` runs on every sample: its
-trigger finds the impact and its ring buffer holds the samples. The model reads them:
+trigger finds the impact and its ring buffer holds the samples. The model reads them (:mod:`.growing` holds the
+algorithms, this class the schedule):
 
-- **First answer**, as soon as ``STAGES[0]`` (4 ms) of record after first contact has arrived: M1, V0 and the
-  contact instant fitted on that window with the stand's parameters held, by every contact law, from the robust
-  answer where the stream has one by then, else from the grid of impacts of :func:`.select.grid_start`; the laws
-  are screened as the batch fit screens them on its first window (:func:`.select.screen`).
-- **Updates** every ``cadence`` of record after it: the fit of the record so far, warm-started from the last
-  update (the previous optimum), by Levenberg-Marquardt steps (:func:`.fit.refine`; one Jacobian each). Before
-  ``STAGES[SCREEN_WINDOW]`` (15 ms) the stand's parameters are held; from it on every unknown of the batch fit
-  is free. The law: where the first screen leaves more than one, each is updated up to the 15 ms window, where the
-  smallest BIC chooses one and keeps it; the final answer revisits the choice (it fits every law again).
+- **First answer** as soon as ``STAGES[0]`` (4 ms) of record after first contact has arrived: M1, V0 and the
+  contact instant fitted with the stand's law and parameters held, from the robust answer where the stream has
+  one by then, else from the best impacts of the start grid (:func:`.select.grid_starts`, whose predictions are
+  made before the impact). It is given where it explains the samples after contact down to their noise.
+- **Contact law**: the other laws are fitted on that first window at the next update and screened as the batch
+  fit screens them (:func:`.select.screen`: dropped where their BIC exceeds a best law that explains the window by
+  more than 1000); where the stand's law does not explain the first window, at once. Where more than one law is
+  left, each is updated up to ``STAGES[SCREEN_WINDOW]`` (15 ms), where the smallest BIC chooses. The choice is
+  kept; the final answer revisits it (the batch fit compares every law again).
+- **Updates** every ``cadence`` of record after the first answer: the fit of the record so far, warm-started from
+  the last update's optimum, by one Levenberg-Marquardt step (:func:`.fit.refine`: one Jacobian, one or two
+  residuals); a few more where it leaves χ²/dof above 1.1. Before 15 ms the stand is held; from it on every
+  unknown of the batch fit is free.
 - **Final answer** once ``window`` (50 ms) of record after first contact has arrived, or at ``finish()``:
-  :func:`~impactometer.identify.model_fit.identify` of the buffered record, so the stream's final answer is the
-  batch answer of the same samples.
+  :func:`~impactometer.identify.model_fit.identify` of the buffered samples, the batch answer of the same samples.
 
 Standard errors: the inverse Fisher information at the update, inflated by sqrt(χ²/dof) above 1. Before 15 ms the
-stand's parameters are held at the rig's values, and so is the σ: it is the σ of a stand known exactly
-(``sigma_given`` in the details says so); the first pulses alone cannot tell M1 from the contact's parameters.
+stand's parameters are held at the rig's values, and so is the σ: it is the σ of a stand known as the rig states
+it (``sigma_given`` in the details says so); the first pulses alone cannot tell M1 from the contact's parameters.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import contextlib
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,46 +44,32 @@ from ...validation import check_integer, check_real
 from .. import model_fit as batch
 from ..peak_to_peak.streaming import StreamingIdentifier, last_outcome
 from ..result import Identification
-from . import select
-from .fit import MAX_EVALUATIONS, LawFit, Observed, refine
-from .forward import check_uncertain
-from .select import STAGES, Layouts, Start, fit_stages, grid_starts, screen, start_law
+from .fit import LawFit, Observed
+from .forward import check_uncertain, make_grid
+from .growing import Growing, explains, first_fit, update
+from .select import SCREEN_WINDOW, STAGES, Start, grid_predictions, grid_starts
 
-#: default time between updates [s] of record
-CADENCE = 0.005
+#: default time between updates [s] of record: an update of the record up to 50 ms after contact took 4-7 ms on
+#: one core of the (loaded) development machine, the first answer 6 ms (docs/model_identification.md)
+CADENCE = 0.01
 #: default record after first contact whose batch fit is the final answer [s]
 WINDOW = 0.05
 #: most pre-trigger the model reads [s] (the noise σ and the offsets come from it)
 PRE_TRIGGER = 0.02
-#: Levenberg-Marquardt steps of one update
-UPDATE_STEPS = 1
 #: starts of the grid tried in turn for the first answer, where the robust stream has none yet
 GRID_STARTS = 3
 
 
 @dataclass
-class _Law:
-    """One contact law followed by the updates: its layouts, last values, offsets and fit."""
-
-    layouts: Layouts
-    values: dict
-    offsets: np.ndarray
-    fit: LawFit
-
-
-@dataclass
 class _Impact:
-    """The state of the running impact: its trigger and first buffered sample (stream indices), the contact
-    instant the fit counts from [s], the next update's last sample, the laws followed and the chosen one."""
+    """The running impact: its trigger and first buffered sample (stream indices), the contact instant the fit
+    counts from [s], the next update's last sample (exclusive) and the fit of its growing record."""
 
     trigger: int
     first: int
     contact_time: float
     next_stop: int
-    laws: dict[str, _Law] = field(default_factory=dict)
-    chosen: str | None = None
-    choice: str = ""
-    start: Start | None = None
+    fit: Growing
     done: bool = False
 
 
@@ -109,7 +99,7 @@ class ModelStream:
     ``update_time_s`` (the wall time the update took), ``cadence_s`` and ``window_ms``. ``estimates`` keeps those
     of the current impact, ``outcomes`` the final answer or refusal of every impact, ``last_record`` the samples the
     last final answer read (a :class:`Recording`), ``update_times`` the wall time of every estimate [s] and
-    ``skipped`` why an update gave no estimate.
+    ``notes`` why an update of the last impact gave no estimate.
     """
 
     def __init__(self, sample_rate: float, *, start_time: float = 0.0, metadata: dict | None = None,
@@ -129,17 +119,38 @@ class ModelStream:
         self.pressure = batch._pressure(probe, pressure, self.rig)
         self.delay = anti_alias_delay(self.design, sample_rate)
         self._chunk = max(int(self.cadence * sample_rate), 1)
+        clock = time.perf_counter()
+        self._grid = self._arm()
+        #: wall time of the grid's predictions, made before any impact [s]
+        self.arming_time = time.perf_counter() - clock
         self._impact: _Impact | None = None
         self.estimates: list[Identification] = []
         self.outcomes: list[Identification | IdentificationError] = []
         self.update_times: list[float] = []
-        self.skipped: list[str] = []
         self.last_record: Recording | None = None
+
+    def _arm(self) -> dict:
+        """The predictions of the start grid for the first window of an impact with the full pre-trigger, keyed by
+        (samples before the trigger, samples of the window)."""
+        pre = int(PRE_TRIGGER * self.sample_rate)
+        contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
+        size = int(math.floor((contact + STAGES[0][0]) * self.sample_rate + 1e-9)) + 1
+        pressure_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_START
+        try:
+            return {(pre, size): grid_predictions(make_grid(0.0, self.sample_rate, size, self.design), self.rig,
+                                                  contact, self.pressure, pressure_start)}
+        except IdentificationError:  # a stand the model cannot start: the first impact says so
+            return {}
 
     def _recording(self, channels: np.ndarray, first: int) -> Recording:
         return Recording(sample_rate=self.sample_rate, channels=dict(zip(batch.CHANNELS, channels, strict=True)),
                          start_time=self.start_time + first / self.sample_rate, metadata=self.metadata,
                          source="stream")
+
+    @property
+    def notes(self) -> list[str]:
+        """Why updates of the last impact gave no estimate (a fit that failed or did not explain the record)."""
+        return [] if self._impact is None else self._impact.fit.notes
 
     def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
         """Feed samples (any number); return the model's estimates that became available."""
@@ -172,7 +183,8 @@ class ModelStream:
         first = max(trigger - int(PRE_TRIGGER * self.sample_rate), self.robust.impact_start or 0)
         contact = self.start_time + (trigger - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
         self._impact = _Impact(trigger=trigger, first=first, contact_time=contact,
-                               next_stop=self._stop(contact, STAGES[0][0]))
+                               next_stop=self._stop(contact, STAGES[0][0]),
+                               fit=Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
         self.estimates = []
 
     def _stop(self, contact: float, after: float) -> int:
@@ -190,19 +202,18 @@ class ModelStream:
         recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
         try:
             data = batch._observe(recording, self.design, impact.contact_time, min_duration=0.0)
-            fit = self._first(impact, data, span) if not impact.laws else self._refit(impact, data, span)
+            fit = self._first(impact, data, span) if not impact.fit.states else update(impact.fit, data, span)
         except IdentificationError as exc:  # no estimate this time; the final answer decides
-            self.skipped.append(f"{recording.start_time + span:.6g} s: {exc}")
+            impact.fit.notes.append(f"up to {span * 1e3:.3g} ms after first contact: {exc}")
             return []
         if fit is None:
             return []
         return self._emit(fit, recording, stage="update" if self.estimates else "first", clock=clock, span=span,
-                          impact=impact)
+                          impact=impact, data=data)
 
     def _first(self, impact: _Impact, data: Observed, span: float) -> LawFit | None:
-        """Every law fitted on the first window (stand held), from the robust answer where the stream has one,
-        else from the grid's best starts in turn until one explains the window (χ²/dof <= EARLY_REDUCED_CHI2);
-        then the first screen."""
+        """The first answer, from the robust answer where the stream has one by then, else from the grid's best
+        starts (:func:`.growing.first_fit`)."""
         pressure_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_START
         if self.robust.estimates:
             robust = self.robust.estimates[-1]
@@ -210,81 +221,21 @@ class ModelStream:
                             pressure=self.pressure, pressure_start=pressure_start)]
         else:
             starts = grid_starts(data, self.rig, impact.contact_time, self.pressure, pressure_start,
-                                 count=GRID_STARTS)
-        own = self.rig.contact.law if self.rig.contact.law in self.laws else self.laws[0]
-        found: _Law | None = None
-        for start in starts:  # the stand's own law, to convergence, from each start until one explains the window
-            try:
-                state = self._fit_first(own, start, data, None, MAX_EVALUATIONS)
-            except IdentificationError as exc:
-                self.skipped.append(f"{own} on the first {span * 1e3:.3g} ms: {exc}")
-                continue
-            if found is None or state.fit.chi2 < found.fit.chi2:
-                found, impact.start = state, start
-            if found.fit.reduced_chi2 <= select.EARLY_REDUCED_CHI2:
-                break
-        if found is None or impact.start is None:
-            return None
-        best = {own: found}
-        for law in self.laws:  # the others from its answer, as far as the screen needs
-            if law != own:
-                try:
-                    best[law] = self._fit_first(law, impact.start, data, found.values, select.SCREEN_EVALUATIONS)
-                except IdentificationError as exc:
-                    self.skipped.append(f"{law} on the first {span * 1e3:.3g} ms: {exc}")
-        impact.laws = best
-        dropped = screen({law: state.fit for law, state in best.items()}, span, select.EARLY_MARGIN,
-                         within=select.EARLY_REDUCED_CHI2)
-        for law in dropped:
-            del impact.laws[law]
-        if len(impact.laws) == 1:
-            impact.chosen = next(iter(impact.laws))
-            impact.choice = (f"{impact.chosen}: the only law left on the first {span * 1e3:.3g} ms"
-                             + (f" ({'; '.join(f'{k}: {v}' for k, v in dropped.items())})" if dropped else ""))
-        return _lowest(impact.laws) if impact.laws else None
-
-    def _fit_first(self, law: str, start: Start, data: Observed, core: dict | None, evaluations: int) -> _Law:
-        """``law`` fitted on the first window with the stand held, from ``start`` or the ``core`` values (M1, V0,
-        the contact instant) of another law's fit."""
-        layouts, values = start_law(self.rig, law, self.uncertain, start, self.sample_rate)
-        if core is not None:
-            values.update({name: core[name] for name in ("mass", "velocity", "contact_time")})
-        fit, values, offsets = fit_stages(data, layouts, values, data.offsets, ((None, "core"),), start,
-                                          evaluations=evaluations)
-        return _Law(layouts, values, offsets, fit)
-
-    def _refit(self, impact: _Impact, data: Observed, span: float) -> LawFit | None:
-        """Every law followed, updated from its last values; the choice at the screening window."""
-        kind = "core" if span < STAGES[select.SCREEN_WINDOW][0] else "all"
-        for law, state in list(impact.laws.items()):
-            try:
-                fit = refine(data, state.layouts(kind, state.values), state.values, state.offsets,
-                             steps=UPDATE_STEPS)
-            except IdentificationError:
-                if len(impact.laws) > 1:
-                    del impact.laws[law]
-                continue
-            impact.laws[law] = _Law(state.layouts, {**state.values, **fit.values}, fit.offsets, fit)
-        if impact.chosen is None and kind == "all" and impact.laws:
-            fits = {law: state.fit for law, state in impact.laws.items()}
-            dropped = screen(fits, span, select.SCREEN_MARGIN)
-            impact.chosen = min(fits, key=lambda law: fits[law].bic)
-            impact.choice = (f"{impact.chosen}: the smallest BIC on the first {span * 1e3:.3g} ms"
-                             + (f" ({'; '.join(f'{k}: {v}' for k, v in dropped.items())})" if dropped else ""))
-            impact.laws = {impact.chosen: impact.laws[impact.chosen]}
-        return _lowest(impact.laws) if impact.laws else None
-
+                                 count=GRID_STARTS, predicted=self._grid.get((impact.trigger - impact.first,
+                                                                             data.channels.shape[1])))
+        return first_fit(impact.fit, data, span, starts)
 
     def _emit(self, fit: LawFit, recording: Recording, *, stage: str, clock: float, span: float,
-              impact: _Impact) -> list[Identification]:
-        held = fit.layout.names == impact.laws[fit.law].layouts.fixed["core"].names
-        if held and fit.reduced_chi2 > select.EARLY_REDUCED_CHI2:  # held stand: only an answer that explains
-            self.skipped.append(f"{recording.source} up to {span * 1e3:.3g} ms after first contact: the {fit.law} "
-                                f"model leaves chi2/dof = {fit.reduced_chi2:.3g} > {select.EARLY_REDUCED_CHI2:g}")
-            return []  # the record so far down to its noise is given
+              impact: _Impact, data: Observed) -> list[Identification]:
+        growing = impact.fit
+        held = fit.layout.names == growing.states[fit.law].layouts.fixed["core"].names
+        if held and not explains(fit, data):  # the stand held: only an answer that explains the record so far
+            growing.notes.append(f"up to {span * 1e3:.3g} ms after first contact: the {fit.law} model with the "
+                                 "stand held does not explain the samples after contact down to their noise")
+            return []
         common = {"stage": stage, "cadence_s": self.cadence, "window_ms": span * 1e3,
-                  "law_choice": impact.choice or "not yet: the laws are compared on the first "
-                  f"{STAGES[select.SCREEN_WINDOW][0] * 1e3:g} ms",
+                  "law_choice": growing.choice or "not yet: the laws are compared on the first "
+                  f"{STAGES[SCREEN_WINDOW][0] * 1e3:g} ms",
                   "sigma_given": "the stand's parameters held at the rig's values" if held else
                   "every unknown of the batch fit free"}
         if fit.reduced_chi2 > batch.MAX_REDUCED_CHI2:
@@ -297,7 +248,9 @@ class ModelStream:
                 recording.contact_force.size - 1) / self.sample_rate, details={
                 **robust.details, **common, "path": "fallback", "reason": reason, "contact_law": fit.law})
         else:
-            answer = batch._answer(recording, self.rig, fit, {**common, "start": _start_of(impact.start)})
+            start = growing.start
+            answer = batch._answer(recording, self.rig, fit, {**common, "start": {} if start is None else {
+                "mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time}})
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
         answer = replace(answer, details={**answer.details, "update_time_s": elapsed})
@@ -305,7 +258,8 @@ class ModelStream:
         return [answer]
 
     def _conclude(self, impact: _Impact, stop: int) -> list[Identification]:
-        """The final answer: the batch fit of the record up to ``stop`` (or its refusal, kept in ``outcomes``)."""
+        """The final answer: the batch fit of the record up to ``stop`` (every law again, from the robust answer,
+        with its fall-back), or its refusal (kept in ``outcomes``)."""
         impact.done = True
         clock = time.perf_counter()
         stop = min(stop, self.robust.seen)
@@ -313,13 +267,14 @@ class ModelStream:
             recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
             self.last_record = recording
             final = batch.identify(recording, rig=self.rig, pressure=self.pressure, uncertain=self.uncertain,
-                             contact=self.contact)
+                                   contact=self.contact)
         except IdentificationError as exc:
             self.outcomes.append(exc)
             return []
         span = recording.start_time + (recording.contact_force.size - 1) / self.sample_rate - impact.contact_time
         final = replace(final, details={**final.details, "stage": "final", "cadence_s": self.cadence,
-                                        "window_ms": span * 1e3, "update_time_s": time.perf_counter() - clock})
+                                        "window_ms": span * 1e3, "update_time_s": time.perf_counter() - clock,
+                                        "law_choice": f"the batch fit's; in the stream: {impact.fit.choice}"})
         self.outcomes.append(final)
         self.estimates.append(final)
         return [final]
@@ -336,16 +291,6 @@ class ModelStream:
         if self._impact is not None and not self._impact.done:
             self._conclude(self._impact, self.robust.seen)
         return last_outcome(self.outcomes)
-
-
-def _lowest(laws: dict[str, _Law]) -> LawFit:
-    """The fit of smallest BIC among ``laws``."""
-    return min((state.fit for state in laws.values()), key=lambda fit: fit.bic)
-
-
-def _start_of(start: Start | None) -> dict:
-    return {} if start is None else {"mass_kg": start.mass, "velocity_m_s": start.velocity,
-                                     "contact_time_s": start.contact_time}
 
 
 def stream_model_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64,
