@@ -38,6 +38,8 @@ TINY = {
 }
 EXPECTED_METHODS = {"method": {"paper", "robust-early", "robust"}, "search": {"brute", "fast"},
                     "strategy": {"closed", "predictive", "predictive (oracle)", "achievable reference"}}
+#: studies whose compared methods include the model fit (by default)
+MODEL_STUDIES = {"noise", "sampling"}
 
 
 def _ready(name):
@@ -68,7 +70,8 @@ def test_study_rows_aggregate_summary_and_figure(name):
     assert rows and all(columns <= set(row) for row in rows)
     assert all(row["case"] == 0 for row in rows)
     if methods:
-        assert {row[methods] for row in rows} == EXPECTED_METHODS[methods]
+        expected = EXPECTED_METHODS[methods] | ({"model"} if name in MODEL_STUDIES else set())
+        assert {row[methods] for row in rows} == expected
     assert study.aggregate(rows)
     for line in study.summary(rows):
         assert set(line) == {"quantity", "ours", "paper"} and all(isinstance(v, str) for v in line.values())
@@ -86,7 +89,8 @@ def test_noise_of_a_case_does_not_depend_on_its_chunk():
     together = study.evaluate(cases[:2], options)
     alone = study.evaluate(cases[1:2], options)
     second = [r for r in together if r["case"] == 1]
-    assert len(second) == len(alone) == 9  # force, acceleration, both × paper, robust-early, robust
+    # force, acceleration, both × paper, robust-early, robust, model
+    assert len(second) == len(alone) == 12
     for a, b in zip(second, alone, strict=False):
         assert a.keys() == b.keys()
         for key in a:

@@ -78,6 +78,23 @@ def _parse_params(items: list[str] | None) -> dict:
     return params
 
 
+def _with_methods(params: dict, methods: str | None, names: list[str]) -> dict:
+    """``params`` with ``STUDY.methods`` set from ``--methods`` for each study of ``names`` that has the setting
+    (unless ``--set`` gives it)."""
+    if methods is None:
+        return params
+    having = {n: s.settings["methods"].choices for n, s in STUDIES.items() if "methods" in s.settings}
+    takers = [n for n in names if n in having]
+    if not takers:
+        raise ParameterError(f"--methods: study {names[0]!r} compares no identification methods; the studies "
+                             f"that do are {', '.join(having)}")
+    known = having[takers[0]]
+    chosen = [m.strip() for m in methods.split(",")]
+    if not all(m in known for m in chosen):
+        raise ParameterError(f"--methods must be a comma list of {', '.join(known)}, got {methods!r}")
+    return {**{f"{n}.methods": chosen for n in takers}, **params}
+
+
 class _BarOrDoing(BarColumn):
     """The bar of a study, or what it is doing while its first chunk is awaited (a study starts at 0 for a while:
     workers start, kernels compile)."""
@@ -187,6 +204,10 @@ def study(
                                        "a study with a stand of its own uses it).")] = None,
     setting: Annotated[list[str] | None, typer.Option(
         "--set", help="Study setting STUDY.SETTING=JSON, e.g. noise.levels=[0,0.05] (repeatable).")] = None,
+    methods: Annotated[str | None, typer.Option(
+        "--methods", metavar="LIST", help="Identification methods of the studies that compare them (noise, "
+                                          "sampling): a comma list of paper, robust, model (default: all three; "
+                                          "model is the dearest). STUDY.methods in --set wins.")] = None,
     force: Annotated[bool, typer.Option(*OVERWRITE, help="Discard runs with other options; overwrite files.")]
     = False,
     device: Annotated[str, typer.Option(
@@ -220,6 +241,7 @@ def study(
     else:
         get_study(name)
         names = [name]
+    params = _with_methods(_parse_params(setting), methods, names)
     with given(rig=rig, contact=contact, seed=seed, seeds=seeds, grid=grid, noise=noise, sample_rate=sample_rate,
                duration=duration, pre_trigger=pre_trigger):
         options = StudyOptions(rig=get_rig(rig, contact=contact), seed=seed, seeds=seeds, grid=grid,
@@ -227,7 +249,7 @@ def study(
                                sample_rate=quantity(sample_rate, "frequency", "--sample-rate"),
                                duration=quantity(duration, "time", "--duration"),
                                pre_trigger=quantity(pre_trigger, "time", "--pre-trigger"),
-                               params=_parse_params(setting), rig_is_default=rig is None and contact is None)
+                               params=params, rig_is_default=rig is None and contact is None)
     start = time.perf_counter()
     report_found = (out / "index.html").exists()
     with _Progress(names) as bar, _terminated_is_interrupted() as signals:

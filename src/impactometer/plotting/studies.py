@@ -11,8 +11,8 @@ from ..studies.tables import Row, flag, group_stats, number, pick
 from . import _pyplot, figure_legend, labelled
 
 #: colour per compared method
-COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "brute": "tab:red",
-          "fast": "tab:blue"}
+COLORS = {"paper": "tab:red", "robust-early": "tab:orange", "robust": "tab:blue", "model": "tab:green",
+          "brute": "tab:red", "fast": "tab:blue"}
 
 
 def _color(method: Any) -> str | None:

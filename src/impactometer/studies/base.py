@@ -194,9 +194,13 @@ class StudyOptions:
 
     def key(self, study: str) -> str:
         """Fingerprint of these options for ``study`` (persisted chunks are valid only under the same key); the
-        settings of other studies do not enter it."""
+        settings of other studies do not enter it. The study's settings enter with their values in effect, the
+        defaults included, so chunks of a study whose defaults changed (a method added) are never reused."""
         data = self.to_dict()
         data["params"] = {k: v for k, v in data["params"].items() if k.partition(".")[0] == study}
+        registered = STUDIES.get(study)
+        if registered is not None:
+            data["params"] = {**{f"{study}.{k}": v for k, v in registered.defaults.items()}, **data["params"]}
         text = json.dumps({"study": study, **data}, sort_keys=True, default=repr)
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 

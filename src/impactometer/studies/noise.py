@@ -9,11 +9,14 @@ from __future__ import annotations
 
 from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
 from .identification import (
-    REQUIRES,
+    DEFAULT_METHODS,
+    MODEL_REQUIRES,
+    STUDY_METHODS,
     by_method,
     clean_recordings,
     identify_rows,
     mean_abs,
+    methods_of,
     pct,
     per_method,
     seeded_grid,
@@ -24,8 +27,8 @@ from .identification import (
 NAME = "noise"
 #: default values per grid axis (the paper's 125 scenarios)
 GRID = 5
-DEFAULTS = {"levels": [0.0, 0.02, 0.05, 0.1]}
-SETTINGS = {"levels": Setting("numbers", 0.0, 1.0, "fraction")}
+DEFAULTS = {"levels": [0.0, 0.02, 0.05, 0.1], "methods": DEFAULT_METHODS}
+SETTINGS = {"levels": Setting("numbers", 0.0, 1.0, "fraction"), "methods": STUDY_METHODS}
 #: which channels get the noise
 TARGETS = {"force": ("contact_force",), "acceleration": ("piston_acceleration",),
            "both": ("contact_force", "piston_acceleration")}
@@ -44,12 +47,14 @@ def _variants(options: StudyOptions) -> list[tuple[str, float]]:
 def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
     rows = []
     variants = _variants(options)
+    methods = methods_of(options, NAME)
     for case, clean in zip(cases, clean_recordings(cases, options), strict=False):
         for j, (target, level) in enumerate(variants):
             noise = {channel: (level if channel in TARGETS.get(target, ()) else 0.0)
                      for channel in ("contact_force", "piston_acceleration")}
             recording = with_noise(clean, noise, case_seed(options, NAME, case["case"], j))
-            rows += identify_rows(recording, {**case, "noise_on": target, "noise": level})
+            rows += identify_rows(recording, {**case, "noise_on": target, "noise": level}, methods,
+                                  rig=options.rig)
     return rows
 
 
@@ -72,5 +77,5 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 STUDY = register(Study(name=NAME, title="Identification error vs Gaussian noise on force, acceleration, both",
                        figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate,
-                       summary=with_failures(_summary), plot=plotted_by("plot_noise"), chunk_size=2, requires=REQUIRES,
-                       defaults=DEFAULTS, settings=SETTINGS))
+                       summary=with_failures(_summary), plot=plotted_by("plot_noise"), chunk_size=2,
+                       requires=MODEL_REQUIRES, defaults=DEFAULTS, settings=SETTINGS))

@@ -9,12 +9,15 @@ from __future__ import annotations
 from ..sensors import MAX_SAMPLE_RATE, MIN_SAMPLE_RATE
 from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
 from .identification import (
-    REQUIRES,
+    DEFAULT_METHODS,
+    MODEL_REQUIRES,
+    STUDY_METHODS,
     by_method,
     clean_recordings,
     identify_rows,
     max_abs,
     mean_abs,
+    methods_of,
     pct,
     per_method,
     seeded_grid,
@@ -25,9 +28,10 @@ from .identification import (
 NAME = "sampling"
 #: default values per grid axis (the paper's 125 scenarios)
 GRID = 5
-DEFAULTS = {"rates": [5e3, 10e3, 20e3, 30e3, 40e3, 50e3, 100e3, 200e3], "noise": 0.0}
+DEFAULTS = {"rates": [5e3, 10e3, 20e3, 30e3, 40e3, 50e3, 100e3, 200e3], "noise": 0.0,
+            "methods": DEFAULT_METHODS}
 SETTINGS = {"rates": Setting("numbers", MIN_SAMPLE_RATE, MAX_SAMPLE_RATE, "frequency"),
-            "noise": Setting("number", 0.0, 1.0, "fraction")}
+            "noise": Setting("number", 0.0, 1.0, "fraction"), "methods": STUDY_METHODS}
 
 
 def _cases(options: StudyOptions) -> list[Row]:
@@ -41,13 +45,14 @@ def _cases(options: StudyOptions) -> list[Row]:
 
 def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
     level = float(options.param(NAME, "noise", DEFAULTS["noise"]))
+    methods = methods_of(options, NAME)
     rows = []
     for rate in dict.fromkeys(c["sample_rate"] for c in cases):
         group = [c for c in cases if c["sample_rate"] == rate]
         for case, clean in zip(group, clean_recordings(group, options, sample_rate=rate), strict=False):
             recording = with_noise(clean, {"contact_force": level, "piston_acceleration": level},
                                    case_seed(options, NAME, case["case"]))
-            rows += identify_rows(recording, {**case, "noise": level})
+            rows += identify_rows(recording, {**case, "noise": level}, methods, rig=options.rig)
     return rows
 
 
@@ -87,4 +92,4 @@ def _plot(rows: list[Row], options: StudyOptions):
 
 STUDY = register(Study(name=NAME, title="Mean and maximum error vs sampling frequency", figure="Fig. 7",
                        cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=with_failures(_summary),
-                       plot=_plot, chunk_size=7, requires=REQUIRES, defaults=DEFAULTS, settings=SETTINGS))
+                       plot=_plot, chunk_size=7, requires=MODEL_REQUIRES, defaults=DEFAULTS, settings=SETTINGS))
