@@ -107,14 +107,16 @@ def onset_index(force: np.ndarray, span: PulseSpan, noise: float, *, earliest: i
     f = f_all[lo:stop]
     curved = top > CURVED_ABOVE * peak
     coarse = np.arange(lo, span.first + 1e-9, COARSE_STEP)
-    k = int(np.argmin(_profile(t, f, coarse, curved)))
+    full = _profile(t, f, coarse, curved)
+    k = int(np.argmin(full))
     fine = np.arange(coarse[max(k - 8, 0)], coarse[min(k + 8, coarse.size - 1)] + 1e-9, GRID_STEP)
     sse = _profile(t, f, fine, curved)
     k = int(np.argmin(sse))
-    # trial times whose squares stay within one scatter (the noise, or the misfit of the foot model) of the least
+    # trial times whose squares stay within one scatter (the noise, or the misfit of the foot model) of the least,
+    # on both grids: the fine one spans two samples either side of the coarse minimum, a flat foot's set more
     scatter2 = max(sigma ** 2, sse[k] / max(t.size - 4, 1))
-    inside = np.flatnonzero(sse <= sse[k] + scatter2)
-    first, last = fine[inside[0]], fine[inside[-1]]
+    within = np.r_[coarse[full <= sse[k] + scatter2], fine[sse <= sse[k] + scatter2]]
+    first, last = float(within.min()), float(within.max())
     return float(0.5 * (first + last)), float(max(0.5 * (last - first), MIN_STD))
 
 
