@@ -152,3 +152,29 @@ def test_cli_stream_method_model(tmp_path, capsys):
         with pytest.raises(SystemExit) as exc:
             main(["stream", str(path), *args])
         assert exc.value.code == 2 and message in capsys.readouterr().err
+
+
+def test_two_impacts_in_one_stream_give_two_final_answers():
+    first, second = _record(30.0, 2.0, 100e3, 81), _record(15.0, 1.5, 100e3, 82, duration=0.02)
+    rng = np.random.default_rng(83)
+    quiet = {name: np.std(first.channel(name)[:800]) * rng.standard_normal(25_000)  # 0.5 s: the trigger re-arms
+             for name in ("contact_force", "piston_acceleration")}
+    force, acceleration = (np.concatenate([first.channel(name), quiet[name], second.channel(name)])
+                           for name in ("contact_force", "piston_acceleration"))
+    stream = ModelStream(50e3, start_time=first.start_time, metadata=first.metadata, window=0.03)
+    for k in range(0, force.size, 256):
+        stream.push(force[k:k + 256], acceleration[k:k + 256])
+    stream.finish()
+    # the first impact's final answer at 30 ms of its record, the second's at the end of the stream
+    assert len(stream.outcomes) == 2 and stream.outcomes[1].available_at > 0.5
+    for outcome, (mass, velocity) in zip(stream.outcomes, ((30.0, 2.0), (15.0, 1.5)), strict=True):
+        assert abs(outcome.mass - mass) <= Z * outcome.mass_std
+        assert abs(outcome.velocity - velocity) <= Z * outcome.velocity_std
+
+
+def test_an_impact_without_pre_trigger_gives_no_estimate_and_a_refusal():
+    rec = _record(30.0, 2.0, 100e3, 91, duration=0.02, pre_trigger=0.0005)
+    stream, got = _stream(rec)
+    assert got == [] and stream.notes
+    with pytest.raises(IdentificationError, match="pre-trigger"):
+        stream.finish()

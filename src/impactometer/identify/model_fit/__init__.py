@@ -122,14 +122,14 @@ def _observe(recording: Recording, design: str, contact_time: float, min_duratio
     return Observed(channels=data, noise=noise, grid=grid, offsets=np.median(data[:, :pre], axis=1))
 
 
-def _check_length(recording: Recording) -> float:
+def _check_length(recording: Recording, min_duration: float = MIN_DURATION) -> float:
     """IdentificationError for a record without the pre-trigger or the length after first contact the fit needs;
     else the crude instant of first contact [s].
 
     Checked before the robust answer (which fails on such records with reasons of its own): the first
     ``MIN_PRE_SAMPLES`` + ``GUARD_SAMPLES`` samples of the force must be quiet (within 8 σ of their median, σ by
     :func:`~impactometer.identify.pulses.noise_std`), and first contact, the first sample 10 σ off, must leave
-    ``MIN_DURATION`` of record.
+    ``min_duration`` [s] of record.
     """
     force = np.asarray(recording.channel("contact_force"), dtype=float)
     need = MIN_PRE_SAMPLES + GUARD_SAMPLES
@@ -144,9 +144,9 @@ def _check_length(recording: Recording) -> float:
     if not above.size:
         raise IdentificationError(f"{recording.source}: no impact: the force never leaves its noise ({sd:.3g} N)")
     after = (force.size - 1 - above[0]) / recording.sample_rate
-    if after < MIN_DURATION:
+    if after < min_duration:
         raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
-                                  f"the model fit needs at least {MIN_DURATION * 1e3:g} ms")
+                                  f"the model fit needs at least {min_duration * 1e3:g} ms")
     return recording.start_time + above[0] / recording.sample_rate
 
 

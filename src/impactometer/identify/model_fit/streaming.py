@@ -201,6 +201,7 @@ class ModelStream:
                                self._stop(impact.contact_time, self.window))
         recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
         try:
+            batch._check_length(recording, min_duration=0.0)  # a pre-trigger, as the batch fit needs one
             data = batch._observe(recording, self.design, impact.contact_time, min_duration=0.0)
             fit = self._first(impact, data, span) if not impact.fit.states else update(impact.fit, data, span)
         except IdentificationError as exc:  # no estimate this time; the final answer decides
