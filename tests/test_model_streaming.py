@@ -63,6 +63,17 @@ def test_first_answer_and_updates_round_trip(mass, velocity, pressure, seed):
     assert len(stream.update_times) == len(got) - 1
 
 
+def test_an_earlier_first_window_answers_earlier_with_a_larger_sigma():
+    rec = _record(30.0, 2.0, 100e3, 11, duration=0.012)
+    early = _stream(rec, first=0.0025, window=0.011, cadence=0.005)[1][0]
+    usual = _stream(rec, window=0.011, cadence=0.005)[1][0]
+    assert early.available_at <= 0.0025 + 1e-3 < usual.available_at
+    assert early.details["stage"] == "first" and early.mass_std > usual.mass_std
+    assert abs(early.mass - 30.0) <= Z * early.mass_std and abs(early.velocity - 2.0) <= Z * early.velocity_std
+    with pytest.raises(ParameterError, match="first must be"):
+        ModelStream(50e3, first=0.001)
+
+
 def test_a_record_of_another_law_than_the_stands_is_screened_at_once():
     # the stand's law (hysteretic) with its parameters held does not explain the first 4 ms of a Kelvin-Voigt
     # record: every law is fitted on that window before the first answer, and the screen keeps the record's
@@ -146,7 +157,10 @@ def test_cli_stream_method_model(tmp_path, capsys):
     main(["stream", str(path), "--method", "model"])
     out = capsys.readouterr().out
     assert "updates every 10 ms of record" in out and "final answer of the stream (model" in out
+    main(["stream", str(path), "--method", "model", "--first", "3ms", "--json"])
+    assert json.loads(capsys.readouterr().out.splitlines()[0])["available_at_s"] < 0.004
     for args, message in ((["--cadence", "5ms"], "options of --method model"),
+                          (["--method", "model", "--first", "20ms"], "--first"),
                           (["--method", "model", "--cadence", "0s"], "cadence"),
                           (["--method", "fast"], "--method must be one of")):
         with pytest.raises(SystemExit) as exc:

@@ -153,6 +153,9 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
            contact_phase: ContactOpt = False,
            cadence: Annotated[str | None, typer.Option(
                "--cadence", metavar="TIME", help="model: record between updates (default 10ms).")] = None,
+           first: Annotated[str | None, typer.Option(
+               "--first", metavar="TIME", help="model: record after first contact the first answer reads "
+                                               "(default 4ms).")] = None,
            rig: Annotated[str | None, typer.Option("--rig", metavar="STAND", help="model: the stand, a preset name "
                                                                                "or a TOML file.")] = None,
            pressure: Annotated[str | None, typer.Option(
@@ -166,13 +169,14 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
     """Replay FILE through the streaming identifier and print each estimate with the time it became available."""
     if method not in STREAM_METHODS:
         raise ParameterError(f"--method must be one of {list(STREAM_METHODS)}, got {method!r}")
-    if method != "model" and (cadence, rig, pressure) != (None, None, None):
-        raise ParameterError("--cadence, --rig and --pressure are options of --method model")
+    if method != "model" and (cadence, first, rig, pressure) != (None, None, None, None):
+        raise ParameterError("--cadence, --first, --rig and --pressure are options of --method model")
     if chunk < 1:
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
     rec = reader.read(file)
     if method == "model":
-        _stream_model(file, rec, quantity(cadence, "time", "--cadence"), rig, pressure, chunk, realtime, as_json)
+        _stream_model(file, rec, {"cadence": quantity(cadence, "time", "--cadence"),
+                                  "first": quantity(first, "time", "--first")}, rig, pressure, chunk, realtime, as_json)
         return
     from ..identify.peak_to_peak import check_unfiltered
     from ..identify.peak_to_peak.streaming import StreamingIdentifier
@@ -214,18 +218,19 @@ def _replay(rec, ident, chunk: int, realtime: bool, report) -> None:
                    rec.start_time + min(k + chunk, f.size) / rec.sample_rate)
 
 
-def _stream_model(file: Path, rec, cadence: float | None, rig: str | None, pressure: str | None, chunk: int,
+def _stream_model(file: Path, rec, durations: dict, rig: str | None, pressure: str | None, chunk: int,
                   realtime: bool, as_json: bool) -> None:
     """``stream --method model``: the model's first answer, its updates every cadence and the final answer, each
-    with the wall time it took; a closing line with the median and 90th percentile of the updates' times."""
+    with the wall time it took; a closing line with the median and 90th percentile of the updates' times.
+    ``durations``: ``cadence`` and ``first`` [s] as given (None: the defaults)."""
     import numpy as np
 
-    from ..identify.model_fit.streaming import CADENCE, ModelStream
+    from ..identify.model_fit.streaming import ModelStream
 
-    with given(rig=rig, pressure=pressure, cadence=None if cadence is None else f"{cadence:g}s"):
+    given_times = {name: value for name, value in durations.items() if value is not None}
+    with given(rig=rig, pressure=pressure, **{name: f"{value:g}s" for name, value in given_times.items()}):
         ident = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, rig=rig,
-                            pressure=quantity(pressure, "pressure", "--pressure"),
-                            cadence=CADENCE if cadence is None else cadence)
+                            pressure=quantity(pressure, "pressure", "--pressure"), **given_times)
 
     def report(new: list, at: float) -> None:
         for est in new:

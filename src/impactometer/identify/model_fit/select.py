@@ -203,7 +203,8 @@ def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float |
                 count: int = 1, predicted: np.ndarray | None = None) -> list[Start]:
     """The ``count`` best starts of :func:`grid_start`, best first, none next to (one grid step from) a better
     one: the first window of a light, fast impact can hold more than one minimum. ``predicted`` (from
-    :func:`grid_predictions` on the same window) spares the integrations."""
+    :func:`grid_predictions` on the same window) spares the integrations. The window is ``data`` up to
+    ``STAGES[0]`` after ``contact_time``, or all of it where it is shorter."""
     part = window(data, contact_time + STAGES[0][0])
     if predicted is None or predicted.shape[-1] != part.grid.size:
         predicted = grid_predictions(part.grid, rig, contact_time, pressure, pressure_start)

@@ -5,11 +5,12 @@ The robust :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdenti
 trigger finds the impact and its ring buffer holds the samples. The model reads them (:mod:`.growing` holds the
 algorithms, this class the schedule):
 
-- **First answer** as soon as ``STAGES[0]`` (4 ms) of record after first contact has arrived: M1, V0 and the
-  contact instant fitted with the stand's law and parameters held, from the robust answer where the stream has
-  one by then, else from the best impacts of the start grid (:func:`.select.grid_starts`, whose predictions are
-  made before the impact). It is given where it explains the samples after contact down to their noise.
-- **Contact law**: the other laws are fitted on that first window at the next update and screened as the batch
+- **First answer** as soon as ``first`` (default ``STAGES[0]``, 4 ms) of record after first contact has arrived:
+  M1, V0 and the contact instant fitted with the stand's law and parameters held, from the robust answer where
+  the stream has one by then, else from the best impacts of the start grid (:func:`.select.grid_starts`, whose
+  predictions are made before the impact). It is given where it explains the samples after contact down to
+  their noise.
+- **Contact law**: the other laws are fitted on that first window, one at each update, and screened as the batch
   fit screens them (:func:`.select.screen`: dropped where their BIC exceeds a best law that explains the window by
   more than 1000); where the stand's law does not explain the first window, at once. Where more than one law is
   left, each is updated up to ``STAGES[SCREEN_WINDOW]`` (15 ms), where the smallest BIC chooses. The choice is
@@ -56,6 +57,8 @@ CADENCE = 0.01
 WINDOW = 0.05
 #: most pre-trigger the model reads [s] (the noise σ and the offsets come from it)
 PRE_TRIGGER = 0.02
+#: shortest first window [s]: the first contact pulse's rise alone (V0, not M1)
+MIN_FIRST = 0.002
 #: starts of the grid tried in turn for the first answer, where the robust stream has none yet
 GRID_STARTS = 3
 
@@ -90,6 +93,9 @@ class ModelStream:
         Record between updates [s].
     window : float
         Record after first contact whose batch fit is the final answer [s].
+    first : float
+        Record after first contact the first answer reads [s] (default the batch fit's first window, 4 ms; from
+        ``MIN_FIRST`` to 15 ms): earlier answers, larger σ of M1.
 
     Notes
     -----
@@ -104,10 +110,13 @@ class ModelStream:
 
     def __init__(self, sample_rate: float, *, start_time: float = 0.0, metadata: dict | None = None,
                  rig: Rig | str | None = None, pressure: float | None = None, uncertain: Sequence[str] | None = None,
-                 contact: str | None = "auto", cadence: float = CADENCE, window: float = WINDOW):
+                 contact: str | None = "auto", cadence: float = CADENCE, window: float = WINDOW,
+                 first: float = STAGES[0][0]):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
         self.cadence = check_real("cadence", cadence, low=1.0 / sample_rate, unit=" [s]", error=ParameterError)
-        self.window = check_real("window", window, low=STAGES[0][0] + self.cadence, unit=" [s]",
+        self.first = check_real("first", first, low=MIN_FIRST, high=STAGES[SCREEN_WINDOW][0], unit=" [s]",
+                                error=ParameterError)
+        self.window = check_real("window", window, low=self.first + self.cadence, unit=" [s]",
                                  error=ParameterError)
         self.robust = StreamingIdentifier(sample_rate, start_time=start_time)
         self.sample_rate, self.start_time = float(sample_rate), float(start_time)
@@ -134,7 +143,7 @@ class ModelStream:
         (samples before the trigger, samples of the window)."""
         pre = int(PRE_TRIGGER * self.sample_rate)
         contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
-        size = int(math.floor((contact + STAGES[0][0]) * self.sample_rate + 1e-9)) + 1
+        size = int(math.floor((contact + self.first) * self.sample_rate + 1e-9)) + 1
         pressure_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_START
         try:
             return {(pre, size): grid_predictions(make_grid(0.0, self.sample_rate, size, self.design), self.rig,
@@ -183,7 +192,7 @@ class ModelStream:
         first = max(trigger - int(PRE_TRIGGER * self.sample_rate), self.robust.impact_start or 0)
         contact = self.start_time + (trigger - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
         self._impact = _Impact(trigger=trigger, first=first, contact_time=contact,
-                               next_stop=self._stop(contact, STAGES[0][0]),
+                               next_stop=self._stop(contact, self.first),
                                fit=Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
         self.estimates = []
 
