@@ -15,7 +15,7 @@ update): the robust :class:`StreamingIdentifier` (the time of each push that gav
 :class:`ModelStream` at ``--cadence`` (the wall time of each update against the cadence; the first answer's time,
 when its data ended after first contact, its errors, and the share of answers whose ±2σ holds the truth).
 
-    python benchmarks/bench_model.py [--records 20] [--cadence 0.005] [--record]
+    python benchmarks/bench_model.py [--records 20] [--cadence 0.005] [--first 0.003] [--stream-only] [--record]
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import numba  # noqa: E402
 import numpy as np  # noqa: E402
 
 from impactometer.identify.model_fit import identify as identify_model  # noqa: E402
+from impactometer.identify.model_fit.select import STAGES  # noqa: E402
 from impactometer.identify.model_fit.streaming import CADENCE, ModelStream  # noqa: E402
 from impactometer.identify.peak_to_peak import identify as identify_robust  # noqa: E402
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier  # noqa: E402
@@ -53,6 +54,8 @@ def main() -> None:
     ap.add_argument("--records", type=int, default=20, help="records spread over the paper's grid")
     ap.add_argument("--repeat", type=int, default=3, help="runs per record and method; the least counts")
     ap.add_argument("--cadence", type=float, default=CADENCE, help="model stream: record between updates [s]")
+    ap.add_argument("--first", type=float, default=STAGES[0][0], help="model stream: the first answer's window [s]")
+    ap.add_argument("--stream-only", action="store_true", help="the streams only (no batch fits)")
     ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
     with recorded("bench_model", "Model-based identification: time per record beside the robust method",
@@ -67,13 +70,20 @@ def measure(args, rec) -> None:
     recordings = record_batch([c["mass"] for c in cases], [c["velocity"] for c in cases],
                               [c["pressure_gauge"] for c in cases], "drop-stand", sample_rate=50e3, duration=0.05,
                               pre_trigger=0.02, noise=0.05, seed=2024)
+    if not args.stream_only:
+        batch(recordings, args.repeat, rec)
+    stream(recordings, args.cadence, args.first, args.repeat, rec)
+
+
+def batch(recordings, repeat: int, rec) -> None:
+    """The batch fits beside the robust method: time per record, the least of ``repeat`` runs."""
     times: dict[str, list[float]] = {name: [] for name in METHODS}
     for method in METHODS.values():
         method(recordings[0])
     for recording in recordings:
         for name, method in METHODS.items():
             best = float("inf")
-            for _ in range(args.repeat):  # the least of a few runs: other processes on the cores only add time
+            for _ in range(repeat):  # the least of a few runs: other processes on the cores only add time
                 start = time.perf_counter()
                 try:
                     method(recording)
@@ -82,7 +92,7 @@ def measure(args, rec) -> None:
                 best = min(best, time.perf_counter() - start)
             times[name].append(best)
     print(f"{len(recordings)} records of 70 ms (50 ms + 20 ms pre-trigger) at 50 kHz, pad stand, 5 % noise; "
-          f"one compiled thread; least of {args.repeat} runs per record\n")
+          f"one compiled thread; least of {repeat} runs per record\n")
     print("| method | median [ms] | 90th percentile [ms] | median / robust |")
     print("|---|---|---|---|")
     base = float(np.median(times["peak-to-peak/robust"]))
@@ -92,7 +102,6 @@ def measure(args, rec) -> None:
     rec.headline("model fit of a 70 ms pad record, median time per record (3 laws / one law), one core",
                  f"{np.median(times['model (3 laws, BIC)']) * 1e3:.0f} ms / "
                  f"{np.median(times['model (hysteretic only)']) * 1e3:.0f} ms", target="100 ms")
-    stream(recordings, args.cadence, args.repeat, rec)
 
 
 def replay(ident, recording) -> list[tuple[float, list]]:
@@ -106,11 +115,11 @@ def replay(ident, recording) -> list[tuple[float, list]]:
     return out
 
 
-def stream(recordings, cadence: float, repeat: int, rec) -> None:
+def stream(recordings, cadence: float, first_window: float, repeat: int, rec) -> None:
     """The robust and the model streams side by side: time per update, the model's against its cadence."""
     replay(StreamingIdentifier(recordings[0].sample_rate, start_time=recordings[0].start_time), recordings[0])
     replay(ModelStream(recordings[0].sample_rate, start_time=recordings[0].start_time,
-                       metadata=recordings[0].metadata, cadence=cadence), recordings[0])
+                       metadata=recordings[0].metadata, cadence=cadence, first=first_window), recordings[0])
     robust: list[float] = []
     updates: list[float] = []
     first: list[tuple[float, float, float, float]] = []  # compute time, data end after contact [s], |dM|, |dV| [-]
@@ -121,7 +130,7 @@ def stream(recordings, cadence: float, repeat: int, rec) -> None:
             pushes.append([took for took, new in replay(StreamingIdentifier(
                 recording.sample_rate, start_time=recording.start_time), recording) if new])
             model = ModelStream(recording.sample_rate, start_time=recording.start_time,
-                                metadata=recording.metadata, cadence=cadence)
+                                metadata=recording.metadata, cadence=cadence, first=first_window)
             replay(model, recording)
             model.finish()
             estimates.append(model.estimates)
