@@ -8,6 +8,7 @@ by :func:`impactometer.sensors.record`, anti-alias filter and noise included).
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 from typing import Any
 
@@ -15,6 +16,7 @@ from ..errors import IdentificationError, ParameterError
 from ..identify.peak_to_peak.streaming import StreamingIdentifier
 from ..identify.response_map import identify_recording
 from ..identify.result import Identification
+from ..recording import Recording
 from ..rig import Rig, Scenario
 from ..sensors import record
 from ..validation import finite_or_none
@@ -29,8 +31,9 @@ PRE_TRIGGER = 0.025
 STREAM_CHUNK = 16
 #: the first model answer whose mass has a standard error below this fraction of it is acted on [-]
 MODEL_MASS_TRUST = 0.2
-#: ... and whose χ²/dof is at most this (the model of the stand describes the record) [-]
-MODEL_REDUCED_CHI2 = 1.5
+#: the model stream's first window, its cadence and the longest record after first contact it reads for the
+#: loop [s]
+MODEL_FIRST, MODEL_CADENCE, MODEL_LAST = 0.0025, 0.001, 0.015
 #: the controller trusts an identified velocity whose standard error is below this fraction of it [-] (and a mass
 #: by the estimator's ``MASS_TRUST``)
 VELOCITY_TRUST = 0.5
@@ -128,16 +131,34 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     return replace(found, available_at=max(float(found.available_at), 0.0))
 
 
-def first_model_answer(recording, rig: Rig, *, pressure: float) -> Identification:
-    """The first answer of the model fit that the controller can act on, as a real-time system on one core gets it
-    (:func:`impactometer.identify.model_fit.early.early_fits`: the stand's model, its contact law and parameters
-    known, fitted to the record as it grows; each answer known when its fit is done): the first whose mass has a
-    standard error below :data:`MODEL_MASS_TRUST` of it and whose χ²/dof is at most :data:`MODEL_REDUCED_CHI2`.
-    """
-    from ..identify.model_fit.early import LAST_WINDOW, early_fits
+def first_model_answer(recording: Recording, rig: Rig, *, pressure: float) -> Identification:
+    """The first answer of the model stream that the controller can act on, as a real-time system on one core gets
+    it: the record streams through :class:`~impactometer.identify.model_fit.streaming.ModelStream` (the stand's own
+    contact law and parameters known: a calibrated stand; first window :data:`MODEL_FIRST`, an update every
+    :data:`MODEL_CADENCE`), each estimate known when the processor time of the push that made it has passed after
+    its last sample (and after the previous estimate was done); the first whose mass has a standard error below
+    :data:`MODEL_MASS_TRUST` of it is taken. None comes after :data:`MODEL_LAST` of record after the trigger."""
+    from ..identify.model_fit.streaming import ModelStream
 
-    for fit in early_fits(recording, rig, pressure=pressure):
-        if fit.mass_std < MODEL_MASS_TRUST * fit.mass and fit.reduced_chi2 <= MODEL_REDUCED_CHI2:
-            return fit.answer()
+    stream = ModelStream(recording.sample_rate, start_time=recording.start_time, metadata=recording.metadata,
+                         rig=rig, pressure=pressure, contact=rig.contact.law, cadence=MODEL_CADENCE,
+                         first=MODEL_FIRST, window=MODEL_LAST)  # its grid of starts is made here, before the impact
+    force, acceleration = recording.contact_force, recording.piston_acceleration
+    busy_until = -math.inf
+    for k in range(0, force.size, STREAM_CHUNK):
+        if recording.start_time + k / recording.sample_rate > MODEL_LAST:
+            break  # t = 0 is first contact
+        began = time.process_time()
+        estimates = stream.push(force[k:k + STREAM_CHUNK], acceleration[k:k + STREAM_CHUNK])
+        took = time.process_time() - began
+        for found in estimates:
+            if found.details.get("stage") == "final":
+                break  # the batch fit of MODEL_LAST: too late for the controller
+            busy_until = max(found.available_at, busy_until) + took
+            took = 0.0  # a push that made two estimates: its time counted once
+            if found.method == "model/ml" and found.mass_std < MODEL_MASS_TRUST * found.mass:
+                return replace(found, available_at=busy_until,
+                               details={**found.details, "data_until_s": found.available_at,
+                                        "latency_s": busy_until - found.available_at})
     raise IdentificationError(f"no model answer with a mass known within {MODEL_MASS_TRUST:.0%} within "
-                              f"{LAST_WINDOW * 1e3:g} ms of the trigger")
+                              f"{MODEL_LAST * 1e3:g} ms of first contact")
