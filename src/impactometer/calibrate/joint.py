@@ -124,11 +124,24 @@ class _Joint:
         jac = np.zeros((self.size, x.size))
         row = 0
         for i, model in enumerate(self.models):
-            jac[row:row + self.sizes[i], self.columns[i]] = model.jacobian(local(x, i, self.shared))
+            jac[row:row + self.sizes[i], self.columns[i]] = _jacobian(model, local(x, i, self.shared))
             row += self.sizes[i]
         jac[row + np.arange(len(self.models)), self.shared + len(NUISANCES) * np.arange(len(self.models))] = \
             1.0 / self.sigma
         return jac
+
+
+def _jacobian(model: _Model, x: np.ndarray) -> np.ndarray:
+    """``model``'s Jacobian at ``x`` by forward differences, or by backward ones where a forward step leaves the
+    range the model is integrated in (a fit of a family that does not describe the drops runs to its edges)."""
+    try:
+        return model.jacobian(x)
+    except IdentificationError:
+        model.steps = -model.steps
+        try:
+            return model.jacobian(x)
+        finally:
+            model.steps = -model.steps
 
 
 def start_vector(drops: Sequence[Drop], layouts: Sequence[Layout], free: tuple[str, ...],
