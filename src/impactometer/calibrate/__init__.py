@@ -25,7 +25,7 @@ from ..identify.model_fit.information import covariance
 from ..identify.model_fit.select import SCREEN_MARGIN
 from ..recording import Recording
 from ..rig import Rig, get_rig, parameter_names
-from .drops import Drop, read_drops
+from .drops import ObservedDrop, read_drops
 from .joint import SCREEN_STAGE, Family, fit_family, stages_for
 from .result import Calibration, DropFit
 from .separation import CORRELATION_LIMIT, correlation, flagged, suggest
@@ -86,7 +86,7 @@ def _check_options(velocity_sigma: float, duration: float | None) -> None:
                              f"{shown(duration)}", field="duration", expected=f"must be >= {MIN_DURATION:g} s")
 
 
-def _check_count(drops: Sequence[Drop], laws: Sequence[str], names: tuple[str, ...]) -> None:
+def _check_count(drops: Sequence[ObservedDrop], laws: Sequence[str], names: tuple[str, ...]) -> None:
     most = max(len(free_parameters(law, names)) for law in laws)
     need = max(MIN_DROPS, math.ceil(most / PARAMETERS_PER_DROP))
     if len(drops) < need:
@@ -176,7 +176,7 @@ def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
     return _result(best, drops, base, report, velocity_sigma=velocity_sigma, duration=duration, name=name)
 
 
-def _fit_families(drops: Sequence[Drop], base: Rig, laws: Sequence[str], names: tuple[str, ...],
+def _fit_families(drops: Sequence[ObservedDrop], base: Rig, laws: Sequence[str], names: tuple[str, ...],
                   velocity_sigma: float, stages, step: Callable[[], None]) -> tuple[dict[str, Family], dict]:
     """Each family through the screening window, the ones within ``SCREEN_MARGIN`` of the best BIC to the end."""
     screened: dict[str, tuple[Family, np.ndarray]] = {}
@@ -214,7 +214,7 @@ def _fit_families(drops: Sequence[Drop], base: Rig, laws: Sequence[str], names: 
     return families, report
 
 
-def _result(best: Family, drops: Sequence[Drop], base: Rig, report: dict, *, velocity_sigma: float,
+def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict, *, velocity_sigma: float,
             duration: float | None, name: str | None) -> Calibration:
     """The :class:`Calibration` of the chosen family."""
     cov, rank = covariance(best.root)

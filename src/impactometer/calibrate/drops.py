@@ -25,7 +25,7 @@ TRUTH = {"mass_kg": "kg", "velocity_m_s": "m/s", "pressure_gauge_Pa": "Pa gauge"
 
 
 @dataclass(frozen=True)
-class Drop:
+class ObservedDrop:
     """One drop of a calibration set.
 
     ``mass`` [kg] (exact), ``velocity`` [m/s] (the light gate's), ``pressure`` [Pa gauge]; ``data`` the observed
@@ -86,9 +86,9 @@ def check_one_stand(recordings: Sequence[Recording]) -> None:
                                  f"{key} = {b!r}; expected one stand in a calibration set")
 
 
-def read_drops(recordings: Sequence[Recording]) -> list[Drop]:
-    """The :class:`Drop` of each recording, checked: the channels the fit needs, the truth, a pre-trigger and the
-    length after contact, one stand."""
+def read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
+    """The :class:`ObservedDrop` of each recording, checked: the channels the fit needs, the truth, a pre-trigger
+    and the length after contact, one stand."""
     if not isinstance(recordings, Sequence) or isinstance(recordings, (str, bytes)):
         raise RecordingError(f"recordings must be a sequence of Recording, got {type(recordings).__name__}")
     for recording in recordings:
@@ -101,6 +101,6 @@ def read_drops(recordings: Sequence[Recording]) -> list[Drop]:
         trigger = _check_length(recording)
         data = _observe(recording, design, trigger)
         start = trigger - anti_alias_delay(design, recording.sample_rate) - TRIGGER_LEAD / recording.sample_rate
-        drops.append(Drop(source=str(recording.source), mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
+        drops.append(ObservedDrop(source=str(recording.source), mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
                           pressure=truth["pressure_gauge_Pa"], data=data, contact_time=start))
     return drops

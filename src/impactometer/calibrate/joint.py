@@ -24,7 +24,7 @@ from ..errors import IdentificationError
 from ..identify.model_fit.fit import TOLERANCE, Quality, _Model, window
 from ..identify.model_fit.forward import Layout, make_layout, stand_values, to_variable
 from ..rig import Rig
-from .drops import Drop
+from .drops import ObservedDrop
 
 #: windows after each drop's start contact instant [s] fitted in turn, up to the length fitted (see
 #: :func:`stages_for`), and whether the shared stand parameters are free in them ("core": only each drop's V0,
@@ -97,7 +97,7 @@ def local(x: np.ndarray, i: int, shared: int) -> np.ndarray:
 class _Joint:
     """Residuals and Jacobian of one family on every drop, each drop up to the end of its window."""
 
-    def __init__(self, drops: Sequence[Drop], layouts: Sequence[Layout], shared: int, velocity_sigma: float,
+    def __init__(self, drops: Sequence[ObservedDrop], layouts: Sequence[Layout], shared: int, velocity_sigma: float,
                  end: float | None):
         self.models = [_Model(drop.data if end is None else window(drop.data, drop.contact_time + end), layout)
                        for drop, layout in zip(drops, layouts, strict=True)]
@@ -144,7 +144,7 @@ def _jacobian(model: _Model, x: np.ndarray) -> np.ndarray:
             model.steps = -model.steps
 
 
-def start_vector(drops: Sequence[Drop], layouts: Sequence[Layout], free: tuple[str, ...],
+def start_vector(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...],
                  start: dict[str, float]) -> np.ndarray:
     """The joint vector at the stand values ``start`` [SI], each drop at its light-gate V0, its start contact
     instant and the offsets of its pre-trigger."""
@@ -154,13 +154,13 @@ def start_vector(drops: Sequence[Drop], layouts: Sequence[Layout], free: tuple[s
     return np.r_[shared, np.ravel(own)].astype(float)
 
 
-def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[Drop]) -> tuple[Layout, ...]:
+def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[ObservedDrop]) -> tuple[Layout, ...]:
     """Each drop's layout: V0 and the contact instant unknown, M1 and p0 known, the ``free`` stand parameters."""
     return tuple(make_layout(rig, law, free, pressure=drop.pressure, contact_time=drop.contact_time,
                              sample_rate=drop.data.grid.sample_rate, mass=drop.mass) for drop in drops)
 
 
-def fit_stage(drops: Sequence[Drop], layouts: Sequence[Layout], free: tuple[str, ...], x0: np.ndarray, *,
+def fit_stage(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...], x0: np.ndarray, *,
               velocity_sigma: float, end: float | None, kind: str, evaluations: int = STAGE_EVALUATIONS):
     """One stage: the joint least-squares fit on the window ``end`` [s] after each drop's start contact instant
     (None: whole records), the shared variables held where ``kind`` is ``"core"``; returns the scipy answer with
@@ -184,7 +184,7 @@ def fit_stage(drops: Sequence[Drop], layouts: Sequence[Layout], free: tuple[str,
     return answer, joint
 
 
-def fit_family(drops: Sequence[Drop], rig: Rig, law: str, free: tuple[str, ...], *, velocity_sigma: float,
+def fit_family(drops: Sequence[ObservedDrop], rig: Rig, law: str, free: tuple[str, ...], *, velocity_sigma: float,
                stages: Sequence[tuple[float | None, str]], x0: np.ndarray | None = None,
                progress: Callable[[], None] | None = None) -> tuple[Family, np.ndarray]:
     """Fit the family of ``law`` jointly over ``drops`` through ``stages`` (from ``x0``, default the stand's own

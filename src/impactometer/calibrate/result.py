@@ -19,21 +19,15 @@ def _finite(value: float) -> float | None:
 
 
 @dataclass(frozen=True, kw_only=True)
-class DropFit:
-    """One drop of the calibration set as the calibrated stand reproduces it.
-
-    ``time`` [s] on the recording's clock; ``measured`` and ``simulated`` hold the contact force [N] and the piston
-    acceleration [m/s²] (2, n) over the samples fitted, the simulated ones with the fitted offsets.
-    """
+class Drop:
+    """A drop as a stand reproduces it: ``source`` (the file), M1 [kg], V0 [m/s], p0 [Pa gauge], the χ²/dof of the
+    fit [-]; ``time`` [s] on the recording's clock and ``measured`` and ``simulated`` contact force [N] and piston
+    acceleration [m/s²] (2, n), the simulated ones with the fitted offsets."""
 
     source: str
     mass: float
-    pressure: float
-    velocity_gate: float
     velocity: float
-    velocity_std: float
-    contact_time: float
-    offsets: tuple[float, float]
+    pressure: float
     reduced_chi2: float
     time: np.ndarray
     measured: np.ndarray
@@ -41,11 +35,25 @@ class DropFit:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (without the arrays)."""
-        return {"file": self.source, "mass_kg": self.mass, "pressure_gauge_Pa": self.pressure,
-                "velocity_gate_m_s": self.velocity_gate, "velocity_m_s": self.velocity,
+        return {"file": self.source, "mass_kg": self.mass, "velocity_m_s": self.velocity,
+                "pressure_gauge_Pa": self.pressure, "reduced_chi2": self.reduced_chi2}
+
+
+@dataclass(frozen=True, kw_only=True)
+class DropFit(Drop):
+    """One drop of the calibration set fitted: V0 is the fitted one (``velocity_std`` [m/s] its standard error,
+    ``velocity_gate`` the light gate's), the contact instant [s] and the offsets [N], [m/s²] are fitted too."""
+
+    velocity_gate: float
+    velocity_std: float
+    contact_time: float
+    offsets: tuple[float, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (without the arrays)."""
+        return {**super().to_dict(), "velocity_gate_m_s": self.velocity_gate,
                 "velocity_std_m_s": _finite(self.velocity_std), "contact_time_s": self.contact_time,
-                "offset_contact_force_N": self.offsets[0], "offset_piston_acceleration_m_s2": self.offsets[1],
-                "reduced_chi2": self.reduced_chi2}
+                "offset_contact_force_N": self.offsets[0], "offset_piston_acceleration_m_s2": self.offsets[1]}
 
 
 @dataclass(frozen=True, kw_only=True)

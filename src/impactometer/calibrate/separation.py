@@ -27,7 +27,7 @@ from ..identify.model_fit.forward import make_layout
 from ..identify.model_fit.information import covariance
 from ..rig import Rig
 from ..stands import MASS_RANGE, VELOCITY_RANGE
-from .drops import Drop
+from .drops import ObservedDrop
 from .joint import NUISANCES, Family
 
 #: |correlation| above which two fitted parameters are reported as not told apart by the drops [-]
@@ -60,7 +60,7 @@ def flagged(names: Sequence[str], cov: np.ndarray) -> tuple[list[tuple[str, str,
     return pairs, lost
 
 
-def candidates(drops: Sequence[Drop], rig: Rig) -> dict[str, tuple[float, float, float]]:
+def candidates(drops: Sequence[ObservedDrop], rig: Rig) -> dict[str, tuple[float, float, float]]:
     """The extra drops tried (see the module notes): kind -> (M1 [kg], V0 [m/s], p0 [Pa gauge])."""
     masses = np.array([drop.mass for drop in drops])
     velocities = np.array([drop.velocity for drop in drops])
@@ -75,7 +75,7 @@ def candidates(drops: Sequence[Drop], rig: Rig) -> dict[str, tuple[float, float,
             "pressure": (mass, velocity, other_pressure)}
 
 
-def _with_drop(family: Family, drops: Sequence[Drop], rig: Rig, scenario: tuple[float, float, float],
+def _with_drop(family: Family, drops: Sequence[ObservedDrop], rig: Rig, scenario: tuple[float, float, float],
                velocity_sigma: float, end: float | None) -> np.ndarray:
     """The covariance of the shared variables with one more drop of ``scenario`` (recorded like the first drop:
     its sample rate, noise and length)."""
@@ -99,7 +99,7 @@ def _with_drop(family: Family, drops: Sequence[Drop], rig: Rig, scenario: tuple[
     return cov[:s, :s]
 
 
-def suggest(family: Family, drops: Sequence[Drop], rig: Rig, pairs: Sequence[tuple[str, str, float]], *,
+def suggest(family: Family, drops: Sequence[ObservedDrop], rig: Rig, pairs: Sequence[tuple[str, str, float]], *,
             velocity_sigma: float, end: float | None) -> dict | None:
     """The extra drop that best separates ``pairs`` (see the module notes), or None when no pair is flagged or no
     candidate can be predicted: kind, M1, V0, p0 and the largest |correlation| of the pairs before and after."""

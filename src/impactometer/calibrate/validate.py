@@ -25,36 +25,28 @@ from ..identify.model_fit.forward import make_layout
 from ..identify.pulses import detect_pulses, sustained_start
 from ..recording import Recording
 from ..rig import Rig, get_rig
-from .drops import Drop, read_drops
+from .drops import ObservedDrop, read_drops
+from .result import Drop
 
 #: window after the start contact instant fitted first [s] (the contact instant is found on the first pulse)
 FIRST_WINDOW = 0.004
 
 
 @dataclass(frozen=True, kw_only=True)
-class DropValidation:
-    """One held-back drop reproduced by a stand (see the module notes for the figures)."""
+class DropValidation(Drop):
+    """One held-back drop reproduced by a stand (V0 the light gate's; see the module notes for the figures)."""
 
-    source: str
-    mass: float
-    velocity: float
-    pressure: float
     force_nrmse: float
     noise_nrmse: float
     peak_force_error: float
     first_pulse_error: float | None
     stage_b_error: float | None
-    reduced_chi2: float
-    time: np.ndarray
-    measured: np.ndarray
-    simulated: np.ndarray
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (without the arrays)."""
-        return {"file": self.source, "mass_kg": self.mass, "velocity_m_s": self.velocity,
-                "pressure_gauge_Pa": self.pressure, "force_nrmse": self.force_nrmse, "noise_nrmse": self.noise_nrmse,
+        return {**super().to_dict(), "force_nrmse": self.force_nrmse, "noise_nrmse": self.noise_nrmse,
                 "peak_force_error": self.peak_force_error, "first_pulse_error_s": self.first_pulse_error,
-                "stage_b_error_s": self.stage_b_error, "reduced_chi2": self.reduced_chi2}
+                "stage_b_error_s": self.stage_b_error}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,7 +86,7 @@ def _timing(measured: np.ndarray, simulated: np.ndarray, noise: float, rate: flo
     return first, stage_b
 
 
-def validate_drop(drop: Drop, rig: Rig) -> DropValidation:
+def validate_drop(drop: ObservedDrop, rig: Rig) -> DropValidation:
     """One drop reproduced by ``rig`` (its own contact law), V0 held at the light gate's."""
     layout = make_layout(rig, rig.contact.law, (), pressure=drop.pressure, contact_time=drop.contact_time,
                          sample_rate=drop.data.grid.sample_rate, mass=drop.mass, velocity=drop.velocity)
