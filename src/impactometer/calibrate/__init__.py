@@ -26,7 +26,7 @@ from ..identify.model_fit.select import SCREEN_MARGIN
 from ..recording import Recording
 from ..rig import Rig, get_rig, parameter_names
 from .drops import ObservedDrop, read_drops
-from .joint import SCREEN_STAGE, Family, fit_family, stages_for
+from .joint import NUISANCES, SCREEN_STAGE, Family, fit_family, stages_for
 from .result import Calibration, DropFit
 from .separation import CORRELATION_LIMIT, correlation, flagged, suggest
 from .validate import DropValidation, Validation, validate
@@ -245,7 +245,7 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
         own = best.layouts[i].values(local)
         simulated = _Model(data, best.layouts[i]).prediction(local) * data.noise[:, None] + \
             (local[-2:] * data.noise)[:, None]
-        j = s + 4 * i
+        j = s + len(NUISANCES) * i
         fits.append(DropFit(source=drop.source, mass=drop.mass, pressure=drop.pressure, velocity_gate=drop.velocity,
                             velocity=own["velocity"],
                             velocity_std=own["velocity"] * math.sqrt(cov[j, j]) * inflation,

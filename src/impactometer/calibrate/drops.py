@@ -29,8 +29,8 @@ class ObservedDrop:
     """One drop of a calibration set.
 
     ``mass`` [kg] (exact), ``velocity`` [m/s] (the light gate's), ``pressure`` [Pa gauge]; ``data`` the observed
-    channels; ``contact_time`` [s] where the fit starts the contact instant (on the recording's clock, before the
-    anti-alias delay); ``source`` the file.
+    channels; ``contact_time`` [s] where the fit starts the contact instant (on the recording's clock, the
+    anti-alias delay taken off); ``source`` the file.
     """
 
     source: str
@@ -39,14 +39,6 @@ class ObservedDrop:
     pressure: float
     data: Observed
     contact_time: float
-
-    @property
-    def time(self):
-        """Sample instants [s] on the recording's clock."""
-        import numpy as np
-
-        grid = self.data.grid
-        return grid.start_time + np.arange(grid.size) / grid.sample_rate
 
 
 def _truth(recording: Recording) -> dict[str, float]:
