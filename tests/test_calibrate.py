@@ -193,3 +193,23 @@ def test_a_pad_outside_every_family_is_flagged():
     answer = identify(short, rig=result.rig, contact=result.law, uncertain=["friction.force"])
     assert answer.method == "model/fallback" or any("chi2/dof" in w for w in answer.warnings)
     assert abs(answer.mass / HELD_BACK[0][0] - 1.0) < 0.05
+
+
+def test_parameters_the_drops_cannot_tell_apart_are_named_with_a_drop_to_add():
+    # three drops of one impact, 15 ms of each at 5 % noise: the friction and the upper dead volume act alike
+    same = drops([CALIBRATION[1]] * 3, noise=0.05, seed=3)
+    result = calibrate(same, rig=BASE_STAND, contact="hysteretic", fit="default,cylinder.piston_mass",
+                       duration=0.015)
+    pair = result.indistinct[0]
+    assert set(pair["parameters"]) == {"friction.force", "cylinder.dead_volume_upper"}
+    assert abs(pair["correlation"]) > CORRELATION_LIMIT
+    hint = pair["suggestion"]
+    assert hint["kind"] in ("mass", "height", "pressure")
+    assert hint["largest_correlation_after"] < hint["largest_correlation_before"]
+    from rich.console import Console
+
+    from impactometer.cli.calibrate import calibration_table
+
+    console = Console(record=True, width=300)
+    console.print(calibration_table(result))
+    assert "not told apart: friction.force and cylinder.dead_volume_upper" in console.export_text()
