@@ -265,5 +265,6 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
                        dof=best.dof, bic=best.bic, inflation=inflation, families=report, criterion=criterion,
                        drops=tuple(fits), indistinct=tuple(indistinct), warnings=tuple(warnings),
                        velocity_sigma=velocity_sigma, duration=duration,
-                       created=datetime.now(UTC).replace(microsecond=0).isoformat())
+                       created=datetime.now(UTC).replace(microsecond=0).isoformat(),
+                       max_reduced_chi2=MAX_REDUCED_CHI2)
 

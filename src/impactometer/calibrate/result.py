@@ -92,6 +92,8 @@ class Calibration:
         Length of each record fitted after its contact [s] (None: the whole record).
     created : str
         When the calibration was made (ISO 8601, UTC).
+    max_reduced_chi2 : float
+        χ²/dof above which the stand is said not to describe the drops [-].
     """
 
     rig: Rig
@@ -113,14 +115,12 @@ class Calibration:
     velocity_sigma: float
     duration: float | None
     created: str
+    max_reduced_chi2: float
 
     @property
     def fits(self) -> bool:
-        """Whether the chosen family describes the drops (χ²/dof within the limit of
-        :data:`impactometer.calibrate.MAX_REDUCED_CHI2`)."""
-        from . import MAX_REDUCED_CHI2
-
-        return self.reduced_chi2 <= MAX_REDUCED_CHI2
+        """Whether the chosen family describes the drops (χ²/dof within ``max_reduced_chi2``)."""
+        return self.reduced_chi2 <= self.max_reduced_chi2
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping of everything but the arrays of the drops."""
