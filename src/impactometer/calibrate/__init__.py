@@ -186,7 +186,7 @@ def _fit_families(drops: Sequence[ObservedDrop], base: Rig, laws: Sequence[str],
         free = free_parameters(law, names)
         try:
             screened[law] = fit_family(drops, base, law, free, velocity_sigma=velocity_sigma, stages=head,
-                                       progress=step)
+                                       final=not tail, progress=step)
         except IdentificationError as exc:
             report[law] = {"error": str(exc)}
     families: dict[str, Family] = {}

@@ -27,13 +27,29 @@ from .app import (
 if TYPE_CHECKING:
     from ..calibrate import Calibration, Validation
 
-FolderArg = Annotated[Path, typer.Argument(metavar="FOLDER", help="Folder of drop recordings with manifest.csv "
-                                                                  "(file,mass_kg,velocity_m_s,pressure_gauge_Pa).")]
+SourcesArg = Annotated[list[Path], typer.Argument(
+    metavar="FOLDER|FILE...", help="A folder of drop recordings with manifest.csv (file,mass_kg,velocity_m_s,"
+                                   "pressure_gauge_Pa), or recording files that state their truth.")]
 ManifestOpt = Annotated[Path | None, typer.Option("--manifest", metavar="FILE",
-                                                  help="Manifest CSV (default FOLDER/manifest.csv).")]
+                                                  help="Manifest CSV of a FOLDER (default FOLDER/manifest.csv).")]
 PlotOpt = Annotated[Path | None, typer.Option("--plot", metavar="DIR", help="Folder for one figure per drop (and a "
                                                                            "parameter summary).")]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print the result as JSON.")]
+
+
+def read_drops(sources: list[Path], manifest: Path | None):
+    """The recordings of a folder (with its manifest) or of the files given (each stating its truth)."""
+    from ..io import read_calibration_set, read_recording
+
+    if len(sources) == 1 and sources[0].is_dir():
+        return read_calibration_set(sources[0], manifest)
+    if manifest is not None:
+        raise ParameterError(f"--manifest applies to a FOLDER of recordings, got {len(sources)} file(s)")
+    folders = [str(p) for p in sources if p.is_dir()]
+    if folders:
+        raise ParameterError(f"give one FOLDER or recording files, got the folder {folders[0]} among "
+                             f"{len(sources)} paths")
+    return [read_recording(path) for path in sources]
 
 
 def plot_folder(folder: Path | None, overwrite: bool) -> None:
@@ -54,7 +70,7 @@ def _bar():
 
 @app.command("calibrate")
 def calibrate_command(
-    folder: FolderArg,
+    sources: SourcesArg,
     out: Annotated[Path, typer.Option("--out", metavar="FILE", help="Calibrated stand file (TOML).")],
     rig: Annotated[str | None, typer.Option("--rig", metavar="STAND", help="Base stand: a preset name or a TOML "
                                                                           "file (its geometry, piston mass and gas "
@@ -78,13 +94,12 @@ def calibrate_command(
 ) -> None:
     """Calibrate a stand model from drops of known mass, light-gate velocity and charge pressure."""
     from ..calibrate import calibrate, check_inputs
-    from ..io import read_calibration_set
 
     output_path(out, overwrite)
     plot_folder(plot, overwrite)
     sigma = quantity(velocity_sigma, "fraction", "--velocity-sigma")
     length = None if duration.strip().lower() == "all" else quantity(duration, "time", "--duration")
-    recordings = read_calibration_set(folder, manifest)
+    recordings = read_drops(sources, manifest)
     with given(rig=rig, fit=fit, contact=contact, velocity_sigma=velocity_sigma, duration=duration):
         check_inputs(recordings, rig=rig, fit=fit, contact=contact, velocity_sigma=sigma, duration=length)
     with _bar() as bar, announce_compilation("calibrating", spinner=False):
@@ -136,7 +151,7 @@ def calibration_table(result: Calibration) -> Table:
 def validate_command(
     stand: Annotated[str, typer.Argument(metavar="STAND", help="The stand: a TOML file (e.g. calibrated) or a "
                                                                "preset name.")],
-    folder: FolderArg,
+    sources: SourcesArg,
     manifest: ManifestOpt = None,
     plot: PlotOpt = None,
     as_json: JsonOpt = False,
@@ -144,13 +159,12 @@ def validate_command(
 ) -> None:
     """Reproduce held-back drops of known mass, velocity and pressure with a stand and report how well."""
     from ..calibrate import validate
-    from ..io import read_calibration_set
     from ..rig import get_rig
 
     plot_folder(plot, overwrite)
     with given(rig=stand):
         rig = get_rig(stand)
-    recordings = read_calibration_set(folder, manifest)
+    recordings = read_drops(sources, manifest)
     with announce_compilation("validating"):
         result = validate(rig, recordings)
     figures = result.plot(plot) if plot is not None else []

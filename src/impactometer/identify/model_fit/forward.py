@@ -42,7 +42,8 @@ CHANNEL_INDEX = np.array([d.CHANNELS.index("contact_force"), d.CHANNELS.index("a
 #: stand parameter -> (packed index, transform, shift or scale) of the fitted variable, which is unbounded:
 #: ``log``: ln(value + shift); ``logit``: ln(value/(1 − value)) for a value in (0, 1); ``linear``: value/scale.
 #: ``contact.restitution`` is e of the hysteretic law (packed as its unloading stiffness k1/e²); a dead volume may be
-#: zero, so its variable is ln(volume + 1 cm³).
+#: zero, so its variable is ln(volume + 1 cm³) (a record tells 0.1 cm³ from none where ln(volume) would lose the
+#: slope that brings a volume back from near zero).
 STAND_PARAMETERS: dict[str, tuple[int, str, float]] = {
     "contact.stiffness": (d.CONTACT_K, "log", 0.0),
     "contact.damping": (d.CONTACT_C, "log", 0.0),
@@ -214,14 +215,20 @@ def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | 
                   sample_rate=float(sample_rate))
 
 
+#: stand parameters that may be zero -> the value a fit starts from where the stand's is zero [SI] (a start at zero
+#: would sit on the edge of the range the model is integrated in: every step towards smaller values refused)
+ZERO_START = {"cylinder.dead_volume_lower": 1e-6, "cylinder.dead_volume_upper": 1e-6}
+
+
 def stand_values(rig: Rig, law: str, free: tuple[str, ...]) -> dict[str, float]:
     """Start values [SI] of the freed stand parameters: those of ``rig`` for its own law, else the law's
-    defaults."""
+    defaults (a zero one from :data:`ZERO_START`)."""
     contact = rig.contact if rig.contact.law == law else rig.with_contact(law).contact
     out = {}
     for name in free:
         section, _, attr = name.partition(".")
-        out[name] = float(getattr(contact if section == "contact" else getattr(rig, section), attr))
+        value = float(getattr(contact if section == "contact" else getattr(rig, section), attr))
+        out[name] = value if value > 0.0 else ZERO_START.get(name, value)
     return out
 
 
