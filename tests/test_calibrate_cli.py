@@ -66,8 +66,8 @@ def test_calibrate_validate_identify(folders, tmp_path, capsys):
     main(["validate", str(out), str(folders["held"]), "--json", "--plot", str(tmp_path / "validation")])
     result = json.loads(capsys.readouterr().out)
     assert result["median_force_nrmse"] <= 0.03 and len(result["drops"]) == 2
-    main(["validate", str(out), str(folders["held"])])
-    assert "median force NRMSE" in capsys.readouterr().out
+    main(["validate", str(out), str(folders["held"] / "drop01.h5"), str(folders["held"] / "drop02.h5")])
+    assert "median force NRMSE" in capsys.readouterr().out  # files as well as a folder
     main(["identify", str(folders["held"] / "drop01.h5"), "--method", "model", "--rig", str(out), "--json"])
     answer = json.loads(capsys.readouterr().out)
     assert answer["method"] == "model" and answer["mass_kg"] == pytest.approx(HELD_BACK[0][0], rel=0.02)
@@ -105,4 +105,8 @@ def test_bad_input_one_line_nothing_written(folders, tmp_path, capsys):
     _fails(capsys, ["calibrate", calibration, "--rig", str(folders["base"]), "--out", str(out), "--velocity-sigma",
                     "0%"], "--velocity-sigma")
     _fails(capsys, ["validate", str(bad), str(folders["held"])], "bore")
+    files = [str(folders["calibration"] / f"drop0{i}.h5") for i in (1, 2, 3)]
+    _fails(capsys, ["calibrate", *files, "--manifest", str(folders["calibration"] / "manifest.csv"), "--out",
+                    str(out)], "--manifest applies to a FOLDER")
+    _fails(capsys, ["calibrate", files[0], str(folders["held"]), "--out", str(out)], "one FOLDER or recording files")
     assert not out.exists()

@@ -114,6 +114,8 @@ def suggest(family: Family, drops: Sequence[ObservedDrop], rig: Rig, pairs: Sequ
         except IdentificationError:
             continue
         after = max(abs(float(corr[index[a], index[b]])) for a, b, _ in pairs)
+        if not np.isfinite(after):  # the candidate leaves a parameter undetermined: no help
+            continue
         if best is None or after < float(best["largest_correlation_after"]):
             best = {"kind": kind, "mass_kg": scenario[0], "velocity_m_s": scenario[1],
                     "pressure_gauge_Pa": scenario[2], "largest_correlation_before": before,
