@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from ..calibrate import Calibration, Validation
 
 SourcesArg = Annotated[list[Path], typer.Argument(
-    metavar="FOLDER|FILE...", help="A folder of drop recordings with manifest.csv (file,mass_kg,velocity_m_s,"
+    metavar="FOLDER|FILE", help="A folder of drop recordings with manifest.csv (file,mass_kg,velocity_m_s,"
                                    "pressure_gauge_Pa), or recording files that state their truth.")]
 ManifestOpt = Annotated[Path | None, typer.Option("--manifest", metavar="FILE",
                                                   help="Manifest CSV of a FOLDER (default FOLDER/manifest.csv).")]
