@@ -1,9 +1,11 @@
 """The drop stand (its parts are in :mod:`impactometer.components`), its presets, TOML files and scenarios.
 
-A stand is loaded from and saved to TOML (unknown keys are errors). ``PRESETS['drop-stand']`` is the built-in
-stand, representative of the stand of the reference paper (Fig. 1): a 4 kg piston and rod in an 80 mm bore,
-25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge, with a hysteretic elastomer pad between mass and rod
-(Walton-Braun, loading stiffness 7e5 N/m, restitution 0.4), 200 N of seal friction, end-of-stroke gas cushions and
+A stand is loaded from and saved to TOML (unknown keys are errors; a ``[provenance]`` table, which a calibrated
+stand carries, is read past: it says where the numbers came from and changes no physics).
+``PRESETS['drop-stand']`` is the built-in stand, representative of the stand of the reference paper (Fig. 1): a 4 kg
+piston and rod in an 80 mm bore, 25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge, with a hysteretic
+elastomer pad between mass and rod (Walton-Braun, loading stiffness 7e5 N/m, restitution 0.4), 200 N of seal
+friction, end-of-stroke gas cushions and
 an ISO 6358 valve between the chambers: a rebound or two (stage A), then sustained contact to the deepest point
 (stage B), as the paper describes (Fig. 2). It is also named ``drop-stand-pad``; its parts are the defaults of the
 part classes.
@@ -99,6 +101,21 @@ class Rig:
         return save_toml(self, path, overwrite=overwrite)
 
 
+#: the table of a stand file that says where its numbers came from (read past by :func:`from_dict`)
+PROVENANCE_KEY = "provenance"
+
+
+def _plain(value: Any) -> Any:
+    """``value`` as TOML holds it: numpy numbers as Python ones, tuples as lists, None left out of tables."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items() if v is not None}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value if v is not None]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        return value.item()
+    return value
+
+
 _SECTIONS: dict[str, type] = {"cylinder": Cylinder, "gas": Gas, "friction": Friction, "contact": Contact,
                               "stops": Stops, "valve": Valve}
 
@@ -119,7 +136,9 @@ def from_dict(data: dict[str, Any], *, source: str = "rig") -> Rig:
     if not isinstance(data, dict):
         raise ParameterError(f"{source}: expected a table of rig sections, got {type(data).__name__}")
     known_top = set(_SECTIONS) | {"name", "gravity"}
-    unknown = sorted(set(data) - known_top)
+    unknown = sorted(set(data) - known_top - {PROVENANCE_KEY})
+    if not isinstance(data.get(PROVENANCE_KEY, {}), dict):
+        raise ParameterError(f"{source}: [{PROVENANCE_KEY}] must be a table, got {data[PROVENANCE_KEY]!r}")
     if unknown:
         raise ParameterError(f"{source}: unknown key(s) {unknown}; expected {sorted(known_top)}")
     kwargs: dict[str, Any] = {k: data[k] for k in ("name", "gravity") if k in data}
@@ -162,13 +181,18 @@ def load_toml(path: str | Path) -> Rig:
     return from_dict(data, source=str(path))
 
 
-def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False) -> Path:
-    """Write ``rig`` to ``path`` as TOML."""
+def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False,
+              provenance: dict[str, Any] | None = None) -> Path:
+    """Write ``rig`` to ``path`` as TOML, with a ``[provenance]`` table when ``provenance`` is given (plain numbers,
+    strings, lists and tables; None values are left out)."""
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
     path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
+    data = to_dict(rig)
+    if provenance is not None:
+        data[PROVENANCE_KEY] = _plain(provenance)
     try:
-        path.write_text(tomli_w.dumps(to_dict(rig)), encoding="utf-8")
+        path.write_text(tomli_w.dumps(data), encoding="utf-8")
     except OSError as exc:
         raise write_failed(path, exc) from None
     return path

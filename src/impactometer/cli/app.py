@@ -42,8 +42,7 @@ class Command(typer.core.TyperCommand):
                 param.metavar = METAVARS.get(kind, "TEXT")
 
     def collect_usage_pieces(self, ctx):
-        return [piece[1:-1] if piece.startswith("{") and piece.endswith("}") else piece
-                for piece in super().collect_usage_pieces(ctx)]
+        return [re.sub(r"^\{(.*)\}(\.\.\.)?$", r"\1\2", piece) for piece in super().collect_usage_pieces(ctx)]
 
     def format_options(self, ctx, formatter):
         sections = {"Arguments": [], "Options": []}

@@ -45,8 +45,35 @@ class Observed:
         return int(self.channels.size)
 
 
+class Quality:
+    """The χ² figures of a weighted least-squares fit with ``chi2``, ``residuals`` (their number) and
+    ``unknowns``."""
+
+    chi2: float
+    residuals: int
+
+    @property
+    def unknowns(self) -> int:  # pragma: no cover - every fit defines it
+        raise NotImplementedError
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom of χ²."""
+        return self.residuals - self.unknowns
+
+    @property
+    def reduced_chi2(self) -> float:
+        """χ² per degree of freedom [-] (1 when the model explains the data down to their noise)."""
+        return self.chi2 / max(self.dof, 1)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion χ² + k·ln(N) (−2·log-likelihood up to a constant shared by every law)."""
+        return self.chi2 + self.unknowns * math.log(self.residuals)
+
+
 @dataclass(frozen=True)
-class LawFit:
+class LawFit(Quality):
     """The fit of one contact law.
 
     ``x`` holds the layout's variables then the offsets in units of each channel's σ; ``cov`` is the inverse
@@ -74,21 +101,6 @@ class LawFit:
     def unknowns(self) -> int:
         """Number of fitted unknowns (the layout's and the two offsets)."""
         return self.x.size
-
-    @property
-    def dof(self) -> int:
-        """Degrees of freedom of χ²."""
-        return self.residuals - self.unknowns
-
-    @property
-    def reduced_chi2(self) -> float:
-        """χ² per degree of freedom [-] (1 when the model explains the record down to its noise)."""
-        return self.chi2 / max(self.dof, 1)
-
-    @property
-    def bic(self) -> float:
-        """Bayesian information criterion χ² + k·ln(N) (−2·log-likelihood up to a constant shared by every law)."""
-        return self.chi2 + self.unknowns * math.log(self.residuals)
 
     def std(self, name: str) -> float:
         """Standard error [SI] of a fitted unknown from the Fisher information (not scaled by χ²)."""

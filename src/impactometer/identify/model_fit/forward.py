@@ -34,13 +34,16 @@ MAX_FIT_STEPS = 20_000
 #: fit steps back), so that no trial point far off costs seconds of integration or breaks the integrator
 TRIAL_RANGES = {d.MASS: (1e-3, 1e6), d.VELOCITY: (1e-4, 100.0), d.CONTACT_K: (1.0, 1e15),
                 d.CONTACT_C: (0.0, 1e15), d.FRICTION: (0.0, 1e6), d.FRICTION_SCALE: (1e-7, 10.0),
-                d.PISTON_MASS: (1e-3, 1e6), d.PRESSURE_GAUGE: (0.0, 1e9)}
+                d.PISTON_MASS: (1e-3, 1e6), d.PRESSURE_GAUGE: (0.0, 1e9), d.DEAD_LOWER: (0.0, 1.0),
+                d.DEAD_UPPER: (0.0, 1.0), d.STOP_K: (1.0, 1e13)}
 #: model channels predicted, in the order of the recorded channels (contact force, piston acceleration)
 CHANNEL_INDEX = np.array([d.CHANNELS.index("contact_force"), d.CHANNELS.index("a2")], dtype=np.int64)
 
 #: stand parameter -> (packed index, transform, shift or scale) of the fitted variable, which is unbounded:
 #: ``log``: ln(value + shift); ``logit``: ln(value/(1 − value)) for a value in (0, 1); ``linear``: value/scale.
-#: ``contact.restitution`` is e of the hysteretic law (packed as its unloading stiffness k1/e²).
+#: ``contact.restitution`` is e of the hysteretic law (packed as its unloading stiffness k1/e²); a dead volume may be
+#: zero, so its variable is ln(volume + 1 cm³) (a record tells 0.1 cm³ from none where ln(volume) would lose the
+#: slope that brings a volume back from near zero).
 STAND_PARAMETERS: dict[str, tuple[int, str, float]] = {
     "contact.stiffness": (d.CONTACT_K, "log", 0.0),
     "contact.damping": (d.CONTACT_C, "log", 0.0),
@@ -48,6 +51,9 @@ STAND_PARAMETERS: dict[str, tuple[int, str, float]] = {
     "friction.force": (d.FRICTION, "log", 0.0),
     "friction.velocity_scale": (d.FRICTION_SCALE, "log", 0.0),
     "cylinder.piston_mass": (d.PISTON_MASS, "log", 0.0),
+    "cylinder.dead_volume_lower": (d.DEAD_LOWER, "log", 1e-6),
+    "cylinder.dead_volume_upper": (d.DEAD_UPPER, "log", 1e-6),
+    "stops.stiffness": (d.STOP_K, "log", 0.0),
 }
 #: the unknowns every fit has (as :data:`STAND_PARAMETERS`); ``contact_time`` is the instant of first contact on
 #: the recording's clock, the variable in sample periods from the start value
@@ -184,10 +190,11 @@ class Layout:
 
 
 def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | None, contact_time: float,
-                sample_rate: float, mass: float | None = None) -> Layout:
+                sample_rate: float, mass: float | None = None, velocity: float | None = None) -> Layout:
     """The :class:`Layout` of a fit on ``rig`` with contact ``law`` freeing the stand parameters ``free``, the
     charge pressure known (``pressure`` [Pa gauge]) or fitted (None; the variable is ln of the absolute pressure),
-    counting the contact instant from ``contact_time`` [s]; M1 held at ``mass`` [kg] when that is given."""
+    counting the contact instant from ``contact_time`` [s]; M1 held at ``mass`` [kg] and V0 at ``velocity`` [m/s]
+    when they are given."""
     stand = rig if rig.contact.law == law else rig.with_contact(law)
     base = pack(stand, Scenario(mass=1.0, velocity=1.0, pressure_gauge=pressure or 0.0))
     if law == "hysteretic":  # packed as e (see Layout.packed)
@@ -196,6 +203,9 @@ def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | 
     if mass is not None:
         base[d.MASS] = mass
         del core["mass"]
+    if velocity is not None:
+        base[d.VELOCITY] = velocity
+        del core["velocity"]
     names = [*core, *free]
     specs = [*core.values(), *(STAND_PARAMETERS[name] for name in free)]
     if pressure is None:
@@ -205,14 +215,20 @@ def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | 
                   sample_rate=float(sample_rate))
 
 
+#: stand parameters that may be zero -> the value a fit starts from where the stand's is zero [SI] (a start at zero
+#: would sit on the edge of the range the model is integrated in: every step towards smaller values refused)
+ZERO_START = {"cylinder.dead_volume_lower": 1e-6, "cylinder.dead_volume_upper": 1e-6}
+
+
 def stand_values(rig: Rig, law: str, free: tuple[str, ...]) -> dict[str, float]:
     """Start values [SI] of the freed stand parameters: those of ``rig`` for its own law, else the law's
-    defaults."""
+    defaults (a zero one from :data:`ZERO_START`)."""
     contact = rig.contact if rig.contact.law == law else rig.with_contact(law).contact
     out = {}
     for name in free:
         section, _, attr = name.partition(".")
-        out[name] = float(getattr(contact if section == "contact" else getattr(rig, section), attr))
+        value = float(getattr(contact if section == "contact" else getattr(rig, section), attr))
+        out[name] = value if value > 0.0 else ZERO_START.get(name, value)
     return out
 
 

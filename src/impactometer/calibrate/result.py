@@ -1,0 +1,165 @@
+"""The result of a calibration: the calibrated stand, each parameter with its standard error and correlations, how
+well each contact-law family fits, each drop's fit, and the stand file with its provenance."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..rig import Rig, save_toml
+
+
+def _finite(value: float) -> float | None:
+    """A JSON-ready number (None for NaN or infinity)."""
+    return float(value) if math.isfinite(value) else None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Drop:
+    """A drop as a stand reproduces it: ``source`` (the file), M1 [kg], V0 [m/s], p0 [Pa gauge], the χ²/dof of the
+    fit [-]; ``time`` [s] on the recording's clock and ``measured`` and ``simulated`` contact force [N] and piston
+    acceleration [m/s²] (2, n), the simulated ones with the fitted offsets."""
+
+    source: str
+    mass: float
+    velocity: float
+    pressure: float
+    reduced_chi2: float
+    time: np.ndarray
+    measured: np.ndarray
+    simulated: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (without the arrays)."""
+        return {"file": self.source, "mass_kg": self.mass, "velocity_m_s": self.velocity,
+                "pressure_gauge_Pa": self.pressure, "reduced_chi2": self.reduced_chi2}
+
+
+@dataclass(frozen=True, kw_only=True)
+class DropFit(Drop):
+    """One drop of the calibration set fitted: V0 is the fitted one (``velocity_std`` [m/s] its standard error,
+    ``velocity_gate`` the light gate's), the contact instant [s] and the offsets [N], [m/s²] are fitted too."""
+
+    velocity_gate: float
+    velocity_std: float
+    contact_time: float
+    offsets: tuple[float, float]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (without the arrays)."""
+        return {**super().to_dict(), "velocity_gate_m_s": self.velocity_gate,
+                "velocity_std_m_s": _finite(self.velocity_std), "contact_time_s": self.contact_time,
+                "offset_contact_force_N": self.offsets[0], "offset_piston_acceleration_m_s2": self.offsets[1]}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Calibration:
+    """A stand calibrated from drops of known mass, velocity and pressure.
+
+    Attributes
+    ----------
+    rig : Rig
+        The calibrated stand (the base stand with the chosen contact law and the fitted values).
+    base : str
+        Name of the stand the calibration started from.
+    law : str
+        The contact-law family chosen (smallest BIC).
+    parameters, std : dict
+        Fitted value and standard error of each stand parameter [SI]; the standard errors come from the Fisher
+        information, inflated by ``inflation``.
+    correlation : ndarray
+        Correlation matrix of the fitted parameters, in the order of ``parameters``.
+    reduced_chi2, chi2, dof, bic : float
+        Fit quality of the chosen family over every drop [-].
+    inflation : float
+        sqrt(max(1, χ²/dof)) [-].
+    families : dict
+        Law -> its fit figures (χ², dof, BIC, each drop's χ²/dof), or why it was dropped or failed.
+    criterion : str
+        How the family was chosen.
+    drops : tuple of DropFit
+    indistinct : tuple of dict
+        Pairs of parameters the drops do not tell apart (|correlation| above the limit), undetermined ones, and the
+        extra drop suggested to separate them.
+    warnings : tuple of str
+    velocity_sigma : float
+        Relative σ of the light-gate velocities assumed [-].
+    duration : float or None
+        Length of each record fitted after its contact [s] (None: the whole record).
+    created : str
+        When the calibration was made (ISO 8601, UTC).
+    max_reduced_chi2 : float
+        χ²/dof above which the stand is said not to describe the drops [-].
+    """
+
+    rig: Rig
+    base: str
+    law: str
+    parameters: dict[str, float]
+    std: dict[str, float]
+    correlation: np.ndarray
+    reduced_chi2: float
+    chi2: float
+    dof: int
+    bic: float
+    inflation: float
+    families: dict[str, dict]
+    criterion: str
+    drops: tuple[DropFit, ...]
+    indistinct: tuple[dict, ...]
+    warnings: tuple[str, ...]
+    velocity_sigma: float
+    duration: float | None
+    created: str
+    max_reduced_chi2: float
+
+    @property
+    def fits(self) -> bool:
+        """Whether the chosen family describes the drops (χ²/dof within ``max_reduced_chi2``)."""
+        return self.reduced_chi2 <= self.max_reduced_chi2
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping of everything but the arrays of the drops."""
+        names = list(self.parameters)
+        return {"stand": self.rig.name, "base": self.base, "contact_law": self.law, "criterion": self.criterion,
+                "fits": self.fits, "reduced_chi2": self.reduced_chi2, "chi2": self.chi2, "dof": self.dof,
+                "bic": self.bic, "inflation": self.inflation,
+                "parameters": {name: {"value": self.parameters[name], "std": _finite(self.std[name])}
+                               for name in names},
+                "correlation": {"names": names,
+                                "matrix": [[_finite(c) for c in row] for row in self.correlation.tolist()]},
+                "families": self.families, "indistinct": list(self.indistinct),
+                "drops": [drop.to_dict() for drop in self.drops], "warnings": list(self.warnings),
+                "velocity_sigma": self.velocity_sigma, "duration_s": self.duration, "created": self.created}
+
+    def provenance(self) -> dict[str, Any]:
+        """The ``[provenance]`` table of the stand file: files, fit quality, law chosen, date."""
+        from .. import __version__
+
+        return {"created": self.created, "tool": f"impactometer {__version__}", "method": "calibrate",
+                "base": self.base, "contact_law": self.law, "criterion": self.criterion,
+                "reduced_chi2": self.reduced_chi2, "fits": self.fits, "velocity_sigma": self.velocity_sigma,
+                "duration_s": self.duration,
+                "families": {law: {k: v for k, v in fam.items() if k in ("reduced_chi2", "bic", "dropped", "error")}
+                             for law, fam in self.families.items()},
+                "parameters": {name: {"value": self.parameters[name], "std": _finite(self.std[name])}
+                               for name in self.parameters},
+                "drops": [{"file": d.source, "mass_kg": d.mass, "velocity_gate_m_s": d.velocity_gate,
+                           "pressure_gauge_Pa": d.pressure, "velocity_m_s": d.velocity,
+                           "reduced_chi2": d.reduced_chi2} for d in self.drops],
+                "warnings": list(self.warnings)}
+
+    def to_toml(self, path: str | Path, *, overwrite: bool = False) -> Path:
+        """Write the calibrated stand with its provenance (loadable by :func:`~impactometer.rig.get_rig`)."""
+        return save_toml(self.rig, path, overwrite=overwrite, provenance=self.provenance())
+
+    def plot(self, folder: str | Path) -> list[Path]:
+        """One figure per drop (measured and simulated channels with residuals) and a parameter summary, written
+        to ``folder``; returns their paths (see :func:`impactometer.plotting.calibration.plot_calibration`)."""
+        from ..plotting.calibration import plot_calibration
+
+        return plot_calibration(self, folder)

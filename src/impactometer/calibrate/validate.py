@@ -1,0 +1,129 @@
+"""Validation of a stand on drops it was not calibrated on: each drop of known M1, V0 (the light gate's, held)
+and p0 is simulated with the stand through the recording's sensor model, only the contact instant (between
+samples) and the two sensor offsets fitted, and compared with the record.
+
+Figures per drop: the force NRMSE, RMS(measured − simulated)/(max − min of the measured force) over the record
+from first contact [-], beside the share of it the noise alone gives (the pre-trigger σ over the same range); the
+peak-force error (simulated − measured)/measured [-]; the timing errors (simulated − measured) [s] of the end of
+the first contact pulse and of the start of stage B, both found by the project's pulse detector
+(:func:`impactometer.identify.pulses.detect_pulses`, :func:`~impactometer.identify.pulses.sustained_start`) with
+the same detection levels on both.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..identify.model_fit.fit import _Model, fit_law, window
+from ..identify.model_fit.forward import make_layout
+from ..identify.pulses import detect_pulses, sustained_start
+from ..recording import Recording
+from ..rig import Rig, get_rig
+from .drops import ObservedDrop, read_drops
+from .result import Drop
+
+#: window after the start contact instant fitted first [s] (the contact instant is found on the first pulse)
+FIRST_WINDOW = 0.004
+
+
+@dataclass(frozen=True, kw_only=True)
+class DropValidation(Drop):
+    """One held-back drop reproduced by a stand (V0 the light gate's; see the module notes for the figures)."""
+
+    force_nrmse: float
+    noise_nrmse: float
+    peak_force_error: float
+    first_pulse_error: float | None
+    stage_b_error: float | None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping (without the arrays)."""
+        return {**super().to_dict(), "force_nrmse": self.force_nrmse, "noise_nrmse": self.noise_nrmse,
+                "peak_force_error": self.peak_force_error, "first_pulse_error_s": self.first_pulse_error,
+                "stage_b_error_s": self.stage_b_error}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Validation:
+    """Held-back drops reproduced by a stand: ``drops`` and the median force NRMSE [-]."""
+
+    stand: str
+    contact_law: str
+    drops: tuple[DropValidation, ...]
+
+    @property
+    def median_force_nrmse(self) -> float:
+        """Median of the drops' force NRMSE [-]."""
+        return float(np.median([d.force_nrmse for d in self.drops]))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready mapping."""
+        return {"stand": self.stand, "contact_law": self.contact_law, "median_force_nrmse": self.median_force_nrmse,
+                "drops": [d.to_dict() for d in self.drops]}
+
+    def plot(self, folder: str | Path) -> list[Path]:
+        """One figure per drop, measured and simulated channels with residuals, written to ``folder``."""
+        from ..plotting.calibration import plot_drops
+
+        return plot_drops(self.drops, folder, prefix="validate")
+
+
+def _timing(measured: np.ndarray, simulated: np.ndarray, noise: float, rate: float):
+    """(first-pulse end, stage-B start) errors, simulated − measured [s], each None where either lacks it."""
+    scale = float(np.max(np.abs(measured)))
+    spans = [detect_pulses(f, noise, force_scale=scale) for f in (measured, simulated)]
+    first = None
+    if all(s and s[0].complete for s in spans):
+        first = (spans[1][0].end - spans[0][0].end) / rate
+    starts = [sustained_start(s, size=measured.size) for s in spans]
+    stage_b = None if None in starts else (starts[1] - starts[0]) / rate  # type: ignore[operator]
+    return first, stage_b
+
+
+def validate_drop(drop: ObservedDrop, rig: Rig) -> DropValidation:
+    """One drop reproduced by ``rig`` (its own contact law), V0 held at the light gate's."""
+    layout = make_layout(rig, rig.contact.law, (), pressure=drop.pressure, contact_time=drop.contact_time,
+                         sample_rate=drop.data.grid.sample_rate, mass=drop.mass, velocity=drop.velocity)
+    start = {"contact_time": drop.contact_time}
+    first = fit_law(window(drop.data, drop.contact_time + FIRST_WINDOW), layout, start, information=False)
+    fit = fit_law(replace(drop.data, offsets=first.offsets), layout, first.values, information=False)
+    data = drop.data
+    simulated = _Model(data, layout).prediction(fit.x) * data.noise[:, None] + fit.offsets[:, None]
+    rate = data.grid.sample_rate
+    onset = max(0, int(math.floor((fit.values["contact_time"] - data.grid.start_time) * rate)))
+    force = data.channels[0, onset:] - fit.offsets[0]
+    model = simulated[0, onset:] - fit.offsets[0]
+    span = float(np.max(force) - np.min(force)) or 1.0
+    first_pulse, stage_b = _timing(force, model, float(data.noise[0]), rate)
+    return DropValidation(source=drop.source, mass=drop.mass, velocity=drop.velocity, pressure=drop.pressure,
+                          force_nrmse=float(np.sqrt(np.mean((force - model) ** 2)) / span),
+                          noise_nrmse=float(data.noise[0] / span),
+                          peak_force_error=float((np.max(model) - np.max(force)) / np.max(force)),
+                          first_pulse_error=first_pulse, stage_b_error=stage_b, reduced_chi2=fit.reduced_chi2,
+                          time=data.grid.start_time + np.arange(data.grid.size) / rate, measured=data.channels,
+                          simulated=simulated)
+
+
+def validate(rig: Rig | str, recordings: Sequence[Recording]) -> Validation:
+    """Reproduce held-back drops with the stand ``rig`` (a Rig, a preset name or a TOML file, e.g. a calibrated
+    one) and report how well (see the module notes).
+
+    Raises
+    ------
+    ParameterError
+        For a stand that does not load.
+    RecordingError
+        For a drop without its truth, drops of different stands, a recording the model cannot use.
+    IdentificationError
+        When a drop cannot be reproduced at all (the model cannot be integrated at its impact).
+    """
+    stand = get_rig(rig)
+    drops = read_drops(recordings)
+    return Validation(stand=stand.name, contact_law=stand.contact.law,
+                      drops=tuple(validate_drop(drop, stand) for drop in drops))
