@@ -52,5 +52,10 @@ def test_readme_tour_runs_verbatim(tmp_path):
     paper = outputs["impactometer identify drop.tdms --variant paper"]
     assert "caution" in paper  # 1 % noise: the paper's noise-free assumption does not hold
     for name in ("impactometer-demo/impact.png", "impactometer-demo/absorb.png", "run.h5", "run.png", "drop.tdms",
-                 "drop.png", "map.h5", "fig10.png", "studies/index.html"):
+                 "drop.png", "map.h5", "fig10.png", "studies/index.html", "lab.toml"):
         assert (tmp_path / name).exists(), name
+    # the stand calibrated from six drops: a figure per drop and the held-back drop's; that drop identified with it
+    assert len(list((tmp_path / "calibration").glob("*.png"))) >= 7
+    assert list((tmp_path / "validation").glob("*.png"))
+    held = json.loads(outputs["impactometer identify held18.h5 --method model --rig lab.toml --json"])
+    assert abs(held["mass_kg"] - 18.0) < 4.0 * held["mass_std_kg"] + 0.01 * 18.0
