@@ -101,7 +101,9 @@ def main() -> None:
     args = ap.parse_args()
     title = (f"Model-based identification: accuracy against the Cramér-Rao bound, {args.duration * 1e3:.0f} ms + "
              f"{args.pre_trigger * 1e3:.0f} ms pre-trigger")
-    with recorded("accuracy_model", title, args.record) as rec:
+    name = "accuracy_model" + ("" if args.duration == 0.05 else f"_{args.duration * 1e3:.0f}ms") + (
+        "" if list(args.stands) == ["drop-stand"] else "_" + "_".join(args.stands).replace("-", "_"))
+    with recorded(name, title, args.record) as rec:
         measure(args, rec)
 
 
