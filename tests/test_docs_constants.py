@@ -13,7 +13,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 #: the docs that name constants by link (each must hold at least one such link)
-LINKING_DOCS = ("identification.md", "response_map.md", "recordings.md")
+LINKING_DOCS = ("identification.md", "response_map.md", "recordings.md", "absorption.md")
 #: [`module.NAME`](relative/path/to/module.py) -- a code link whose text names a module and one of its names
 CODE_LINK = re.compile(r"\[`(?P<name>[A-Za-z_][\w.]*)`\]\((?P<path>[^)\s#]+\.py)\)")
 
@@ -71,6 +71,12 @@ def test_linked_constants_exist(doc):
     found, problems = link_problems(path.read_text(encoding="utf-8"), path)
     assert found, f"{doc} names no constant by a code link"
     assert not problems, "\n".join(problems)
+
+
+def test_every_doc_links_existing_constants():
+    for path in sorted(DOCS.glob("*.md")):
+        _, problems = link_problems(path.read_text(encoding="utf-8"), path)
+        assert not problems, "\n".join(problems)
 
 
 def test_checker_catches_a_renamed_constant_and_a_wrong_module():
