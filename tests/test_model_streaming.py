@@ -192,3 +192,21 @@ def test_an_impact_without_pre_trigger_gives_no_estimate_and_a_refusal():
     assert got == [] and stream.notes
     with pytest.raises(IdentificationError, match="pre-trigger"):
         stream.finish()
+
+
+def test_a_deferred_update_reads_the_record_up_to_the_time_it_was_deferred_to():
+    """A real-time caller whose last update was done at T: the next update reads the record up to T at least (the
+    updates in between are skipped), then the cadence goes on from there."""
+    rec = _record(30.0, 2.0, 100e3, 11, duration=0.03)
+    stream = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, window=0.029,
+                         cadence=0.002)
+    got = []
+    for k in range(0, rec.contact_force.size, 16):
+        new = stream.push(rec.contact_force[k:k + 16], rec.piston_acceleration[k:k + 16])
+        if new and len(got) == 0:
+            stream.defer(new[0].available_at + 0.007)
+        got += new
+    assert len(got) >= 3
+    first, second, third = got[:3]
+    assert second.available_at >= first.available_at + 0.007 - 1.0 / rec.sample_rate
+    assert third.available_at == pytest.approx(second.available_at + 0.002, abs=1.5 / rec.sample_rate)

@@ -183,6 +183,10 @@ class ModelStream:
         whose last update was done at ``until`` fits the newest samples then, not the ones it could not reach in
         time (the updates in between are skipped)."""
         self._not_before = float(until)
+        impact = self._impact
+        if impact is not None and not impact.done:  # the update already planned
+            impact.next_stop = min(max(impact.next_stop, self._stop(impact.contact_time, until - impact.contact_time)),
+                                   self._stop(impact.contact_time, self.window))
 
     def _advance(self) -> list[Identification]:
         trigger = self.robust.trigger_index
