@@ -49,7 +49,7 @@ def main(argv: list[str]) -> int:
                   "`impactometer study report`:\n")
             print(markdown(folder))
             for line in summary_rows(collect(folder)):
-                for start, goal in HEADLINES.get(line["study"], ()):
+                for start, goal in HEADLINES.get(line["study"], ()) if line["study"] == name else ():  # not in 'all'
                     if str(line.get("quantity", "")).startswith(start):
                         kept.headline(f"{line['study']} ({' '.join(options)}): {line['quantity']}", str(line["ours"]),
                                       target=goal)
