@@ -28,6 +28,6 @@ def test_absorb_json_stays_parsable_with_its_progress_on_stderr(capsys):
     main(["absorb", "--json", "--strategy", "closed"])
     captured = capsys.readouterr()
     assert list(json.loads(captured.out)["strategies"]) == ["closed"]
-    assert all(line.startswith("closed loop on drop-stand: identify M1 and V0 (robust), then control valve Z with "
+    assert all(line.startswith("closed loop on drop-stand: identify M1 and V0 (model), then control valve Z with "
                                "closed: compiling kernels, first run only (about 30-80 s) ...")
                for line in captured.err.splitlines())
