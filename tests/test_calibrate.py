@@ -197,15 +197,19 @@ def test_a_pad_outside_every_family_is_flagged():
     assert abs(answer.mass / HELD_BACK[0][0] - 1.0) < 0.05
 
 
-def test_parameters_the_drops_cannot_tell_apart_are_named_with_a_drop_to_add():
+def test_parameters_the_drops_cannot_tell_apart_are_named_with_a_drop_to_add(monkeypatch):
     # three drops of one impact, 15 ms of each at 5 % noise, a light gate of 2 %: the drops leave pairs of the
-    # stand's parameters correlated beyond the limit
+    # stand's parameters correlated beyond 0.9 (0.95-0.97 with the libraries tried: where the fit ends differs a
+    # little from one scipy to another); the pairs beyond a limit of 0.9 are named
+    limit = 0.9
+    monkeypatch.setattr("impactometer.calibrate.separation.CORRELATION_LIMIT", limit)
     same = drops([CALIBRATION[1]] * 3, noise=0.05, seed=3, gate=0.02)
     result = calibrate(same, rig=BASE_STAND, contact="hysteretic", fit="default,cylinder.piston_mass",
                        duration=0.015, velocity_sigma=0.02)
-    assert result.indistinct
+    corr = np.abs(np.asarray(result.correlation) - np.eye(len(result.correlation)))
+    assert len(result.indistinct) == np.count_nonzero(np.triu(corr > limit, 1)) > 0
     for pair in result.indistinct:
-        assert len(pair["parameters"]) == 2 and abs(pair["correlation"]) > CORRELATION_LIMIT
+        assert len(pair["parameters"]) == 2 and abs(pair["correlation"]) > limit
         hint = pair["suggestion"]
         assert hint["kind"] in ("mass", "height", "pressure")
         assert hint["largest_correlation_after"] < hint["largest_correlation_before"]
