@@ -154,16 +154,21 @@ def first_model_answer(recording: Recording, rig: Rig, *, pressure: float) -> Id
     return _stream_answer(recording, rig, pressure=pressure)
 
 
-def _turned(recording: Recording, until: float) -> bool:
+def _force_noise(recording: Recording) -> float:
+    """Standard deviation of the force before first contact (t = 0, less 1 ms) [N]; 0 without such samples."""
+    quiet = recording.contact_force[recording.time < -0.001]
+    return float(np.std(quiet)) if quiet.size > 1 else 0.0
+
+
+def _turned(recording: Recording, until: float, noise: float) -> bool:
     """Whether the force of the first contact pulse has turned over in the record up to ``until`` [s]: its
     maximum since first contact (t = 0) stands :data:`~impactometer.identify.peak_to_peak.onsets.TURN_SIGMAS`
-    noise levels (the pre-trigger's) above the force at ``until``. Before its turn the first pulse's rise depends
-    on M1 hardly at all (on a soft pad a fit of it can put a 30 kg mass at 3 kg with a small stated σ)."""
+    noise levels ``noise`` [N] above the force at ``until``. Before its turn the first pulse's rise depends on M1
+    hardly at all (on a soft pad a fit of it can put a 30 kg mass at 3 kg with a small stated σ)."""
     from ..identify.peak_to_peak.onsets import TURN_SIGMAS
 
-    time, force = recording.time, recording.contact_force
-    noise = float(np.std(force[time < -0.001])) if np.count_nonzero(time < -0.001) > 1 else 0.0
-    seen = force[(time >= 0.0) & (time <= until)]
+    t = recording.time
+    seen = recording.contact_force[(t >= 0.0) & (t <= until)]
     return seen.size > 0 and float(seen.max() - seen[-1]) > TURN_SIGMAS * noise
 
 
@@ -176,6 +181,7 @@ def _stream_answer(recording: Recording, rig: Rig, *, pressure: float) -> Identi
                          rig=rig, pressure=pressure, contact=rig.contact.law, cadence=MODEL_CADENCE,
                          first=MODEL_FIRST, window=MODEL_LAST)  # its grid of starts is made here, before the impact
     force, acceleration = recording.contact_force, recording.piston_acceleration
+    noise = _force_noise(recording)
     busy_until = -math.inf
     threads = numba.get_num_threads()
     numba.set_num_threads(1)  # one core: the stream's compiled work runs on this thread, whose time is counted
@@ -193,7 +199,7 @@ def _stream_answer(recording: Recording, rig: Rig, *, pressure: float) -> Identi
                 took = 0.0  # a push that made two estimates: its time counted once
                 stream.defer(busy_until)  # the next update reads what has arrived by the time this one is done
                 if found.method == "model/ml" and found.mass_std < MODEL_MASS_TRUST * found.mass \
-                        and _turned(recording, found.available_at):
+                        and _turned(recording, found.available_at, noise):
                     return replace(found, available_at=busy_until,
                                    details={**found.details, "data_until_s": found.available_at,
                                             "latency_s": busy_until - found.available_at})

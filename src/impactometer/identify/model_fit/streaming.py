@@ -133,7 +133,6 @@ class ModelStream:
         #: wall time of the grid's predictions, made before any impact [s]
         self.arming_time = time.perf_counter() - clock
         self._impact: _Impact | None = None
-        self._not_before = -math.inf
         self.estimates: list[Identification] = []
         self.outcomes: list[Identification | IdentificationError] = []
         self.update_times: list[float] = []
@@ -182,9 +181,8 @@ class ModelStream:
         """Let the next update read the record up to at least ``until`` [s, the stream's clock]: a real-time caller
         whose last update was done at ``until`` fits the newest samples then, not the ones it could not reach in
         time (the updates in between are skipped)."""
-        self._not_before = float(until)
         impact = self._impact
-        if impact is not None and not impact.done:  # the update already planned
+        if impact is not None and not impact.done:  # the update already planned; the cadence goes on from it
             impact.next_stop = min(max(impact.next_stop, self._stop(impact.contact_time, until - impact.contact_time)),
                                    self._stop(impact.contact_time, self.window))
 
@@ -217,8 +215,8 @@ class ModelStream:
         span = self.start_time + (stop - 1) / self.sample_rate - impact.contact_time
         if span >= self.window - 0.5 / self.sample_rate:
             return self._conclude(impact, stop)
-        after = max(span + self.cadence, self._not_before - impact.contact_time)
-        impact.next_stop = min(self._stop(impact.contact_time, after), self._stop(impact.contact_time, self.window))
+        impact.next_stop = min(self._stop(impact.contact_time, span + self.cadence),
+                               self._stop(impact.contact_time, self.window))
         recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
         try:
             batch._check_length(recording, min_duration=0.0)  # a pre-trigger, as the batch fit needs one
