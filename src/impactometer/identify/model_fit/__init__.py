@@ -280,6 +280,7 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: dict) -> Ident
     details = {**common, "path": "ml", "reason": f"the {best.law} model has the smallest BIC and fits the record "
                f"to chi2/dof = {best.reduced_chi2:.3g}", "contact_law": best.law, "t00": t00,
                "reduced_chi2": best.reduced_chi2, "chi2": best.chi2, "dof": best.dof, "crb": crb.to_dict(),
+               **({} if best.span is None else {"fit_span_s": best.span[0], "fit_span": best.span[1]}),
                "parameters": {name: {"value": best.values[name], "std": best.std(name) * inflation}
                               for name in best.layout.names[3:]}}
     return Identification(mass=mass, velocity=velocity, mass_std=crb.mass_std * inflation,

@@ -91,6 +91,9 @@ class LawFit(Quality):
     residuals: int
     evaluations: int
     converged: bool
+    #: the span of the record after first contact the fit read [s] and why it ends there (the whole window
+    #: given, or the :func:`~.forward.horizon` of the whole record)
+    span: tuple[float, str] | None = None
 
     @property
     def law(self) -> str:
@@ -112,6 +115,7 @@ class LawFit(Quality):
         return {"chi2": self.chi2, "dof": self.dof, "reduced_chi2": self.reduced_chi2, "bic": self.bic,
                 "evaluations": self.evaluations, "converged": self.converged, "rank": self.rank,
                 "unknowns": self.unknowns,
+                **({} if self.span is None else {"fit_span_s": self.span[0], "fit_span": self.span[1]}),
                 "values": {name: self.values[name] for name in self.layout.names},
                 "std": {name: self.std(name) for name in self.layout.names},
                 "offsets": {"contact_force_N": float(self.offsets[0]),

@@ -22,7 +22,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ...rig import Rig
 from .fit import MAX_EVALUATIONS, LawFit, Observed, fit_law, window
-from .forward import Grid, free_parameters, make_layout, predict, stand_values
+from .forward import Grid, free_parameters, horizon, make_layout, predict, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
 #: the whole record follows
@@ -170,18 +170,27 @@ def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
         other, _, _ = fit_stages(data, layouts, values, data.offsets, (*FINE_STAGES, (None, "all")), start)
     except IdentificationError:
         return None
-    return other if other.chi2 < fit.chi2 else None
+    return other if other.reduced_chi2 < fit.reduced_chi2 else None
 
 
 def fit_stages(data: Observed, layouts: Layouts, values: dict, offsets, stages, start: Start, *,
             evaluations: int = MAX_EVALUATIONS):
-    """Fit the windows of ``stages`` in turn (None: the whole record), each from the last one's answer; returns the
-    last fit (its covariance only for the whole record), its values and its offsets."""
+    """Fit the windows of ``stages`` in turn (None: the record up to its :func:`~.forward.horizon` at the last
+    window's answer), each from the last one's answer; returns the last fit (its covariance only for the last
+    window), its values and its offsets."""
     fit = None
     for end, kind in stages:
-        part = data if end is None else window(data, start.contact_time + end)
-        fit = fit_law(replace(part, offsets=offsets), layouts(kind, values), values, evaluations=evaluations,
+        layout = layouts(kind, values)
+        if end is None:
+            span = data.grid.start_time + (data.grid.size - 1) / data.grid.sample_rate - values["contact_time"]
+            reach, why = horizon(layout, layout.variables(values), span)
+            part = window(data, values["contact_time"] + reach) if reach < span else data
+        else:
+            part = window(data, start.contact_time + end)
+        fit = fit_law(replace(part, offsets=offsets), layout, values, evaluations=evaluations,
                       information=end is None)
+        if end is None:
+            fit = replace(fit, span=(reach, why))
         values, offsets = {**values, **fit.values}, fit.offsets
     return fit, values, offsets
 
