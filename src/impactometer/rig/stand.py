@@ -1,4 +1,4 @@
-"""The drop stand (its parts are in :mod:`impactometer.components`), its presets, TOML files and scenarios.
+"""The drop stand (its parts are in :mod:`impactometer.rig.parts`), its presets, TOML files and scenarios.
 
 A stand is loaded from and saved to TOML (unknown keys are errors; a ``[provenance]`` table, which a calibrated
 stand carries, is read past: it says where the numbers came from and changes no physics).
@@ -26,7 +26,12 @@ from typing import TYPE_CHECKING, Any
 
 import tomli_w
 
-from .components import (  # noqa: F401 - the parts are part of the stand's API
+from ..constants import STANDARD_GRAVITY
+from ..errors import ParameterError
+from ..outputs import as_path, check_file, write_failed
+from ..validation import check_real, is_real
+from .limits import MASS_RANGE, VELOCITY_RANGE, check_stops
+from .parts import (  # noqa: F401 - the parts are part of the stand's API
     CONTACT_ALIASES,
     CONTACT_LAWS,
     VALVE_LAW_PARAMETERS,
@@ -38,14 +43,9 @@ from .components import (  # noqa: F401 - the parts are part of the stand's API
     Valve,
     contact_law_name,
 )
-from .constants import STANDARD_GRAVITY
-from .errors import ParameterError
-from .outputs import as_path, check_file, write_failed
-from .stands import MASS_RANGE, VELOCITY_RANGE, check_stops
-from .validation import check_real, is_real
 
 if TYPE_CHECKING:  # annotations only: recording.py is a layer above the stand
-    from .recording import Recording
+    from ..recording import Recording
 
 
 @dataclass(frozen=True, kw_only=True)

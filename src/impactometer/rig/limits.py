@@ -5,7 +5,7 @@
 - :data:`CYLINDER_LIMITS` and :func:`check_stops`: a stand no one builds (its areas and volumes overflow, its top
   stop yields more than the gas column it closes) is refused when it is created;
 
-How a stand is known (the fingerprint of its parameters) is in :mod:`impactometer.rig`.
+How a stand is known (the fingerprint of its parameters) is in :mod:`impactometer.rig.stand`.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from .constants import STANDARD_GRAVITY
-from .errors import ParameterError
+from ..constants import STANDARD_GRAVITY
+from ..errors import ParameterError
 
-if TYPE_CHECKING:  # annotations only: rig.py imports this module
-    from .rig import Rig
+if TYPE_CHECKING:  # annotations only: stand.py imports this module
+    from .stand import Rig
 
 #: free-fall heights of a drop test [m]: from a tenth of a millimetre to a tall drop tower
 FREE_FALL_HEIGHTS = (1e-4, 12.0)
