@@ -1,51 +1,23 @@
-"""The drop stand (its parts are in :mod:`impactometer.rig.parts`), its presets, TOML files and scenarios.
+"""The whole drop stand, :class:`Rig`: its parts bundled, its dictionary form, its TOML file.
 
 A stand is loaded from and saved to TOML (unknown keys are errors; a ``[provenance]`` table, which a calibrated
-stand carries, is read past: it says where the numbers came from and changes no physics).
-``PRESETS['drop-stand']`` is the built-in stand, representative of the stand of the reference paper (Fig. 1): a 4 kg
-piston and rod in an 80 mm bore, 25 mm rod, 200 mm stroke, charged to 0-400 kPa gauge, with a hysteretic
-elastomer pad between mass and rod (Walton-Braun, loading stiffness 7e5 N/m, restitution 0.4), 200 N of seal
-friction, end-of-stroke gas cushions and
-an ISO 6358 valve between the chambers: a rebound or two (stage A), then sustained contact to the deepest point
-(stage B), as the paper describes (Fig. 2). It is also named ``drop-stand-pad``; its parts are the defaults of the
-part classes.
-``PRESETS['drop-stand-stiff']`` is the earlier built-in stand: a nearly elastic
-Kelvin-Voigt contact on which the rod bounces on the mass for most of the stroke, 30 N of friction, no cushions.
+stand carries, is read past: it says where the numbers came from and changes no physics). The file format itself
+(reading, writing, the provenance table) is :mod:`.toml`.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
-import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
-import tomli_w
+from typing import Any
 
 from ..constants import STANDARD_GRAVITY
 from ..errors import ParameterError
-from ..outputs import as_path, check_file, write_failed
-from ..validation import check_real, is_real
-from .limits import MASS_RANGE, VELOCITY_RANGE, check_stops
-from .parts import (  # noqa: F401 - the parts are part of the stand's API
-    CONTACT_ALIASES,
-    CONTACT_LAWS,
-    VALVE_LAW_PARAMETERS,
-    Contact,
-    Cylinder,
-    Friction,
-    Gas,
-    Stops,
-    Valve,
-    contact_law_name,
-)
-
-if TYPE_CHECKING:  # annotations only: recording.py is a layer above the stand
-    from ..recording import Recording
+from ..outputs import as_path
+from ..validation import check_real
+from .parts import VALVE_LAW_PARAMETERS, Contact, Cylinder, Friction, Gas, Stops, Valve, contact_law_name
+from .toml import PROVENANCE_KEY, read_table, write_table
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,23 +73,27 @@ class Rig:
         return save_toml(self, path, overwrite=overwrite)
 
 
-#: the table of a stand file that says where its numbers came from (read past by :func:`from_dict`)
-PROVENANCE_KEY = "provenance"
-
-
-def _plain(value: Any) -> Any:
-    """``value`` as TOML holds it: numpy numbers as Python ones, tuples as lists, None left out of tables."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items() if v is not None}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value if v is not None]
-    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
-        return value.item()
-    return value
-
-
 _SECTIONS: dict[str, type] = {"cylinder": Cylinder, "gas": Gas, "friction": Friction, "contact": Contact,
                               "stops": Stops, "valve": Valve}
+
+
+def check_stops(rig: Rig) -> None:
+    """ParameterError for a stand whose top stop cannot hold the piston within its upper gas column.
+
+    Charged to the rated pressure, the gas pushes the piston into the top stop with up to the rated pressure on the
+    full piston area (plus its weight, ten times over for the blow of a bounce); a stop yielding more than the upper
+    gas column under that load would compress the gas to a negative volume: a simulation would show a negative
+    stroke and negative absolute pressures.
+    """
+    c = rig.cylinder
+    load = c.rated_pressure_gauge * c.area + 10.0 * c.piston_mass * max(rig.gravity, 1.0)
+    yielding = load / rig.stops.stiffness
+    column = c.upper_length + c.dead_volume_upper / c.annulus_area
+    if yielding >= column:
+        raise ParameterError(f"stops.stiffness {rig.stops.stiffness:g} N/m lets the top stop yield {yielding:.3g} m "
+                             f"under the rated {c.rated_pressure_gauge:g} Pa on the {c.bore:g} m bore, more than the "
+                             f"upper gas column ({column:.3g} m); expected a stand whose stops hold the piston within "
+                             "its gas columns (stiffer stops, a smaller bore or a lower rated pressure)")
 
 
 def to_dict(rig: Rig) -> dict[str, Any]:
@@ -169,16 +145,7 @@ def parameter_names() -> list[str]:
 def load_toml(path: str | Path) -> Rig:
     """Load a stand from a TOML file."""
     path = as_path(path, "rig file")
-    if not path.is_file():
-        raise ParameterError(f"rig file {str(path)!r} does not exist")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise ParameterError(f"rig file {str(path)!r} is not valid TOML: {exc}") from None
-    except RecursionError:
-        raise ParameterError(f"rig file {str(path)!r} nests arrays or tables too deeply; expected a stand "
-                             "description (sections of numbers)") from None
-    return from_dict(data, source=str(path))
+    return from_dict(read_table(path), source=str(path))
 
 
 def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False,
@@ -187,110 +154,4 @@ def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False,
     strings, lists and tables; None values are left out)."""
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
-    path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
-    data = to_dict(rig)
-    if provenance is not None:
-        data[PROVENANCE_KEY] = _plain(provenance)
-    try:
-        path.write_text(tomli_w.dumps(data), encoding="utf-8")
-    except OSError as exc:
-        raise write_failed(path, exc) from None
-    return path
-
-
-#: the stand with a nearly elastic Kelvin-Voigt contact: the rod bounces on the mass for most of the stroke
-STIFF_STAND = Rig(name="drop-stand-stiff", contact=Contact(law="kelvin-voigt"), friction=Friction(force=30.0),
-                  cylinder=Cylinder(dead_volume_lower=0.0, dead_volume_upper=0.0),
-                  valve=Valve(law="orifice", max_area=5e-5))
-#: the stand with a hysteretic elastomer pad: a rebound or two (stage A), then sustained contact (stage B); the
-#: defaults of the part classes
-PAD_STAND = Rig(name="drop-stand-pad")
-#: named stands; ``drop-stand`` is the default (the pad stand)
-PRESETS: dict[str, Rig] = {
-    "drop-stand": dataclasses.replace(PAD_STAND, name="drop-stand"),
-    "drop-stand-pad": PAD_STAND,
-    "drop-stand-stiff": STIFF_STAND,
-}
-
-
-#: the stand of the absorber's commands and studies (``absorb``, ``study absorption``, ``study valve-design``)
-ABSORPTION_RIG = "drop-stand"
-
-
-def get_rig(name_or_path: str | Path | Rig | None = None, *, contact: str | None = None) -> Rig:
-    """A preset by name, a TOML file by path, or the default stand; optionally with another contact law."""
-    if isinstance(name_or_path, Rig):
-        rig = name_or_path
-    elif name_or_path is None:
-        rig = PRESETS["drop-stand"]
-    elif not isinstance(name_or_path, (str, Path)):
-        raise ParameterError(f"rig must be a Rig, a preset name or a .toml file, got {type(name_or_path).__name__}")
-    elif str(name_or_path) in PRESETS:
-        rig = PRESETS[str(name_or_path)]
-    elif Path(name_or_path).suffix.lower() == ".toml":
-        rig = load_toml(name_or_path)
-    else:
-        raise ParameterError(f"rig must be one of {sorted(PRESETS)} or a .toml file, got {str(name_or_path)!r}")
-    return rig.with_contact(contact) if contact is not None else rig
-
-
-@dataclass(frozen=True, kw_only=True)
-class Scenario:
-    """One drop test: impacting mass M1 [kg], impact velocity V0 [m/s], charge pressure p0 [Pa gauge]."""
-
-    mass: float
-    velocity: float
-    pressure_gauge: float = 200e3
-
-    def __post_init__(self) -> None:
-        check_real("mass", self.mass, low=MASS_RANGE[0], high=MASS_RANGE[1], unit=" [kg]")
-        check_real("velocity", self.velocity, low=0.0, low_open=True, high=VELOCITY_RANGE[1], unit=" [m/s]")
-        check_real("pressure_gauge", self.pressure_gauge, low=0.0, unit=" [Pa]")
-
-    @classmethod
-    def from_height(cls, *, mass: float, height: float, pressure_gauge: float = 200e3,
-                    gravity: float = STANDARD_GRAVITY) -> Scenario:
-        """Scenario of a free drop from ``height`` [m]: V0 = sqrt(2·g·h)."""
-        check_real("height", height, low=0.0, low_open=True, unit=" [m]")
-        return cls(mass=mass, velocity=math.sqrt(2.0 * gravity * height), pressure_gauge=pressure_gauge)
-
-    def check_against(self, rig: Rig) -> None:
-        """Raise unless the charge pressure is within the rating of ``rig``."""
-        if self.pressure_gauge > rig.cylinder.rated_pressure_gauge:
-            raise ParameterError(f"pressure_gauge must be <= the rated {rig.cylinder.rated_pressure_gauge:g} Pa "
-                                 f"of {rig.name!r}, got {self.pressure_gauge!r}")
-
-
-#: metadata key holding the fingerprint of the stand a recording was made on
-STAND_KEY = "rig_fingerprint"
-
-
-def fingerprint(rig: Rig | dict[str, Any]) -> str:
-    """A short hash of every parameter of a stand (a :class:`~impactometer.rig.Rig` or its ``to_dict`` form).
-
-    Two stands with the same parameters have the same fingerprint whatever their names (a name is a label) and
-    however their numbers are written (``2e6`` or ``2000000``); any other parameter gives another fingerprint.
-    """
-    stand = rig if isinstance(rig, Rig) else from_dict(rig, source="stand")
-
-    def canonical(value: Any) -> Any:  # every number as a float: 2e6 and 2000000 hash alike
-        if isinstance(value, dict):
-            return {k: canonical(v) for k, v in value.items()}
-        return float(value) if is_real(value) else value
-
-    data = canonical({k: v for k, v in to_dict(stand).items() if k != "name"})
-    return hashlib.sha256(json.dumps(data, sort_keys=True).encode()).hexdigest()[:16]
-
-
-def check_recorded_on(recording: Recording, stand: dict[str, Any], *, hint: str,
-                      error: type[Exception] = ParameterError) -> None:
-    """``error`` when ``recording`` states a stand (:data:`STAND_KEY`) with other parameters than ``stand``."""
-    stated = recording.metadata.get(STAND_KEY)
-    if stated is None:
-        return
-    expected = fingerprint(stand)
-    if str(stated) != expected:
-        name = recording.metadata.get("rig")
-        raise error(f"{recording.source}: recorded on a stand{f' labelled {name!r}' if name else ''} with other "
-                    f"parameters (fingerprint {str(stated)[:16]}) than the stand {stand.get('name')!r} (fingerprint "
-                    f"{expected}); {hint}")
+    return write_table(to_dict(rig), path, overwrite=overwrite, provenance=provenance)
