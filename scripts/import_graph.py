@@ -3,10 +3,11 @@
     python scripts/import_graph.py          # cycles (exit status 1 if any) and a count of function-level imports
     python scripts/import_graph.py -v       # ... and which module imports which inside its functions
 
-Imports under ``if TYPE_CHECKING:`` are annotations only and are not counted. A function-level import counts as an
-arrow of the graph (it still runs), so a cycle through one is a cycle -- except a function-level import of the
-``plotting`` package: that is a result's ``.plot()`` reaching the view layer (python-control's pattern: the
-computation never imports matplotlib), which sits above everything and may read what it draws.
+Every import is an arrow of the graph, wherever it is made: one under ``if TYPE_CHECKING:`` (a module that names
+another in its annotations depends on it as much as one that calls it) and one inside a function (it still runs), so
+a cycle through either is a cycle -- except a function-level import of the ``plotting`` package: that is a result's
+``.plot()`` reaching the view layer (python-control's pattern: the computation never imports matplotlib), which sits
+above everything and may read what it draws.
 """
 
 from __future__ import annotations
@@ -48,14 +49,9 @@ def import_graph(root: Path) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
     inside: dict[str, set[str]] = defaultdict(set)
     for name, path in mods.items():
         tree = ast.parse(path.read_text(encoding="utf-8"))
-        annotations_only = {id(n) for block in ast.walk(tree)
-                            if isinstance(block, ast.If) and "TYPE_CHECKING" in ast.unparse(block.test)
-                            for n in ast.walk(block)}
         in_function = {id(n) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
                        for n in ast.walk(f)}
         for node in ast.walk(tree):
-            if id(node) in annotations_only:
-                continue
             if isinstance(node, ast.ImportFrom):
                 target = _resolve(name, path.name == "__init__.py", node)
                 if not target or not target.startswith(PACKAGE):

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from .errors import RecordingError, UnitError, shown
-from .stands import MASS_RANGE, VELOCITY_RANGE
+from .rig.limits import MASS_RANGE, VELOCITY_RANGE
 from .units import parse_quantity
 from .validation import check_real, is_real
 

@@ -16,7 +16,7 @@ import re
 
 from .constants import STANDARD_GRAVITY
 from .errors import UnitError
-from .stands import FREE_FALL_HEIGHTS, VELOCITY_RANGE
+from .rig.limits import FREE_FALL_HEIGHTS, VELOCITY_RANGE
 from .validation import check_real, is_real
 
 #: dimension -> unit symbol (as written) -> factor to SI

@@ -13,9 +13,8 @@ from ..errors import RecordingError, shown
 from ..identify.model_fit import TRIGGER_LEAD, _channels_of, _check_length, _design, _observe
 from ..identify.model_fit.fit import Observed
 from ..recording import Recording
-from ..rig import STAND_KEY
+from ..rig import MASS_RANGE, STAND_KEY, VELOCITY_RANGE
 from ..sensors import anti_alias_delay
-from ..stands import MASS_RANGE, VELOCITY_RANGE
 
 #: metadata that names the stand a recording was made on: drops that state different values were made on
 #: different stands and are not calibrated together

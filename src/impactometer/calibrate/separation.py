@@ -25,8 +25,7 @@ from ..errors import IdentificationError
 from ..identify.model_fit.fit import weighted_jacobian, window
 from ..identify.model_fit.forward import make_layout
 from ..identify.model_fit.information import covariance
-from ..rig import Rig
-from ..stands import MASS_RANGE, VELOCITY_RANGE
+from ..rig import MASS_RANGE, VELOCITY_RANGE, Rig
 from .drops import ObservedDrop
 from .joint import NUISANCES, Family
 

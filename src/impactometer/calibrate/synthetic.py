@@ -8,10 +8,9 @@ import dataclasses
 
 import numpy as np
 
-from ..components import Contact, Cylinder, Friction
 from ..model.simulate import simulate
 from ..recording import Recording
-from ..rig import STAND_KEY, Rig, Scenario, fingerprint, get_rig
+from ..rig import STAND_KEY, Contact, Cylinder, Friction, Rig, Scenario, fingerprint, get_rig
 from ..sensors import apply_sensors, internal_layout
 
 #: relative tolerance of the reference integrations (the model error it leaves is far below any sensor noise)

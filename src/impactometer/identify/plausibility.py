@@ -8,9 +8,9 @@ can have: the channels
 swapped, an acceleration in mm/s² read as m/s², a signal that is not an impact. The answer (M1, V0) is compared
 with physical bounds and with the recorded force:
 
-- velocity within the free-fall range of a drop test (:data:`impactometer.stands.VELOCITY_RANGE`); outside it, a
+- velocity within the free-fall range of a drop test (:data:`impactometer.rig.VELOCITY_RANGE`); outside it, a
   unit slip (×1000, ×g) is named when undoing it gives a velocity within that range;
-- mass within :data:`impactometer.stands.MASS_RANGE`, and large enough for the recorded impulse (the mass can at
+- mass within :data:`impactometer.rig.MASS_RANGE`, and large enough for the recorded impulse (the mass can at
   most reverse its velocity: ∫Fc dt ≤ M1·(2·V0 + g·τ) from first contact to any pulse end τ) and for the energy
   the piston took in the first pulse (∫Fc·v2 dt ≤ M1·V0²/2 + M1·g·u1, u1 the mass's travel);
 - fit: relative standard errors of mass and velocity below :data:`RELATIVE_ERROR_LIMIT`; residuals far above the
@@ -33,7 +33,7 @@ import numpy as np
 
 from ..constants import STANDARD_GRAVITY
 from ..errors import IdentificationError, ParameterError
-from ..stands import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
+from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
 from ..validation import check_real
 from .pulses import detection_levels
 

@@ -1,4 +1,5 @@
-"""What a study is: options, settings, the case grid and per-case seeding (the registry is :mod:`.registry`).
+"""What a study is and which studies there are: options, settings, the registry (:data:`STUDIES`, :func:`register`,
+:func:`get_study`, :func:`load_studies`), the case grid and per-case seeding.
 
 A study turns a list of *cases* (JSON-ready dicts, one unit of work each) into a tidy table (a list of flat dicts,
 one row per case and method). The runner splits the cases into fixed chunks, evaluates them anywhere (this process,
@@ -10,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import importlib
 import importlib.util
 import json
 import zlib
@@ -21,15 +23,15 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, shown
 from ..rig import Rig, get_rig, to_dict
 from ..units import parse_quantity
 from ..validation import check_flag, check_integer, check_real, is_integer
-from .registry import STUDIES, get_study, load_studies, register
 
-__all__ = ["MAX_GRID", "MAX_SCENARIOS", "MAX_SEEDS", "PAPER_HEIGHTS", "PAPER_RANGES", "STUDIES", "Row", "Setting",
-           "Study", "StudyOptions", "case_seed", "check_params", "get_study", "grid_size", "hashed_seed",
-           "indexed_cases", "options_for", "paper_grid", "plotted_by", "register", "relative_error", "scenario_grid"]
+__all__ = ["MAX_GRID", "MAX_SCENARIOS", "MAX_SEEDS", "MODULES", "PAPER_HEIGHTS", "PAPER_RANGES", "STUDIES", "Row",
+           "Setting", "Study", "StudyOptions", "case_seed", "check_params", "get_study", "grid_size", "hashed_seed",
+           "indexed_cases", "load_studies", "options_for", "paper_grid", "plotted_by", "register", "relative_error",
+           "scenario_grid"]
 
 Row = dict[str, Any]
 
@@ -264,6 +266,44 @@ class Study:
             raise ParameterError(f"options must be StudyOptions, got {options!r}")
         options = options_for(self, options)
         return self.evaluate(indexed_cases(self, options), options)
+
+
+#: study modules, in report order
+MODULES = ("cases", "parameters", "noise", "sampling", "response_map", "absorption", "valve_design", "absorber_design",
+           "peak_force")
+
+#: study name -> Study (filled by the study modules, which register themselves when imported)
+STUDIES: dict[str, Study] = {}
+
+
+def register(study: Study) -> Study:
+    """Add ``study`` to :data:`STUDIES` and return it."""
+    STUDIES[study.name] = study
+    return study
+
+
+def get_study(name: str) -> Study:
+    """The registered study ``name``; an unknown name raises with the list of valid names."""
+    if not isinstance(name, str) or name not in STUDIES:
+        raise ParameterError(f"study must be one of {sorted(STUDIES)} or 'all', got {shown(name)}")
+    return STUDIES[name]
+
+
+def load_studies() -> dict[str, Study]:
+    """Import every study module (each registers itself) and return the registry.
+
+    The modules are imported by name, so that a tree without a study's dependencies still lists the others: a
+    study module that cannot be imported because it is absent from this tree is skipped; any other import error
+    propagates.
+    """
+    package = __name__.rpartition(".")[0]
+    for module in MODULES:
+        try:
+            importlib.import_module(f"{package}.{module}")
+        except ModuleNotFoundError as exc:
+            if not exc.name or not exc.name.startswith(f"{package}.{module}"):
+                raise
+    return STUDIES
 
 
 def _draw(function: str, rows: list[Row], options: StudyOptions) -> Any:

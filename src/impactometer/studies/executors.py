@@ -20,8 +20,7 @@ from typing import Any
 from ..errors import ImpactometerError, ParameterError, SimulationError
 from ..jsonable import plain
 from ..validation import check_integer
-from .base import Row, StudyOptions
-from .registry import get_study, load_studies
+from .base import Row, StudyOptions, get_study, load_studies
 
 Task = tuple[int, list[Row]]
 #: ``status(name, text)``: what a study run is doing before its chunks flow ("" once they do)

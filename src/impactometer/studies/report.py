@@ -9,7 +9,7 @@ from typing import Any
 
 from ..errors import ParameterError
 from . import store
-from .registry import STUDIES, load_studies
+from .base import STUDIES, load_studies
 from .tables import columns, fmt
 
 #: marker of a report written by impactometer (an index.html without it is a user file)

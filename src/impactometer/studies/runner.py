@@ -19,9 +19,8 @@ from pathlib import Path
 from ..errors import ParameterError
 from ..outputs import check_folder
 from . import store
-from .base import Row, StudyOptions, indexed_cases, options_for
+from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases, load_studies, options_for
 from .executors import Status, backend, closing_executor, plain_row
-from .registry import STUDIES, get_study, load_studies
 from .report import check_target, write_report
 from .tables import to_csv
 

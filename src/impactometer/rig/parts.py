@@ -11,10 +11,10 @@ import functools
 import math
 from dataclasses import dataclass
 
-from .constants import ATMOSPHERIC_PRESSURE
-from .errors import ParameterError
-from .stands import CYLINDER_LIMITS
-from .validation import check_real
+from ..constants import ATMOSPHERIC_PRESSURE
+from ..errors import ParameterError
+from ..validation import check_real
+from .limits import CYLINDER_LIMITS
 
 #: a part's parameter check: a finite number, the lower bound excluded unless ``low_open=False``
 _check = functools.partial(check_real, low_open=True)
