@@ -27,7 +27,7 @@ from impactometer import get_rig, simulate_batch
 from impactometer.errors import IdentificationError, SimulationError
 from impactometer.identify.inspection import inspect_recording
 from impactometer.identify.peak_to_peak import identify
-from impactometer.identify.pulses import contact_pulses
+from impactometer.signals.pulses import contact_pulses
 from impactometer.studies.base import StudyOptions, case_seed, scenario_grid
 from impactometer.studies.identification import clean_recordings, with_noise
 from recorded import recorded

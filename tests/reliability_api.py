@@ -20,7 +20,6 @@ from impactometer.identify.inspection import inspect_recording
 from impactometer.identify.peak_to_peak import identify, identify_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier, stream_arrays
 from impactometer.identify.plausibility import check_answer
-from impactometer.identify.pulses import noise_std
 from impactometer.identify.response_map import (
     build_map_from_recordings,
     build_map_simulated,
@@ -36,6 +35,7 @@ from impactometer.model import simulate_batch
 from impactometer.recording import Recording
 from impactometer.rig import Scenario, from_dict, get_rig, load_toml, save_toml
 from impactometer.sensors import apply_sensors, record
+from impactometer.signals.noise import robust_noise_std
 from impactometer.studies import StudyOptions, get_study, run_study
 from impactometer.units import parse_quantity
 
@@ -98,7 +98,7 @@ def calls(recording: Recording, path: Path, map_path: Path, folder: Path) -> dic
         "StudyOptions settings": lambda x, y: StudyOptions(params={"noise.levels": x} if y is None else x),
         "strategy_names": lambda x, y: strategy_names(x),
         "check_answer": lambda x, y: check_answer(x, y),
-        "noise_std": lambda x, y: noise_std(x),
+        "robust_noise_std": lambda x, y: robust_noise_std(x),
         "simulate_batch": lambda x, y: simulate_batch(x, 2.0, 200e3, duration=0.002 if y is None else y),
         "cfc_corridor": lambda x, y: cfc_corridor(60 if y is None else y, x),
         "save_toml": lambda x, y: save_toml(get_rig() if y is None else x, out / x if isinstance(x, str) else x,

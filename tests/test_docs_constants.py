@@ -81,7 +81,7 @@ def test_every_doc_links_existing_constants():
 
 def test_checker_catches_a_renamed_constant_and_a_wrong_module():
     doc = DOCS / "identification.md"
-    good = "fires at [`trigger.TRIGGER_SIGMAS`](../src/impactometer/identify/trigger.py) σ"
+    good = "fires at [`trigger.TRIGGER_SIGMAS`](../src/impactometer/signals/trigger.py) σ"
     assert link_problems(good, doc) == (1, [])
     renamed = good.replace("TRIGGER_SIGMAS", "TRIGGER_SIGMA")
     assert "defines no top-level 'TRIGGER_SIGMA'" in link_problems(renamed, doc)[1][0]

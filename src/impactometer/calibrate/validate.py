@@ -6,7 +6,7 @@ Figures per drop: the force NRMSE, RMS(measured − simulated)/(max − min of t
 from first contact [-], beside the share of it the noise alone gives (the pre-trigger σ over the same range); the
 peak-force error (simulated − measured)/measured [-]; the timing errors (simulated − measured) [s] of the end of
 the first contact pulse and of the start of stage B, both found by the project's pulse detector
-(:func:`impactometer.identify.pulses.detect_pulses`, :func:`~impactometer.identify.pulses.sustained_start`) with
+(:func:`impactometer.signals.pulses.detect_pulses`, :func:`~impactometer.signals.stage_b.sustained_start`) with
 the same detection levels on both.
 """
 
@@ -22,9 +22,10 @@ import numpy as np
 
 from ..identify.model_fit.fit import _Model, fit_law, window
 from ..identify.model_fit.forward import make_layout
-from ..identify.pulses import detect_pulses, sustained_start
 from ..recording import Recording
 from ..rig import Rig, get_rig
+from ..signals.pulses import detect_pulses
+from ..signals.stage_b import sustained_start
 from .drops import ObservedDrop, read_drops
 from .result import Drop
 

@@ -62,7 +62,8 @@ def reference_steps(duration: float) -> int:
 
 def summary_table(result, title: str) -> tuple[Table, list]:
     """Rich table of the headline numbers of a simulation."""
-    from ..identify.pulses import contact_pulses, stage_b_start
+    from ..signals.pulses import contact_pulses
+    from ..signals.stage_b import stage_b_start
 
     pulses = contact_pulses(result.time, result.contact_force)
     b = stage_b_start(pulses)

@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ControlError
-from ..identify.pulses import contact_pulses
 from ..model.forces import pneumatic_force
+from ..signals.pulses import contact_pulses
 from .settings import ControlSettings
 from .simulate import simulate_controlled
 

@@ -8,7 +8,7 @@ Sensors (with noise): contact force Fc, piston acceleration a2, chamber pressure
   no drift, and far less noise than a differentiated displacement.
 - Contact: on above 5 σ of the force sensor for 3 samples, off below 2 σ for 3 samples (the levels of the
   identification's pulse detector). Sustained contact (stage B) is a contact after the first that has lasted
-  ``pulses.SUSTAINED_CONTROL_FACTOR`` × the first contact pulse: the collision that starts it is over and the two
+  ``stage_b.SUSTAINED_CONTROL_FACTOR`` × the first contact pulse: the collision that starts it is over and the two
   bodies move together.
 - Mass refinement: between two instants at which the bodies have the same velocity M1·(g − a2) = Fc integrates
   exactly, whatever happens between them; the estimate is Σ Fc / Σ (g − a2) between two such instants (the
@@ -36,8 +36,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ..identify.pulses import DETECT_SIGMAS, HOLD, RELEASE_SIGMAS, SUSTAINED_CONTROL_FACTOR
 from ..model import dynamics as d
+from ..signals.pulses import DETECT_SIGMAS, HOLD, RELEASE_SIGMAS
+from ..signals.stage_b import controller_sustained
 from . import settings as s
 from . import windows
 
@@ -110,9 +111,8 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
             e[ABOVE] = 0.0
             if math.isnan(e[FIRST_PULSE]):
                 e[FIRST_PULSE] = t - (HOLD - 1) * dt - e[CONTACT_START]
-    # pulses.is_sustained for the running contact (NaN FIRST_PULSE: still the first pulse, never sustained)
     held = t - e[CONTACT_START]
-    e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and held >= SUSTAINED_CONTROL_FACTOR * e[FIRST_PULSE] else 0.0
+    e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and controller_sustained(held, e[FIRST_PULSE]) else 0.0
     together = e[SUSTAINED] != 0.0
     if ctrl[s.REFINE_MASS] != 0.0:  # a window within one contact also shows the bodies moving together
         together |= windows.push(e[WINDOWS:], t, force, gravity - acceleration, DETECT_SIGMAS * sigma,

@@ -18,7 +18,7 @@ Controller (R_B, on a window common to every strategy, the oracle and the refere
 
 - the window starts at the first sustained contact of the impact with the valve closed, t_w (the start of the first
   contact pulse after the first one that lasts, to the deepest point, longer than
-  ``pulses.SUSTAINED_WINDOW_FACTOR`` × the first pulse; the closed-valve run is the same for every strategy of the
+  ``stage_b.SUSTAINED_WINDOW_FACTOR`` × the first pulse; the closed-valve run is the same for every strategy of the
   impact) and is never restarted; it ends at each run's deepest point;
 - F_ref = M1·(v1(t_w)²/(2·(s_usable − u1(t_w))) + g) from the closed-valve state at t_w: the lowest constant force
   that stops the mass in the stroke left;
@@ -40,7 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..filters import cfc_filter
-from ..identify.pulses import SUSTAINED_WINDOW_FACTOR, contact_pulses, is_sustained
+from ..signals.pulses import contact_pulses
+from ..signals.stage_b import SUSTAINED_WINDOW_FACTOR, is_sustained
 from .bound import open_curve
 from .target import stopping_force
 

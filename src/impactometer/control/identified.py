@@ -13,8 +13,6 @@ import time
 from dataclasses import replace
 from typing import Any
 
-import numpy as np
-
 from ..errors import IdentificationError, ParameterError
 from ..identify.peak_to_peak.streaming import StreamingIdentifier
 from ..identify.response_map import identify_recording
@@ -22,6 +20,7 @@ from ..identify.result import Identification
 from ..recording import Recording
 from ..rig import Rig, Scenario
 from ..sensors import record
+from ..signals.noise import quiet_noise_std
 from ..validation import finite_or_none
 from .estimator import MASS_TRUST
 
@@ -157,15 +156,15 @@ def first_model_answer(recording: Recording, rig: Rig, *, pressure: float) -> Id
 def _force_noise(recording: Recording) -> float:
     """Standard deviation of the force before first contact (t = 0, less 1 ms) [N]; 0 without such samples."""
     quiet = recording.contact_force[recording.time < -0.001]
-    return float(np.std(quiet)) if quiet.size > 1 else 0.0
+    return float(quiet_noise_std(quiet)) if quiet.size > 1 else 0.0
 
 
 def _turned(recording: Recording, until: float, noise: float) -> bool:
     """Whether the force of the first contact pulse has turned over in the record up to ``until`` [s]: its
-    maximum since first contact (t = 0) stands :data:`~impactometer.identify.peak_to_peak.onsets.TURN_SIGMAS`
+    maximum since first contact (t = 0) stands :data:`~impactometer.signals.extrema.TURN_SIGMAS`
     noise levels ``noise`` [N] above the force at ``until``. Before its turn the first pulse's rise depends on M1
     hardly at all (on a soft pad a fit of it can put a 30 kg mass at 3 kg with a small stated σ)."""
-    from ..identify.peak_to_peak.onsets import TURN_SIGMAS
+    from ..signals.extrema import TURN_SIGMAS
 
     t = recording.time
     seen = recording.contact_force[(t >= 0.0) & (t <= until)]

@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError, shown
-from ..identify.pulses import contact_pulses
 from ..identify.result import Identification
 from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
+from ..signals.pulses import contact_pulses
 from ..validation import check_flag, check_integer, check_real, finite_or_none
 from . import simulate as plant
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak

@@ -25,7 +25,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..identify.pulses import SUSTAINED_WINDOW_FACTOR, contact_pulses, is_sustained
+from ..signals.pulses import contact_pulses
+from ..signals.stage_b import SUSTAINED_WINDOW_FACTOR, is_sustained
 from ..validation import finite_or_none
 from .event import (
     BODY_CFC,

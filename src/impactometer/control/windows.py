@@ -14,8 +14,9 @@ two ends and the sensor noise matter, not the ends between them.
 An end timed δ samples late adds δ·(Fc − M1·(g − a2)) there to the window's force sum: the relative acceleration of
 the bodies times M1, largest at a collision's peak (thousands of N per sample on the built-in pad) and ten times
 smaller at the peaks of stage B. Each end is timed by the vertex of a parabola with a curvature of its own on each
-side (:func:`vertex`), with the timing's standard error from its least-squares curve, so each end has an error
-e_j = |Fc − M1·(g − a2)|·σ_t; the estimate starts at the stored end that gives it the smallest variance
+side (:func:`~impactometer.signals.extrema.ring_vertex`, the in-loop form of the one turning-point timer), with the
+timing's standard error from its least-squares curve, so each end has an error e_j = |Fc − M1·(g − a2)|·σ_t; the
+estimate starts at the stored end that gives it the smallest variance
 (e_first² + e_last² + n·(σ_F² + M1²·σ_a²)) / (Σ(g − a2))², which skips the collisions of stage A as soon as stage B
 has a few ends of its own, and that variance is scaled up by the windows' own scatter about the estimate (their
 reduced chi-square, where above 1).
@@ -28,7 +29,8 @@ import math
 import numpy as np
 from numba import njit
 
-from ..identify.pulses import HOLD
+from ..signals.extrema import MAX_HALF_WIDTH, ring_vertex
+from ..signals.pulses import HOLD
 
 # slots of the state
 (LOOKING, EXTREME, EXTREME_AT, COUNT, OPENED, LAST_COMMIT, N_ENDS, MASS, STD, BEYOND) = range(10)
@@ -46,12 +48,6 @@ _FORCE_AT, _SHARED_AT, _TIMING = N_SUMS, N_SUMS + 1, N_SUMS + 2
 MAX_ENDS = 256
 ENDS = SUMS_RING + RING * N_SUMS
 N_STATE = ENDS + MAX_ENDS * END_SLOTS
-#: least and largest reach of the parabolas fitted before a force extremum to time it [samples]
-MIN_HALF_WIDTH = 8.0
-MAX_HALF_WIDTH = 120.0
-#: samples the vertex keeps on each side within its fit (an extremum is confirmed by the pulse detector's HOLD
-#: samples beyond the confirmation level)
-EDGE = HOLD + 1
 #: samples either side of an end over which Fc and g − a2 there are averaged
 AT_HALF_WIDTH = 2
 #: an end is placed at least this often in sustained contact without force extrema [s]
@@ -67,105 +63,6 @@ def initial():
     w[MASS] = math.nan
     w[STD] = math.inf
     return w
-
-
-@njit(cache=True, error_model="numpy")
-def _side(s0, s1, s2, s3, s4, f0, f1, f2, apex):
-    """Σ x², Σ x⁴ and Σ f·x² of one side from its power sums (Σ k^p, Σ f·k^p), x = k − apex."""
-    x2 = s2 - 2.0 * apex * s1 + apex * apex * s0
-    x4 = s4 - 4.0 * apex * s3 + 6.0 * apex * apex * s2 - 4.0 * apex ** 3 * s1 + apex ** 4 * s0
-    fx2 = f2 - 2.0 * apex * f1 + apex * apex * f0
-    return x2, x4, fx2
-
-
-@njit(cache=True, error_model="numpy")
-def _fit(n, f0, ff, left, right, sign):
-    """Least squares of F_E + a±·x² given each side's (Σ x², Σ x⁴, Σ f·x²), with a± of the extremum's ``sign``
-    (−1: a maximum) or zero: its residual sum of squares."""
-    best = ff - f0 * f0 / n  # both sides flat
-    for use_left in (False, True):
-        for use_right in (False, True):
-            if not (use_left or use_right):
-                continue
-            l2, l4, lf = left if use_left else (0.0, 0.0, 0.0)
-            r2, r4, rf = right if use_right else (0.0, 0.0, 0.0)
-            if (use_left and l4 <= 0.0) or (use_right and r4 <= 0.0):
-                continue
-            ll = l2 / l4 if use_left else 0.0
-            rr = r2 / r4 if use_right else 0.0
-            denominator = n - ll * l2 - rr * r2
-            if denominator <= 1e-9 * n:
-                continue
-            c0 = (f0 - ll * lf - rr * rf) / denominator
-            if (use_left and (lf - c0 * l2) * sign < 0.0) or (use_right and (rf - c0 * r2) * sign < 0.0):
-                continue  # a curvature of the wrong sign: not this extremum
-            cost = ff - 2.0 * c0 * f0 + n * c0 * c0
-            if use_left:
-                cost -= (lf - c0 * l2) ** 2 / l4
-            if use_right:
-                cost -= (rf - c0 * r2) ** 2 / r4
-            best = min(best, cost)
-    return best
-
-
-@njit(cache=True, error_model="numpy")
-def ring_vertex(w, at, count, sigma, sign, drop):
-    """Sample count of the force extremum near ``at`` (``sign`` +1: a maximum, −1: a minimum, as
-    :func:`impactometer.identify.peak_to_peak.onsets.vertex` takes it) and the standard error of that timing
-    [samples], from the ring buffer of the window state ``w``.
-
-    The vertex E of F_E + a±·(t − E)², a curvature of its own on each side, of the extremum's sign or zero (a
-    contact loads and unloads along different lines, so its turning points are cusps), fitted by least squares to
-    the force samples from where it was last ``drop`` [N] away from the extremum before ``at`` (as the confirmation
-    after it; at least MIN_HALF_WIDTH and as far as the confirmation came after it) to the newest, E scanned over
-    them: the fit brackets the extremum on both sides, over a long stretch where it is flat. The standard error is
-    half the width of the set of E whose squares lie within ``sigma``² [N²] (one noise variance) of the least, at
-    least half a sample; where E sits within EDGE samples of the edge of the fit, the fit's length. One parabola
-    through a cusp leans to its flatter side (13 samples on the first peak of the built-in pad)."""
-    # back from ``at`` as far as the force had to move to confirm it (HOLD samples beyond ``drop``), and as far as
-    # the confirmation came after it
-    extreme = w[FORCE_RING + int(at) % RING]
-    oldest = max(count - RING + 1, 1.0, at - MAX_HALF_WIDTH)
-    low, beyond = at, 0
-    while low > oldest and beyond < HOLD:
-        low -= 1.0
-        beyond = beyond + 1 if abs(w[FORCE_RING + int(low) % RING] - extreme) > drop else 0
-    low = max(min(low, at - (count - at), at - MIN_HALF_WIDTH), oldest)
-    size = int(count - low) + 1
-    if size < 2 * EDGE + 3:
-        return at, float(size)
-    # power sums over the window, k counted from its start
-    c = np.zeros((8, size + 1))
-    ff = 0.0
-    for j in range(size):
-        f = w[FORCE_RING + int(low + j) % RING]
-        ff += f * f
-        k = float(j)
-        c[0, j + 1] = c[0, j] + 1.0
-        c[1, j + 1] = c[1, j] + k
-        c[2, j + 1] = c[2, j] + k * k
-        c[3, j + 1] = c[3, j] + k ** 3
-        c[4, j + 1] = c[4, j] + k ** 4
-        c[5, j + 1] = c[5, j] + f
-        c[6, j + 1] = c[6, j] + f * k
-        c[7, j + 1] = c[7, j] + f * k * k
-    n, f0 = c[0, size], c[5, size]
-    # the apex keeps EDGE samples on each side: a side of one or two samples fits them exactly, whatever E is
-    costs = np.full(size, np.inf)
-    for i in range(EDGE, size - EDGE):
-        apex = float(i)
-        left = _side(c[0, i], c[1, i], c[2, i], c[3, i], c[4, i], c[5, i], c[6, i], c[7, i], apex)
-        right = _side(c[0, size] - c[0, i], c[1, size] - c[1, i], c[2, size] - c[2, i], c[3, size] - c[3, i],
-                      c[4, size] - c[4, i], c[5, size] - c[5, i], c[6, size] - c[6, i], c[7, size] - c[7, i], apex)
-        costs[i] = _fit(n, f0, ff, left, right, -sign)  # a maximum: a curvature of sign −1
-    best = int(np.argmin(costs))
-    if best <= EDGE or best >= size - 1 - EDGE:
-        return low + best, float(size)
-    within = 0
-    for i in range(size):
-        if costs[i] <= costs[best] + sigma * sigma:
-            within += 1
-    return low + best, max(0.5 * within, 0.5)
 
 
 @njit(cache=True, error_model="numpy")
@@ -284,7 +181,7 @@ def push(w, t, force, shared, drop, in_contact, sustained, sigma_f, sigma_a):
         w[BEYOND] += 1.0
     if w[BEYOND] >= HOLD:  # the extremum is confirmed: an end at its vertex
         w[BEYOND] = 0.0
-        at, timing = ring_vertex(w, w[EXTREME_AT], count, sigma_f, w[LOOKING], drop)
+        at, timing = ring_vertex(w[FORCE_RING:FORCE_RING + RING], w[EXTREME_AT], count, sigma_f, w[LOOKING], drop)
         together = w[OPENED] == 0.0 and w[N_ENDS] > 0.0
         force_at, shared_at = _at(w, at, count)
         _store_end(w, t, SUMS_RING + (int(at) % RING) * N_SUMS, force_at, shared_at, timing, sigma_f, sigma_a)

@@ -10,7 +10,9 @@ import numpy as np
 
 from ..errors import RecordingError
 from ..recording import FORCE, TRUTH_KEYS, Recording
-from .pulses import Pulse, detect_pulses, noise_std, stage_b_start, sustained_index
+from ..signals.noise import robust_noise_std
+from ..signals.pulses import Pulse, detect_pulses
+from ..signals.stage_b import stage_b_start, sustained_index
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -33,7 +35,7 @@ class Inspection:
     channels : Channel name -> :class:`ChannelSummary`.
     peak_force, peak_force_time : Largest contact force [N] and when [s] (None without a force channel).
     force_offset : Offset removed before pulse detection [N] (median of the pre-trigger samples, else 0).
-    pulses : Contact pulses (``identify.pulses.Pulse``), the last one ``sustained`` when it is stage B.
+    pulses : Contact pulses (``signals.pulses.Pulse``), the last one ``sustained`` when it is stage B.
     stage_b_start : Start of sustained contact [s] or None.
     truth : Known-truth metadata present in the recording.
     """
@@ -81,13 +83,13 @@ def _samples_before_contact(recording: Recording) -> int:
 def inspect_recording(recording: Recording) -> Inspection:
     """Duration, rate, channels with ranges and noise, peak force, contact pulses and stage B of ``recording``.
 
-    Pulses come from the noise-aware detector of :mod:`impactometer.identify.pulses` (detection at 5 σ of the
+    Pulses come from the noise-aware detector of :mod:`impactometer.signals.pulses` (detection at 5 σ of the
     estimated white noise, release at 2 σ), on the force minus its pre-trigger median.
     """
     if not isinstance(recording, Recording):
         raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
     channels = {name: ChannelSummary(unit=recording.unit(name), minimum=float(x.min()), maximum=float(x.max()),
-                                     noise=noise_std(x)) for name, x in recording.channels.items()}
+                                     noise=robust_noise_std(x)) for name, x in recording.channels.items()}
     pulses: list = []
     peak = peak_time = None
     offset = 0.0

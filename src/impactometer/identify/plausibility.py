@@ -34,8 +34,8 @@ import numpy as np
 from ..constants import STANDARD_GRAVITY
 from ..errors import IdentificationError, ParameterError
 from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
+from ..signals.pulses import detection_levels
 from ..validation import check_real
-from .pulses import detection_levels
 
 #: the recorded impulse (energy) may exceed what the answer allows by this factor before a warning (noise,
 #: offsets, the piston's gas and friction forces)

@@ -14,10 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import ParameterError
-from ..identify.pulses import contact_pulses
 from ..model import simulate_batch
 from ..rig import Rig
 from ..sensors import record_batch
+from ..signals.pulses import contact_pulses
 from .base import Row, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
 from .tables import finite_values, group_stats, percent_labels
 

@@ -24,8 +24,8 @@ from ...errors import IdentificationError, ParameterError, RecordingError, shown
 from ...recording import Recording
 from ...rig import CONTACT_LAWS, STAND_KEY, Rig, contact_law_name, fingerprint, get_rig
 from ...sensors import anti_alias_delay
+from ...signals.noise import quiet_noise_std, robust_noise_std
 from ..plausibility import check_answer
-from ..pulses import noise_std
 from ..result import Identification
 from .fit import LawFit, Observed, weighted_jacobian
 from .forward import check_uncertain, free_parameters, make_grid, make_layout, stand_values
@@ -113,9 +113,9 @@ def _observe(recording: Recording, design: str, contact_time: float, min_duratio
                                   f"needs at least {MIN_PRE_SAMPLES + GUARD_SAMPLES} (the noise of each channel is "
                                   "measured there) -- record with a pre-trigger")
     # the model of the pre-trigger is an offset plus white noise: the sample standard deviation is its most
-    # efficient σ (the median second difference of pulses.noise_std scatters 2-3 times more: 10 % off on a record
+    # efficient σ (the median second difference of robust_noise_std scatters 2-3 times more: 10 % off on a record
     # of 1000 pre-trigger samples)
-    noise = np.std(data[:, :pre], axis=1, ddof=1)
+    noise = quiet_noise_std(data[:, :pre], axis=1, ddof=1)
     floor = NOISE_FLOOR * np.max(np.abs(data - np.median(data[:, :pre], axis=1)[:, None]), axis=1)
     noise = np.maximum(noise, np.maximum(floor, 1e-300))
     grid = make_grid(recording.start_time, fs, data.shape[1], design)
@@ -128,14 +128,14 @@ def _check_length(recording: Recording, min_duration: float = MIN_DURATION) -> f
 
     Checked before the robust answer (which fails on such records with reasons of its own): the first
     ``MIN_PRE_SAMPLES`` + ``GUARD_SAMPLES`` samples of the force must be quiet (within 8 σ of their median, σ by
-    :func:`~impactometer.identify.pulses.noise_std`), and first contact, the first sample 10 σ off, must leave
+    :func:`~impactometer.signals.noise.robust_noise_std`), and first contact, the first sample 10 σ off, must leave
     ``min_duration`` [s] of record.
     """
     force = np.asarray(recording.channel("contact_force"), dtype=float)
     need = MIN_PRE_SAMPLES + GUARD_SAMPLES
     head = force[:need]
     level = float(np.median(head))
-    sd = max(noise_std(head), 1e-12 * float(np.max(np.abs(force))), 1e-300)
+    sd = max(robust_noise_std(head), 1e-12 * float(np.max(np.abs(force))), 1e-300)
     if force.size <= need or np.max(np.abs(head - level)) > 8.0 * sd:
         raise IdentificationError(f"{recording.source}: the force is not quiet over the first {need} samples; the "
                                   f"model fit needs at least {need} samples before first contact (the noise of "

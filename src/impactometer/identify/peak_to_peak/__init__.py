@@ -21,8 +21,8 @@ import numpy as np
 from ...constants import STANDARD_GRAVITY
 from ...errors import IdentificationError, RecordingError
 from ...recording import Recording
+from ...signals.stage_b import sustained_index
 from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
-from ..pulses import sustained_index
 from ..result import Identification
 from .early import combine, solve_early
 from .options import check_options, check_unfiltered, check_white_noise, filtered_caution

@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ..pulses import PulseSpan, detection_levels
+from ...signals.extrema import GRID_STEP
+from ...signals.pulses import PulseSpan, detection_levels
 
 #: exponents p of the foot F = A·s^p·(1 + q·s) tried (0: a jump)
 EXPONENTS = np.arange(0.0, 2.0001, 0.25)
@@ -31,8 +32,9 @@ CURVED_ABOVE = 0.15
 FOOT_SPAN = 64
 #: smallest standard error of an edge time [samples]: an anti-alias filter smooths a jump over about a sample
 MIN_STD = 0.25
-#: scan steps [samples]: coarse over the whole window, then fine around the best
-COARSE_STEP, GRID_STEP = 0.25, 1.0 / 32.0
+#: coarse scan step over the whole window [samples]; the fine one around the best is the sub-sample timers'
+#: :data:`~impactometer.signals.extrema.GRID_STEP`
+COARSE_STEP = 0.25
 
 
 def _profile(t: np.ndarray, f: np.ndarray, grid: np.ndarray, curved: bool) -> np.ndarray:
@@ -126,7 +128,7 @@ def separation_index(force: np.ndarray, span: PulseSpan, noise: float, *, latest
 
     The onset fit run backwards in time; the search never goes past sample ``latest`` (the start of the next
     pulse). ``force_scale`` [N] is the largest force, which sets the detection level as in
-    :func:`~impactometer.identify.pulses.detect_pulses`.
+    :func:`~impactometer.signals.pulses.detect_pulses`.
     """
     f_all = np.asarray(force, dtype=float)
     n = f_all.size
@@ -137,116 +139,3 @@ def separation_index(force: np.ndarray, span: PulseSpan, noise: float, *, latest
     earliest = 0 if latest is None else n - 1 - int(latest)
     index, std = onset_index(f_all[::-1], mirrored, noise, earliest=earliest)
     return float(n - 1 - index), std
-
-
-#: a turning point of the force must stand out by this many noise levels of the smoothed force [-]
-TURN_SIGMAS = 5.0
-#: the vertex fit reaches from a turning point until the force has moved this fraction of its swing [-]
-VERTEX_DROP = 0.25
-#: fewest and most samples on each side of a turning point in its vertex fit
-VERTEX_HALF_MIN, VERTEX_HALF_MAX = 3, 128
-
-
-def turning_points(force: np.ndarray, lo: int, hi: int, noise: float, width: int) -> list[tuple[int, int, float]]:
-    """Alternating maxima and minima of the force between samples ``lo`` and ``hi``, starting with a maximum.
-
-    The force is smoothed by a moving average of ``width`` samples; a turning point counts once the smoothed
-    force has moved away from it by ``TURN_SIGMAS`` of its noise (σ/√width). Returns (sample, +1 for a maximum
-    or −1 for a minimum, swing [N] from the previous turning point or from the start).
-    """
-    f = np.asarray(force[lo:hi], dtype=float)
-    width = max(int(width), 1)
-    if f.size < width + 2:
-        return []
-    x = np.convolve(f, np.ones(width) / width, mode="same")
-    threshold = TURN_SIGMAS * max(float(noise), 1e-12) / np.sqrt(width)
-    out: list[tuple[int, int, float]] = []
-    sign, cand, last = 1, 0, float(x[0])
-    half = width // 2
-    for i in range(half, x.size - half):
-        if sign * (x[i] - x[cand]) > 0:
-            cand = i
-        elif sign * (x[cand] - x[i]) > threshold and sign * (x[cand] - last) > threshold:
-            out.append((lo + cand, sign, abs(float(x[cand]) - last)))
-            last, sign, cand = float(x[cand]), -sign, i
-    return out
-
-
-@njit(cache=True)
-def _vertex_profile(t: np.ndarray, y: np.ndarray, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Least squares of y(t) by F_E + a±·s² + c±·s³ (s = t − E, coefficients apart on each side of E) at every
-    trial E of ``grid``: (sum of squared residuals, coefficients (F_E, a−, a+, c−, c+)) per trial."""
-    sse = np.empty(grid.size)
-    coef = np.empty((grid.size, 5))
-    basis = np.zeros(5)
-    for g in range(grid.size):
-        gram = 1e-12 * np.eye(5)
-        rhs = np.zeros(5)
-        for i in range(t.size):
-            s = t[i] - grid[g]
-            basis[:] = 0.0
-            basis[0] = 1.0
-            side = 1 if s < 0.0 else 2
-            basis[side] = s * s
-            basis[side + 2] = s * s * s
-            for j in range(5):
-                rhs[j] += basis[j] * y[i]
-                for k in range(5):
-                    gram[j, k] += basis[j] * basis[k]
-        c = np.linalg.solve(gram, rhs)
-        coef[g] = c
-        total = 0.0
-        for i in range(t.size):
-            s = t[i] - grid[g]
-            side = 1 if s < 0.0 else 2
-            r = y[i] - c[0] - c[side] * s * s - c[side + 2] * s * s * s
-            total += r * r
-        sse[g] = total
-    return sse, coef
-
-
-def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float,
-           width: int = 1) -> tuple[float, float, float] | None:
-    """Sub-sample time [samples], its standard error [samples] and the force [N] of a turning point.
-
-    Where the overlap turns, the force of any contact law turns with zero slope, but its curvature may differ
-    on the two sides (a hysteretic contact loads and unloads along different lines: a cusp-like peak). So the
-    samples around ``centre`` -- out to where the force, smoothed over ``width`` samples, has moved
-    ``VERTEX_DROP`` of the ``swing`` on each side -- are fitted with F = F_E + a±·s² + c±·s³, s = t − E, the
-    coefficients on each side of E free; E is scanned like an onset. None where the window leaves the data or
-    the best E is not a maximum (``sign`` = +1) or a minimum (−1) inside the window.
-    """
-    f = np.asarray(force, dtype=float)
-    width = max(int(width), 1)
-    lo_w, hi_w = max(centre - 8 * width - 64, 0), min(centre + 8 * width + 64, f.size)
-    x = np.convolve(f[lo_w:hi_w], np.ones(width) / width, mode="same")
-    c = centre - lo_w
-    level, drop = x[c], VERTEX_DROP * abs(swing)
-    left = right = VERTEX_HALF_MIN
-    while left < VERTEX_HALF_MAX and c - left - 1 >= width // 2 and abs(x[c - left] - level) < drop:
-        left += 1
-    while right < VERTEX_HALF_MAX and c + right + 1 < x.size - width // 2 and abs(x[c + right] - level) < drop:
-        right += 1
-    if centre - left < 0 or centre + right >= f.size or c - left < width // 2 or c + right >= x.size - width // 2:
-        return None
-    t = np.arange(-left, right + 1, dtype=float)
-    y = np.ascontiguousarray(f[centre - left:centre + right + 1], dtype=float)
-
-    def profile(grid):
-        return _vertex_profile(t, y, np.asarray(grid, dtype=float))
-
-    step = max(1.0, float((left + right) // 64))
-    coarse = np.arange(-(left // 2), right // 2 + 1e-9, step)
-    full, _ = profile(coarse)
-    k = int(np.argmin(full))
-    fine = np.arange(coarse[max(k - 1, 0)], coarse[min(k + 1, coarse.size - 1)] + 1e-9, GRID_STEP * step)
-    sse, coef = profile(fine)
-    k = int(np.argmin(sse))
-    if not (0 < k < fine.size - 1 or coarse[0] < fine[k] < coarse[-1]) or np.any(sign * coef[k, 1:3] > 0):
-        return None
-    scatter2 = max(float(noise) ** 2, float(sse[k]) / max(t.size - 6, 1))
-    inside = coarse[full <= sse[k] + scatter2]
-    inside_fine = fine[sse <= sse[k] + scatter2]
-    first = min(inside.min(), inside_fine.min()) if inside.size else inside_fine.min()
-    last = max(inside.max(), inside_fine.max()) if inside.size else inside_fine.max()
-    return centre + float(fine[k]), max(0.5 * (last - first), GRID_STEP), float(coef[k, 0])

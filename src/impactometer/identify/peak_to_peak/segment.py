@@ -14,18 +14,12 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...recording import check_sample_rate
-from .. import trigger
-from ..pulses import (
-    RELEASE_SIGMAS,
-    SUSTAINED_FACTOR,
-    PulseSpan,
-    detect_pulses,
-    detection_levels,
-    first_peak,
-    noise_std,
-    sustained_index,
-)
-from .onsets import VERTEX_HALF_MAX, onset_index, separation_index, turning_points, vertex
+from ...signals import trigger
+from ...signals.extrema import VERTEX_HALF_MAX, smoothing_margin, turning_points, vertex
+from ...signals.noise import quiet_noise_std, robust_noise_std
+from ...signals.pulses import RELEASE_SIGMAS, PulseSpan, detect_pulses, detection_levels, first_peak
+from ...signals.stage_b import SUSTAINED_FACTOR, sustained_index
+from .onsets import onset_index, separation_index
 
 #: pre-trigger samples kept before the trigger (offsets and noise come from them): the residual acceleration
 #: offset, double-integrated, is the largest error of the final answer, so keep up to 0.1 s at 50 kHz
@@ -146,7 +140,7 @@ def quiet_samples(force: np.ndarray, acceleration: np.ndarray, pre: int) -> int:
         head = np.asarray(x[:pre], dtype=float)
         level = float(np.median(head[:pre // 2]))
         mean = np.convolve(head - level, np.full(GUARD_SAMPLES, 1.0 / GUARD_SAMPLES), mode="valid")
-        quiet = np.flatnonzero(mean <= RELEASE_SIGMAS * noise_std(head) / np.sqrt(GUARD_SAMPLES))
+        quiet = np.flatnonzero(mean <= RELEASE_SIGMAS * robust_noise_std(head) / np.sqrt(GUARD_SAMPLES))
         end = min(end, int(quiet[-1]) + GUARD_SAMPLES if quiet.size else 0)  # past the last quiet mean
     return end
 
@@ -159,14 +153,14 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     correlation = 0.0
     if n_pre >= MIN_PRE_SAMPLES:
         f0, a0 = float(np.mean(force[:n_pre])), float(np.mean(acceleration[:n_pre]))
-        sf, sa = float(np.std(force[:n_pre])), float(np.std(acceleration[:n_pre]))
+        sf, sa = float(quiet_noise_std(force[:n_pre])), float(quiet_noise_std(acceleration[:n_pre]))
         # the impact's own noise (median second difference) where it is clearly larger than the pre-trigger's
         sf = _larger_noise(sf, force[n_pre:])
         sa = _larger_noise(sa, acceleration[n_pre:])
         correlation = max(lag_correlation(force[:n_pre]), lag_correlation(acceleration[:n_pre]))
     else:
         n_pre, f0, a0 = 0, 0.0, 0.0
-        sf, sa = noise_std(force), noise_std(acceleration)
+        sf, sa = robust_noise_std(force), robust_noise_std(acceleration)
     # resolution floor: quantisation noise (step/√12), and rounding of exact (simulated) data
     sf = max(sf, quantum(force) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(force))))
     sa = max(sa, quantum(acceleration) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(acceleration))))
@@ -178,7 +172,7 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
 
 
 def _larger_noise(pre: float, signal: np.ndarray) -> float:
-    own = noise_std(signal)
+    own = robust_noise_std(signal)
     return own if pre > 0 and own > NOISE_GROWTH * pre else pre
 
 
@@ -199,7 +193,7 @@ def no_impact(force: np.ndarray, noise: float | None = None) -> IdentificationEr
     """The error for a record in which no contact pulse was found, naming the likely slip: a force channel of the
     wrong sign (a load cell in tension) shows the impact as deep negative pulses."""
     x = np.asarray(force, dtype=float)
-    noise = noise_std(x) if noise is None else noise
+    noise = robust_noise_std(x) if noise is None else noise
     centre = float(np.median(x[: max(x.size // 10, 1)])) if x.size else 0.0  # the level before the impact
     low, high = (float(np.min(x)) - centre, float(np.max(x)) - centre) if x.size else (0.0, 0.0)
     text = f"no impact found: the contact force never leaves its noise (noise {noise:.3g} N)"
@@ -289,9 +283,9 @@ def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     whether each lies in sustained contact (stage B), samples between the first and last of those).
 
     Stage B is the first pulse that lasts longer than ``SUSTAINED_FACTOR`` times the longest bounce before it
-    (:func:`~impactometer.identify.pulses.sustained_index`). The force is smoothed over ``1/SMOOTH_PER_PULSE`` of
-    the first pulse's duration to find the turning points (:func:`.onsets.turning_points`),
-    which a cubic then places to a fraction of a sample (:func:`.onsets.vertex`).
+    (:func:`~impactometer.signals.stage_b.sustained_index`). The force is smoothed over ``1/SMOOTH_PER_PULSE`` of
+    the first pulse's duration to find the turning points (:func:`~impactometer.signals.extrema.turning_points`),
+    which a cubic then places to a fraction of a sample (:func:`~impactometer.signals.extrema.vertex`).
     """
     sustained = sustained_index(seg.pulses, size=seg.force.size, factor=SUSTAINED_FACTOR)
     first = seg.pulses[0]
@@ -304,7 +298,7 @@ def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
             found = []
             for centre, sign, swing in turning_points(seg.force, pulse.zero, hi, seg.noise_force, width):
                 # the samples the vertex fit may read: a key that changes until they have all arrived
-                reach = min(seg.force.size, centre + VERTEX_HALF_MAX + 8 * width + 64)
+                reach = min(seg.force.size, centre + VERTEX_HALF_MAX + smoothing_margin(width))
                 point = ("vertex", centre, sign, round(swing, 6), width, seg.noise_force, reach)
                 if point not in seg.onset_cache:
                     seg.onset_cache[point] = vertex(seg.force, centre, sign, swing, seg.noise_force, width)

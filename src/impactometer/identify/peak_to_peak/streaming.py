@@ -15,10 +15,10 @@ from numba import njit
 
 from ...errors import IdentificationError, ParameterError
 from ...recording import check_sample_rate
+from ...signals import trigger
+from ...signals.stage_b import is_sustained
 from ...validation import check_integer, check_real
 from .. import peak_to_peak as p2p
-from .. import trigger
-from ..pulses import is_sustained
 from ..result import Identification
 
 

@@ -21,10 +21,10 @@ import numpy as np
 from ...errors import ParameterError, ResponseMapError, shown
 from ...recording import Recording
 from ...rig import check_recorded_on
+from ...signals.noise import robust_noise_std
 from ...validation import check_real, is_real
 from ..inspection import inspect_recording
 from ..plausibility import check_answer, in_contact
-from ..pulses import noise_std
 from ..result import Identification
 from .build import PRESSURE_TOLERANCE, build_map_from_recordings, build_map_simulated
 from .database import ResponseMap, refine
@@ -226,7 +226,7 @@ def check_first_contact(recording: Recording, time: np.ndarray, force: np.ndarra
         return  # no first contact in the record: the features say so
     # the offset before first contact where a pre-trigger records one (not the few samples of a filter's delay)
     level = float(np.median(force[:first])) if first >= PRE_TRIGGER_SAMPLES else 0.0
-    why = in_contact(float(force[first]) - level, noise_std(force), float(np.max(force)) - level,
+    why = in_contact(float(force[first]) - level, robust_noise_std(force), float(np.max(force)) - level,
                      f"t = {time[first]:.6g} s (first contact by the record's time base)")
     if why:
         raise ResponseMapError(f"{recording.source}: {why}")

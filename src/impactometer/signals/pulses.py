@@ -1,10 +1,11 @@
-"""Contact pulses of a force signal (stage A) and the start of sustained contact (stage B).
+"""Contact pulses of a force signal (stage A); which of them starts sustained contact is decided in
+:mod:`.stage_b`.
 
 One noise-aware pulse detector in two forms that share a compiled kernel and its constants (``DETECT_SIGMAS``,
-``RELEASE_SIGMAS``, ``HOLD``, ``SUSTAINED_FACTOR``): :class:`PulseDetector` takes the samples in chunks of any
-size, :func:`detect_pulses` takes them all at once (and is the former fed once). The impact trigger
-(:mod:`.trigger`) follows pulses with the same step (:func:`edge`); :func:`contact_pulses` cuts noise-free
-(simulated) forces at a threshold.
+``RELEASE_SIGMAS``, ``HOLD``): :class:`PulseDetector` takes the samples in chunks of any size,
+:func:`detect_pulses` takes them all at once (and is the former fed once). The impact trigger (:mod:`.trigger`)
+follows pulses with the same step (:func:`edge`) and its own hold (``TRIGGER_HOLD``); :func:`contact_pulses` cuts
+noise-free (simulated) forces at a threshold.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ import numpy as np
 from numba import njit
 
 from ..errors import IdentificationError
+from .stage_b import SUSTAINED_FACTOR, is_sustained
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -29,38 +31,11 @@ class Pulse:
     sustained: bool = False
 
 
-#: The one rule of stage B (:func:`is_sustained`): a contact pulse after the first that lasts longer than a factor
-#: times a pulse before it. Its presets, one per caller, all here:
-#: the identification's (the first pulse longer than 2 × the LONGEST pulse before it: a bounce of a noisy record
-#: is never taken for sustained contact),
-SUSTAINED_FACTOR = 2.0
-#: the absorber's common window (``control.event``: a pulse that lasts, to the deepest point, 4 × the FIRST pulse;
-#: it judges a finished, noise-free run, so it asks for the contact that holds the bodies together for good),
-SUSTAINED_WINDOW_FACTOR = 4.0
-#: the controller's estimator (``control.estimator``, compiled: a running contact that has lasted 1.5 × the FIRST
-#: pulse, judged sample by sample; the loop needs the instant the collision that starts the contact is over and the
-#: bodies move together, not the identification's stricter test of a bounce)
-SUSTAINED_CONTROL_FACTOR = 1.5
-
-
-def is_sustained(k: int, length: float, longest: float, factor: float = SUSTAINED_FACTOR) -> bool:
-    """True when pulse ``k`` (0 = the first) of ``length`` is sustained contact (stage B): never the first pulse,
-    and a later one that lasts longer than ``factor`` times the ``longest`` pulse before it (any unit of time).
-
-    A bounce lasts as long as the contact's stiffness makes it, whatever the law; sustained contact lasts as long
-    as the gas spring holds the bodies together, many bounces long. The one rule of stage B for the simulation's
-    pulses (:func:`contact_pulses`), the detected ones (:func:`sustained_index`), ``inspect``, the absorber's
-    common window and metrics (:data:`SUSTAINED_WINDOW_FACTOR`, the first pulse as ``longest``); the controller's
-    compiled estimator judges the same inequality with :data:`SUSTAINED_CONTROL_FACTOR`.
-    """
-    return k > 0 and length > factor * longest
-
-
 def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.0,
                    sustained_factor: float = SUSTAINED_FACTOR) -> list[Pulse]:
     """Contact pulses of ``force`` [N] sampled at ``time`` [s]: runs where the force exceeds ``threshold`` [N].
 
-    A pulse is marked ``sustained`` (stage B, :func:`is_sustained`) when it lasts longer than
+    A pulse is marked ``sustained`` (stage B, :func:`~.stage_b.is_sustained`) when it lasts longer than
     ``sustained_factor`` times the longest pulse before it (the first pulse itself never is); pulses after the
     first sustained one are not reported.
     """
@@ -96,11 +71,6 @@ def contact_pulses(time: np.ndarray, force: np.ndarray, *, threshold: float = 0.
     return pulses
 
 
-def stage_b_start(pulses: list[Pulse]) -> float | None:
-    """Start of sustained contact (stage B) [s], or None when the record has none."""
-    return next((p.start for p in pulses if p.sustained), None)
-
-
 # --------------------------------------------------------------------------------------------------------------
 # Noise-robust detection (used by the peak-to-peak identification)
 
@@ -108,8 +78,16 @@ def stage_b_start(pulses: list[Pulse]) -> float | None:
 DETECT_SIGMAS = 5.0
 #: a pulse ends (and a gap may begin) where the force falls below this many noise standard deviations
 RELEASE_SIGMAS = 2.0
-#: a pulse ends only after this many consecutive samples below the release level
+#: samples beyond a level that start or end a whole pulse (:func:`detect_pulses`, :class:`PulseDetector`; the
+#: controller's contact detection and the confirmation of its turning points use it too): a lone noise sample
+#: neither starts nor ends one
 HOLD = 3
+#: samples beyond a level that start or end a pulse inside an impact for the trigger (:mod:`.trigger`): it reports
+#: a pulse end at its first sample at or below the release level, so that the streaming answer comes without
+#: delay (an end that noise brings early only costs one more solve; the pulses themselves come from
+#: :func:`detect_pulses` with ``HOLD``). Not one rule with ``HOLD``: a longer trigger hold delays every streaming
+#: update, a shorter detector hold lets noise split pulses
+TRIGGER_HOLD = 1
 #: the levels never use a σ below this fraction of the largest force [-]: below it the shape of an edge is
 #: anti-alias ringing (about ±5 % of a force jump) and rounding rather than contact
 FLOOR_FRACTION = 5e-3
@@ -122,30 +100,6 @@ MEDIAN_EFFICIENCY = 1.2533141373155003
 #: that does not part but whose force stays this close to zero carries too little force for its onset row to be off
 #: by more than the noise
 SEPARATION_SIGMAS = 4.0
-
-
-def noise_std(signal: np.ndarray) -> float:
-    """Standard deviation of white noise on a smooth ``signal`` [signal units].
-
-    Median absolute second difference scaled for Gaussian noise (second differences of white noise have
-    variance 6σ²); insensitive to the smooth signal and to a few jumps.
-    """
-    try:
-        x = np.asarray(signal, dtype=float)
-    except (TypeError, ValueError):
-        raise IdentificationError("signal must be an array of numbers") from None
-    if x.ndim > 1:
-        raise IdentificationError(f"signal must be 1-D, got shape {x.shape}")
-    if x.size < 3:
-        return 0.0
-    d2 = np.add(x[2:], x[:-2])  # one work array the size of the signal, whatever its length
-    d2 -= x[1:-1]
-    d2 -= x[1:-1]
-    np.abs(d2, out=d2)
-    middle = (d2.size - 1) // 2  # the median, by partitioning in place
-    d2.partition((middle, d2.size // 2))
-    median = 0.5 * (d2[middle] + d2[d2.size // 2])
-    return float(median / (0.6744897501960817 * np.sqrt(6.0)))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -250,10 +204,9 @@ class PulseDetector:
 
     Parameters
     ----------
-    noise : float
-        Standard deviation of the white noise of the force [N].
-    force_scale : float
-        Largest force [N] (sets the resolution floor of the levels, :func:`detection_levels`).
+    noise, force_scale : float
+        Standard deviation of the white noise of the force [N], and the largest force [N] (which sets the
+        resolution floor of the levels, :func:`detection_levels`).
     start : int
         No pulse starts before this sample.
 
@@ -367,25 +320,3 @@ def first_peak(force: np.ndarray, span: PulseSpan, drop: float) -> int | None:
     if fallen.size == 0:
         return None
     return span.first + int(np.argmax(f[:fallen[0]]))
-
-
-def sustained_index(spans: list[PulseSpan], *, size: int, factor: float = SUSTAINED_FACTOR) -> int | None:
-    """Index in ``spans`` of the pulse where sustained contact (stage B, :func:`is_sustained`) starts, or None,
-    counting a pulse still running at the end of the data (``size`` samples) by how long it has run so far."""
-    if len(spans) < 2 or not spans[0].complete:
-        return None
-    longest = 0
-    for k, span in enumerate(spans):
-        length = (span.end if span.complete else size) - span.zero
-        if is_sustained(k, length, longest, factor):
-            return k
-        if not span.complete:
-            return None
-        longest = max(longest, length)
-    return None
-
-
-def sustained_start(spans: list[PulseSpan], *, size: int, factor: float = SUSTAINED_FACTOR) -> int | None:
-    """Sample index where sustained contact (stage B) starts (see :func:`sustained_index`), or None."""
-    k = sustained_index(spans, size=size, factor=factor)
-    return None if k is None else spans[k].zero

@@ -1,9 +1,9 @@
 """Compiled sample-by-sample impact trigger shared by the batch and the streaming identification.
 
 Inside an impact it follows the contact pulses with the detector of :mod:`.pulses` (its compiled step
-:func:`~.pulses.edge`, its detection and release levels in running σ), without the hold: a pulse ends at its first
-sample at or below the release level, so that the streaming answer comes without delay (an end that noise
-brings early only costs one more solve; the pulses themselves come from :func:`~.pulses.detect_pulses`).
+:func:`~.pulses.edge`, its detection and release levels in running σ), with the hold
+:data:`~.pulses.TRIGGER_HOLD` instead of the detector's :data:`~.pulses.HOLD` (both named and explained side by
+side there).
 
 One pass over the samples keeps a running (exponentially weighted) baseline and noise level of the force, fires
 when the force leaves the noise, reports the end of each contact pulse and closes the impact after a quiet spell
@@ -13,8 +13,8 @@ its events do not depend on how the samples are chunked.
 A record may start at first contact (no quiet history before the impact: a simulation, a DAQ without
 pre-trigger). The warm-up then holds the rise of the first pulse, which a baseline would learn as noise; so at
 the end of the warm-up the spread of the samples is compared with the white noise seen in their second
-differences, and a warm-up that rose far above its first sample fires the trigger at sample 0 with a zero
-baseline (nothing before the record to learn an offset from).
+differences (:func:`~.noise.second_difference_noise_std`), and a warm-up that rose far above its first sample
+fires the trigger at sample 0 with a zero baseline (nothing before the record to learn an offset from).
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .pulses import DETECT_SIGMAS, RELEASE_SIGMAS, edge
+from .noise import second_difference_noise_std
+from .pulses import DETECT_SIGMAS, RELEASE_SIGMAS, TRIGGER_HOLD, edge
 
 IDLE, ACTIVE = 0, 1
 EVENT_TRIGGER, EVENT_PULSE_END, EVENT_CLOSE, EVENT_PAST_PEAK = 1, 2, 3, 4
@@ -36,8 +37,6 @@ BASELINE_SAMPLES, BASELINE_RATE = 256, 50e3
 WARM_SAMPLES = 64
 #: the trigger fires at this many running standard deviations above the baseline
 TRIGGER_SIGMAS = 8.0
-#: samples beyond a level that start or end a pulse inside an impact (the detector's ``HOLD`` is for whole pulses)
-TRIGGER_HOLD = 1
 
 # float state: baseline mean, variance, frozen sigma at the trigger, frozen baseline, maximum of the pulse; while
 # learning: first sample, the two previous samples, sum of squared second differences, largest sample
@@ -80,7 +79,7 @@ def _starts_in_contact(x, index, fstate, floor):
     fstate[_PREV1] = x
     if index != WARM_SAMPLES - 1:
         return False
-    noise = np.sqrt(fstate[_D2SUM] / (6.0 * (index - 1)))
+    noise = second_difference_noise_std(fstate[_D2SUM], index - 1)
     level = TRIGGER_SIGMAS * noise
     if level < floor:
         level = floor
@@ -134,7 +133,7 @@ def run_trigger(force, fstate, istate, floor, quiet_samples, max_samples, baseli
                     istate[_MODE] = ACTIVE
                     istate[_TRIG] = 0
                     istate[_SINCE] = index
-                    noise = np.sqrt(fstate[_D2SUM] / (6.0 * (index - 1)))
+                    noise = second_difference_noise_std(fstate[_D2SUM], index - 1)
                     fstate[_SIGMA] = noise if noise * DETECT_SIGMAS > floor else floor / DETECT_SIGMAS
                     fstate[_BASE] = 0.0
                     fstate[_PMAX] = fstate[_WMAX]
