@@ -25,9 +25,11 @@ from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segmen
 from ..pulses import sustained_index
 from ..result import Identification
 from .early import combine, solve_early
+from .gls import Equations
+from .kinematics import Kinematics
 from .options import check_options, check_unfiltered, check_white_noise, filtered_caution
 from .paper import PAPER_NOISE_LIMIT, paper_caution, solve_paper  # noqa: F401 - part of the package's API
-from .robust import Equations, Kinematics, solve_rows
+from .robust import solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
     PRE_SAMPLES,
