@@ -16,6 +16,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..details import GapReadings, ModelError, Nuisances, RowsUsed, SlowErrors
 from .covariance import DIP_SIGMAS, atom_kernel, normal_inverse, slow_covariance, slow_errors
 from .kinematics import Kinematics, KinematicsAt
 
@@ -56,14 +57,14 @@ class Solution:
     cov: np.ndarray
     chi2: float
     dof: int
-    nuisances: dict
-    used: dict
+    nuisances: Nuisances
+    used: RowsUsed
     gain: np.ndarray
     tau: np.ndarray
     #: largest model-error variance of a group over its noise variance [-]
     scatter: float = 0.0
     #: where the gaps read as flights and as a contact that kept a set fit alike: (V0 [m/s], M1 [kg]) of each
-    readings: dict | None = None
+    readings: GapReadings | None = None
 
 
 #: kinds of rows and atoms: onsets, extrema, separations, and the peak overlap of a separation
@@ -356,9 +357,6 @@ def summary(r: Rows, kin: Kinematics, eqs: Equations, fit: Fit, *, pre_samples: 
     bread = normal_inverse(aw)
     gain = np.zeros((2, rows))
     gain[:, fit.keep] = (bread @ aw.T)[:2, :kept] @ np.linalg.inv(chol)
-    nuisances: dict = dict(fit.phi)
-    if r.fit_b:
-        nuisances["offset_m_s2"] = float(fit.theta[2])
     # slow errors of the channels (a drift; an offset where no pre-trigger measures one) are no white noise: the
     # answer with them estimated differs from this one by what they may have done, and the difference joins the
     # covariance, as the readings of the gaps do in :func:`.robust.solve_rows`
@@ -366,21 +364,25 @@ def summary(r: Rows, kin: Kinematics, eqs: Equations, fit: Fit, *, pre_samples: 
     slow = slow_errors(kin.t00, kin.dt, pre_samples, r.tau, fit.coefficients, r.mixer[fit.keep], chol, aw[:kept],
                        yw[:kept], fit.white, room=room) if r.fit_b or room >= 1 else None
     cov_out = bread[:2, :2]
+    slow_found: SlowErrors | None = None
     if slow is not None:
         found, cov_slow = slow
         moved = sol[:2] - found[:2]
         cov_out = slow_covariance(cov_out, cov_slow, moved, bounded=pre_samples > 0)
-        nuisances["slow_errors"] = {"offset_m_s2": float(found[2]), "drift_m_s3": float(found[3]),
-                                    "shift_v0_m_s": float(moved[0]), "shift_w_1_kg": float(moved[1])}
+        slow_found = SlowErrors(offset=float(found[2]), drift=float(found[3]), shift_velocity=float(moved[0]),
+                                shift_inverse_mass=float(moved[1]))
     model = fit.model
-    nuisances["model_error"] = {"extrema_m_s": float(np.sqrt(model[EXTREMUM])),
-                                "separations_m": float(np.sqrt(model[SEPARATION]))}
+    nuisances = Nuisances(lag_e=fit.phi.get("lag_e"), lag_s=fit.phi.get("lag_s"), set_fraction=fit.phi.get("set"),
+                          offset=float(fit.theta[2]) if r.fit_b else None,
+                          slow_errors=slow_found,
+                          model_error=ModelError(extrema=float(np.sqrt(model[EXTREMUM])),
+                                                 separations=float(np.sqrt(model[SEPARATION]))))
     noise_var = np.array([float(np.mean(fit.noise_diag[r.group == k])) if np.any(r.group == k) else 1.0
                           for k in range(3)])
     scatter = float(np.max(model / np.maximum(noise_var, 1e-300)))
-    used = {"onsets": int(r.onsets - dropped), "extrema": int(r.extrema),
-            "stage_b_extrema": int(np.count_nonzero(eqs.stage_b) * (r.extrema > 0)),
-            "separations": int(r.separations), "stage_b_samples": int(eqs.stage_b_samples * (r.extrema > 0))}
+    used = RowsUsed(onsets=int(r.onsets - dropped), extrema=int(r.extrema),
+                    stage_b_extrema=int(np.count_nonzero(eqs.stage_b) * (r.extrema > 0)),
+                    separations=int(r.separations), stage_b_samples=int(eqs.stage_b_samples * (r.extrema > 0)))
     return Solution(theta=fit.theta[:2].copy(), cov=cov_out, chi2=chi2, dof=dof, nuisances=nuisances, used=used,
                     gain=gain, tau=r.tau[:rows], scatter=scatter)
 

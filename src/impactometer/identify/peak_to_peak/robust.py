@@ -33,6 +33,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..details import GapReadings
 from .gls import SET_MAX, Equations, Solution
 from .gls import solve as _solve_rows
 from .kinematics import Kinematics
@@ -58,20 +59,22 @@ def solve_rows(kin: Kinematics, eqs: Equations, *, noise_force: float, noise_acc
     judged = _solve_rows(kin, eqs, judge_by_stage_b=True, **options)
 
     def bounded(sol: Solution) -> bool:
-        return any(value >= 0.99 * limit for name, limit in (("set", SET_MAX), ("lag_e", lag_max), ("lag_s", lag_max))
-                   if isinstance(value := sol.nuisances.get(name), float))
+        found = sol.nuisances
+        return any(value >= 0.99 * limit for value, limit in ((found.set_fraction, SET_MAX), (found.lag_e, lag_max),
+                                                              (found.lag_s, lag_max)) if value is not None)
 
     # the one that scatters less wins, unless it needs a model at the edge of its range and the other, without
     # one, scatters within its noise or less than BOUNDED_SCATTER times as much
     best, other = (judged, flights) if judged.scatter < flights.scatter else (flights, judged)
     near = other.scatter <= max(1.0, BOUNDED_SCATTER * best.scatter)
     chosen = other if bounded(best) and not bounded(other) and near else best
-    if chosen is flights and flights.used["onsets"] > judged.used["onsets"] \
+    if chosen is flights and flights.used.onsets > judged.used.onsets \
             and judged.scatter <= max(1.0, flights.scatter):
         # the flights keep onsets the judged reading doubts, and the data fit both readings as well: whether those
         # gaps were flights (a pad that kept no set) is not in the data, so their difference is in the answer's σ
         diff = flights.theta - judged.theta
-        readings = {k: (float(v.theta[0]), 1.0 / float(v.theta[1])) for k, v in (("flights", flights), ("set", judged))}
+        readings = GapReadings(flights=(float(flights.theta[0]), 1.0 / float(flights.theta[1])),
+                               kept_set=(float(judged.theta[0]), 1.0 / float(judged.theta[1])))
         chosen = replace(flights, cov=flights.cov + np.outer(diff, diff), readings=readings)
     return chosen
 
