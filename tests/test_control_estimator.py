@@ -9,6 +9,7 @@ from impactometer.constants import STANDARD_GRAVITY
 from impactometer.control import ControlSettings, simulate_controlled, windows
 from impactometer.control import estimator as est
 from impactometer.control.loop import sensor_noise, sensor_sigma
+from impactometer.control.state import N_ESTIMATOR, Estimator, Windows
 from impactometer.model import dynamics as d
 from impactometer.model.setup import initial_state, pack
 from impactometer.rig import Scenario, get_rig
@@ -61,17 +62,17 @@ def test_windows_between_equal_velocity_instants_remove_the_oscillation_bias():
 def test_an_own_estimate_is_acted_on_only_once_it_can_be_trusted(std, trusted):
     """Without a prior the stage-B estimate is the mass only while its standard error is below MASS_TRUST of it;
     before, the mass stays unknown (NaN) and the controller keeps the valve closed."""
-    e = np.zeros(est.N_ESTIMATOR)
-    e[est.WINDOWS:] = windows.initial()
-    e[est.WINDOWS + windows.MASS] = 30.0
-    e[est.WINDOWS + windows.STD] = std
+    e = np.zeros(N_ESTIMATOR)
+    e[Estimator.WINDOWS:] = windows.initial()
+    e[Estimator.WINDOWS + Windows.MASS] = 30.0
+    e[Estimator.WINDOWS + Windows.STD] = std
     ctrl = ControlSettings(strategy="predictive").packed()
     est._combine(e, ctrl, False)
     assert (std < 30.0 * est.MASS_TRUST) == trusted
     if trusted:
-        assert e[est.MASS] == 30.0 and e[est.MASS_STD] == std
+        assert e[Estimator.MASS] == 30.0 and e[Estimator.MASS_STD] == std
     else:
-        assert math.isnan(e[est.MASS]) and math.isinf(e[est.MASS_STD])
+        assert math.isnan(e[Estimator.MASS]) and math.isinf(e[Estimator.MASS_STD])
 
 
 def test_prior_and_stage_b_are_weighted_by_their_errors():
@@ -101,6 +102,6 @@ def test_estimator_starts_from_the_measured_state():
     p = pack(get_rig("drop-stand-pad"), Scenario(mass=30.0, velocity=2.0))
     y0 = initial_state(p)
     e = est.initial(y0, ControlSettings(mass=20.0, velocity=1.5, start=0.01).packed())
-    assert e[est.P_LOWER_F] == y0[d.P_LOWER] and e[est.X_HAT] == y0[d.U2]
+    assert e[Estimator.P_LOWER_F] == y0[d.P_LOWER] and e[Estimator.X_HAT] == y0[d.U2]
     # the identification's answer is not known before the control start
-    assert math.isnan(e[est.MASS]) and math.isnan(e[est.VELOCITY]) and e[est.IN_CONTACT] == 0.0
+    assert math.isnan(e[Estimator.MASS]) and math.isnan(e[Estimator.VELOCITY]) and e[Estimator.IN_CONTACT] == 0.0

@@ -7,6 +7,7 @@ import pytest
 
 from impactometer.control import ControlSettings, simulate_controlled, windows
 from impactometer.control.loop import sensor_noise, sensor_sigma
+from impactometer.control.state import Windows
 from impactometer.rig import Scenario
 
 
@@ -20,7 +21,7 @@ def test_noise_spikes_do_not_make_window_ends():
     ends = []
     for i, f in enumerate(force):
         windows.push(w, i * 2e-5, f, 10.0, 5.0 * sigma, True, False, sigma, 0.1)
-        ends.append(w[windows.N_ENDS])
+        ends.append(w[Windows.N_ENDS])
     assert ends[-1] == 1.0  # the peak at sample 50, and nothing since
     assert ends[140] == 1.0
 

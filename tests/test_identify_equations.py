@@ -204,11 +204,13 @@ def test_readings_the_data_cannot_tell_apart_widen_the_answer(monkeypatch, judge
     """The flights reading keeps an onset the stage-B reading drops; where both fit the turning points as well,
     the flights' estimate is kept and the difference of the two readings joins its covariance (whether that gap
     was a flight, or a pad that kept a set, is not in the data); where the stage-B reading fits worse, nothing."""
+    from impactometer.identify.details import Nuisances, RowsUsed
     from impactometer.identify.peak_to_peak import robust
 
     def solution(theta, std, onsets, scatter):
-        return robust.Solution(theta=np.array(theta), cov=np.diag(np.square(std)), chi2=1.0, dof=3, nuisances={},
-                               used={"onsets": onsets}, gain=np.zeros((2, 0)), tau=np.zeros(0), scatter=scatter)
+        return robust.Solution(theta=np.array(theta), cov=np.diag(np.square(std)), chi2=1.0, dof=3,
+                               nuisances=Nuisances(), used=RowsUsed(onsets=onsets), gain=np.zeros((2, 0)),
+                               tau=np.zeros(0), scatter=scatter)
 
     flights = solution([1.43, 0.045], [0.011, 0.002], 1, 0.0)
     judged = solution([1.50, 0.050], [0.095, 0.006], 0, judged_scatter)

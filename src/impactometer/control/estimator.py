@@ -36,16 +36,12 @@ import math
 import numpy as np
 from numba import njit
 
-from ..model import dynamics as d
+from ..model import dynamics
 from ..signals.pulses import DETECT_SIGMAS, HOLD, RELEASE_SIGMAS
 from ..signals.stage_b import controller_sustained
-from . import settings as s
 from . import windows
+from .state import N_ESTIMATOR, Estimator, Settings, Windows
 
-# slots of the estimator state, then the state of the stage-B windows (:mod:`.windows`) from slot WINDOWS on
-(IMPULSE, FORCE_PREV, P_LOWER_F, P_UPPER_F, X_HAT, V_HAT, ABOVE, BELOW, IN_CONTACT, CONTACT_START, FIRST_PULSE,
- MASS, MASS_STD, VELOCITY, SUSTAINED, LATCHED, OPENING_MODEL, TARGET, V_SLOW, STAGE_B, WINDOWS) = range(21)
-N_ESTIMATOR = WINDOWS + windows.N_STATE
 #: time constant of the slow piston velocity [s]: the mean motion of mass and piston, without the oscillation of the
 #: mass on the contact element (above 100 Hz on the built-in stands) that a valve must not feed
 SLOW_VELOCITY_TIME = 5e-3
@@ -66,16 +62,16 @@ def initial(y0, ctrl):
     besides the estimates it holds the latch of the supervisor, the controller's model of the valve opening and the
     last target force."""
     e = np.zeros(N_ESTIMATOR)
-    e[P_LOWER_F] = y0[d.P_LOWER]
-    e[P_UPPER_F] = y0[d.P_UPPER]
-    e[X_HAT] = y0[d.U2]
-    e[TARGET] = math.nan
-    e[CONTACT_START] = math.nan
-    e[FIRST_PULSE] = math.nan
-    e[MASS] = math.nan
-    e[MASS_STD] = math.inf
-    e[VELOCITY] = math.nan
-    e[WINDOWS:] = windows.initial()
+    e[Estimator.P_LOWER_F] = y0[dynamics.P_LOWER]
+    e[Estimator.P_UPPER_F] = y0[dynamics.P_UPPER]
+    e[Estimator.X_HAT] = y0[dynamics.U2]
+    e[Estimator.TARGET] = math.nan
+    e[Estimator.CONTACT_START] = math.nan
+    e[Estimator.FIRST_PULSE] = math.nan
+    e[Estimator.MASS] = math.nan
+    e[Estimator.MASS_STD] = math.inf
+    e[Estimator.VELOCITY] = math.nan
+    e[Estimator.WINDOWS:] = windows.initial()
     return e
 
 
@@ -83,76 +79,79 @@ def initial(y0, ctrl):
 def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravity, ctrl):
     """Advance the estimator state ``e`` by one sample at time ``t`` [s] with the sensor readings (SI units)."""
     if t > 0.0:
-        e[IMPULSE] += 0.5 * (e[FORCE_PREV] + force) * dt
-    e[FORCE_PREV] = force
-    alpha = dt / (ctrl[s.TAU_FILTER] + dt)
-    e[P_LOWER_F] += alpha * (p_lower - e[P_LOWER_F])
-    e[P_UPPER_F] += alpha * (p_upper - e[P_UPPER_F])
+        e[Estimator.IMPULSE] += 0.5 * (e[Estimator.FORCE_PREV] + force) * dt
+    e[Estimator.FORCE_PREV] = force
+    alpha = dt / (ctrl[Settings.TAU_FILTER] + dt)
+    e[Estimator.P_LOWER_F] += alpha * (p_lower - e[Estimator.P_LOWER_F])
+    e[Estimator.P_UPPER_F] += alpha * (p_upper - e[Estimator.P_UPPER_F])
     # observer: predict with the measured acceleration, correct with the measured displacement
-    w = ctrl[s.OBSERVER_BANDWIDTH] * dt
-    e[X_HAT] += e[V_HAT] * dt + 0.5 * acceleration * dt * dt
-    e[V_HAT] += acceleration * dt
-    residual = displacement - e[X_HAT]
-    e[X_HAT] += 2.0 * w * residual
-    e[V_HAT] += w * w / dt * residual
-    e[V_SLOW] += dt / (SLOW_VELOCITY_TIME + dt) * (e[V_HAT] - e[V_SLOW])
+    w = ctrl[Settings.OBSERVER_BANDWIDTH] * dt
+    e[Estimator.X_HAT] += e[Estimator.V_HAT] * dt + 0.5 * acceleration * dt * dt
+    e[Estimator.V_HAT] += acceleration * dt
+    residual = displacement - e[Estimator.X_HAT]
+    e[Estimator.X_HAT] += 2.0 * w * residual
+    e[Estimator.V_HAT] += w * w / dt * residual
+    e[Estimator.V_SLOW] += dt / (SLOW_VELOCITY_TIME + dt) * (e[Estimator.V_HAT] - e[Estimator.V_SLOW])
     # contact detection with hysteresis (levels of the pulse detector)
-    sigma = max(ctrl[s.FORCE_NOISE], 1e-9)
-    if e[IN_CONTACT] == 0.0:
-        e[ABOVE] = e[ABOVE] + 1.0 if force > DETECT_SIGMAS * sigma else 0.0
-        if e[ABOVE] >= HOLD:
-            e[IN_CONTACT] = 1.0
-            e[CONTACT_START] = t - (HOLD - 1) * dt
-            e[BELOW] = 0.0
+    sigma = max(ctrl[Settings.FORCE_NOISE], 1e-9)
+    if e[Estimator.IN_CONTACT] == 0.0:
+        e[Estimator.ABOVE] = e[Estimator.ABOVE] + 1.0 if force > DETECT_SIGMAS * sigma else 0.0
+        if e[Estimator.ABOVE] >= HOLD:
+            e[Estimator.IN_CONTACT] = 1.0
+            e[Estimator.CONTACT_START] = t - (HOLD - 1) * dt
+            e[Estimator.BELOW] = 0.0
     else:
-        e[BELOW] = e[BELOW] + 1.0 if force < RELEASE_SIGMAS * sigma else 0.0
-        if e[BELOW] >= HOLD:
-            e[IN_CONTACT] = 0.0
-            e[ABOVE] = 0.0
-            if math.isnan(e[FIRST_PULSE]):
-                e[FIRST_PULSE] = t - (HOLD - 1) * dt - e[CONTACT_START]
-    held = t - e[CONTACT_START]
-    e[SUSTAINED] = 1.0 if e[IN_CONTACT] != 0.0 and controller_sustained(held, e[FIRST_PULSE]) else 0.0
-    together = e[SUSTAINED] != 0.0
-    if ctrl[s.REFINE_MASS] != 0.0:  # a window within one contact also shows the bodies moving together
-        together |= windows.push(e[WINDOWS:], t, force, gravity - acceleration, DETECT_SIGMAS * sigma,
-                                 e[IN_CONTACT] != 0.0, e[SUSTAINED] != 0.0, sigma, ctrl[s.ACCELERATION_NOISE])
-    if e[STAGE_B] == 0.0 and together:
-        e[STAGE_B] = 1.0
-    known = t >= ctrl[s.T_START]  # the identification's answer exists from the control start on
+        e[Estimator.BELOW] = e[Estimator.BELOW] + 1.0 if force < RELEASE_SIGMAS * sigma else 0.0
+        if e[Estimator.BELOW] >= HOLD:
+            e[Estimator.IN_CONTACT] = 0.0
+            e[Estimator.ABOVE] = 0.0
+            if math.isnan(e[Estimator.FIRST_PULSE]):
+                e[Estimator.FIRST_PULSE] = t - (HOLD - 1) * dt - e[Estimator.CONTACT_START]
+    held = t - e[Estimator.CONTACT_START]
+    sustained = e[Estimator.IN_CONTACT] != 0.0 and controller_sustained(held, e[Estimator.FIRST_PULSE])
+    e[Estimator.SUSTAINED] = 1.0 if sustained else 0.0
+    together = e[Estimator.SUSTAINED] != 0.0
+    if ctrl[Settings.REFINE_MASS] != 0.0:  # a window within one contact also shows the bodies moving together
+        together |= windows.push(e[Estimator.WINDOWS:], t, force, gravity - acceleration, DETECT_SIGMAS * sigma,
+                                 e[Estimator.IN_CONTACT] != 0.0, e[Estimator.SUSTAINED] != 0.0, sigma,
+                                 ctrl[Settings.ACCELERATION_NOISE])
+    if e[Estimator.STAGE_B] == 0.0 and together:
+        e[Estimator.STAGE_B] = 1.0
+    known = t >= ctrl[Settings.START]  # the identification's answer exists from the control start on
     _combine(e, ctrl, known)
-    if e[STAGE_B] != 0.0:  # momentum balance of the mass, pulled slowly towards the observer's velocity
-        if e[STAGE_B] == 1.0:  # onset: mostly at a window end, where both bodies have the piston's velocity
-            e[VELOCITY] = e[V_HAT]
-            e[STAGE_B] = 2.0
-        deceleration = force / e[MASS] if e[MASS] > 0.0 else 0.0
-        e[VELOCITY] += (gravity - deceleration) * dt + VELOCITY_CORRECTION * dt * (e[V_HAT] - e[VELOCITY])
+    if e[Estimator.STAGE_B] != 0.0:  # momentum balance of the mass, pulled slowly towards the observer's velocity
+        if e[Estimator.STAGE_B] == 1.0:  # onset: mostly at a window end, where both bodies have the piston's velocity
+            e[Estimator.VELOCITY] = e[Estimator.V_HAT]
+            e[Estimator.STAGE_B] = 2.0
+        deceleration = force / e[Estimator.MASS] if e[Estimator.MASS] > 0.0 else 0.0
+        e[Estimator.VELOCITY] += (gravity - deceleration) * dt \
+            + VELOCITY_CORRECTION * dt * (e[Estimator.V_HAT] - e[Estimator.VELOCITY])
     elif not known:
-        e[VELOCITY] = math.nan
-    elif e[MASS] > 0.0:
-        e[VELOCITY] = ctrl[s.VELOCITY_HAT] + gravity * t - e[IMPULSE] / e[MASS]
+        e[Estimator.VELOCITY] = math.nan
+    elif e[Estimator.MASS] > 0.0:
+        e[Estimator.VELOCITY] = ctrl[Settings.VELOCITY] + gravity * t - e[Estimator.IMPULSE] / e[Estimator.MASS]
     else:
-        e[VELOCITY] = ctrl[s.VELOCITY_HAT] + gravity * t
+        e[Estimator.VELOCITY] = ctrl[Settings.VELOCITY] + gravity * t
 
 
 @njit(cache=True, error_model="numpy")
 def _combine(e, ctrl, known):
     """Mass estimate [kg] and its standard error from the prior (once ``known``) and the stage-B windows."""
-    prior = ctrl[s.MASS_HAT] if known else math.nan
-    prior_std = max(ctrl[s.MASS_STD], PRIOR_FLOOR * prior) if prior > 0.0 else math.inf
-    stage_b, stage_b_std = e[WINDOWS + windows.MASS], e[WINDOWS + windows.STD]
+    prior = ctrl[Settings.MASS] if known else math.nan
+    prior_std = max(ctrl[Settings.MASS_STD], PRIOR_FLOOR * prior) if prior > 0.0 else math.inf
+    stage_b, stage_b_std = e[Estimator.WINDOWS + Windows.MASS], e[Estimator.WINDOWS + Windows.STD]
     if not (stage_b > 0.0 and math.isfinite(stage_b_std)):
-        e[MASS] = prior
-        e[MASS_STD] = prior_std
+        e[Estimator.MASS] = prior
+        e[Estimator.MASS_STD] = prior_std
         return
     if not (prior > 0.0 and math.isfinite(prior_std)) \
             or abs(prior - stage_b) > CONSISTENCY * math.sqrt(prior_std * prior_std + stage_b_std * stage_b_std):
         # no prior, or one the stage-B data contradict: the data alone, once they can be trusted
         trusted = stage_b > 0.0 and stage_b_std < MASS_TRUST * stage_b
-        e[MASS] = stage_b if trusted else math.nan
-        e[MASS_STD] = stage_b_std if trusted else math.inf
+        e[Estimator.MASS] = stage_b if trusted else math.nan
+        e[Estimator.MASS_STD] = stage_b_std if trusted else math.inf
         return
     w_prior = 1.0 / (prior_std * prior_std)
     w_b = 1.0 / (stage_b_std * stage_b_std)
-    e[MASS] = (prior * w_prior + stage_b * w_b) / (w_prior + w_b)
-    e[MASS_STD] = 1.0 / math.sqrt(w_prior + w_b)
+    e[Estimator.MASS] = (prior * w_prior + stage_b * w_b) / (w_prior + w_b)
+    e[Estimator.MASS_STD] = 1.0 / math.sqrt(w_prior + w_b)

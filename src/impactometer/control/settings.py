@@ -1,7 +1,7 @@
 """What the controller of valve Z is told: :class:`ControlSettings` (a frozen dataclass with named fields).
 
-The compiled loop reads the settings as a packed vector (:meth:`ControlSettings.packed`, slot indices below); that
-vector never leaves the control package.
+The compiled loop reads the settings as a packed vector (:meth:`ControlSettings.packed`, its slots named by
+:class:`.state.Settings`); that vector never leaves the control package.
 """
 
 from __future__ import annotations
@@ -13,16 +13,10 @@ import numpy as np
 
 from ..errors import ParameterError, shown
 from ..validation import check_flag, check_real, is_real
+from .state import Strategy, pack_settings
 
-#: strategy name -> code of the compiled controller
-STRATEGY_CODES = {"closed": 0, "constant": 1, "realtime": 2, "predictive": 3, "level": 4}
-CLOSED, CONSTANT, REALTIME, PREDICTIVE, LEVEL = range(5)
-
-# slots of the packed settings, in the order of the dataclass fields
-(STRATEGY, T_START, OPENING, MASS_HAT, MASS_STD, VELOCITY_HAT, U_END, TAU_CONTROL, TAU_FILTER, P_CHARGE, T_CHARGE,
- CLOSE_ON_STOP, F_MAX, BOUNCE_GATE, BOUNCE_THRESHOLD, REFINE_MASS, FORCE_LEVEL, FORCE_NOISE, SUPERVISE,
- OBSERVER_BANDWIDTH, ACCELERATION_NOISE) = range(21)
-N_SETTINGS = 21
+#: the strategies of the compiled controller, by name
+STRATEGIES = sorted(strategy.name.lower() for strategy in Strategy)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -80,8 +74,8 @@ class ControlSettings:
     acceleration_noise: float = 0.0
 
     def __post_init__(self) -> None:
-        if self.strategy not in STRATEGY_CODES:
-            raise ParameterError(f"control.strategy must be one of {sorted(STRATEGY_CODES)}, got {self.strategy!r}")
+        if self.strategy not in STRATEGIES:
+            raise ParameterError(f"control.strategy must be one of {STRATEGIES}, got {self.strategy!r}")
         for f in fields(self):
             value = getattr(self, f.name)
             if f.name == "strategy":
@@ -106,9 +100,5 @@ class ControlSettings:
                                  f"{self.force_level!r}")
 
     def packed(self) -> np.ndarray:
-        """The settings as the vector the compiled loop reads (slots in field order)."""
-        out = np.empty(N_SETTINGS)
-        for i, f in enumerate(fields(self)):
-            value = getattr(self, f.name)
-            out[i] = STRATEGY_CODES[value] if f.name == "strategy" else float(value)
-        return out
+        """The settings as the vector the compiled loop reads (:func:`.state.pack_settings`)."""
+        return pack_settings(self)

@@ -18,21 +18,19 @@ import numpy as np
 from numba import njit
 
 from ..errors import ParameterError, SimulationError
-from ..model import actuated, stepper
-from ..model import dynamics as d
+from ..model import actuated, dynamics, stepper
 from ..model.setup import initial_state, pack
 from ..model.simulate import absolute_tolerance, sample_times, simulation_result
 from ..rig import Rig, Scenario, get_rig
 from ..validation import check_real
-from . import controller as ctl
-from . import estimator as est
-from .settings import T_START as STARTS
+from . import controller, estimator
 from .settings import ControlSettings
+from .state import Drive, Estimator, Settings, pack_drive
 from .valve import ValveDrive
 
 #: the sensors the controller reads (model channels), in the order of the rows of the noise matrix
 SENSOR_CHANNELS = ("contact_force", "a2", "pressure_lower", "pressure_upper", "u2")
-SENSOR_INDEX = np.array([d.CHANNELS.index(name) for name in SENSOR_CHANNELS])
+SENSOR_INDEX = np.array([dynamics.CHANNELS.index(name) for name in SENSOR_CHANNELS])
 N_SENSOR = len(SENSOR_CHANNELS)
 #: controller histories returned next to the model's
 HISTORIES = ("valve_opening", "valve_command", "target_force", "estimated_velocity", "estimated_piston_displacement",
@@ -61,50 +59,50 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra, sto
     n = out.shape[1]
     dt = 1.0 / sample_rate
     y = np.empty(actuated.N_STATE)
-    y[:d.N_STATE] = y0
+    y[:dynamics.N_STATE] = y0
     y[actuated.OPENING] = 0.0
     k = np.empty((stepper.WORK_ROWS, actuated.N_STATE))
     u = np.zeros(actuated.N_INPUT)
-    u[actuated.TIME_CONSTANT] = drive[ctl.TIME_CONSTANT]
-    u[actuated.MAX_RATE] = drive[ctl.MAX_RATE]
-    u[actuated.ROUTE] = drive[ctl.ROUTE]
-    lag = drive[ctl.DEAD_TIME] / dt  # dead time in samples: whole part and fraction
+    u[actuated.TIME_CONSTANT] = drive[Drive.TIME_CONSTANT]
+    u[actuated.MAX_RATE] = drive[Drive.MAX_RATE]
+    u[actuated.ROUTE] = drive[Drive.ROUTE]
+    lag = drive[Drive.DEAD_TIME] / dt  # dead time in samples: whole part and fraction
     whole = int(math.floor(lag + 1e-9))
     fraction = lag - whole if lag - whole > 1e-9 else 0.0
     size = whole + 2
     history = np.zeros(size)  # commands sent, by sample index modulo size (unsent ones read as closed)
     predicted_delay = int(round(lag))
-    e = est.initial(y0, ctrl)
-    row = np.empty(d.N_CHANNEL)
+    e = estimator.initial(y0, ctrl)
+    row = np.empty(dynamics.N_CHANNEL)
     h = dt
     turned = math.inf
     for j in range(n):
         t = j * dt
         if t > turned + stop_after:
             return stepper.OK, j - 1
-        d.channels(y, p, row)
-        if turned == math.inf and t > ctrl[STARTS] and y[d.V1] < 0.0 and row[SENSOR_INDEX[0]] > 0.0:
+        dynamics.channels(y, p, row)
+        if turned == math.inf and t > ctrl[Settings.START] and y[dynamics.V1] < 0.0 and row[SENSOR_INDEX[0]] > 0.0:
             turned = t  # the mass, in contact, turns back up: its deepest point
-        for i in range(d.N_CHANNEL):
+        for i in range(dynamics.N_CHANNEL):
             out[i, j] = row[i]
-        est.update(e, t, dt, row[SENSOR_INDEX[0]] + noise[0, j], row[SENSOR_INDEX[1]] + noise[1, j],
-                   row[SENSOR_INDEX[2]] + noise[2, j], row[SENSOR_INDEX[3]] + noise[3, j],
-                   row[SENSOR_INDEX[4]] + noise[4, j], p[d.GRAVITY], ctrl)
-        command = ctl.command_of(t, dt, p, ctrl, drive, e, history, (j - 1) % size, predicted_delay)
+        estimator.update(e, t, dt, row[SENSOR_INDEX[0]] + noise[0, j], row[SENSOR_INDEX[1]] + noise[1, j],
+                         row[SENSOR_INDEX[2]] + noise[2, j], row[SENSOR_INDEX[3]] + noise[3, j],
+                         row[SENSOR_INDEX[4]] + noise[4, j], p[dynamics.GRAVITY], ctrl)
+        command = controller.command_of(t, dt, p, ctrl, drive, e, history, (j - 1) % size, predicted_delay)
         if program.size:
             command = program[j]
         history[j % size] = command
         extra[0, j] = y[actuated.OPENING]
         extra[1, j] = command
-        extra[2, j] = e[est.TARGET]
-        extra[3, j] = e[est.VELOCITY]
-        extra[4, j] = e[est.X_HAT]
-        extra[5, j] = e[est.MASS]
-        extra[6, j] = e[est.MASS_STD]
-        extra[7, j] = e[est.SUSTAINED]
+        extra[2, j] = e[Estimator.TARGET]
+        extra[3, j] = e[Estimator.VELOCITY]
+        extra[4, j] = e[Estimator.X_HAT]
+        extra[5, j] = e[Estimator.MASS]
+        extra[6, j] = e[Estimator.MASS_STD]
+        extra[7, j] = e[Estimator.SUSTAINED]
         # the controller's model of the opening, driven by the command that acts now
-        e[est.OPENING_MODEL] = ctl.actuator_step(e[est.OPENING_MODEL], history[(j - predicted_delay) % size], dt,
-                                                 drive)
+        sent = history[(j - predicted_delay) % size]
+        e[Estimator.OPENING_MODEL] = controller.actuator_step(e[Estimator.OPENING_MODEL], sent, dt, drive)
         if j == n - 1:
             break
         if fraction > 0.0:  # the command sent whole + 1 samples ago acts until the next one arrives
@@ -169,26 +167,26 @@ def simulate_controlled(scenario: Scenario, rig: Rig | str | None = None, *, con
     rtol = check_real("rtol", rtol, low=1e-13, high=1e-3, state_range=True)
     t = sample_times(duration, sample_rate)
     p = pack(rig, scenario)
-    p[d.VALVE_AREA] = 0.0
+    p[dynamics.VALVE_AREA] = 0.0
     y0 = initial_state(p)
     noise = np.zeros((N_SENSOR, t.size)) if sensor_noise is None else np.ascontiguousarray(sensor_noise, float)
     if noise.shape != (N_SENSOR, t.size):
         raise ParameterError(f"sensor_noise must have shape {(N_SENSOR, t.size)}, got {noise.shape}")
     atol = np.append(absolute_tolerance(rtol), rtol * 1e-3)  # the opening: a fraction of the open valve
-    chans = np.empty((d.N_CHANNEL, t.size))
+    chans = np.empty((dynamics.N_CHANNEL, t.size))
     extra = np.empty((len(HISTORIES), t.size))
     stop_after = check_real("stop_after", stop_after, low=0.0, finite=False, unit=" [s] (inf: never)",
                             state_range=True)
     commands = np.zeros(0) if program is None else np.ascontiguousarray(program, float)
     if program is not None and (commands.shape != t.shape or not np.all((commands >= 0.0) & (commands <= 1.0))):
         raise ParameterError(f"program must hold {t.size} commands within [0, 1], got shape {commands.shape}")
-    status, last = run_loop(p, y0, control.packed(), ctl.drive_vector(drive), noise, float(sample_rate), rtol, atol,
+    status, last = run_loop(p, y0, control.packed(), pack_drive(drive), noise, float(sample_rate), rtol, atol,
                             chans, extra, stop_after, commands)
     note = {}
     if status == stepper.OK and last < t.size - 1:
         t, chans, extra = t[:last + 1], chans[:, :last + 1], extra[:, :last + 1]
     if status != stepper.OK:
-        if chans[d.CHANNELS.index("u2"), last] < BOTTOM_FRACTION * rig.cylinder.stroke:
+        if chans[dynamics.CHANNELS.index("u2"), last] < BOTTOM_FRACTION * rig.cylinder.stroke:
             raise SimulationError(f"controlled simulation failed ({stepper.STATUS_TEXT[status]}) at "
                                   f"t = {t[last]:.6f} s for {scenario}")
         # the piston reached the bottom with the lower chamber emptied through the valve: the run ends there

@@ -31,23 +31,8 @@ from numba import njit
 
 from ..signals.extrema import MAX_HALF_WIDTH, ring_vertex
 from ..signals.pulses import HOLD
+from .state import END_SLOTS, MAX_ENDS, N_SUMS, N_WINDOWS, RING, End, Sums, Windows
 
-# slots of the state
-(LOOKING, EXTREME, EXTREME_AT, COUNT, OPENED, LAST_COMMIT, N_ENDS, MASS, STD, BEYOND) = range(10)
-#: running sums (Σ Fc, Σ (g − a2), samples) from first contact on
-N_SUMS = 3
-RUNNING = 10
-#: rings of the last RING samples' force and running sums
-RING = 256
-FORCE_RING = RUNNING + N_SUMS
-SUMS_RING = FORCE_RING + RING
-#: per stored end: the running sums there, Fc and g − a2 there, the timing's standard error [samples]
-END_SLOTS = N_SUMS + 3
-_FORCE_AT, _SHARED_AT, _TIMING = N_SUMS, N_SUMS + 1, N_SUMS + 2
-#: ends stored; when full, the last slot holds the newest end (the others remain candidates for the first)
-MAX_ENDS = 256
-ENDS = SUMS_RING + RING * N_SUMS
-N_STATE = ENDS + MAX_ENDS * END_SLOTS
 #: samples either side of an end over which Fc and g − a2 there are averaged
 AT_HALF_WIDTH = 2
 #: an end is placed at least this often in sustained contact without force extrema [s]
@@ -57,11 +42,11 @@ COMMIT_TIME = 10e-3
 @njit(cache=True, error_model="numpy")
 def initial():
     """State before first contact: looking for the first force maximum, no estimate."""
-    w = np.zeros(N_STATE)
-    w[LOOKING] = 1.0
-    w[EXTREME] = -math.inf
-    w[MASS] = math.nan
-    w[STD] = math.inf
+    w = np.zeros(N_WINDOWS)
+    w[Windows.LOOKING] = 1.0
+    w[Windows.EXTREME] = -math.inf
+    w[Windows.MASS] = math.nan
+    w[Windows.STD] = math.inf
     return w
 
 
@@ -73,35 +58,35 @@ def _at(w, ring_count, count):
     force = 0.0
     k = low
     while k <= high:
-        force += w[FORCE_RING + int(k) % RING]
+        force += w[Windows.FORCE_RING + int(k) % RING]
         k += 1.0
-    first = SUMS_RING + (int(low - 1.0) % RING) * N_SUMS
-    last = SUMS_RING + (int(high) % RING) * N_SUMS
+    first = Windows.SUMS_RING + (int(low - 1.0) % RING) * N_SUMS
+    last = Windows.SUMS_RING + (int(high) % RING) * N_SUMS
     samples = high - low + 1.0
-    return force / samples, (w[last + 1] - w[first + 1]) / samples
+    return force / samples, (w[last + Sums.SHARED] - w[first + Sums.SHARED]) / samples
 
 
 @njit(cache=True, error_model="numpy")
 def _store_end(w, t, source, force_at, shared_at, timing, sigma_f, sigma_a):
     """An end at the running sums in slot ``source``; then the estimate from the stored ends."""
-    slot = min(int(w[N_ENDS]), MAX_ENDS - 1)
-    base = ENDS + slot * END_SLOTS
+    slot = min(int(w[Windows.N_ENDS]), MAX_ENDS - 1)
+    base = Windows.ENDS + slot * END_SLOTS
     for i in range(N_SUMS):
         w[base + i] = w[source + i]
-    w[base + _FORCE_AT] = force_at
-    w[base + _SHARED_AT] = shared_at
-    w[base + _TIMING] = timing
-    w[N_ENDS] = slot + 1.0
-    w[OPENED] = 0.0
-    w[LAST_COMMIT] = t
+    w[base + End.FORCE_AT] = force_at
+    w[base + End.SHARED_AT] = shared_at
+    w[base + End.TIMING] = timing
+    w[Windows.N_ENDS] = slot + 1.0
+    w[Windows.OPENED] = 0.0
+    w[Windows.LAST_COMMIT] = t
     _estimate(w, sigma_f, sigma_a)
 
 
 @njit(cache=True, error_model="numpy")
 def _error(w, end, mass):
     """Standard error of the force sum that the timing of stored end ``end`` brings [N·samples]."""
-    base = ENDS + end * END_SLOTS
-    return abs(w[base + _FORCE_AT] - mass * w[base + _SHARED_AT]) * w[base + _TIMING]
+    base = Windows.ENDS + end * END_SLOTS
+    return abs(w[base + End.FORCE_AT] - mass * w[base + End.SHARED_AT]) * w[base + End.TIMING]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -113,39 +98,40 @@ def _noise(samples, mass, sigma_f, sigma_a):
 @njit(cache=True, error_model="numpy")
 def _estimate(w, sigma_f, sigma_a):
     """M1 and its standard error from the first end that gives the smallest variance to the newest."""
-    last = int(w[N_ENDS]) - 1
+    last = int(w[Windows.N_ENDS]) - 1
     best_var, mass, first = math.inf, math.nan, -1
-    lb = ENDS + last * END_SLOTS
+    lb = Windows.ENDS + last * END_SLOTS
     for j in range(last - 1):  # at least two windows, so that their scatter can check the estimate
-        jb = ENDS + j * END_SLOTS
-        shared = w[lb + 1] - w[jb + 1]
+        jb = Windows.ENDS + j * END_SLOTS
+        shared = w[lb + Sums.SHARED] - w[jb + Sums.SHARED]
         if shared <= 0.0:
             continue
-        m = (w[lb] - w[jb]) / shared
+        m = (w[lb + Sums.FORCE] - w[jb + Sums.FORCE]) / shared
         if m <= 0.0:
             continue
-        var = (_error(w, j, m) ** 2 + _error(w, last, m) ** 2 + _noise(w[lb + 2] - w[jb + 2], m, sigma_f, sigma_a)) \
+        samples = w[lb + Sums.SAMPLES] - w[jb + Sums.SAMPLES]
+        var = (_error(w, j, m) ** 2 + _error(w, last, m) ** 2 + _noise(samples, m, sigma_f, sigma_a)) \
             / (shared * shared)
         if var < best_var:
             best_var, mass, first = var, m, j
     if first < 0:
-        w[MASS] = math.nan
-        w[STD] = math.inf
+        w[Windows.MASS] = math.nan
+        w[Windows.STD] = math.inf
         return
     # the windows' scatter about the estimate, against what the model of the ends and the noise expects
     chi2, windows = 0.0, 0.0
     for k in range(first + 1, last + 1):
-        kb, pb = ENDS + k * END_SLOTS, ENDS + (k - 1) * END_SLOTS
-        residual = (w[kb] - w[pb]) - mass * (w[kb + 1] - w[pb + 1])
+        kb, pb = Windows.ENDS + k * END_SLOTS, Windows.ENDS + (k - 1) * END_SLOTS
+        residual = (w[kb + Sums.FORCE] - w[pb + Sums.FORCE]) - mass * (w[kb + Sums.SHARED] - w[pb + Sums.SHARED])
         expected = _error(w, k, mass) ** 2 + _error(w, k - 1, mass) ** 2 \
-            + _noise(w[kb + 2] - w[pb + 2], mass, sigma_f, sigma_a)
+            + _noise(w[kb + Sums.SAMPLES] - w[pb + Sums.SAMPLES], mass, sigma_f, sigma_a)
         if expected > 0.0:
             chi2 += residual * residual / expected
             windows += 1.0
     if windows >= 2.0:
         best_var *= max(1.0, chi2 / (windows - 1.0))
-    w[MASS] = mass
-    w[STD] = math.sqrt(best_var)
+    w[Windows.MASS] = mass
+    w[Windows.STD] = math.sqrt(best_var)
 
 
 @njit(cache=True, error_model="numpy")
@@ -153,42 +139,45 @@ def push(w, t, force, shared, drop, in_contact, sustained, sigma_f, sigma_a):
     """One sample: Fc [N] and g − a2 [m/s²] at ``t`` [s]; ``drop`` [N] confirms an extremum; the contact state of
     the estimator; the sensors' noise σ_F [N] and σ_a [m/s²]. Returns True when a window within one contact (no
     opening between its ends) has just closed: the bodies move together."""
-    if w[COUNT] == 0.0 and not in_contact:
+    if w[Windows.COUNT] == 0.0 and not in_contact:
         return False  # before first contact
-    w[RUNNING] += force
-    w[RUNNING + 1] += shared
-    w[RUNNING + 2] += 1.0
-    w[COUNT] += 1.0
-    count = w[COUNT]
+    w[Windows.RUNNING + Sums.FORCE] += force
+    w[Windows.RUNNING + Sums.SHARED] += shared
+    w[Windows.RUNNING + Sums.SAMPLES] += 1.0
+    w[Windows.COUNT] += 1.0
+    count = w[Windows.COUNT]
     slot = int(count) % RING
-    w[FORCE_RING + slot] = force
+    w[Windows.FORCE_RING + slot] = force
     for i in range(N_SUMS):
-        w[SUMS_RING + slot * N_SUMS + i] = w[RUNNING + i]
+        w[Windows.SUMS_RING + slot * N_SUMS + i] = w[Windows.RUNNING + i]
     if not in_contact:  # open: the next end is the next contact's maximum
-        w[OPENED] = 1.0
-        w[LOOKING] = 1.0
-        w[EXTREME] = -math.inf
-        w[BEYOND] = 0.0
+        w[Windows.OPENED] = 1.0
+        w[Windows.LOOKING] = 1.0
+        w[Windows.EXTREME] = -math.inf
+        w[Windows.BEYOND] = 0.0
         return False
     together = False
-    if (w[LOOKING] > 0.0 and force > w[EXTREME]) or (w[LOOKING] < 0.0 and force < w[EXTREME]):
-        w[EXTREME] = force
-        w[EXTREME_AT] = count
-        w[BEYOND] = 0.0
-    elif abs(force - w[EXTREME]) <= drop:
-        w[BEYOND] = 0.0
+    looking, extreme = w[Windows.LOOKING], w[Windows.EXTREME]
+    if (looking > 0.0 and force > extreme) or (looking < 0.0 and force < extreme):
+        w[Windows.EXTREME] = force
+        w[Windows.EXTREME_AT] = count
+        w[Windows.BEYOND] = 0.0
+    elif abs(force - w[Windows.EXTREME]) <= drop:
+        w[Windows.BEYOND] = 0.0
     else:
-        w[BEYOND] += 1.0
-    if w[BEYOND] >= HOLD:  # the extremum is confirmed: an end at its vertex
-        w[BEYOND] = 0.0
-        at, timing = ring_vertex(w[FORCE_RING:FORCE_RING + RING], w[EXTREME_AT], count, sigma_f, w[LOOKING], drop)
-        together = w[OPENED] == 0.0 and w[N_ENDS] > 0.0
+        w[Windows.BEYOND] += 1.0
+    if w[Windows.BEYOND] >= HOLD:  # the extremum is confirmed: an end at its vertex
+        w[Windows.BEYOND] = 0.0
+        ring = w[Windows.FORCE_RING:Windows.FORCE_RING + RING]
+        at, timing = ring_vertex(ring, w[Windows.EXTREME_AT], count, sigma_f, w[Windows.LOOKING], drop)
+        together = w[Windows.OPENED] == 0.0 and w[Windows.N_ENDS] > 0.0
         force_at, shared_at = _at(w, at, count)
-        _store_end(w, t, SUMS_RING + (int(at) % RING) * N_SUMS, force_at, shared_at, timing, sigma_f, sigma_a)
-        w[LOOKING] = -w[LOOKING]
-        w[EXTREME] = force
-        w[EXTREME_AT] = count
-    if sustained and t - w[LAST_COMMIT] > COMMIT_TIME:
+        source = Windows.SUMS_RING + (int(at) % RING) * N_SUMS
+        _store_end(w, t, source, force_at, shared_at, timing, sigma_f, sigma_a)
+        w[Windows.LOOKING] = -w[Windows.LOOKING]
+        w[Windows.EXTREME] = force
+        w[Windows.EXTREME_AT] = count
+    if sustained and t - w[Windows.LAST_COMMIT] > COMMIT_TIME:
         force_at, shared_at = _at(w, count, count)
-        _store_end(w, t, RUNNING, force_at, shared_at, MAX_HALF_WIDTH, sigma_f, sigma_a)
+        _store_end(w, t, Windows.RUNNING, force_at, shared_at, MAX_HALF_WIDTH, sigma_f, sigma_a)
     return together

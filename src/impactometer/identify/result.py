@@ -59,11 +59,13 @@ class Identification:
     warnings : tuple of str
         Sentences on what makes the answer implausible (:mod:`.plausibility`); empty when nothing does.
     details : mapping
-        The method's own diagnostics. Peak-to-peak: ``t00``, ``t01``, ``t11`` (first contact and the force peaks
-        of the first two pulses [s]), ``onsets`` (contact onsets [s], robust), ``stage`` (``early`` or
-        ``final``), ``equations`` (what the answer used), ``chi2``, ``dof``, noise levels, ``caution``. Response
-        map: ``residual`` (eq. (7) [-]), ``features``, ``feature_set``, ``pressure_gauge`` [Pa gauge],
-        ``extrapolated``. Model: ``path`` (``ml`` or ``fallback``) and ``reason``, ``contact_law``,
+        The method's own diagnostics. Peak-to-peak: a :class:`.details.PeakToPeakDetails` -- ``t00``, ``t01``,
+        ``t11`` (first contact and the force peaks of the first two pulses [s]), ``onsets`` (contact onsets [s],
+        robust), ``stage`` (``early`` or ``final``), ``equations`` (what the answer used,
+        :class:`.details.EquationsUsed`), ``chi2``, ``dof``, noise levels, ``caution``. Response map: a
+        :class:`.details.ResponseMapDetails` -- ``residual`` (eq. (7) [-]), ``features``, ``feature_set``,
+        ``pressure_gauge`` [Pa gauge], ``extrapolated``. The typed details are also read-only mappings by these
+        names (:class:`.details.Details`). Model: ``path`` (``ml`` or ``fallback``) and ``reason``, ``contact_law``,
         ``criterion`` and ``model_selection`` (each law's fit), ``reduced_chi2``, ``parameters`` (the stand
         parameters fitted), ``crb`` (Cramér-Rao σ of M1 and V0), ``robust`` (its answer or why it failed),
         ``start`` (where the fit started: the robust answer or a grid).

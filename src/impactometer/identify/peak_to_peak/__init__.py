@@ -12,7 +12,6 @@ onset, every separation and the stage-B samples of the record. Each answer state
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any
 
@@ -22,12 +21,15 @@ from ...constants import STANDARD_GRAVITY
 from ...errors import IdentificationError, RecordingError
 from ...recording import Recording
 from ...signals.stage_b import sustained_index
+from ..details import EquationsUsed, PeakToPeakDetails, RowsUsed
 from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
 from ..result import Identification
 from .early import combine, solve_early
+from .gls import Equations
+from .kinematics import Kinematics
 from .options import check_options, check_unfiltered, check_white_noise, filtered_caution
 from .paper import PAPER_NOISE_LIMIT, paper_caution, solve_paper  # noqa: F401 - part of the package's API
-from .robust import Equations, Kinematics, solve_rows
+from .robust import solve_rows
 from .segment import (  # noqa: F401 - re-exported: the streaming identifier and the tests use them from here
     MAX_DURATION,
     PRE_SAMPLES,
@@ -77,16 +79,18 @@ def solve(seg: Segment, variant: str, gravity: float, *, early: Identification |
         result = solve_robust(seg, gravity, early, contact_phase=contact_phase, stage=stage)
     else:
         result = VARIANT_SOLVERS[variant](seg, gravity, early)
-    reason = None if early is not None or result.details.get("stage") == "early" else early_refusal(seg, variant)
+    details = details_of(result)
+    result = replace(result, details=details)
+    reason = None if early is not None or details.stage == "early" else early_refusal(seg, variant)
     return replace(result, warnings=answer_warnings(seg, result, gravity), early_reason=reason)
 
 
 def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tuple[str, ...]:
     """What makes a peak-to-peak ``result`` implausible for the signals of its segment
     (:func:`.plausibility.check_answer`, and an acceleration unit slip the signals recognise)."""
-    details = result.details
-    fitted = _agnostic(details)  # the agnostic equations' χ² measures the fit to noise
-    chi2 = details["chi2"] / details["dof"] if fitted and details.get("dof") else None
+    details = details_of(result)
+    fitted = details.agnostic  # the agnostic equations' χ² measures the fit to noise
+    chi2 = details.chi2 / details.dof if fitted and details.chi2 is not None and details.dof else None
     found = check_answer(result.mass, result.velocity, force=seg.force, sample_rate=seg.sample_rate,
                          onset=(result.t00 - seg.start_time) * seg.sample_rate,
                          pulse_ends=[p.end for p in seg.pulses if p.complete], gravity=gravity,
@@ -95,7 +99,7 @@ def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tup
                          velocity_std=result.velocity_std)
     if chi2 is not None and chi2 >= SLIP_GAIN:  # below, no slip can fit SLIP_GAIN times better
         found += _unit_slip(seg, gravity, chi2)
-    scatter = ((details.get("equations") or {}).get("model_error") or {}).get("extrema_m_s", 0.0)
+    scatter = details.equations.turning_scatter if details.equations is not None else 0.0
     if fitted and scatter > TURNING_SCATTER_LIMIT * abs(result.velocity):
         found += (f"the force's turning points scatter {scatter:.3g} m/s beyond their noise about the answer "
                   f"({scatter / abs(result.velocity):.0%} of V0): neither flights nor a pad's set describe the gaps "
@@ -103,12 +107,10 @@ def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tup
     return found
 
 
-def _agnostic(details: Mapping[str, Any]) -> bool:
-    """Whether an answer came from the agnostic equations (onsets, turning points, separations), whose χ² measures
-    the fit to the noise, rather than from the contact-phase fit."""
-    used = details.get("equations") or {}
-    return details.get("stage") == "final" and "contact_phase" not in used and (
-        used.get("onsets", 0) >= 1 or used.get("stage_b_extrema", 0) >= 1)
+def details_of(result: Identification) -> PeakToPeakDetails:
+    """The typed details of a peak-to-peak ``result`` (the paper variant writes a dict: typed here)."""
+    details = result.details
+    return details if isinstance(details, PeakToPeakDetails) else PeakToPeakDetails.from_mapping(details)
 
 
 def _unit_slip(seg: Segment, gravity: float, chi2: float) -> tuple[str, ...]:
@@ -121,10 +123,10 @@ def _unit_slip(seg: Segment, gravity: float, chi2: float) -> tuple[str, ...]:
             other = solve_robust(scaled, gravity)
         except IdentificationError:
             continue
-        rows = other.details
-        if not _agnostic(rows) or not rows.get("dof"):
+        rows = details_of(other)
+        if not rows.agnostic or rows.chi2 is None or not rows.dof:
             continue
-        better = chi2 / max(rows["chi2"] / rows["dof"], 1.0)
+        better = chi2 / max(rows.chi2 / rows.dof, 1.0)
         if better >= SLIP_GAIN and not check_answer(other.mass, other.velocity):
             return (f"the onset equations fit the noise {math.sqrt(better):.3g} times better with the acceleration "
                     f"multiplied by {1 / factor:.6g}: {text} would give this answer; read so, M1 = "
@@ -187,17 +189,14 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
                                  pre_samples=seg.pre_samples)
     second = seg.pulses[1] if len(seg.pulses) > 1 else None
     peak2 = second_peak(seg) or (second.peak if second is not None else None)
-    used: dict = {}
     readings = None
     if agnostic:
         first = seg.pulses[0]
         lag_max = LAG_FRACTION * ((first.end if first.complete else seg.force.size) - first.zero) / seg.sample_rate
         sol = solve_rows(kin, eqs, lag_max=lag_max, **noise)
         theta, cov, chi2, dof = sol.theta, sol.cov, sol.chi2, sol.dof
-        used = {**sol.used, **sol.nuisances}
         readings = sol.readings
-        if readings is not None:
-            used["gap_readings"] = readings
+        used = EquationsUsed(rows=sol.used, nuisances=sol.nuisances, gap_readings=readings)
         if contact_phase and second is not None and peak2 is not None:
             contact = _contact_phase(seg, kin, peak2, noise)
             joined = combine((theta, cov, (sol.gain, sol.tau)), (contact.theta, contact.cov,
@@ -206,7 +205,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
             if joined is not None:
                 theta, cov = joined
             # without a contact-phase fit, or one whose covariance cannot be joined, the agnostic answer stands
-            used["contact_phase"] = {**contact.info, "combined": joined is not None}
+            used = replace(used, contact_phase={**contact.info, "combined": joined is not None})
         last = max([p.end if p.complete else seg.force.size - 1 for p in seg.pulses])
     else:
         stage = "early" if stage == "early" else "final"
@@ -215,8 +214,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
         theta, cov, chi2, dof, info = contact.theta, contact.cov, contact.chi2, contact.dof, contact.info
         if info["branches"] == "none":
             raise IdentificationError(f"the contact phase does not determine the mass here: {info['refusal']}")
-        used = {"onsets": int(info["onset_row"]), "extrema": 0, "stage_b_extrema": 0, "separations": 0,
-                "stage_b_samples": 0, "contact_phase": info}
+        used = EquationsUsed(rows=RowsUsed(onsets=int(info["onset_row"])), contact_phase=info)
         last = second.end if second.complete else seg.force.size - 1
     velocity, w = float(theta[0]), float(theta[1])
     if not (w > 0.0 and math.isfinite(w)) or not math.isfinite(velocity) or not np.all(np.isfinite(cov)):
@@ -227,7 +225,7 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
     if spread > MAX_RELATIVE_STD:
         why = "more of the record is needed"
         if readings is not None:  # the spread is the two readings of the gaps
-            (v_f, m_f), (v_s, m_s) = readings["flights"], readings["set"]
+            (v_f, m_f), (v_s, m_s) = readings.flights, readings.kept_set
             why = (f"the gaps between the pulses read as flights give M1 = {m_f:.3g} kg, V0 = {v_f:.3g} m/s, read "
                    f"as a contact that kept a set {m_s:.3g} kg, {v_s:.3g} m/s, and both fit the turning points "
                    "alike; a longer stage B tells them apart")
@@ -238,11 +236,11 @@ def solve_robust(seg: Segment, gravity: float, early: Identification | None = No
         mass=1.0 / w, velocity=velocity, mass_std=float(np.sqrt(cov[1, 1])) / w ** 2,
         velocity_std=float(np.sqrt(cov[0, 0])), early=early, available_at=seg.time_of(last),
         method="peak-to-peak/robust",
-        details={"t00": seg.time_of(t00), "t01": seg.time_of(seg.pulses[0].peak),
-                 "t11": math.nan if peak2 is None else seg.time_of(peak2),
-                 "onsets": tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), "stage": stage,
-                 "equations": used, "chi2": chi2, "dof": dof, "noise_force_N": seg.noise_force,
-                 "noise_acceleration_m_s2": seg.noise_acceleration, "pre_trigger_samples": seg.pre_samples})
+        details=PeakToPeakDetails(t00=seg.time_of(t00), t01=seg.time_of(seg.pulses[0].peak),
+                                  t11=math.nan if peak2 is None else seg.time_of(peak2),
+                                  onsets=tuple(seg.time_of(o) for o in np.r_[t00, eqs.onsets]), stage=stage,
+                                  equations=used, chi2=chi2, dof=dof, noise_force=seg.noise_force,
+                                  noise_acceleration=seg.noise_acceleration, pre_trigger_samples=seg.pre_samples))
 
 
 def _contact_phase(seg: Segment, kin: Kinematics, peak2: int, noise: dict):
@@ -348,6 +346,7 @@ def identify(recording: Recording, *, variant: str = "robust", gravity: float = 
         raise
     caution = filtered_caution(recording, variant)
     if caution:
-        earlier = answer.details.get("caution")
-        answer = replace(answer, details={**answer.details, "caution": f"{caution}; {earlier}" if earlier else caution})
+        details = details_of(answer)
+        earlier = details.caution
+        answer = replace(answer, details=replace(details, caution=f"{caution}; {earlier}" if earlier else caution))
     return replace(answer, warnings=(*answer.warnings, note)) if note else answer

@@ -98,7 +98,8 @@ def solve_early(kin, pulses, onset1, onset1_std, *, noise_force, noise_accelerat
                           "noise): a hysteretic contact such as a pad, or pulses that are not whole contacts")
     gap_index = np.arange(gap[0], gap[1], dtype=float)
     if gap_index.size and np.all(np.isfinite(chosen.theta)):
-        tau, _, _, i_f, _, _, da = kin.at(gap_index)
+        at = kin.at(gap_index)
+        tau, i_f, da = at.tau, at.force_double, at.displacement
         v0, w = chosen.theta
         delta = v0 * tau + kin.gravity * tau ** 2 / 2 - w * i_f - da
         k = int(np.argmin(delta))
@@ -128,9 +129,11 @@ def _fit(kin, pulses, stops, onset1, onset1_std, *, noise_force, noise_accelerat
                                                                                            strict=True)])
     use_onset = onset1 is not None
     onset1 = float(idx[-1]) if onset1 is None else onset1
-    tau, f, jf, i_f, _, va, da = kin.at(idx)
+    at = kin.at(idx)
+    tau, f, jf, i_f, va, da = at.tau, at.force, at.force_impulse, at.force_double, at.velocity_change, at.displacement
     g = kin.gravity
-    t1, _, jf1, if1, _, va1, da1 = kin.at(np.array([onset1]))
+    at1 = kin.at(np.array([onset1]))
+    t1, jf1, if1, va1, da1 = at1.tau, at1.force_impulse, at1.force_double, at1.velocity_change, at1.displacement
     sigma_f = max(noise_force, 1e-9 * float(np.max(f)))
     fpeak = float(np.max(f))
 

@@ -23,6 +23,7 @@ from ...recording import Recording
 from ...rig import check_recorded_on
 from ...signals.noise import robust_noise_std
 from ...validation import check_real, is_real
+from ..details import ResponseMapDetails
 from ..inspection import inspect_recording
 from ..plausibility import check_answer, in_contact
 from ..result import Identification
@@ -124,8 +125,8 @@ def identify_features(features, rmap: ResponseMap, *, search: str = "fast", pres
         available_at = rmap.feature_params.get("window", math.nan)
     elif not (is_real(available_at) and math.isnan(available_at)):  # NaN: not known
         available_at = check_real("available_at", available_at, unit=" [s] or None")
-    details = {"residual": residual, "features": dict(zip(labels, y.tolist(), strict=False)),
-               "feature_set": rmap.feature_set, "pressure_gauge": p, "extrapolated": outside}
+    details = ResponseMapDetails(residual=residual, features=dict(zip(labels, y.tolist(), strict=False)),
+                                 feature_set=rmap.feature_set, pressure_gauge=p, extrapolated=outside)
     return Identification(mass=mass, velocity=velocity, available_at=float(available_at),
                           method=f"response-map/{search}", details=details,
                           warnings=check_answer(mass, velocity))
