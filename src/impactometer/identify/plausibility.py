@@ -60,7 +60,7 @@ def check_segment(seg) -> None:
     (:func:`check_first_contact`), a constant acceleration (a dead or disconnected accelerometer) or a saturated
     channel (:func:`check_clipping`).
 
-    ``seg`` is a :class:`~.peak_to_peak.Segment`; every answer, batch or streaming, early or final, passes this
+    ``seg`` is a :class:`~.peak_to_peak.segment.Segment`; every answer, batch or streaming, early or final, passes this
     check first (see :func:`~.peak_to_peak.solve`).
     """
     check_first_contact(seg)
