@@ -89,7 +89,7 @@ def test_checker_catches_a_renamed_constant_and_a_wrong_module():
     assert any("names module 'trigger'" in p for p in link_problems(elsewhere, doc)[1])
     missing = good.replace("trigger.py", "no_such_module.py")
     assert "no such file" in link_problems(missing, doc)[1][0]
-    package = "[`peak_to_peak.MAX_RELATIVE_STD`](../src/impactometer/identify/peak_to_peak/__init__.py)"
+    package = "[`io.MANIFEST_TOLERANCE`](../src/impactometer/io/__init__.py)"
     assert link_problems(package, doc) == (1, [])
     pair = "[`onsets.FOOT_TOP_MAX`](../src/impactometer/identify/peak_to_peak/onsets.py)"
     assert link_problems(pair, doc) == (1, [])

@@ -6,8 +6,8 @@ import pytest
 
 from impactometer.errors import IdentificationError
 from impactometer.filters import filter_recording
-from impactometer.identify import peak_to_peak as p2p
-from impactometer.identify.peak_to_peak import identify, identify_arrays
+from impactometer.identify.peak_to_peak import equations, identify, identify_arrays
+from impactometer.identify.peak_to_peak.segment import GUARD_SAMPLES, check_channels, segment_bounds, segment_of
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
 from impactometer.model import simulate
 from impactometer.rig import Scenario, get_rig
@@ -17,9 +17,9 @@ FS = 50e3
 
 
 def prepared(rec):
-    f, a, fs = p2p.check_channels(rec.contact_force, rec.piston_acceleration, rec.sample_rate)
-    start, stop, _, pre = p2p.segment_bounds(f, fs)
-    return p2p.segment_of(f, a, fs, rec.start_time, start, stop, pre, {})
+    f, a, fs = check_channels(rec.contact_force, rec.piston_acceleration, rec.sample_rate)
+    start, stop, _, pre = segment_bounds(f, fs)
+    return segment_of(f, a, fs, rec.start_time, start, stop, pre, {})
 
 
 @pytest.mark.parametrize("stand,law", [("drop-stand-pad", "hysteretic"), ("drop-stand-stiff", "hunt-crossley")])
@@ -32,7 +32,7 @@ def test_force_extrema_are_where_the_overlap_turns(stand, law):
     truth = simulate(scenario, rig, duration=0.05, sample_rate=1e6)
     rec = record(scenario, rig, duration=0.05, pre_trigger=0.02)
     seg = prepared(rec)
-    eqs, _, _ = p2p.equations(seg)
+    eqs, _, _ = equations(seg)
     assert eqs.extrema.size >= 3
     delay = rec.metadata["anti_alias_delay_s"]
     rate = truth.v1 - truth.v2
@@ -139,9 +139,9 @@ def test_the_pre_trigger_statistics_stop_at_the_foot_of_the_rise_at_high_sample_
     the 32 samples of the guard. The foot read as noise made white noise look low-pass filtered (correlation 0.80
     here before); the statistics now stop where the rise starts."""
     force, acceleration, start = _slow_contact(150.0, 3.0)
-    first, stop, _, pre = p2p.segment_bounds(force, 2e6)
-    assert first + pre - start > 3 * p2p.segment.GUARD_SAMPLES  # the trigger fired far into the rise
-    seg = p2p.segment_of(force, acceleration, 2e6, 0.0, first, stop, pre, {})
+    first, stop, _, pre = segment_bounds(force, 2e6)
+    assert first + pre - start > 3 * GUARD_SAMPLES  # the trigger fired far into the rise
+    seg = segment_of(force, acceleration, 2e6, 0.0, first, stop, pre, {})
     assert abs(seg.noise_correlation) < 0.05
     assert first + seg.pre_samples <= start + 16  # no more than the first samples of the (yet flat) foot
 
@@ -150,7 +150,7 @@ def test_the_trigger_fires_on_a_contact_that_rises_over_thousands_of_samples():
     """At 2 MHz a baseline of 256 samples followed a slow rise, its running σ growing with it, and the trigger
     never fired ("no impact found"); the baseline now spans the same time at every rate above 50 kHz."""
     force, _, start = _slow_contact(100.0, 1.0)
-    first, _, _, pre = p2p.segment_bounds(force, 2e6)
+    first, _, _, pre = segment_bounds(force, 2e6)
     assert 0 < first + pre - start < 400
 
 

@@ -152,7 +152,7 @@ def test_quantised_peaks_are_not_clipping_but_a_low_range_is(contact):
 
 
 def test_quantum_finds_adc_steps_and_ignores_continuous_data():
-    from impactometer.identify.peak_to_peak import quantum
+    from impactometer.identify.peak_to_peak.segment import quantum
 
     rng = np.random.default_rng(0)
     step = 0.125

@@ -56,7 +56,8 @@ def used_samples(result, recording) -> dict[str, np.ndarray] | None:
     not).
     """
     from ..errors import ImpactometerError
-    from ..identify.peak_to_peak import check_channels, equations, segment_bounds, segment_of
+    from ..identify.peak_to_peak import equations
+    from ..identify.peak_to_peak.segment import check_channels, segment_bounds, segment_of
 
     used = result.details.get("equations")
     if result.family != "peak-to-peak" or not isinstance(used, dict):

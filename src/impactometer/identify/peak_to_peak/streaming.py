@@ -18,8 +18,10 @@ from ...recording import check_sample_rate
 from ...signals import trigger
 from ...signals.stage_b import is_sustained
 from ...validation import check_integer, check_real
-from .. import peak_to_peak as p2p
 from ..result import Identification
+from .batch import GRAVITY, early_answer, solve
+from .options import check_options
+from .segment import MAX_DURATION, PRE_SAMPLES, QUIET_TIME, TRIGGER_FLOOR, Segment, early_ready, prepare
 
 
 @njit(cache=True)
@@ -74,18 +76,18 @@ class StreamingIdentifier:
     answer of an impact (or its refusal) equals the batch function's on the same samples.
     """
 
-    def __init__(self, sample_rate: float, *, variant: str = "robust", gravity: float = p2p.GRAVITY,
-                 start_time: float = 0.0, floor: float = p2p.TRIGGER_FLOOR, contact_phase: bool = False):
+    def __init__(self, sample_rate: float, *, variant: str = "robust", gravity: float = GRAVITY,
+                 start_time: float = 0.0, floor: float = TRIGGER_FLOOR, contact_phase: bool = False):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
-        variant, gravity, start_time = p2p.check_options(variant, gravity, start_time, error=ParameterError)
+        variant, gravity, start_time = check_options(variant, gravity, start_time, error=ParameterError)
         floor = check_real("floor", floor, low=0.0, unit=" [N]", error=ParameterError)
         self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, gravity
         self.start_time, self.floor = start_time, floor
         self.contact_phase = bool(contact_phase)
-        self.quiet = max(int(p2p.QUIET_TIME * sample_rate), 1)
-        self.max_samples = max(int(p2p.MAX_DURATION * sample_rate), 1)
+        self.quiet = max(int(QUIET_TIME * sample_rate), 1)
+        self.max_samples = max(int(MAX_DURATION * sample_rate), 1)
         self.baseline = trigger.baseline_samples(sample_rate)
-        self.capacity = p2p.PRE_SAMPLES + self.max_samples + 2
+        self.capacity = PRE_SAMPLES + self.max_samples + 2
         self._force = np.zeros(self.capacity)
         self._acc = np.zeros(self.capacity)
         self._fstate, self._istate = trigger.new_state()
@@ -186,17 +188,17 @@ class StreamingIdentifier:
         return self.seen - self._last_update >= self._update_samples \
             and self.seen - trigger_at >= UPDATE_GROWTH * (self._last_update - trigger_at)
 
-    def _segment(self, stop: int) -> p2p.Segment:
+    def _segment(self, stop: int) -> Segment:
         assert self._start is not None  # called only while an impact runs
-        return p2p.prepare(*self.buffered(self._start, stop), self.sample_rate,
-                           self.start_time + self._start / self.sample_rate, self._pre, cache=self._onsets)
+        return prepare(*self.buffered(self._start, stop), self.sample_rate,
+                       self.start_time + self._start / self.sample_rate, self._pre, cache=self._onsets)
 
     def _event(self, code: int, index: int) -> list[Identification]:
         if code == trigger.EVENT_TRIGGER:
             if index <= trigger.WARM_SAMPLES and self._last_close < 0:
                 self._start, self._pre = 0, 0
             else:
-                self._start = max(index - p2p.PRE_SAMPLES, self._last_close + 1, 0)
+                self._start = max(index - PRE_SAMPLES, self._last_close + 1, 0)
                 self._pre = index - self._start
             self._early, self._early_done = None, False
             self._onsets = {}
@@ -211,12 +213,12 @@ class StreamingIdentifier:
             return self._conclude(index + 1, index)
         return self._solve(index + 1, final=code != trigger.EVENT_PAST_PEAK)
 
-    def _early_step(self, seg: p2p.Segment) -> list[Identification]:
+    def _early_step(self, seg: Segment) -> list[Identification]:
         """The early answer, once, as soon as the segment allows it (as the batch function finds it)."""
-        if self.variant != "robust" or self._early_done or not p2p.early_ready(seg):
+        if self.variant != "robust" or self._early_done or not early_ready(seg):
             return []
         self._early_done = True
-        self._early = p2p.early_answer(seg, self.gravity)
+        self._early = early_answer(seg, self.gravity)
         return [] if self._early is None else [self._early]
 
     def _solve(self, stop: int, final: bool = True) -> list[Identification]:
@@ -225,8 +227,8 @@ class StreamingIdentifier:
         # the paper variant needs the second peak; the robust one answers from stage B or a second pulse
         if final and (sum(p.complete for p in seg.pulses) >= 2 or (self.variant == "robust" and self._sustained())):
             with contextlib.suppress(IdentificationError):  # no answer yet: the impact's end decides (_conclude)
-                new.append(p2p.solve(seg, self.variant, self.gravity, early=self._early,
-                                     contact_phase=self.contact_phase))
+                new.append(solve(seg, self.variant, self.gravity, early=self._early,
+                                 contact_phase=self.contact_phase))
         return self._record(new)
 
     def _record(self, new: list[Identification]) -> list[Identification]:
@@ -240,7 +242,7 @@ class StreamingIdentifier:
         seg = self._segment(stop)
         new = self._early_step(seg)
         try:
-            final = p2p.solve(seg, self.variant, self.gravity, early=self._early, contact_phase=self.contact_phase)
+            final = solve(seg, self.variant, self.gravity, early=self._early, contact_phase=self.contact_phase)
         except IdentificationError as exc:
             self.outcomes.append(exc)
         else:
