@@ -92,8 +92,8 @@ def time_solve_ivp(params, rhs, rtol, t_eval, method="RK45"):
                                    max_step=MAX_STEP))
     elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
     force = d.CHANNELS.index("contact_force")
-    forces = np.array([reference.channels_of(sol.y, p)[force] if sol.status == 0 else np.full(t_eval.size, np.nan)
-                       for sol, p in zip(solutions, params, strict=False)])
+    forces = np.array([reference.channels_of(sol.y, p, t_eval)[force] if sol.status == 0
+                       else np.full(t_eval.size, np.nan) for sol, p in zip(solutions, params, strict=False)])
     return elapsed, cpu, forces
 
 

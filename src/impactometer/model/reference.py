@@ -10,6 +10,7 @@ from scipy.integrate import solve_ivp
 
 from ..errors import ParameterError, SimulationError
 from . import dynamics as d
+from .fast import closings, share_jump
 
 #: right-hand-side evaluations per step of each ``solve_ivp`` method, for the step budget
 _EVALUATIONS_PER_STEP = {"RK45": 6, "DOP853": 12, "RK23": 3}
@@ -62,21 +63,35 @@ def integrate(p: np.ndarray, y0: np.ndarray, t_out: np.ndarray, *, rtol: float =
 
 
 @njit(cache=True, error_model="numpy")
-def _channels_of(states, p, out):
+def _channels_of(states, p, time, out):
     row = np.empty(d.N_CHANNEL)
     y = np.empty(d.N_STATE)
+    every = np.arange(d.N_CHANNEL)
+    q = d.force_parameters(p)
+    pad_gap = top_gap = bottom_gap = -1.0
     for i in range(states.shape[1]):
         for j in range(d.N_STATE):
             y[j] = states[j, i]
         d.channels(y, p, row)
         for j in range(d.N_CHANNEL):
             out[j, i] = row[j]
+        pad, top, bottom = closings(y, q)  # a jump spread over its samples as the fast integrator spreads it
+        if i > 0:
+            if pad_gap <= 0.0 < pad:
+                share_jump(out, every, i, time[i - 1], time[i], pad_gap, pad)
+            if top_gap <= 0.0 < top:
+                share_jump(out, every, i, time[i - 1], time[i], top_gap, top)
+            if bottom_gap <= 0.0 < bottom:
+                share_jump(out, every, i, time[i - 1], time[i], bottom_gap, bottom)
+        pad_gap, top_gap, bottom_gap = pad, top, bottom
 
 
-def channels_of(states: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Every channel (shape (N_CHANNEL, n)) for states of shape (N_STATE, n)."""
+def channels_of(states: np.ndarray, p: np.ndarray, time: np.ndarray) -> np.ndarray:
+    """Every channel (shape (N_CHANNEL, n)) for states of shape (N_STATE, n) at ``time`` (n,) [s] after first
+    contact; a jump where a contact closes is spread over the samples around it as :func:`.fast.share_jump`
+    spreads it, so that both integrators sample the same way."""
     out = np.empty((d.N_CHANNEL, states.shape[1]))
-    _channels_of(np.ascontiguousarray(states, dtype=float), p, out)
+    _channels_of(np.ascontiguousarray(states, dtype=float), p, np.ascontiguousarray(time, dtype=float), out)
     return out
 
 

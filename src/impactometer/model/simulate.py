@@ -118,7 +118,7 @@ def simulate(scenario: Scenario, rig: Rig | None = None, *, duration: float = 0.
     atol = absolute_tolerance(rtol)
     if integrator == "reference":
         states = reference.integrate(p, y0, t, rtol=rtol, atol=atol, max_step=max_step, max_steps=max_steps)
-        chans = reference.channels_of(states, p)
+        chans = reference.channels_of(states, p, t)
     else:
         chans = np.empty((d.N_CHANNEL, t.size))
         status, _ = fast.integrate_one(p, y0, t, np.arange(d.N_CHANNEL), rtol, atol, float(max_step),
@@ -332,7 +332,7 @@ def compare_integrators(mass, velocity, pressure_gauge, rig: Rig | None = None, 
     reference_force = np.empty_like(batch["contact_force"])
     for i, (p, y0) in enumerate(zip(batch.params, initial_states(batch.params), strict=False)):
         states = reference.integrate(p, y0, batch.time, rtol=ref_rtol, atol=absolute_tolerance(ref_rtol))
-        reference_force[i] = reference.channels_of(states, p)[d.CHANNELS.index("contact_force")]
+        reference_force[i] = reference.channels_of(states, p, batch.time)[d.CHANNELS.index("contact_force")]
     return reference.agreement(batch["contact_force"], reference_force, batch.time)
 
 
