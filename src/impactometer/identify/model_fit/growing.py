@@ -14,7 +14,8 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .fit import MAX_EVALUATIONS, LawFit, Observed, fit_law, refine
+from .early import fit_window, refine_window
+from .fit import MAX_EVALUATIONS, LawFit, Observed
 from .select import (
     EARLY_MARGIN,
     EARLY_REDUCED_CHI2,
@@ -93,7 +94,7 @@ def _fit_core(growing: Growing, law: str, data: Observed, core: dict | None, eva
     layouts, values = start_law(growing.rig, law, growing.uncertain, growing.start, data.grid.sample_rate)
     if core is not None:
         values.update({name: core[name] for name in ("mass", "velocity", "contact_time")})
-    fit = fit_law(data, layouts("core", values), values, evaluations=evaluations, information=information)
+    fit = fit_window(data, layouts("core", values), values, evaluations=evaluations, information=information)
     return LawState(layouts, {**values, **fit.values}, fit.offsets, fit)
 
 
@@ -178,9 +179,9 @@ def update(growing: Growing, data: Observed, span: float) -> LawFit | None:
     for law, state in list(growing.states.items()):
         try:
             layout = state.layouts(kind, state.values)
-            fit = refine(data, layout, state.values, state.offsets, steps=UPDATE_STEPS)
+            fit = refine_window(data, layout, state.values, state.offsets, steps=UPDATE_STEPS)
             if fit.reduced_chi2 > RETRY_REDUCED_CHI2:  # far from the optimum: a few steps more, this time
-                fit = refine(data, layout, fit.values, fit.offsets, steps=CATCH_UP_STEPS)
+                fit = refine_window(data, layout, fit.values, fit.offsets, steps=CATCH_UP_STEPS)
         except IdentificationError as exc:
             growing.notes.append(f"{law} at {span * 1e3:.3g} ms: {exc}")
             if len(growing.states) > 1:

@@ -45,7 +45,8 @@ from ...validation import check_integer, check_real
 from .. import model_fit as batch
 from ..peak_to_peak.streaming import StreamingIdentifier, last_outcome
 from ..result import Identification
-from .fit import LawFit, Observed
+from .early import LEAD_SAMPLES
+from .fit import LawFit, Observed, window
 from .forward import check_uncertain, make_grid
 from .growing import Growing, explains, first_fit, update
 from .select import SCREEN_WINDOW, STAGES, Start, grid_predictions, grid_starts
@@ -127,6 +128,7 @@ class ModelStream:
         self.design = batch._design(probe)
         self.pressure = batch._pressure(probe, pressure, self.rig)
         self.delay = anti_alias_delay(self.design, sample_rate)
+        self._grid_model = make_grid(self.start_time, sample_rate, 1, self.design)
         self._chunk = max(int(self.cadence * sample_rate), 1)
         clock = time.perf_counter()
         self._grid = self._arm()
@@ -205,6 +207,13 @@ class ModelStream:
                                fit=Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
         self.estimates = []
 
+    def _observe(self, recording: Recording, contact_time: float) -> Observed:
+        """The record as the fit reads it (:func:`~impactometer.identify.model_fit._observe`), on a grid whose
+        sensor model the stream made once: the design of the anti-alias FIR costs a quarter of a millisecond, a
+        first answer little more than a millisecond."""
+        data = batch._observe(recording, "none", contact_time, min_duration=0.0)  # the design only makes the grid
+        return replace(data, grid=replace(self._grid_model, start_time=data.grid.start_time, size=data.grid.size))
+
     def _stop(self, contact: float, after: float) -> int:
         """Stream index one past the last sample of the record up to ``after`` [s] after ``contact``."""
         return int(math.floor((contact + after - self.start_time) * self.sample_rate + 1e-9)) + 1
@@ -220,7 +229,7 @@ class ModelStream:
         recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
         try:
             batch._check_length(recording, min_duration=0.0)  # a pre-trigger, as the batch fit needs one
-            data = batch._observe(recording, self.design, impact.contact_time, min_duration=0.0)
+            data = self._observe(recording, impact.contact_time)
             fit = self._first(impact, data, span) if not impact.fit.states else update(impact.fit, data, span)
         except IdentificationError as exc:  # no estimate this time; the final answer decides
             impact.fit.notes.append(f"up to {span * 1e3:.3g} ms after first contact: {exc}")
@@ -239,9 +248,20 @@ class ModelStream:
             starts = [Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
                             pressure=self.pressure, pressure_start=pressure_start)]
         else:
-            starts = grid_starts(data, self.rig, impact.contact_time, self.pressure, pressure_start,
-                                 count=GRID_STARTS, predicted=self._grid.get((impact.trigger - impact.first,
-                                                                             data.channels.shape[1])))
+            predicted = self._grid.get((impact.trigger - impact.first, data.channels.shape[1]))
+            part = data
+            if predicted is not None and self.design in ("causal", "none"):
+                # the grid's χ² on the samples where some prediction is not zero: those before differ between its
+                # impacts by nothing (the same ranking, a thousand pre-trigger samples less to sum)
+                cut = max(int(math.floor((impact.contact_time - data.grid.start_time) * self.sample_rate))
+                          - LEAD_SAMPLES, 0)
+                part = window(data, impact.contact_time + STAGES[0][0])  # the grid's window, then its tail:
+                part = replace(part, channels=part.channels[:, cut:], grid=replace(  # (a start a millionth of a
+                    part.grid, start_time=part.grid.start_time + (cut - 1e-6) / self.sample_rate,  # period early:
+                    size=part.grid.size - cut))  # the window's floor keeps its last sample)
+                predicted = predicted[..., cut:]
+            starts = grid_starts(part, self.rig, impact.contact_time, self.pressure, pressure_start,
+                                 count=GRID_STARTS, predicted=predicted)
         return first_fit(impact.fit, data, span, starts)
 
     def _emit(self, fit: LawFit, recording: Recording, *, stage: str, clock: float, span: float,
