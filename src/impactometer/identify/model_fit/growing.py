@@ -15,6 +15,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ...rig import Rig
 from .early import fit_window, refine_window
+from .first_window import fit_first_window, takes
 from .fit import MAX_EVALUATIONS, LawFit, Observed
 from .select import (
     EARLY_MARGIN,
@@ -94,7 +95,14 @@ def _fit_core(growing: Growing, law: str, data: Observed, core: dict | None, eva
     layouts, values = start_law(growing.rig, law, growing.uncertain, growing.start, data.grid.sample_rate)
     if core is not None:
         values.update({name: core[name] for name in ("mass", "velocity", "contact_time")})
-    fit = fit_window(data, layouts("core", values), values, evaluations=evaluations, information=information)
+    layout = layouts("core", values)
+    if not takes(data, layout):
+        fit = fit_window(data, layout, values, evaluations=evaluations, information=information)
+    elif (compiled := fit_first_window(data, layout, values, evaluations=evaluations,
+                                       information=information)) is not None:
+        fit = compiled
+    else:
+        raise IdentificationError(f"the {law} model cannot be integrated at the fit's start or its answer")
     return LawState(layouts, {**values, **fit.values}, fit.offsets, fit)
 
 
