@@ -9,6 +9,8 @@ bit of M1 and V0 (``exp`` of the compiled code).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
@@ -25,9 +27,10 @@ from .early import (
     RAISE,
     Residuals,
     _contact_state,
+    _integrate_in_turn,
     _law_fit,
 )
-from .fit import TOLERANCE, LawFit, Observed
+from .fit import DAMPING, TOLERANCE, LawFit, Observed
 from .forward import CHANNEL_INDEX, FIT_RTOL, MAX_FIT_STEPS, TRIAL_RANGES, Layout, _fir_decimate
 
 #: the layout this fit takes: its names and transforms (:data:`.forward.CORE_PARAMETERS`)
@@ -87,6 +90,26 @@ def _residuals(x, model, tail, head, r):
 
 
 @njit(cache=True, error_model="numpy")
+def _chi2(stand, x, timing, offsets, fir, noise, tolerances, tail, head, model, r, internal):
+    """χ² less the head's constant at ``x`` (``model`` and ``r`` filled); inf where the model is not integrated
+    there."""
+    if not _channels(stand, x, timing, offsets, fir, noise, tolerances, model, internal):
+        return np.inf
+    return _residuals(x, model, tail, head, r)
+
+
+@njit(cache=True, error_model="numpy")
+def _begin(stand, x, timing, offsets, fir, noise, tolerances, tail, head):
+    """χ² at the start (inf where the model is not integrated there) and the scratch arrays of a fit: internal
+    histories, model, trial model, moved model, residuals, trial residuals."""
+    n = tail.shape[1]
+    internal, model = np.empty((2, offsets.size)), np.empty((2, n))
+    r = np.empty(2 * n + 2)
+    chi2 = _chi2(stand, x, timing, offsets, fir, noise, tolerances, tail, head, model, r, internal)
+    return chi2, internal, model, np.empty((2, n)), np.empty((2, n)), r, np.empty(2 * n + 2)
+
+
+@njit(cache=True, error_model="numpy")
 def _jacobian(stand, x, model, steps, timing, offsets, fir, noise, tolerances, internal, moved, jac, head):
     n = model.shape[1]
     jac[:] = 0.0
@@ -119,13 +142,11 @@ def _step(jac, r, damping):
 def _fit(stand, x, steps, timing, offsets, fir, noise, tolerances, tail, head, evaluations, jac):
     """Levenberg-Marquardt from ``x`` (as :func:`.early.fit_window`); returns (report, x, χ² less the head's
     constant, residual evaluations); ``jac`` holds the Jacobian at the answer."""
-    n = tail.shape[1]
-    internal = np.empty((2, offsets.size))
-    model, trial_model, moved = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
-    r, r_trial = np.empty(2 * n + 2), np.empty(2 * n + 2)
-    if not _channels(stand, x, timing, offsets, fir, noise, tolerances, model, internal):
+    chi2, internal, model, trial_model, moved, r, r_trial = _begin(stand, x, timing, offsets, fir, noise,
+                                                                   tolerances, tail, head)
+    if chi2 == np.inf:
         return NO_START, x, np.inf, 1
-    chi2, count, damping, report = _residuals(x, model, tail, head, r), 1, FIRST_DAMPING, STOPPED
+    count, damping, report = 1, FIRST_DAMPING, STOPPED
     if not _jacobian(stand, x, model, steps, timing, offsets, fir, noise, tolerances, internal, moved, jac, head):
         return NO_JACOBIAN, x, chi2, count
     while count < evaluations:
@@ -135,10 +156,7 @@ def _fit(stand, x, steps, timing, offsets, fir, noise, tolerances, tail, head, e
             return CONVERGED, x, chi2, count
         trial = x + step
         count += 1
-        if not _channels(stand, trial, timing, offsets, fir, noise, tolerances, trial_model, internal):
-            new = np.inf
-        else:
-            new = _residuals(trial, trial_model, tail, head, r_trial)
+        new = _chi2(stand, trial, timing, offsets, fir, noise, tolerances, tail, head, trial_model, r_trial, internal)
         if not new < chi2:
             damping *= RAISE
             if damping > MOST_DAMPING:  # no step lowers χ²: at the minimum to the precision of the model
@@ -155,25 +173,95 @@ def _fit(stand, x, steps, timing, offsets, fir, noise, tolerances, tail, head, e
     return STOPPED, x, chi2, count
 
 
+@njit(cache=True, error_model="numpy")
+def _refine(stand, x, steps, timing, offsets, fir, noise, tolerances, tail, head, dampings, count_steps, jac):
+    """:func:`.early.refine_window` compiled: ``count_steps`` steps from ``x``, each trying ``dampings`` in turn
+    until χ² falls; returns (report, x, χ² less the head's constant, residual evaluations); ``jac`` holds the
+    Jacobian the last step started from."""
+    chi2, internal, model, trial_model, moved, r, r_trial = _begin(stand, x, timing, offsets, fir, noise,
+                                                                   tolerances, tail, head)
+    if chi2 == np.inf:
+        return NO_START, x, np.inf, 1
+    count = 1
+    for _ in range(max(count_steps, 1)):
+        if not _jacobian(stand, x, model, steps, timing, offsets, fir, noise, tolerances, internal, moved, jac,
+                         head):
+            return NO_JACOBIAN, x, chi2, count
+        lowered = False
+        for damping in dampings[:dampings.size if count_steps > 0 else 0]:
+            trial = x + _step(jac, r, damping)
+            count += 1
+            new = _chi2(stand, trial, timing, offsets, fir, noise, tolerances, tail, head, trial_model, r_trial,
+                        internal)
+            if new < chi2:
+                x, chi2, lowered = trial, new, True
+                model[:], r[:] = trial_model, r_trial
+                break
+        if not lowered:
+            break
+    return CONVERGED, x, chi2, count
+
+
+def _inputs(data: Observed, layout: Layout, start: dict[str, float],
+            offsets: np.ndarray) -> tuple[tuple[Any, ...] | None, float]:
+    """The compiled fits' arguments up to the evaluations (None where the start is outside the ranges), and the
+    head's χ² constant."""
+    residuals = Residuals(data, layout)  # the record after the head and the head's sums
+    grid = residuals.grid
+    x = np.r_[layout.variables(start), offsets / data.noise]
+    stand = layout.packed(x[None, :3])[0][0]
+    if not np.all((stand[_CHECKED] >= _LOW) & (stand[_CHECKED] <= _HIGH)):  # the start: outside the ranges
+        return None, residuals.constant
+    timing = np.array([layout.origin, layout.sample_rate, grid.start_time, residuals.earliest, grid.factor,
+                       grid.pad])
+    tolerances = np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)]
+    return (stand, x, residuals.steps.astype(float), timing, grid.offsets, grid.taps, data.noise, tolerances,
+            np.ascontiguousarray(residuals.tail), np.r_[residuals.root, residuals.mean]), residuals.constant
+
+
+def refine_first_window(data: Observed, layout: Layout, start: dict[str, float], offsets: np.ndarray, *,
+                        steps: int = 1) -> LawFit | None:
+    """:func:`.early.refine_window` of the core layout (:func:`takes`) compiled; None where the model cannot be
+    integrated at the start."""
+    inputs, constant = _inputs(data, layout, start, offsets)
+    if inputs is None:
+        return None
+    jac = np.empty((inputs[8].size + 2, 5))
+    report, x, chi2, count = _refine(*inputs, np.array(DAMPING), int(steps), jac)  # type: ignore[call-arg]
+    if report in (NO_START, NO_JACOBIAN):
+        return None
+    return _law_fit(layout, data, x, chi2 + constant, jac, count, True)
+
+
 def fit_first_window(data: Observed, layout: Layout, start: dict[str, float], *, evaluations: int,
                      information: bool = True) -> LawFit | None:
     """:func:`.early.fit_window` of the core layout (:func:`takes`) compiled; None where the model cannot be
     integrated at the start or at the answer (the caller's fit then says why)."""
-    residuals = Residuals(data, layout)  # the record after the head and the head's sums
-    grid = residuals.grid
-    x = np.r_[layout.variables(start), data.offsets / data.noise]
-    stand = layout.packed(x[None, :3])[0][0]
-    if not np.all((stand[_CHECKED] >= _LOW) & (stand[_CHECKED] <= _HIGH)):  # the start: outside the ranges
+    inputs, constant = _inputs(data, layout, start, data.offsets)
+    if inputs is None:
         return None
-    timing = np.array([layout.origin, layout.sample_rate, grid.start_time, residuals.earliest, grid.factor,
-                       grid.pad])
-    tolerances = np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)]
-    head = np.r_[residuals.root, residuals.mean]
-    jac = np.empty((residuals.tail.size + 2, 5))
-    report, x, chi2, count = _fit(stand, x, residuals.steps.astype(float), timing, grid.offsets, grid.taps,
-                                  data.noise, tolerances, np.ascontiguousarray(residuals.tail), head,
-                                  int(evaluations), jac)
+    jac = np.empty((inputs[8].size + 2, 5))
+    report, x, chi2, count = _fit(*inputs, int(evaluations), jac)  # type: ignore[call-arg]
     if report in (NO_START, NO_JACOBIAN):
         return None
-    return _law_fit(layout, data, x, chi2 + residuals.constant, jac if information else None, count,
-                    report == CONVERGED)
+    return _law_fit(layout, data, x, chi2 + constant, jac if information else None, count, report == CONVERGED)
+
+
+#: whether this process has its kernels compiled or loaded from the cache (:func:`warm`)
+_WARM: list[bool] = []
+
+
+def warm() -> None:
+    """Compile the kernels of the stream's fits, or load them from numba's cache, once per process: a real-time
+    system has them before the impact (a first call in the middle of an impact took 1-3 s). Each is called with
+    the argument types of its use and an M1 outside its range, so nothing is integrated."""
+    if _WARM:
+        return
+    stand, x, rows, two = np.zeros(d.N_PARAM), np.full(5, -1e3), np.zeros((1, d.N_PARAM)), np.ones(2)
+    args = (stand, x, np.ones(3), np.zeros(6), np.zeros(4), np.ones(1), two, np.ones(1 + d.N_STATE),
+            np.zeros((2, 1)), np.ones(3))
+    _fit(*args, 1, np.zeros((4, 5)))
+    _refine(*args, np.array(DAMPING), 1, np.zeros((4, 5)))
+    _integrate_in_turn(rows, np.zeros(4), np.zeros(1), FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP,
+                       MAX_FIT_STEPS, np.zeros((1, 2, 4)), np.zeros(1, dtype=np.int64))
+    _WARM.append(True)

@@ -39,13 +39,14 @@ import numpy as np
 
 from ...errors import IdentificationError, ParameterError, shown
 from ...recording import Recording, check_sample_rate
-from ...rig import Rig, get_rig
+from ...rig import STAND_KEY, Rig, get_rig
 from ...sensors import anti_alias_delay
 from ...validation import check_integer, check_real
 from .. import model_fit as batch
 from ..peak_to_peak.streaming import StreamingIdentifier, last_outcome
 from ..result import Identification
 from .early import LEAD_SAMPLES
+from .first_window import warm
 from .fit import LawFit, Observed, window
 from .forward import check_uncertain, make_grid
 from .growing import Growing, explains, first_fit, update
@@ -75,6 +76,7 @@ class _Impact:
     next_stop: int
     fit: Growing
     done: bool = False
+    checked: bool = False
 
 
 class ModelStream:
@@ -125,12 +127,17 @@ class ModelStream:
         self.uncertain, self.contact = check_uncertain(uncertain, self.laws), contact
         self.metadata = dict(metadata or {})
         probe = self._recording(np.zeros((2, 1)), 0)
+        #: the warning of a stand other than the recording's, stated once: the updates' records leave it out (its
+        #: fingerprint of the stand cost a sixth of a millisecond an answer)
+        self._stand_notes = batch._stand_warning(probe, self.rig)
+        self._update_metadata = {k: v for k, v in self.metadata.items() if k != STAND_KEY}
         self.design = batch._design(probe)
         self.pressure = batch._pressure(probe, pressure, self.rig)
         self.delay = anti_alias_delay(self.design, sample_rate)
         self._grid_model = make_grid(self.start_time, sample_rate, 1, self.design)
         self._chunk = max(int(self.cadence * sample_rate), 1)
         clock = time.perf_counter()
+        warm()  # the compiled fits, before any impact
         self._grid = self._arm()
         #: wall time of the grid's predictions, made before any impact [s]
         self.arming_time = time.perf_counter() - clock
@@ -153,10 +160,10 @@ class ModelStream:
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
 
-    def _recording(self, channels: np.ndarray, first: int) -> Recording:
+    def _recording(self, channels: np.ndarray, first: int, metadata: dict | None = None) -> Recording:
         return Recording(sample_rate=self.sample_rate, channels=dict(zip(batch.CHANNELS, channels, strict=True)),
-                         start_time=self.start_time + first / self.sample_rate, metadata=self.metadata,
-                         source="stream")
+                         start_time=self.start_time + first / self.sample_rate,
+                         metadata=self.metadata if metadata is None else metadata, source="stream")
 
     @property
     def notes(self) -> list[str]:
@@ -226,9 +233,12 @@ class ModelStream:
             return self._conclude(impact, stop)
         impact.next_stop = min(self._stop(impact.contact_time, span + self.cadence),
                                self._stop(impact.contact_time, self.window))
-        recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
+        recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first,
+                                    self._update_metadata)
         try:
-            batch._check_length(recording, min_duration=0.0)  # a pre-trigger, as the batch fit needs one
+            if not impact.checked:  # a pre-trigger, as the batch fit needs one (the same for every update)
+                batch._check_length(recording, min_duration=0.0)
+                impact.checked = True
             data = self._observe(recording, impact.contact_time)
             fit = self._first(impact, data, span) if not impact.fit.states else update(impact.fit, data, span)
         except IdentificationError as exc:  # no estimate this time; the final answer decides
@@ -290,6 +300,7 @@ class ModelStream:
             start = growing.start
             answer = batch._answer(recording, self.rig, fit, {**common, "start": {} if start is None else {
                 "mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time}})
+            answer = replace(answer, warnings=(*self._stand_notes, *answer.warnings))
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
         answer = replace(answer, details={**answer.details, "update_time_s": elapsed})
