@@ -148,11 +148,12 @@ class ModelStream:
         self.last_record: Recording | None = None
 
     def _arm(self) -> dict:
-        """The predictions of the start grid for the first window of an impact with the full pre-trigger, keyed by
-        (samples before the trigger, samples of the window)."""
+        """The predictions of the start grid for the window it is ranked on (the first window, at most
+        ``STAGES[0]``: :func:`.select.grid_starts`) of an impact with the full pre-trigger, keyed by (samples
+        before the trigger, samples of the window)."""
         pre = int(PRE_TRIGGER * self.sample_rate)
         contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
-        size = int(math.floor((contact + self.first) * self.sample_rate + 1e-9)) + 1
+        size = int(math.floor((contact + min(self.first, STAGES[0][0])) * self.sample_rate + 1e-9)) + 1
         pressure_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_START
         try:
             return {(pre, size): grid_predictions(make_grid(0.0, self.sample_rate, size, self.design), self.rig,
@@ -258,14 +259,13 @@ class ModelStream:
             starts = [Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
                             pressure=self.pressure, pressure_start=pressure_start)]
         else:
-            predicted = self._grid.get((impact.trigger - impact.first, data.channels.shape[1]))
-            part = data
+            part = window(data, impact.contact_time + STAGES[0][0])  # the window the grid is ranked on
+            predicted = self._grid.get((impact.trigger - impact.first, part.grid.size))
             if predicted is not None and self.design in ("causal", "none"):
                 # the grid's χ² on the samples where some prediction is not zero: those before differ between its
                 # impacts by nothing (the same ranking, a thousand pre-trigger samples less to sum)
                 cut = max(int(math.floor((impact.contact_time - data.grid.start_time) * self.sample_rate))
                           - LEAD_SAMPLES, 0)
-                part = window(data, impact.contact_time + STAGES[0][0])  # the grid's window, then its tail:
                 part = replace(part, channels=part.channels[:, cut:], grid=replace(  # (a start a millionth of a
                     part.grid, start_time=part.grid.start_time + (cut - 1e-6) / self.sample_rate,  # period early:
                     size=part.grid.size - cut))  # the window's floor keeps its last sample)
