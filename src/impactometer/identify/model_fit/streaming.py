@@ -52,8 +52,8 @@ from .forward import check_uncertain, make_grid
 from .growing import Growing, explains, first_fit, update
 from .select import SCREEN_WINDOW, STAGES, Start, grid_predictions, grid_starts
 
-#: default time between updates [s] of record: an update of the record up to 50 ms after contact took 4-7 ms on
-#: one core of the (loaded) development machine, the first answer 6 ms (docs/model_identification.md)
+#: default time between updates [s] of record: an update of the record up to 50 ms after contact took a median
+#: 4.7 ms on one core of the (loaded) development machine, the first answer 3 ms (docs/model_identification.md)
 CADENCE = 0.01
 #: default record after first contact whose batch fit is the final answer [s]
 WINDOW = 0.05
