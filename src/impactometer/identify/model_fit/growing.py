@@ -14,7 +14,10 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .fit import MAX_EVALUATIONS, LawFit, Observed, fit_law, refine
+from .early import fit_window, refine_window
+from .first_window import fit_first_window, refine_first_window, takes
+from .fit import MAX_EVALUATIONS, LawFit, Observed
+from .forward import Layout
 from .select import (
     EARLY_MARGIN,
     EARLY_REDUCED_CHI2,
@@ -93,7 +96,14 @@ def _fit_core(growing: Growing, law: str, data: Observed, core: dict | None, eva
     layouts, values = start_law(growing.rig, law, growing.uncertain, growing.start, data.grid.sample_rate)
     if core is not None:
         values.update({name: core[name] for name in ("mass", "velocity", "contact_time")})
-    fit = fit_law(data, layouts("core", values), values, evaluations=evaluations, information=information)
+    layout = layouts("core", values)
+    if not takes(data, layout):
+        fit = fit_window(data, layout, values, evaluations=evaluations, information=information)
+    elif (compiled := fit_first_window(data, layout, values, evaluations=evaluations,
+                                       information=information)) is not None:
+        fit = compiled
+    else:
+        raise IdentificationError(f"the {law} model cannot be integrated at the fit's start or its answer")
     return LawState(layouts, {**values, **fit.values}, fit.offsets, fit)
 
 
@@ -168,6 +178,17 @@ def _keep(growing: Growing, dropped: dict[str, str], why: str, span: float, *, o
                           + (f" ({'; '.join(f'{k}: {v}' for k, v in dropped.items())})" if dropped else ""))
 
 
+def _refine(data: Observed, layout: Layout, values: dict, offsets: np.ndarray, steps: int) -> LawFit:
+    """``steps`` Levenberg-Marquardt steps: compiled for the layout with the stand held (:mod:`.first_window`),
+    else :func:`.early.refine_window`."""
+    if not takes(data, layout):
+        return refine_window(data, layout, values, offsets, steps=steps)
+    fit = refine_first_window(data, layout, values, offsets, steps=steps)
+    if fit is None:
+        raise IdentificationError(f"the {layout.law} model cannot be integrated at the update's start")
+    return fit
+
+
 def update(growing: Growing, data: Observed, span: float) -> LawFit | None:
     """One update on the record so far (``span`` [s] after contact): the pending screen first; each law followed
     refined from its last values (:func:`.fit.refine`), the stand held before ``STAGES[SCREEN_WINDOW]`` and every
@@ -178,9 +199,9 @@ def update(growing: Growing, data: Observed, span: float) -> LawFit | None:
     for law, state in list(growing.states.items()):
         try:
             layout = state.layouts(kind, state.values)
-            fit = refine(data, layout, state.values, state.offsets, steps=UPDATE_STEPS)
+            fit = _refine(data, layout, state.values, state.offsets, UPDATE_STEPS)
             if fit.reduced_chi2 > RETRY_REDUCED_CHI2:  # far from the optimum: a few steps more, this time
-                fit = refine(data, layout, fit.values, fit.offsets, steps=CATCH_UP_STEPS)
+                fit = _refine(data, layout, fit.values, fit.offsets, CATCH_UP_STEPS)
         except IdentificationError as exc:
             growing.notes.append(f"{law} at {span * 1e3:.3g} ms: {exc}")
             if len(growing.states) > 1:

@@ -39,19 +39,21 @@ import numpy as np
 
 from ...errors import IdentificationError, ParameterError, shown
 from ...recording import Recording, check_sample_rate
-from ...rig import Rig, get_rig
+from ...rig import STAND_KEY, Rig, get_rig
 from ...sensors import anti_alias_delay
 from ...validation import check_integer, check_real
 from .. import model_fit as batch
 from ..peak_to_peak.streaming import StreamingIdentifier, last_outcome
 from ..result import Identification
-from .fit import LawFit, Observed
+from .early import LEAD_SAMPLES
+from .first_window import warm
+from .fit import LawFit, Observed, window
 from .forward import check_uncertain, make_grid
 from .growing import Growing, explains, first_fit, update
 from .select import SCREEN_WINDOW, STAGES, Start, grid_predictions, grid_starts
 
-#: default time between updates [s] of record: an update of the record up to 50 ms after contact took 4-7 ms on
-#: one core of the (loaded) development machine, the first answer 6 ms (docs/model_identification.md)
+#: default time between updates [s] of record: an update of the record up to 50 ms after contact took a median
+#: 4.7 ms on one core of the (loaded) development machine, the first answer 3 ms (docs/model_identification.md)
 CADENCE = 0.01
 #: default record after first contact whose batch fit is the final answer [s]
 WINDOW = 0.05
@@ -74,6 +76,7 @@ class _Impact:
     next_stop: int
     fit: Growing
     done: bool = False
+    checked: bool = False
 
 
 class ModelStream:
@@ -124,11 +127,17 @@ class ModelStream:
         self.uncertain, self.contact = check_uncertain(uncertain, self.laws), contact
         self.metadata = dict(metadata or {})
         probe = self._recording(np.zeros((2, 1)), 0)
+        #: the warning of a stand other than the recording's, stated once: the updates' records leave it out (its
+        #: fingerprint of the stand cost a sixth of a millisecond an answer)
+        self._stand_notes = batch._stand_warning(probe, self.rig)
+        self._update_metadata = {k: v for k, v in self.metadata.items() if k != STAND_KEY}
         self.design = batch._design(probe)
         self.pressure = batch._pressure(probe, pressure, self.rig)
         self.delay = anti_alias_delay(self.design, sample_rate)
+        self._grid_model = make_grid(self.start_time, sample_rate, 1, self.design)
         self._chunk = max(int(self.cadence * sample_rate), 1)
         clock = time.perf_counter()
+        warm()  # the compiled fits, before any impact
         self._grid = self._arm()
         #: wall time of the grid's predictions, made before any impact [s]
         self.arming_time = time.perf_counter() - clock
@@ -139,11 +148,12 @@ class ModelStream:
         self.last_record: Recording | None = None
 
     def _arm(self) -> dict:
-        """The predictions of the start grid for the first window of an impact with the full pre-trigger, keyed by
-        (samples before the trigger, samples of the window)."""
+        """The predictions of the start grid for the window it is ranked on (the first window, at most
+        ``STAGES[0]``: :func:`.select.grid_starts`) of an impact with the full pre-trigger, keyed by (samples
+        before the trigger, samples of the window)."""
         pre = int(PRE_TRIGGER * self.sample_rate)
         contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
-        size = int(math.floor((contact + self.first) * self.sample_rate + 1e-9)) + 1
+        size = int(math.floor((contact + min(self.first, STAGES[0][0])) * self.sample_rate + 1e-9)) + 1
         pressure_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_START
         try:
             return {(pre, size): grid_predictions(make_grid(0.0, self.sample_rate, size, self.design), self.rig,
@@ -151,10 +161,10 @@ class ModelStream:
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
 
-    def _recording(self, channels: np.ndarray, first: int) -> Recording:
+    def _recording(self, channels: np.ndarray, first: int, metadata: dict | None = None) -> Recording:
         return Recording(sample_rate=self.sample_rate, channels=dict(zip(batch.CHANNELS, channels, strict=True)),
-                         start_time=self.start_time + first / self.sample_rate, metadata=self.metadata,
-                         source="stream")
+                         start_time=self.start_time + first / self.sample_rate,
+                         metadata=self.metadata if metadata is None else metadata, source="stream")
 
     @property
     def notes(self) -> list[str]:
@@ -205,6 +215,13 @@ class ModelStream:
                                fit=Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
         self.estimates = []
 
+    def _observe(self, recording: Recording, contact_time: float) -> Observed:
+        """The record as the fit reads it (:func:`~impactometer.identify.model_fit._observe`), on a grid whose
+        sensor model the stream made once: the design of the anti-alias FIR costs a quarter of a millisecond, a
+        first answer little more than a millisecond."""
+        data = batch._observe(recording, "none", contact_time, min_duration=0.0)  # the design only makes the grid
+        return replace(data, grid=replace(self._grid_model, start_time=data.grid.start_time, size=data.grid.size))
+
     def _stop(self, contact: float, after: float) -> int:
         """Stream index one past the last sample of the record up to ``after`` [s] after ``contact``."""
         return int(math.floor((contact + after - self.start_time) * self.sample_rate + 1e-9)) + 1
@@ -217,10 +234,13 @@ class ModelStream:
             return self._conclude(impact, stop)
         impact.next_stop = min(self._stop(impact.contact_time, span + self.cadence),
                                self._stop(impact.contact_time, self.window))
-        recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
+        recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first,
+                                    self._update_metadata)
         try:
-            batch._check_length(recording, min_duration=0.0)  # a pre-trigger, as the batch fit needs one
-            data = batch._observe(recording, self.design, impact.contact_time, min_duration=0.0)
+            if not impact.checked:  # a pre-trigger, as the batch fit needs one (the same for every update)
+                batch._check_length(recording, min_duration=0.0)
+                impact.checked = True
+            data = self._observe(recording, impact.contact_time)
             fit = self._first(impact, data, span) if not impact.fit.states else update(impact.fit, data, span)
         except IdentificationError as exc:  # no estimate this time; the final answer decides
             impact.fit.notes.append(f"up to {span * 1e3:.3g} ms after first contact: {exc}")
@@ -239,9 +259,19 @@ class ModelStream:
             starts = [Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
                             pressure=self.pressure, pressure_start=pressure_start)]
         else:
-            starts = grid_starts(data, self.rig, impact.contact_time, self.pressure, pressure_start,
-                                 count=GRID_STARTS, predicted=self._grid.get((impact.trigger - impact.first,
-                                                                             data.channels.shape[1])))
+            part = window(data, impact.contact_time + STAGES[0][0])  # the window the grid is ranked on
+            predicted = self._grid.get((impact.trigger - impact.first, part.grid.size))
+            if predicted is not None and self.design in ("causal", "none"):
+                # the grid's χ² on the samples where some prediction is not zero: those before differ between its
+                # impacts by nothing (the same ranking, a thousand pre-trigger samples less to sum)
+                cut = max(int(math.floor((impact.contact_time - data.grid.start_time) * self.sample_rate))
+                          - LEAD_SAMPLES, 0)
+                part = replace(part, channels=part.channels[:, cut:], grid=replace(  # (a start a millionth of a
+                    part.grid, start_time=part.grid.start_time + (cut - 1e-6) / self.sample_rate,  # period early:
+                    size=part.grid.size - cut))  # the window's floor keeps its last sample)
+                predicted = predicted[..., cut:]
+            starts = grid_starts(part, self.rig, impact.contact_time, self.pressure, pressure_start,
+                                 count=GRID_STARTS, predicted=predicted)
         return first_fit(impact.fit, data, span, starts)
 
     def _emit(self, fit: LawFit, recording: Recording, *, stage: str, clock: float, span: float,
@@ -270,6 +300,7 @@ class ModelStream:
             start = growing.start
             answer = batch._answer(recording, self.rig, fit, {**common, "start": {} if start is None else {
                 "mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time}})
+            answer = replace(answer, warnings=(*self._stand_notes, *answer.warnings))
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
         answer = replace(answer, details={**answer.details, "update_time_s": elapsed})
