@@ -127,8 +127,9 @@ def constant_outcome(context: ControlContext, opening: float) -> tuple[float, fl
     control = dataclasses.replace(context.base("constant", opening=opening), mass_std=0.0, refine_mass=False)
     result, _ = loop.simulate_controlled(scenario, context.rig, control=control, drive=context.absorber.drive,
                                          duration=context.duration, sample_rate=PLANNING_RATE)
-    after = result.time >= context.start
-    return float(result.contact_force[after].max()), float(result.u1.max())
+    after = result.time >= context.start  # none when the control starts after the simulated span: nothing to act on
+    peak = float(result.contact_force[after].max()) if after.any() else 0.0
+    return peak, float(result.u1.max())
 
 
 def optimal_constant_opening(context: ControlContext, *, candidates: int = 9, refinements: int = 4) -> float:
