@@ -35,7 +35,7 @@ STREAM_CHUNK = 16
 MODEL_MASS_TRUST = 0.2
 #: the model stream's first window, its cadence and the longest record after first contact it reads for the
 #: loop [s]
-MODEL_FIRST, MODEL_CADENCE, MODEL_LAST = 0.004, 0.001, 0.015
+MODEL_FIRST, MODEL_CADENCE, MODEL_LAST = 0.003, 0.001, 0.015
 #: the controller trusts an identified velocity whose standard error is below this fraction of it [-] (and a mass
 #: by the estimator's ``MASS_TRUST``)
 VELOCITY_TRUST = 0.5
