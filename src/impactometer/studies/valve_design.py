@@ -30,12 +30,12 @@ NAME = "valve-design"
 GRID = 2
 FULL = {"areas_mm2": [25, 50, 100, 200, 400], "response_times_ms": [1, 2, 3, 5, 10]}
 DEFAULTS = {"areas_mm2": [25, 100, 400], "response_times_ms": [1, 3, 10], "dead_time_ms": 0.5,
-            "noise": 0.02, "strategy": "predictive", "identification": "robust"}
+            "noise": 0.02, "strategy": "predictive", "identification": "model"}
 SETTINGS = {"areas_mm2": Setting("numbers", 0.0, 1e4, low_open=True), "response_times_ms": Setting("numbers", 0.0, 1e3,
                                                                                                   low_open=True),
             "dead_time_ms": Setting("number", 0.0, 50.0), "noise": Setting("number", 0.0, 1.0, "fraction"),
             "strategy": Setting("choice", choices=("realtime", "predictive")),
-            "identification": Setting("choice", choices=("robust", "paper", "oracle"))}
+            "identification": Setting("choice", choices=("model", "robust", "paper", "oracle"))}
 #: the stage-B force ratio the designer asks for (median over the impacts)
 TARGET = 1.1
 
