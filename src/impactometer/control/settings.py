@@ -13,10 +13,10 @@ import numpy as np
 
 from ..errors import ParameterError, shown
 from ..validation import check_flag, check_real, is_real
-from .state import Strategy, pack_settings
+from .state import Strategy, names, pack_settings
 
 #: the strategies of the compiled controller, by name
-STRATEGIES = sorted(strategy.name.lower() for strategy in Strategy)
+STRATEGIES = sorted(name.lower() for name in names(Strategy))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -1,14 +1,16 @@
-"""Every layout of the compiled control loop's vectors, named: one ``IntEnum`` per vector, packed at one boundary.
+"""Every layout of the compiled control loop's vectors, named: one layout per vector, packed at one boundary.
 
 The compiled kernels (:mod:`.estimator`, :mod:`.windows`, :mod:`.controller`, :mod:`.simulate`) keep their state in
-flat float vectors, which numba handles fastest; the slots of each are the members of one ``IntEnum`` here (numba
-reads an ``IntEnum`` member as an integer constant). A vector is filled from the Python objects it describes in
-one function (:func:`pack_settings`, :func:`pack_drive`) and read back by name with :func:`unpack`; no other code
-builds one slot by slot.
+flat float vectors, which numba handles fastest; the slots of each are written here as the members of an
+``IntEnum`` and kept as a named tuple of plain ints (:func:`slots`), which every numba version reads as integer
+constants (numba 0.60-0.62 cannot index an array with an ``IntEnum`` member). A vector is filled from the Python
+objects it describes in one function (:func:`pack_settings`, :func:`pack_drive`) and read back by name with
+:func:`unpack`; no other code builds one slot by slot.
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import fields
 from enum import IntEnum
 from typing import TYPE_CHECKING, Any
@@ -21,6 +23,19 @@ if TYPE_CHECKING:
     from .valve import ValveDrive
 
 
+def slots(layout: type[IntEnum]) -> Any:
+    """The members of ``layout`` as a named tuple of plain ints with the same names (a class decorator): read by
+    name (``Estimator.MASS``), counted (``len``), iterated in order, and a compile-time constant in the kernels."""
+    make: Any = namedtuple  # a type made at run time, from the enum's names
+    return make(layout.__name__, [member.name for member in layout])(*[int(member) for member in layout])
+
+
+def names(layout: Any) -> tuple[str, ...]:
+    """The slot names of ``layout`` (one of this module's), in order."""
+    return tuple(layout._fields)
+
+
+@slots
 class Strategy(IntEnum):
     """Code of each strategy of the compiled controller (``ControlSettings.strategy``)."""
 
@@ -31,6 +46,7 @@ class Strategy(IntEnum):
     LEVEL = 4
 
 
+@slots
 class Settings(IntEnum):
     """Slots of the packed :class:`~.settings.ControlSettings`: one per field, named after it, in field order."""
 
@@ -57,6 +73,7 @@ class Settings(IntEnum):
     ACCELERATION_NOISE = 20
 
 
+@slots
 class Drive(IntEnum):
     """Slots of the drive vector: the valve actuator as its data sheet describes it (:class:`~.valve.ValveDrive`)."""
 
@@ -70,6 +87,7 @@ class Drive(IntEnum):
     ROUTE = 3
 
 
+@slots
 class Estimator(IntEnum):
     """Slots of the estimator's state (:mod:`.estimator`); the stage-B windows' state (:class:`Windows`) follows
     from slot ``WINDOWS`` on."""
@@ -97,6 +115,7 @@ class Estimator(IntEnum):
     WINDOWS = 20
 
 
+@slots
 class Sums(IntEnum):
     """Offsets of the running sums from first contact on, wherever a copy of them is kept (the running ones, each
     sample of the sums ring, each stored end)."""
@@ -117,6 +136,7 @@ RING = 256
 MAX_ENDS = 256
 
 
+@slots
 class End(IntEnum):
     """Offsets within a stored end of the windows: the running sums there (:class:`Sums`), then these."""
 
@@ -132,6 +152,7 @@ class End(IntEnum):
 END_SLOTS = N_SUMS + len(End)
 
 
+@slots
 class Windows(IntEnum):
     """Slots of the stage-B windows' state (:mod:`.windows`): scalars, then the start of each region."""
 
@@ -167,7 +188,8 @@ def pack_settings(settings: Any) -> np.ndarray:
     out = np.empty(len(Settings))
     for f in fields(settings):
         value = getattr(settings, f.name)
-        out[Settings[f.name.upper()]] = Strategy[value.upper()] if f.name == "strategy" else float(value)
+        code = getattr(Strategy, value.upper()) if f.name == "strategy" else float(value)
+        out[getattr(Settings, f.name.upper())] = code
     return out
 
 
@@ -181,6 +203,7 @@ def pack_drive(drive: ValveDrive) -> np.ndarray:
     return out
 
 
-def unpack(layout: type[IntEnum], vector: np.ndarray) -> dict[str, float]:
-    """The named slots of ``layout`` in ``vector`` (a packed vector or a kernel's state), by lower-case name."""
-    return {slot.name.lower(): float(vector[slot]) for slot in layout}
+def unpack(layout: Any, vector: np.ndarray) -> dict[str, float]:
+    """The named slots of ``layout`` (one of this module's) in ``vector`` (a packed vector or a kernel's state), by
+    lower-case name."""
+    return {name.lower(): float(vector[index]) for name, index in layout._asdict().items()}
