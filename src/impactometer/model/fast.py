@@ -67,7 +67,7 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
     # a contact whose force jumps where it closes (a Kelvin-Voigt pad's c·δ', a damped stop's c·v2): the jump is
     # spread over the samples around it (:func:`share_jump`), so that they move with the closing instant rather
     # than in steps of the grid; the closings at the last sample (the pad's is 0 at first contact, t = 0)
-    pad_gap, top_gap, bottom_gap = closings(y, force_parameters)
+    gaps = closings(y, force_parameters)
     fc = fp = ff = f_top = f_bottom = 0.0
     t = 0.0
     t_end = t_out[-1]
@@ -112,16 +112,7 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
                 out[j, i_out] = ys[c] if c < N else d.derived_value(c, gravity, mass, piston_mass, fc, fp, ff,
                                                                     f_top, f_bottom)
             if full:
-                pad, top, bottom = closings(ys, force_parameters)
-                if i_out > 0:
-                    t_before, t_after = t_out[i_out - 1], t_out[i_out]
-                    if pad_gap <= 0.0 < pad:
-                        share_jump(out, channel_index, i_out, t_before, t_after, pad_gap, pad)
-                    if top_gap <= 0.0 < top:
-                        share_jump(out, channel_index, i_out, t_before, t_after, top_gap, top)
-                    if bottom_gap <= 0.0 < bottom:
-                        share_jump(out, channel_index, i_out, t_before, t_after, bottom_gap, bottom)
-                pad_gap, top_gap, bottom_gap = pad, top, bottom
+                gaps = spread_closings(out, channel_index, i_out, t_out, gaps, ys, force_parameters)
             i_out += 1
         t = t_new
         stepper.accept(y, k)
@@ -139,6 +130,19 @@ def closings(y, q):
     if stop_c <= 0.0:
         return pad, -1.0, -1.0
     return pad, -y[d.U2], y[d.U2] - stroke
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def spread_closings(out, channel_index, i_out, t_out, before, y, q):
+    """The closings (:func:`closings`) at sample ``i_out`` of state ``y``; each contact that closed since the sample
+    before (its compression in ``before`` <= 0, now > 0) has its jump spread over the two (:func:`share_jump`).
+    Returns the closings, the ``before`` of the next sample."""
+    after = closings(y, q)
+    if i_out > 0:
+        for k in range(3):
+            if before[k] <= 0.0 < after[k]:
+                share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], before[k], after[k])
+    return after
 
 
 @njit(cache=True, inline="always", error_model="numpy")

@@ -10,7 +10,7 @@ from scipy.integrate import solve_ivp
 
 from ..errors import ParameterError, SimulationError
 from . import dynamics as d
-from .fast import closings, share_jump
+from .fast import spread_closings
 
 #: right-hand-side evaluations per step of each ``solve_ivp`` method, for the step budget
 _EVALUATIONS_PER_STEP = {"RK45": 6, "DOP853": 12, "RK23": 3}
@@ -68,22 +68,14 @@ def _channels_of(states, p, time, out):
     y = np.empty(d.N_STATE)
     every = np.arange(d.N_CHANNEL)
     q = d.force_parameters(p)
-    pad_gap = top_gap = bottom_gap = -1.0
+    gaps = (-1.0, -1.0, -1.0)
     for i in range(states.shape[1]):
         for j in range(d.N_STATE):
             y[j] = states[j, i]
         d.channels(y, p, row)
         for j in range(d.N_CHANNEL):
             out[j, i] = row[j]
-        pad, top, bottom = closings(y, q)  # a jump spread over its samples as the fast integrator spreads it
-        if i > 0:
-            if pad_gap <= 0.0 < pad:
-                share_jump(out, every, i, time[i - 1], time[i], pad_gap, pad)
-            if top_gap <= 0.0 < top:
-                share_jump(out, every, i, time[i - 1], time[i], top_gap, top)
-            if bottom_gap <= 0.0 < bottom:
-                share_jump(out, every, i, time[i - 1], time[i], bottom_gap, bottom)
-        pad_gap, top_gap, bottom_gap = pad, top, bottom
+        gaps = spread_closings(out, every, i, time, gaps, y, q)  # jumps spread as the fast integrator spreads them
 
 
 def channels_of(states: np.ndarray, p: np.ndarray, time: np.ndarray) -> np.ndarray:
