@@ -147,23 +147,29 @@ def equilibrium_position(p):
     return low if abs(piston_net_force(low, p)) < abs(piston_net_force(high, p)) else high
 
 
+@njit(cache=True, error_model="numpy")
+def contact_state(p, y):
+    """``y`` := the state at first contact of packed row ``p`` (:func:`initial_state`, one row, on the calling
+    thread); False, with the piston's position NaN, where the charge cannot carry the piston."""
+    u2 = equilibrium_position(p)
+    y[:] = 0.0
+    pl, pu = settled_pressures(u2, p)
+    lower0, upper0 = d.volumes(0.0, p)
+    charge = p[d.ATMOSPHERE] + p[d.PRESSURE_GAUGE]
+    y[d.U1] = u2
+    y[d.V1] = p[d.VELOCITY]
+    y[d.U2] = u2
+    y[d.P_LOWER] = pl
+    y[d.P_UPPER] = pu
+    y[d.M_LOWER] = charge * lower0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
+    y[d.M_UPPER] = charge * upper0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
+    return not np.isnan(u2)
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def _initial_states(params, out):
     for s in prange(params.shape[0]):  # ~1 µs each: millions of scenarios (a GPU batch) take seconds on one core
-        p = params[s]
-        u2 = equilibrium_position(p)
-        y = out[s]
-        y[:] = 0.0
-        pl, pu = settled_pressures(u2, p)
-        lower0, upper0 = d.volumes(0.0, p)
-        charge = p[d.ATMOSPHERE] + p[d.PRESSURE_GAUGE]
-        y[d.U1] = u2
-        y[d.V1] = p[d.VELOCITY]
-        y[d.U2] = u2
-        y[d.P_LOWER] = pl
-        y[d.P_UPPER] = pu
-        y[d.M_LOWER] = charge * lower0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
-        y[d.M_UPPER] = charge * upper0 / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
+        contact_state(params[s], out[s])
 
 
 def initial_states(params: np.ndarray) -> np.ndarray:

@@ -25,10 +25,10 @@ from numba import njit
 from ...errors import IdentificationError
 from ...model import dynamics as d
 from ...model import fast
-from ...model.setup import equilibrium_position, settled_pressures
+from ...model.setup import contact_state
 from ...model.simulate import MAX_STEP, absolute_tolerance
 from .fit import CONTACT_TIME_STEP, DAMPING, MAX_EVALUATIONS, STEP, TOLERANCE, LawFit, Observed
-from .forward import CHANNEL_INDEX, FIT_RTOL, MAX_FIT_STEPS, TRIAL_RANGES, Grid, Layout, sensed
+from .forward import CHANNEL_INDEX, FIT_RTOL, MAX_FIT_STEPS, TRIAL_RANGES, Grid, Layout, integrate_row, sensed
 from .information import covariance
 
 #: the packed parameters a trial point is checked on, and their ranges (:data:`.forward.TRIAL_RANGES`)
@@ -44,37 +44,16 @@ NO_START = -100
 
 
 @njit(cache=True, error_model="numpy")
-def _contact_state(p, y):
-    """``y`` := the state at first contact of packed row ``p`` (:func:`~impactometer.model.setup.initial_states`,
-    one row on this thread); False where the charge cannot carry the piston."""
-    rest = equilibrium_position(p)
-    if np.isnan(rest):
-        return False
-    charge = p[d.ATMOSPHERE] + p[d.PRESSURE_GAUGE]
-    lower, upper = d.volumes(0.0, p)
-    y[:] = 0.0
-    y[d.U1] = y[d.U2] = rest
-    y[d.V1] = p[d.VELOCITY]
-    y[d.P_LOWER], y[d.P_UPPER] = settled_pressures(rest, p)
-    y[d.M_LOWER] = charge * lower / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
-    y[d.M_UPPER] = charge * upper / (p[d.GAS_CONSTANT] * p[d.TEMPERATURE])
-    return True
-
-
-@njit(cache=True, error_model="numpy")
 def _integrate_in_turn(params, offsets, shifts, rtol, atol, max_step, max_steps, out, status):
     """Row s integrated from its contact instant at ``offsets - shifts[s]``; zero before the last instant before
     contact (which holds the state at contact, as :func:`.forward.predict` integrates it)."""
     y0 = np.empty(d.N_STATE)
     for s in range(params.shape[0]):
-        if not _contact_state(params[s], y0):
+        if not contact_state(params[s], y0):
             status[s] = NO_START
             continue
-        t = offsets - shifts[s]
-        start = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
-        out[s, :, :start] = 0.0
-        status[s], _ = fast.integrate_one(params[s], y0, t[start:], CHANNEL_INDEX, rtol, atol, max_step,
-                                          max_steps, out[s, :, start:])
+        status[s] = integrate_row(params[s], y0, offsets, shifts[s], CHANNEL_INDEX, rtol, atol, max_step,
+                                  max_steps, out[s])
 
 
 def predict_in_turn(grid: Grid, params: np.ndarray, contact_times: np.ndarray) -> np.ndarray:

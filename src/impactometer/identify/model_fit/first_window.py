@@ -16,6 +16,7 @@ from numba import njit
 
 from ...model import dynamics as d
 from ...model import fast
+from ...model.setup import contact_state
 from ...model.simulate import MAX_STEP, absolute_tolerance
 from .early import (
     _CHECKED,
@@ -26,7 +27,6 @@ from .early import (
     MOST_DAMPING,
     RAISE,
     Residuals,
-    _contact_state,
     _integrate_in_turn,
     _law_fit,
 )
@@ -63,7 +63,7 @@ def _channels(stand, x, timing, offsets, fir, noise, tolerances, out, internal):
     p = stand.copy()
     p[d.MASS], p[d.VELOCITY] = mass, velocity
     y0 = np.empty(d.N_STATE)
-    if not _contact_state(p, y0):
+    if not contact_state(p, y0):
         return False
     t = offsets - (contact - timing[2])
     first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)

@@ -271,14 +271,23 @@ def _integrate_rows(params, y0, offsets, shifts, channel_index, rtol, atol, max_
     """Integrate each row from its contact instant: row s at the instants ``offsets - shifts[s]`` after contact,
     zero before it (the last instant before it at the state of contact)."""
     for s in prange(params.shape[0]):
-        t = offsets - shifts[s]
-        # the last instant before contact is integrated too (it holds the state at contact): a contact force that
-        # jumps at first touch shares the jump with it (fast.share_jump)
-        first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
-        for j in range(channel_index.size):
-            out[s, j, :first] = 0.0
-        status[s], _ = fast.integrate_one(params[s], y0[s], t[first:], channel_index, rtol, atol, max_step,
-                                          max_steps, out[s, :, first:])
+        status[s] = integrate_row(params[s], y0[s], offsets, shifts[s], channel_index, rtol, atol, max_step,
+                                  max_steps, out[s])
+
+
+@njit(cache=True, error_model="numpy")
+def integrate_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max_steps, out):
+    """One row of :func:`_integrate_rows` on the calling thread: the channels ``out`` (channels, instants) at
+    ``offsets - shift`` after contact, zero before the last instant before it, which is integrated too (it holds
+    the state at contact: a contact force that jumps at first touch shares the jump with it, fast.share_jump).
+    Returns the integrator's status."""
+    t = offsets - shift
+    first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
+    for j in range(channel_index.size):
+        out[j, :first] = 0.0
+    status, _ = fast.integrate_one(p, y0, t[first:], channel_index, rtol, atol, max_step, max_steps,
+                                   out[:, first:])
+    return status
 
 
 def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray) -> np.ndarray:
