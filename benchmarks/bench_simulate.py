@@ -32,7 +32,7 @@ from scipy.integrate import solve_ivp
 from impactometer.model import dynamics as d
 from impactometer.model import reference, simulate_batch
 from impactometer.model.setup import initial_states
-from impactometer.model.simulate import DEFAULT_RTOL, MAX_STEP, absolute_tolerance, compare_integrators
+from impactometer.model.simulate import DEFAULT_RTOL, MAX_STEP, MAX_STEPS, absolute_tolerance, compare_integrators
 from impactometer.rig import get_rig
 from recorded import recorded
 
@@ -177,25 +177,29 @@ def gpu_versus_cpu(n_gpu, n_cpu, agree=True, repeat=3):
     mass, velocity, pressure = scenarios(max(n_gpu, n_cpu), seed=3)
     options = {"duration": DURATION, "sample_rate": SAMPLE_RATE}
     rates = {}
-    for device, n in (("gpu", n_gpu), ("cpu", n_cpu)):
-        simulate_batch(mass[:2], velocity[:2], pressure[:2], rig, device=device, **options)  # compile
+    for device, n, dtype in (("gpu", n_gpu, np.float64), ("gpu", n_gpu, np.float32), ("cpu", n_cpu, np.float64)):
+        simulate_batch(mass[:2], velocity[:2], pressure[:2], rig, device=device, dtype=dtype, **options)  # compile
         best = np.inf
         for _ in range(repeat):
             start = time.perf_counter()
             steps = sum(float(block.steps.sum()) for _, block in
-                        simulate_blocks(mass[:n], velocity[:n], pressure[:n], rig, device=device, **options))
+                        simulate_blocks(mass[:n], velocity[:n], pressure[:n], rig, device=device, dtype=dtype,
+                                        **options))
             best = min(best, time.perf_counter() - start)
-        rates[device] = (n, best, n / best, steps / n)
+        rates[device, np.dtype(dtype).name] = (n, best, n / best, steps / n)
     name = getattr(cuda.get_current_device(), "name", "CUDA simulator")
     name = name.decode() if isinstance(name, bytes) else name
     print(f"\n## GPU vs CPU batch: {DURATION * 1e3:g} ms at {SAMPLE_RATE / 1e3:g} kHz, contact force + piston "
-          f"acceleration (float64 histories copied back), rtol {DEFAULT_RTOL['fast']:g}; GPU: {name}; CPU: "
+          f"acceleration histories copied back to the host, rtol {DEFAULT_RTOL['fast']:g}; GPU: {name}; CPU: "
           f"{numba.get_num_threads()} threads, load average {os.getloadavg()[0]:.1f}")
-    print("| device | scenarios | wall [s] | scenarios/s | mean accepted steps |")
-    print("|---|---:|---:|---:|---:|")
-    for device, (n, wall, rate, steps) in rates.items():
-        print(f"| {device} | {n} | {wall:.3f} | {rate:,.0f} | {steps:.0f} |")
-    print(f"\nGPU / CPU throughput: {rates['gpu'][2] / rates['cpu'][2]:,.1f}")
+    print("| device | histories dtype | scenarios | wall [s] | scenarios/s | mean accepted steps |")
+    print("|---|---|---:|---:|---:|---:|")
+    for (device, dtype), (n, wall, rate, steps) in rates.items():
+        print(f"| {device} | {dtype} | {n} | {wall:.3f} | {rate:,.0f} | {steps:.0f} |")
+    cpu = rates["cpu", "float64"][2]
+    print(f"\nGPU / CPU throughput: {rates['gpu', 'float64'][2] / cpu:,.1f} (float64 histories), "
+          f"{rates['gpu', 'float32'][2] / cpu:,.1f} (float32 on the GPU)")
+    kernel_only(name, n_gpu, cpu)
     if not agree:
         return
     grid = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0],
@@ -208,6 +212,36 @@ def gpu_versus_cpu(n_gpu, n_cpu, agree=True, repeat=3):
         a = compare_devices(*grid, get_rig(contact=law), duration=0.05, sample_rate=200e3)
         print(f"| {law} | {a.pulses} | {a.peak_force:.1e} | {a.impulse:.1e} | {a.peak_time * 1e6:.3f} | "
               f"{a.pulse_count_mismatches} |")
+
+
+def kernel_only(name, n, cpu_rate, block=65536):
+    """Scenarios/s of the GPU kernel alone (histories left on the device, as a reduction on the device would), the
+    bound that copying histories back to the host falls short of."""
+    from numba import cuda
+
+    from impactometer.model import gpu
+    from impactometer.model.gpu_kernel import integrate as kernel
+
+    block = min(n, block)
+    # the packed parameters of the same kind of scenarios, from the CPU batch (one narrow channel to save memory)
+    batch = simulate_batch(*scenarios(block, seed=3), duration=DURATION, sample_rate=SAMPLE_RATE, channels=("a2",),
+                           dtype=np.float32, device="cpu")
+    params = batch.params
+    rtol = DEFAULT_RTOL["fast"]
+    index = np.array([d.CHANNELS.index("contact_force"), d.CHANNELS.index("a2")])
+    args = [cuda.to_device(a) for a in (params, initial_states(params), batch.time, index)]
+    out = cuda.device_array((block, 2, batch.time.size))
+    status, steps = cuda.device_array(block, np.int64), cuda.device_array(block, np.int64)
+    grid = ((block + gpu.THREADS_PER_BLOCK - 1) // gpu.THREADS_PER_BLOCK, gpu.THREADS_PER_BLOCK)
+    best = np.inf
+    for _ in range(4):
+        start = time.perf_counter()
+        kernel[grid](args[0], args[1], args[2], args[3], rtol, cuda.to_device(absolute_tolerance(rtol)), MAX_STEP,
+                     MAX_STEPS, out, status, steps)
+        cuda.synchronize()
+        best = min(best, time.perf_counter() - start)
+    print(f"GPU kernel alone ({name}, {block} scenarios, histories left on the device): {block / best:,.0f} "
+          f"scenarios/s, {block / best / cpu_rate:,.1f} x the CPU batch")
 
 
 def main():

@@ -8,8 +8,9 @@ Dormand-Prince 5(4) step with its error control are therefore the very functions
 kernel in :mod:`.gpu_kernel` (one thread per scenario, scratch arrays in thread-local memory) is specific
 to the device.
 
-Histories go back to the host a block of scenarios at a time; a block's device buffers stay within
-:data:`BLOCK_BYTES` (and half the free device memory), so the number of scenarios is bounded by host memory only.
+Histories go back to the host a block of scenarios at a time, straight into the caller's array, while the device
+integrates the next block; two blocks' device buffers stay within :data:`BLOCK_BYTES` (and half the free device
+memory), so the number of scenarios is bounded by host memory only.
 
 The optional dependency ``numba-cuda`` (extra ``impactometer[gpu]``) provides the CUDA target. With
 ``NUMBA_ENABLE_CUDASIM=1`` numba's CUDA simulator runs the same kernel as Python on the CPU (slowly): that is how
@@ -124,8 +125,9 @@ def integrate_batch(params, y0, t_out, channel_index, rtol, atol, max_step, max_
                     block_bytes: int = BLOCK_BYTES) -> None:
     """:func:`.fast.integrate_batch` on the GPU: the same arguments (host arrays), the same results.
 
-    ``out`` (n, len(channel_index), len(t_out)) may be float64 or float32; the device writes that type. Scenarios
-    run a block at a time so that a block's device buffers stay within ``block_bytes``.
+    ``out`` (n, len(channel_index), len(t_out)), C-contiguous, may be float64 or float32; the device writes that
+    type and each block is copied into its rows. Scenarios run a block at a time, two blocks' device buffers within
+    ``block_bytes``.
     """
     try:
         _integrate_blocks(params, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out, status, steps,
@@ -144,27 +146,42 @@ def integrate_batch(params, y0, t_out, channel_index, rtol, atol, max_step, max_
 
 def _integrate_blocks(params, y0, t_out, channel_index, rtol, atol, max_step, max_steps, out, status, steps,
                       block_bytes) -> None:
+    """Two blocks in flight: the device integrates block k+1 on one stream while block k's histories are copied
+    straight into ``out`` on another (no intermediate host array)."""
     from numba import cuda
 
     from .gpu_kernel import integrate as kernel
 
     n = params.shape[0]
     per_scenario = out[0].nbytes + 8 * (params.shape[1] + y0.shape[1] + 2)
-    block = _block_size(n, per_scenario, block_bytes)
-    t_device = cuda.to_device(np.ascontiguousarray(t_out, dtype=np.float64))
-    index_device = cuda.to_device(np.ascontiguousarray(channel_index, dtype=np.int64))
-    atol_device = cuda.to_device(np.ascontiguousarray(atol, dtype=np.float64))
+    block = _block_size(n, per_scenario, block_bytes // 2)
+    compute, transfer = cuda.stream(), cuda.stream()
+    shared = (cuda.to_device(np.ascontiguousarray(t_out, dtype=np.float64), stream=compute),
+              cuda.to_device(np.ascontiguousarray(channel_index, dtype=np.int64), stream=compute), float(rtol),
+              cuda.to_device(np.ascontiguousarray(atol, dtype=np.float64), stream=compute), float(max_step),
+              int(max_steps))
+    in_flight = None
     for start in range(0, n, block):
         rows = slice(start, min(n, start + block))
         count = rows.stop - rows.start
-        out_device = cuda.device_array(out[rows].shape, dtype=out.dtype)
-        status_device = cuda.device_array(count, dtype=np.int64)
-        steps_device = cuda.device_array(count, dtype=np.int64)
-        blocks = (count + THREADS_PER_BLOCK - 1) // THREADS_PER_BLOCK
-        kernel[blocks, THREADS_PER_BLOCK](cuda.to_device(np.ascontiguousarray(params[rows])),
-                                          cuda.to_device(np.ascontiguousarray(y0[rows])), t_device, index_device,
-                                          float(rtol), atol_device, float(max_step), int(max_steps), out_device,
-                                          status_device, steps_device)
-        out[rows] = out_device.copy_to_host()
-        status[rows] = status_device.copy_to_host()
-        steps[rows] = steps_device.copy_to_host()
+        results = (cuda.device_array(out[rows].shape, dtype=out.dtype, stream=compute),
+                   cuda.device_array(count, dtype=np.int64, stream=compute),
+                   cuda.device_array(count, dtype=np.int64, stream=compute))
+        grid = ((count + THREADS_PER_BLOCK - 1) // THREADS_PER_BLOCK, THREADS_PER_BLOCK, compute)
+        kernel[grid](cuda.to_device(np.ascontiguousarray(params[rows]), stream=compute),
+                     cuda.to_device(np.ascontiguousarray(y0[rows]), stream=compute), *shared, *results)
+        done = cuda.event()
+        done.record(compute)
+        if in_flight is not None:
+            _collect(*in_flight, transfer, out, status, steps)
+        in_flight = (rows, results, done)
+    if in_flight is not None:
+        _collect(*in_flight, transfer, out, status, steps)
+
+
+def _collect(rows, results, done, transfer, out, status, steps) -> None:
+    """Copy one block's results into the host arrays once its kernel has finished."""
+    done.wait(transfer)
+    for device_array, host in zip(results, (out, status, steps), strict=True):
+        device_array.copy_to_host(host[rows], stream=transfer)
+    transfer.synchronize()
