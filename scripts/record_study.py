@@ -3,6 +3,8 @@
     python scripts/record_study.py all                        # impactometer study all, default sizes
     python scripts/record_study.py absorption --grid 5        # any option of `impactometer study` after the name
     python scripts/record_study.py absorption --grid 5 --record   # ... kept in docs/results/ and docs/benchmarks.md
+    python scripts/record_study.py absorption --grid 5 --set absorption.processor_speedup=4 --as speedup4 --record
+                                                              # ... kept beside it as study_absorption_speedup4
 
 The study runs in a temporary folder with ``impactometer study NAME --out FOLDER [OPTIONS]`` (its progress on
 standard error) and the tables printed are those of ``impactometer study report``.
@@ -38,9 +40,18 @@ def main(argv: list[str]) -> int:
         return 2
     record = "--record" in argv
     name, options = argv[0], [a for a in argv[1:] if a != "--record"]
+    label = ""
+    if "--as" in options:  # a second record of the same study (a what-if), kept under its own name
+        at = options.index("--as")
+        if at + 1 >= len(options):
+            print("--as needs a name", file=sys.stderr)
+            return 2
+        label = options[at + 1]
+        options = options[:at] + options[at + 2:]
+    title = TITLES.get(name, f"Study {name}") + (f" ({' '.join(o for o in options if '=' in o)})" if label else "")
     with tempfile.TemporaryDirectory(prefix="impactometer-study-") as folder:
         command = [sys.executable, "-m", "impactometer", "study", name, "--out", folder, *options]
-        with recorded(f"study_{name.replace('-', '_')}", TITLES.get(name, f"Study {name}"), record,
+        with recorded(f"study_{name.replace('-', '_')}" + (f"_{label}" if label else ""), title, record,
                       argv=[sys.argv[0], *argv]) as kept:
             done = subprocess.run(command, stdout=subprocess.DEVNULL, check=False)
             if done.returncode != 0:
@@ -49,7 +60,7 @@ def main(argv: list[str]) -> int:
                   "`impactometer study report`:\n")
             print(markdown(folder))
             for line in summary_rows(collect(folder)):
-                for start, goal in HEADLINES.get(line["study"], ()) if line["study"] == name else ():  # not in 'all'
+                for start, goal in HEADLINES.get(line["study"], ()) if line["study"] == name and not label else ():
                     if str(line.get("quantity", "")).startswith(start):
                         kept.headline(f"{line['study']} ({' '.join(options)}): {line['quantity']}", str(line["ours"]),
                                       target=goal)

@@ -92,6 +92,36 @@ def test_achievable_reference_bounds_the_strategies_and_stops_in_the_stroke(orac
     assert len(data["achievable_openings"]) in (0, 8)
 
 
+def test_the_reference_from_the_control_start_searches_a_part_of_the_same_family(oracle_run):
+    """The programs that keep the valve closed until the control start are among those searched from first contact
+    (with it the three families again), so their best cannot beat the reference; before the control start the
+    program holds the valve closed."""
+    from impactometer.control.reference import SEGMENTS, _segment_program
+
+    ref = oracle_run.reference
+    assert oracle_run.control_start > 0.0 and math.isfinite(ref.from_start_force_ratio)
+    assert ref.force_ratio <= ref.from_start_force_ratio
+    assert oracle_run.to_dict()["achievable_from_start_force_ratio"] == pytest.approx(ref.from_start_force_ratio)
+    time = np.linspace(0.0, 0.1, 1001)
+    program = _segment_program(np.arange(1, SEGMENTS + 1) / SEGMENTS, 0.02, 0.06, time)
+    assert np.all(program[time < 0.02] == 0.0)
+    assert program[np.searchsorted(time, 0.0201)] == pytest.approx(1 / SEGMENTS)  # the first segment
+    assert np.all(program[time >= 0.06] == 1.0)  # the last opening held after the horizon
+    assert np.all(np.diff(program[time >= 0.02]) >= 0.0)
+
+
+def test_a_faster_processor_only_shortens_the_answers_latency():
+    """The what-if divides the stream's processor time: with a processor a million times as fast an answer comes
+    as soon as the chunk holding its last sample has arrived (microseconds of processing after it)."""
+    from impactometer.control.identified import STREAM_CHUNK
+
+    fast = absorb(SCENARIO, strategy="closed", identification="model", processor_speedup=1e6)
+    found = fast.identified
+    assert found.error is None
+    assert 0.0 <= found.details["latency_s"] < STREAM_CHUNK / 50e3 + 1e-5
+    assert found.available_at == pytest.approx(found.details["data_until_s"] + found.details["latency_s"])
+
+
 def test_a_run_that_has_not_stopped_is_simulated_until_it_has():
     """A small constant opening lets the mass creep down for longer than the record asked for: the run is simulated
     again for longer, until the mass stops, instead of being judged on a cut record."""
@@ -152,7 +182,8 @@ def test_over_capacity_is_reported():
     ({"strategy": "open"}, "strategy must be one of"), ({"identification": "guess"}, "identification"),
     ({"noise": -0.1}, "noise"), ({"seed": -1}, "seed"), ({"absorber": "big"}, "absorber"),
     ({"control_start": math.nan}, "control_start"), ({"duration": -1.0}, "duration"),
-    ({"reference": "yes"}, "reference")])
+    ({"reference": "yes"}, "reference"), ({"processor_speedup": 0.0}, "processor_speedup"),
+    ({"processor_speedup": "fast"}, "processor_speedup")])
 def test_invalid_absorb_arguments(kwargs, match):
     with pytest.raises(ParameterError, match=match):
         absorb(SCENARIO, **kwargs)

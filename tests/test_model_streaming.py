@@ -271,3 +271,15 @@ def test_the_streams_first_window_fits_agree_with_the_batch_fit(mass, velocity, 
     for name in ("mass", "velocity"):
         assert python.values[name] == pytest.approx(reference.values[name], rel=1e-9)
         assert abs(compiled.values[name] - reference.values[name]) <= 0.05 * reference.std(name)
+
+
+def test_without_robust_starts_the_stream_gives_the_same_answers():
+    """The real-time loop's stream (``robust_starts=False``: the robust stream only triggers and buffers) answers
+    as the default one does where no robust estimate comes before the first window's end."""
+    rec = _record(30.0, 2.0, 100e3, 11, duration=0.03)
+    options = {"window": 0.029, "cadence": 0.002, "first": 0.003}
+    _, default = _stream(rec, **options)
+    stream, bare = _stream(rec, robust_starts=False, **options)
+    assert len(bare) == len(default) >= 5 and stream.robust.estimates == []
+    for a, b in zip(default, bare, strict=True):
+        assert (a.mass, a.velocity, a.available_at, a.method) == (b.mass, b.velocity, b.available_at, b.method)

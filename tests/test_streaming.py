@@ -177,3 +177,24 @@ def test_streaming_equals_batch_paper_and_contact_phase():
         for k in range(0, f.size, 64):
             ident.push(f[k:k + 64], a[k:k + 64])
         assert ident.finish() == batch
+
+
+def test_a_stream_that_only_triggers_and_buffers_gives_no_estimate():
+    """``estimates=False``: the same trigger and the same buffered samples as the identifying stream, no estimate,
+    no final answer, and it re-arms after the impact closes."""
+    f1, a1 = impact(20.0, 1.5, seed=1)
+    quiet = np.random.default_rng(0).normal(0, 20.0, 20000)
+    f, a = np.r_[f1, quiet, f1], np.r_[a1, np.random.default_rng(1).normal(0, 5.0, 20000), a1]
+    full, bare = StreamingIdentifier(FS), StreamingIdentifier(FS, estimates=False)
+    triggers: list[tuple[int | None, int | None]] = []
+    for k in range(0, f.size, 64):
+        full.push(f[k:k + 64], a[k:k + 64])
+        assert bare.push(f[k:k + 64], a[k:k + 64]) == []
+        triggers.append((full.trigger_index, bare.trigger_index))
+        if bare.trigger_index is not None:
+            start = bare.impact_start
+            assert all(np.array_equal(x, y) for x, y in zip(full.buffered(start, bare.seen),
+                                                            bare.buffered(start, bare.seen), strict=True))
+    assert all(x == y for x, y in triggers)
+    assert len({t for t, _ in triggers if t is not None}) == 2  # two impacts, the stream re-armed between them
+    assert full.estimates and bare.estimates == [] and bare.outcomes == []

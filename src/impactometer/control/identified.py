@@ -72,7 +72,7 @@ def loop_summary(found: Identification) -> dict[str, Any]:
 
 
 def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, seed: int,
-                    sample_rate: float, response_map=None) -> Identification:
+                    sample_rate: float, response_map=None, processor_speedup: float = 1.0) -> Identification:
     """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would.
 
     ``model``: the stand's model is fitted to the record as it grows (:func:`first_model_answer`); the first answer
@@ -95,6 +95,10 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
         [Hz].
     response_map : ResponseMap or path, optional
         The map for ``method="response-map"``.
+    processor_speedup : float
+        ``model`` only: the processor time each push of the stream takes here is divided by this factor [-] (1:
+        this machine's; 4: what a processor, or an implementation, four times as fast would give). A what-if for
+        the answer's latency; the answers themselves do not change.
 
     Returns
     -------
@@ -108,7 +112,7 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     found: Identification | None
     try:
         if method == "model":
-            found = first_model_answer(rec, rig, pressure=scenario.pressure_gauge)
+            found = first_model_answer(rec, rig, pressure=scenario.pressure_gauge, speedup=processor_speedup)
         elif method == "response-map":
             if response_map is None:
                 raise ParameterError("identification 'response-map' needs response_map= (a map or its file)")
@@ -137,20 +141,21 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
 _WARM: list[bool] = []
 
 
-def first_model_answer(recording: Recording, rig: Rig, *, pressure: float) -> Identification:
+def first_model_answer(recording: Recording, rig: Rig, *, pressure: float, speedup: float = 1.0) -> Identification:
     """The first answer of the model stream that the controller can act on, as a real-time system on one core gets
     it: the record streams through :class:`~impactometer.identify.model_fit.streaming.ModelStream` (the stand's own
     contact law and parameters known: a calibrated stand; first window :data:`MODEL_FIRST`, an update every
-    :data:`MODEL_CADENCE`), each estimate known when the processor time of the push that made it has passed after
-    its last sample (and after the previous estimate was done; the stream runs on one thread, whose processor time
-    is counted); the first whose mass has a standard error below :data:`MODEL_MASS_TRUST` of it and that read the
-    record past the first force peak (:func:`_turned`) is taken. None comes after :data:`MODEL_LAST` of record
-    after the trigger."""
+    :data:`MODEL_CADENCE`) in chunks of :data:`STREAM_CHUNK` samples, each pushed once its last sample has arrived
+    and the thread is done with the previous ones; an estimate is known when the push that made it is done (the
+    stream runs on one thread, whose processor time is counted for every push: trigger, robust stream and fits);
+    the first whose mass has a standard error below :data:`MODEL_MASS_TRUST` of it and that read the record past
+    the first force peak (:func:`_turned`) is taken. None comes after :data:`MODEL_LAST` of record after the
+    trigger. ``speedup`` divides the processor time counted (a faster processor: a what-if)."""
     if not _WARM:  # a real-time system runs compiled code: compiling, or loading from the cache, is not timed
         _WARM.append(True)
         with contextlib.suppress(IdentificationError):
             _stream_answer(recording, rig, pressure=pressure)
-    return _stream_answer(recording, rig, pressure=pressure)
+    return _stream_answer(recording, rig, pressure=pressure, speedup=speedup)
 
 
 def _force_noise(recording: Recording) -> float:
@@ -171,31 +176,33 @@ def _turned(recording: Recording, until: float, noise: float) -> bool:
     return seen.size > 0 and float(seen.max() - seen[-1]) > TURN_SIGMAS * noise
 
 
-def _stream_answer(recording: Recording, rig: Rig, *, pressure: float) -> Identification:
+def _stream_answer(recording: Recording, rig: Rig, *, pressure: float, speedup: float = 1.0) -> Identification:
     import numba
 
     from ..identify.model_fit.streaming import ModelStream
 
     stream = ModelStream(recording.sample_rate, start_time=recording.start_time, metadata=recording.metadata,
                          rig=rig, pressure=pressure, contact=rig.contact.law, cadence=MODEL_CADENCE,
-                         first=MODEL_FIRST, window=MODEL_LAST)  # its grid of starts is made here, before the impact
+                         first=MODEL_FIRST, window=MODEL_LAST,  # its grid of starts is made here, before the impact
+                         robust_starts=False)  # no robust estimate comes before the first window's end
     force, acceleration = recording.contact_force, recording.piston_acceleration
     noise = _force_noise(recording)
-    busy_until = -math.inf
+    busy_until = -math.inf  # when the thread is done with what it has been given [s]
     threads = numba.get_num_threads()
     numba.set_num_threads(1)  # one core: the stream's compiled work runs on this thread, whose time is counted
     try:
         for k in range(0, force.size, STREAM_CHUNK):
             if recording.start_time + k / recording.sample_rate > MODEL_LAST:
                 break  # t = 0 is first contact
+            chunk = slice(k, min(k + STREAM_CHUNK, force.size))
+            arrived = float(recording.time[chunk.stop - 1])  # a chunk is pushed once its last sample is in
             began = time.thread_time()
-            estimates = stream.push(force[k:k + STREAM_CHUNK], acceleration[k:k + STREAM_CHUNK])
-            took = time.thread_time() - began
+            estimates = stream.push(force[chunk], acceleration[chunk])
+            # every push occupies the thread (the trigger's and the robust stream's work too, not only the fits)
+            busy_until = max(arrived, busy_until) + (time.thread_time() - began) / speedup
             for found in estimates:
                 if found.details.get("stage") == "final":
                     break  # the batch fit of MODEL_LAST: too late for the controller
-                busy_until = max(found.available_at, busy_until) + took
-                took = 0.0  # a push that made two estimates: its time counted once
                 stream.defer(busy_until)  # the next update reads what has arrived by the time this one is done
                 if found.method == "model/ml" and found.mass_std < MODEL_MASS_TRUST * found.mass \
                         and _turned(recording, found.available_at, noise):

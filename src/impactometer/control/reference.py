@@ -17,6 +17,12 @@ usable stroke + ``STROKE_TOLERANCE``, the piston never touches the bottom stop):
 The reference is the lowest R_B among them: the best this search finds in a stated family, not a proof that no
 program does better (the closed-loop controllers are not in family 1; the study counts the impacts where they beat
 it).
+
+**From the control start.** Where the loop's answer comes at a control start t_c > 0, the same three families are
+searched again with the valve closed before t_c (family 1 on 8 equal segments of [t_c, T]): the best a program
+reaches that knows M1 and V0 exactly but acts only from when the loop can (``from_start_force_ratio``). The gap
+between the two references is what the answer's time costs; the gap between the second and the loop is what its
+control law costs.
 """
 
 from __future__ import annotations
@@ -55,10 +61,11 @@ PENALTY = 10.0
 
 @dataclass(frozen=True, kw_only=True)
 class AchievableReference:
-    """The best program found: R_B [-], whole-event peak / F0 [-], stroke used [m], which family gave it
-    (``segments``, ``level`` or ``moving target``), its level [N] (NaN unless ``level``), its openings per
-    segment [-] (empty unless ``segments``) and the number of plant simulations run (R_B NaN when no program is
-    feasible or the impact has no common window)."""
+    """The best program found: R_B [-], whole-event peak / F0 [-], stroke used [m], which family gave it and from
+    when (``segments``, ``level`` or ``moving target``, ``from first contact`` or ``from the control start``), its
+    level [N] (NaN unless ``level``), its openings per segment [-] (empty unless ``segments``), the number of
+    plant simulations run (R_B NaN when no program is feasible or the impact has no common window), and the R_B of
+    the best program acting only from the control start [-] (NaN without a control start)."""
 
     force_ratio: float
     whole_event_peak_ratio: float
@@ -67,15 +74,17 @@ class AchievableReference:
     level: float
     openings: tuple[float, ...]
     runs: int
+    from_start_force_ratio: float = math.nan
 
     def to_dict(self) -> dict:
         """JSON-ready summary with ``achievable_``-prefixed keys."""
         finite = [None if not math.isfinite(v) else float(v) for v in
-                  (self.force_ratio, self.whole_event_peak_ratio, self.stroke_used, self.level)]
+                  (self.force_ratio, self.whole_event_peak_ratio, self.stroke_used, self.level,
+                   self.from_start_force_ratio)]
         return {"achievable_force_ratio": finite[0], "achievable_whole_event_peak_ratio": finite[1],
                 "achievable_stroke_used_m": finite[2], "achievable_family": self.family,
                 "achievable_level_N": finite[3], "achievable_openings": list(self.openings),
-                "achievable_runs": self.runs}
+                "achievable_runs": self.runs, "achievable_from_start_force_ratio": finite[4]}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -108,15 +117,23 @@ def _outcome(scenario, rig, absorber, settings, window, duration, sample_rate, p
                     commands=history["valve_command"], time=result.time)
 
 
-def _segment_program(openings, horizon: float, time: np.ndarray) -> np.ndarray:
-    """Valve command per sample [-]: ``openings[k]`` on [k·T/n, (k+1)·T/n), the last one after T = ``horizon``."""
-    index = np.minimum((time / horizon * len(openings)).astype(int), len(openings) - 1)
-    return np.clip(np.asarray(openings, float), 0.0, 1.0)[index]
+def _segment_index(time: np.ndarray, begin: float, horizon: float) -> np.ndarray:
+    """Segment of each sample: k on [b + k·(T − b)/n, b + (k+1)·(T − b)/n) with b = ``begin``, T = ``horizon``
+    (the last one after T); -1 before ``begin``."""
+    index = np.minimum(((time - begin) / (horizon - begin) * SEGMENTS).astype(int), SEGMENTS - 1)
+    return np.where(time < begin, -1, index)
 
 
-def _segment_means(outcome: _Outcome, horizon: float) -> np.ndarray:
+def _segment_program(openings, begin: float, horizon: float, time: np.ndarray) -> np.ndarray:
+    """Valve command per sample [-]: closed before ``begin``, then ``openings[k]`` on segment k
+    (:func:`_segment_index`)."""
+    index = _segment_index(time, begin, horizon)
+    return np.where(index < 0, 0.0, np.clip(np.asarray(openings, float), 0.0, 1.0)[np.maximum(index, 0)])
+
+
+def _segment_means(outcome: _Outcome, begin: float, horizon: float) -> np.ndarray:
     """Mean command of a run per segment (the start of the search)."""
-    index = np.minimum((outcome.time / horizon * SEGMENTS).astype(int), SEGMENTS - 1)
+    index = _segment_index(outcome.time, begin, horizon)
     commands = np.nan_to_num(outcome.commands, nan=0.0)
     return np.array([commands[index == k].mean() if np.any(index == k) else 0.0 for k in range(SEGMENTS)])
 
@@ -176,30 +193,33 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
         candidates[(f"moving target from {when}", math.nan)] = _outcome(scenario, rig, absorber, tracking, window,
                                                                         duration, sample_rate)
         runs += len(tried) + 1
-    openings: tuple[float, ...] = ()
+    found_openings: dict[str, tuple[float, ...]] = {}
     if evaluations > 0:
-        seed = min(candidates.values(), key=lambda o: o.cost)
-        horizon = 1.1 * seed.deepest_time
         program_settings = dataclasses.replace(base, strategy="closed", start=window.start)
-        searched: list[tuple[float, np.ndarray]] = []
+        for when, start in starts.items():
+            seed = min((o for (name, _), o in candidates.items() if name.endswith(when)), key=lambda o: o.cost)
+            horizon = max(1.1 * seed.deepest_time, start + 10.0 / SEARCH_RATE)
+            searched: list[tuple[float, np.ndarray]] = []
 
-        def objective(x: np.ndarray) -> float:
-            o = _outcome(scenario, rig, absorber, program_settings, window, duration, SEARCH_RATE,
-                         _segment_program(x, horizon, sample_times(duration, SEARCH_RATE)))
-            searched.append((o.cost, np.clip(x, 0.0, 1.0)))
-            return o.cost
+            def objective(x: np.ndarray, start=start, horizon=horizon, searched=searched) -> float:
+                o = _outcome(scenario, rig, absorber, program_settings, window, duration, SEARCH_RATE,
+                             _segment_program(x, start, horizon, sample_times(duration, SEARCH_RATE)))
+                searched.append((o.cost, np.clip(x, 0.0, 1.0)))
+                return o.cost
 
-        minimize(objective, _segment_means(seed, horizon), method="Powell", bounds=[(0.0, 1.0)] * SEGMENTS,
-                 options={"maxfev": evaluations, "xtol": 1e-3, "ftol": 1e-4})
-        best_x = min(searched, key=lambda item: item[0])[1]
-        candidates[("segments", math.nan)] = _outcome(
-            scenario, rig, absorber, program_settings, window, duration, sample_rate,
-            _segment_program(best_x, horizon, sample_times(duration, sample_rate)))
-        openings = tuple(float(v) for v in best_x)
-        runs += len(searched) + 1
+            minimize(objective, _segment_means(seed, start, horizon), method="Powell",
+                     bounds=[(0.0, 1.0)] * SEGMENTS, options={"maxfev": evaluations, "xtol": 1e-3, "ftol": 1e-4})
+            best_x = min(searched, key=lambda item: item[0])[1]
+            candidates[(f"segments from {when}", math.nan)] = _outcome(
+                scenario, rig, absorber, program_settings, window, duration, sample_rate,
+                _segment_program(best_x, start, horizon, sample_times(duration, sample_rate)))
+            found_openings[f"segments from {when}"] = tuple(float(v) for v in best_x)
+            runs += len(searched) + 1
+    late = [o.ratio for (name, _), o in candidates.items() if name.endswith("the control start")]
     (family, level), chosen = min(candidates.items(), key=lambda item: item[1].ratio)
     if not math.isfinite(chosen.ratio):
         return dataclasses.replace(nothing, runs=runs)
     return AchievableReference(force_ratio=float(chosen.ratio), whole_event_peak_ratio=chosen.peak_ratio,
                                stroke_used=chosen.stroke, family=family, level=float(level),
-                               openings=openings if family == "segments" else (), runs=runs)
+                               openings=found_openings.get(family, ()), runs=runs,
+                               from_start_force_ratio=float(min(late)) if late else math.nan)

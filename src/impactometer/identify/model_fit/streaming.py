@@ -99,6 +99,10 @@ class ModelStream:
     first : float
         Record after first contact the first answer reads [s] (default the batch fit's first window, 4 ms; from
         ``MIN_FIRST`` to 15 ms): earlier answers, larger σ of M1.
+    robust_starts : bool
+        False: the robust stream only triggers and buffers the samples (its estimates are neither starts of the
+        first fit nor fall-backs), which spares the thread its work at every pulse's end (about half a
+        millisecond): the real-time loop's choice, whose first window ends before any robust estimate.
 
     Notes
     -----
@@ -114,14 +118,14 @@ class ModelStream:
     def __init__(self, sample_rate: float, *, start_time: float = 0.0, metadata: dict | None = None,
                  rig: Rig | str | None = None, pressure: float | None = None, uncertain: Sequence[str] | None = None,
                  contact: str | None = "auto", cadence: float = CADENCE, window: float = WINDOW,
-                 first: float = STAGES[0][0]):
+                 first: float = STAGES[0][0], robust_starts: bool = True):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
         self.cadence = check_real("cadence", cadence, low=1.0 / sample_rate, unit=" [s]", error=ParameterError)
         self.first = check_real("first", first, low=MIN_FIRST, high=STAGES[SCREEN_WINDOW][0], unit=" [s]",
                                 error=ParameterError)
         self.window = check_real("window", window, low=self.first + self.cadence, unit=" [s]",
                                  error=ParameterError)
-        self.robust = StreamingIdentifier(sample_rate, start_time=start_time)
+        self.robust = StreamingIdentifier(sample_rate, start_time=start_time, estimates=robust_starts)
         self.sample_rate, self.start_time = float(sample_rate), float(start_time)
         self.rig, self.laws = get_rig(rig), batch._laws(contact)
         self.uncertain, self.contact = check_uncertain(uncertain, self.laws), contact

@@ -66,6 +66,9 @@ class StreamingIdentifier:
         Smallest trigger level [N] (the force channel's resolution).
     contact_phase : bool
         ``robust`` only: see :func:`~impactometer.identify.peak_to_peak.identify_arrays`.
+    estimates : bool
+        False: the stream only triggers and buffers (no estimate, no final answer; ``outcomes`` stays empty), for a
+        caller that needs the impact's samples alone and not the half millisecond of work at each pulse's end.
 
     Notes
     -----
@@ -77,13 +80,15 @@ class StreamingIdentifier:
     """
 
     def __init__(self, sample_rate: float, *, variant: str = "robust", gravity: float = GRAVITY,
-                 start_time: float = 0.0, floor: float = TRIGGER_FLOOR, contact_phase: bool = False):
+                 start_time: float = 0.0, floor: float = TRIGGER_FLOOR, contact_phase: bool = False,
+                 estimates: bool = True):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
         variant, gravity, start_time = check_options(variant, gravity, start_time, error=ParameterError)
         floor = check_real("floor", floor, low=0.0, unit=" [N]", error=ParameterError)
         self.sample_rate, self.variant, self.gravity = float(sample_rate), variant, gravity
         self.start_time, self.floor = start_time, floor
         self.contact_phase = bool(contact_phase)
+        self.estimating = bool(estimates)
         self.quiet = max(int(QUIET_TIME * sample_rate), 1)
         self.max_samples = max(int(MAX_DURATION * sample_rate), 1)
         self.baseline = trigger.baseline_samples(sample_rate)
@@ -163,7 +168,7 @@ class StreamingIdentifier:
         out = []
         for code, index in self._events[:n_ev]:
             out.extend(self._event(int(code), int(index)))
-        if self._start is not None and self.variant == "robust":
+        if self._start is not None and self.variant == "robust" and self.estimating:
             inside = bool(self._istate[trigger.INSIDE])
             if inside and not was_inside:
                 self._inside_since = self.seen - f.size
@@ -209,6 +214,10 @@ class StreamingIdentifier:
             return []
         if code == trigger.EVENT_PULSE_END:
             self._longest = max(self._longest, index - self._inside_since)
+        if not self.estimating:
+            if code == trigger.EVENT_CLOSE:
+                self._start, self._last_close = None, index
+            return []
         if code == trigger.EVENT_CLOSE:
             return self._conclude(index + 1, index)
         return self._solve(index + 1, final=code != trigger.EVENT_PAST_PEAK)
