@@ -279,6 +279,11 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
         ax.fill_between(line, (1.0 - band) * line, (1.0 + band) * line, color="tab:gray", alpha=0.2, lw=0)
         ax.set(xlabel=label, ylabel=f"R_B, {strategy} (identified)", xlim=(0.9, top), ylim=(0.9, top))
         ax.grid(alpha=0.3)
+    late = values_on(rows, kept, REFERENCE, "achievable_from_start_force_ratio")
+    if np.isfinite(late).any():  # the best program that acts only from the loop's control start
+        axes[3].scatter(late, mine, s=22, facecolors="none", edgecolors="k", lw=0.6,
+                        label="reference acting from the control start")
+        axes[3].legend(loc="upper left", fontsize=7, title="filled: from first contact", title_fontsize=7)
     if sc is not None:
         fig.colorbar(sc, ax=axes[3], label="M1 [kg]")
     fig.suptitle("Adaptive absorption: R_B = CFC 60 peak over [first sustained contact, deepest point] / "
