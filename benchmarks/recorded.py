@@ -33,7 +33,7 @@ ORDER = ("stand_criteria", "bench_simulate", "bench_simulate_gpu", "accuracy_pea
          "accuracy_model_drop_stand_stiff", "independent_stand", "bench_identify", "bench_model",
          "bench_calibrate", "bench_response_map",
          "study_map_size", "study_map_recordings", "study_all", "study_absorption", "study_absorption_speedup2",
-         "study_absorption_speedup4", "study_absorber_design",
+         "study_absorption_speedup4", "study_absorption_oracle4ms", "study_absorber_design",
          "study_valve_design",
          "reliability_fuzz")
 HEADLINE_START = "<!-- headline figures: rendered by benchmarks/recorded.py from docs/results/*.json -->"
