@@ -171,7 +171,7 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
                            charge_pressure=charge_pressure, charge_temperature=rig.gas.temperature,
                            force_level=window.reference_force, refine_mass=False, supervise=False,
                            tau_control=predictive_tau_control(absorber.drive))
-    candidates: dict[tuple[str, float], _Outcome] = {}
+    candidates: dict[tuple[str, str, float], _Outcome] = {}  # (family, from when, level) -> its best run
     runs = 0
     starts = {"first contact": 0.0}
     if math.isfinite(control_start) and control_start > 0.0:
@@ -188,16 +188,16 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
 
         _golden_levels(cost, [factor * window.reference_force for factor in SCAN])
         level = min(tried, key=lambda x: tried[x].ratio)
-        candidates[(f"level from {when}", level)] = tried[level]
+        candidates[("level", when, level)] = tried[level]
         tracking = dataclasses.replace(begun, strategy="predictive", force_level=math.nan)  # the moving target
-        candidates[(f"moving target from {when}", math.nan)] = _outcome(scenario, rig, absorber, tracking, window,
-                                                                        duration, sample_rate)
+        candidates[("moving target", when, math.nan)] = _outcome(scenario, rig, absorber, tracking, window,
+                                                                 duration, sample_rate)
         runs += len(tried) + 1
-    found_openings: dict[str, tuple[float, ...]] = {}
+    found_openings: dict[str, tuple[float, ...]] = {}  # by when the segments begin
     if evaluations > 0:
         program_settings = dataclasses.replace(base, strategy="closed", start=window.start)
         for when, start in starts.items():
-            seed = min((o for (name, _), o in candidates.items() if name.endswith(when)), key=lambda o: o.cost)
+            seed = min((o for (_, begun, _), o in candidates.items() if begun == when), key=lambda o: o.cost)
             horizon = max(1.1 * seed.deepest_time, start + 10.0 / SEARCH_RATE)
             searched: list[tuple[float, np.ndarray]] = []
 
@@ -210,16 +210,16 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
             minimize(objective, _segment_means(seed, start, horizon), method="Powell",
                      bounds=[(0.0, 1.0)] * SEGMENTS, options={"maxfev": evaluations, "xtol": 1e-3, "ftol": 1e-4})
             best_x = min(searched, key=lambda item: item[0])[1]
-            candidates[(f"segments from {when}", math.nan)] = _outcome(
+            candidates[("segments", when, math.nan)] = _outcome(
                 scenario, rig, absorber, program_settings, window, duration, sample_rate,
                 _segment_program(best_x, start, horizon, sample_times(duration, sample_rate)))
-            found_openings[f"segments from {when}"] = tuple(float(v) for v in best_x)
+            found_openings[when] = tuple(float(v) for v in best_x)
             runs += len(searched) + 1
-    late = [o.ratio for (name, _), o in candidates.items() if name.endswith("the control start")]
-    (family, level), chosen = min(candidates.items(), key=lambda item: item[1].ratio)
+    late = [o.ratio for (_, begun, _), o in candidates.items() if begun == "the control start"]
+    (family, when, level), chosen = min(candidates.items(), key=lambda item: item[1].ratio)
     if not math.isfinite(chosen.ratio):
         return dataclasses.replace(nothing, runs=runs)
     return AchievableReference(force_ratio=float(chosen.ratio), whole_event_peak_ratio=chosen.peak_ratio,
-                               stroke_used=chosen.stroke, family=family, level=float(level),
-                               openings=found_openings.get(family, ()), runs=runs,
+                               stroke_used=chosen.stroke, family=f"{family} from {when}", level=float(level),
+                               openings=found_openings.get(when, ()) if family == "segments" else (), runs=runs,
                                from_start_force_ratio=float(min(late)) if late else math.nan)
