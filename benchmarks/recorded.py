@@ -30,10 +30,10 @@ README = ROOT / "README.md"
 #: the order of the sections in docs/benchmarks.md (a result not listed comes after these, by name)
 ORDER = ("stand_criteria", "bench_simulate", "bench_simulate_gpu", "accuracy_peak_to_peak",
          "accuracy_peak_to_peak_100ms", "accuracy_model", "accuracy_model_100ms",
-         "accuracy_model_drop_stand_stiff", "independent_stand", "bench_identify", "bench_model",
+         "accuracy_model_drop_stand_stiff", "independent_stand", "bench_identify", "bench_model", "bench_loop_latency",
          "bench_calibrate", "bench_response_map",
-         "study_map_size", "study_map_recordings", "study_all", "study_absorption", "study_absorption_speedup2",
-         "study_absorption_speedup4", "study_absorption_oracle4ms", "study_absorber_design",
+         "study_map_size", "study_map_recordings", "study_all", "study_absorption", "study_absorption_latency0ms",
+         "study_absorption_latency3ms", "study_absorption_oracle4ms", "study_absorber_design",
          "study_valve_design",
          "reliability_fuzz")
 HEADLINE_START = "<!-- headline figures: rendered by benchmarks/recorded.py from docs/results/*.json -->"

@@ -84,6 +84,10 @@ def absorb(
     noise: Annotated[str, typer.Option("--noise", metavar="FRACTION",
                                        help="Sensor noise, fraction of each channel's RMS (e.g. 2%).")] = "2%",
     seed: Annotated[int, typer.Option("--seed", help="Seed of the sensor noise.")] = 0,
+    latency: Annotated[str, typer.Option(
+        "--latency", metavar="TIME", help="Latency budget of the real-time system: the identification's answer is "
+                                          "acted on this long after the last sample it used (default 1ms: a "
+                                          "compiled real-time core).")] = "1ms",
     contact: ContactOpt = None,
     rig: Annotated[str, typer.Option("--rig", metavar="STAND", help="Stand: a preset name or a TOML file.")]
     = ABSORPTION_RIG,
@@ -110,11 +114,11 @@ def absorb(
         raise ParameterError(f"--map: {str(map_path)!r} does not exist")
     doing = (f"closed loop on {stand.name}: identify M1 and V0 ({method}), then control valve Z with "
              f"{', '.join(names)}{'; then search the achievable R_B' if reference else ''}")
-    with given(method=method, map=map_path, noise=noise, seed=seed), \
+    with given(method=method, map=map_path, noise=noise, seed=seed, latency=latency), \
             announce_compilation(doing, compile_time="about 30-80 s"):
         result = run_absorb(scenario, stand, strategy=names, identification=method,
                             noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=map_path,
-                            reference=reference)
+                            reference=reference, latency=quantity(latency, "time", "--latency"))
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
     else:

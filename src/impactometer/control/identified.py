@@ -7,9 +7,8 @@ by :func:`impactometer.sensors.record`, anti-alias filter and noise included).
 
 from __future__ import annotations
 
-import contextlib
 import math
-import time
+from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
 
@@ -36,6 +35,13 @@ MODEL_MASS_TRUST = 0.2
 #: the model stream's first window, its cadence and the longest record after first contact it reads for the
 #: loop [s]
 MODEL_FIRST, MODEL_CADENCE, MODEL_LAST = 0.003, 0.001, 0.015
+#: the loop's default latency budget [s]: from the last sample an answer used to the valve command that acts on it.
+#: A compiled real-time core (a controller's processor running the stream's update as compiled code on one core,
+#: fed by the DAQ block by block) does one update of the model stream in well under a millisecond; 1 ms covers the
+#: DAQ block (:data:`STREAM_CHUNK` samples, 0.32 ms at 50 kHz), the update and the valve driver's command. This
+#: implementation's own processor time per push is measured by ``benchmarks/bench_loop_latency.py``, not counted in
+#: a simulation (it depends on the machine and its load, and the same arguments must give the same numbers).
+LATENCY = 1e-3
 #: the controller trusts an identified velocity whose standard error is below this fraction of it [-] (and a mass
 #: by the estimator's ``MASS_TRUST``)
 VELOCITY_TRUST = 0.5
@@ -72,14 +78,16 @@ def loop_summary(found: Identification) -> dict[str, Any]:
 
 
 def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, seed: int,
-                    sample_rate: float, response_map=None, processor_speedup: float = 1.0) -> Identification:
+                    sample_rate: float, response_map=None, latency: float = LATENCY) -> Identification:
     """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would.
 
     ``model``: the stand's model is fitted to the record as it grows (:func:`first_model_answer`); the first answer
-    the controller can act on is taken when its fit is done. ``robust``/``paper``: the record streams through
+    the controller can act on is taken. ``robust``/``paper``: the record streams through
     :class:`~impactometer.identify.peak_to_peak.streaming.StreamingIdentifier` and the first estimate (the early
-    answer, at the end of the second contact pulse) is taken when it arrives. A response map is applied to the
-    whole record and reports its own ``available_at``.
+    answer, at the end of the second contact pulse) is taken. A response map is applied to the whole record and
+    reports the end of the data it read. Whichever method, the answer is known ``latency`` after the last sample it
+    used: a stated budget of the real-time system, not this machine's processor time, so the same arguments give
+    the same answer on any machine under any load.
 
     Parameters
     ----------
@@ -95,16 +103,15 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
         [Hz].
     response_map : ResponseMap or path, optional
         The map for ``method="response-map"``.
-    processor_speedup : float
-        ``model`` only: the processor time each push of the stream takes here is divided by this factor [-] (1:
-        this machine's; 4: what a processor, or an implementation, four times as fast would give). A what-if for
-        the answer's latency; the answers themselves do not change.
+    latency : float
+        From the last sample the answer used to the answer's use [s] (default :data:`LATENCY`).
 
     Returns
     -------
     Identification
-        ``available_at`` [s] not before 0; a failed identification with NaN mass and velocity, ``available_at``
-        inf and ``error`` set.
+        ``available_at`` [s]: the end of its data (not before first contact, t = 0) + ``latency``; ``details`` add
+        ``data_until_s`` and ``latency_s``. A failed identification has NaN mass and velocity, ``available_at`` inf
+        and ``error`` set.
     """
     rec = record(scenario, rig, sample_rate=sample_rate, duration=IDENTIFICATION_WINDOW, noise=noise, seed=seed,
                  pre_trigger=PRE_TRIGGER)
@@ -112,7 +119,7 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     found: Identification | None
     try:
         if method == "model":
-            found = first_model_answer(rec, rig, pressure=scenario.pressure_gauge, speedup=processor_speedup)
+            found = first_model_answer(rec, rig, pressure=scenario.pressure_gauge, latency=latency)
         elif method == "response-map":
             if response_map is None:
                 raise ParameterError("identification 'response-map' needs response_map= (a map or its file)")
@@ -134,28 +141,20 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
         return Identification(method=name, mass=math.nan, velocity=math.nan, available_at=math.inf, error=str(exc))
     if not math.isfinite(found.available_at):
         return replace(found, available_at=math.inf, error="identification gave no time of availability")
-    return replace(found, available_at=max(float(found.available_at), 0.0))
+    data_until = max(float(found.available_at), 0.0)
+    return replace(found, available_at=data_until + latency,
+                   details={**found.details, "data_until_s": data_until, "latency_s": latency})
 
 
-#: whether this process has run the model stream once (its kernels compiled or loaded from the cache)
-_WARM: list[bool] = []
-
-
-def first_model_answer(recording: Recording, rig: Rig, *, pressure: float, speedup: float = 1.0) -> Identification:
-    """The first answer of the model stream that the controller can act on, as a real-time system on one core gets
-    it: the record streams through :class:`~impactometer.identify.model_fit.streaming.ModelStream` (the stand's own
-    contact law and parameters known: a calibrated stand; first window :data:`MODEL_FIRST`, an update every
-    :data:`MODEL_CADENCE`) in chunks of :data:`STREAM_CHUNK` samples, each pushed once its last sample has arrived
-    and the thread is done with the previous ones; an estimate is known when the push that made it is done (the
-    stream runs on one thread, whose processor time is counted for every push: trigger, robust stream and fits);
-    the first whose mass has a standard error below :data:`MODEL_MASS_TRUST` of it and that read the record past
-    the first force peak (:func:`_turned`) is taken. None comes after :data:`MODEL_LAST` of record after the
-    trigger. ``speedup`` divides the processor time counted (a faster processor: a what-if)."""
-    if not _WARM:  # a real-time system runs compiled code: compiling, or loading from the cache, is not timed
-        _WARM.append(True)
-        with contextlib.suppress(IdentificationError):
-            _stream_answer(recording, rig, pressure=pressure)
-    return _stream_answer(recording, rig, pressure=pressure, speedup=speedup)
+def first_model_answer(recording: Recording, rig: Rig, *, pressure: float, latency: float = LATENCY) -> Identification:
+    """The first answer of the model stream that the controller can act on (:func:`model_answers`); its
+    ``available_at`` [s] is the end of the data it used (add the latency for the instant it is acted on)."""
+    answers = [found for _, _, found in model_answers(recording, rig, pressure=pressure, latency=latency)
+               if found is not None]  # the stream ends after its answer
+    if answers:
+        return answers[0]
+    raise IdentificationError(f"no model answer with a mass known within {MODEL_MASS_TRUST:.0%} within "
+                              f"{MODEL_LAST * 1e3:g} ms of first contact")
 
 
 def _force_noise(recording: Recording) -> float:
@@ -176,7 +175,25 @@ def _turned(recording: Recording, until: float, noise: float) -> bool:
     return seen.size > 0 and float(seen.max() - seen[-1]) > TURN_SIGMAS * noise
 
 
-def _stream_answer(recording: Recording, rig: Rig, *, pressure: float, speedup: float = 1.0) -> Identification:
+def model_answers(recording: Recording, rig: Rig, *, pressure: float,
+                  latency: float = LATENCY) -> Iterator[tuple[float, int, Identification | None]]:
+    """The loop's model stream, push by push, as a real-time system with a latency budget gets it.
+
+    The record streams through :class:`~impactometer.identify.model_fit.streaming.ModelStream` (the stand's own
+    contact law and parameters known: a calibrated stand; first window :data:`MODEL_FIRST`, an update every
+    :data:`MODEL_CADENCE`) in chunks of :data:`STREAM_CHUNK` samples, each pushed once its last sample has arrived.
+    An update whose data end at t is done at t + ``latency`` [s], and the next update reads the record up to at
+    least then (the core is busy with one update at a time). The first estimate whose mass has a standard error
+    below :data:`MODEL_MASS_TRUST` of it and that read the record past the first force peak (:func:`_turned`) is
+    the answer; none comes after :data:`MODEL_LAST` of record after first contact.
+
+    Yields
+    ------
+    (float, int, Identification or None)
+        For each push: the time its last sample arrived [s], the stream's updates it made, and the answer when this
+        push gave it (``available_at`` the end of its data [s]); the iteration ends after the answer. Generated
+        lazily, so that a benchmark can time each push of the stream the loop runs.
+    """
     import numba
 
     from ..identify.model_fit.streaming import ModelStream
@@ -187,29 +204,26 @@ def _stream_answer(recording: Recording, rig: Rig, *, pressure: float, speedup: 
                          robust_starts=False)  # no robust estimate comes before the first window's end
     force, acceleration = recording.contact_force, recording.piston_acceleration
     noise = _force_noise(recording)
-    busy_until = -math.inf  # when the thread is done with what it has been given [s]
     threads = numba.get_num_threads()
-    numba.set_num_threads(1)  # one core: the stream's compiled work runs on this thread, whose time is counted
+    numba.set_num_threads(1)  # one core, as on the real-time system: the same numbers whatever the machine's cores
     try:
         for k in range(0, force.size, STREAM_CHUNK):
             if recording.start_time + k / recording.sample_rate > MODEL_LAST:
-                break  # t = 0 is first contact
+                return  # t = 0 is first contact
             chunk = slice(k, min(k + STREAM_CHUNK, force.size))
             arrived = float(recording.time[chunk.stop - 1])  # a chunk is pushed once its last sample is in
-            began = time.thread_time()
-            estimates = stream.push(force[chunk], acceleration[chunk])
-            # every push occupies the thread (the trigger's and the robust stream's work too, not only the fits)
-            busy_until = max(arrived, busy_until) + (time.thread_time() - began) / speedup
-            for found in estimates:
+            answer, updates = None, 0
+            for found in stream.push(force[chunk], acceleration[chunk]):
                 if found.details.get("stage") == "final":
                     break  # the batch fit of MODEL_LAST: too late for the controller
-                stream.defer(busy_until)  # the next update reads what has arrived by the time this one is done
+                updates += 1
+                stream.defer(found.available_at + latency)  # the next update reads what has arrived by then
                 if found.method == "model/ml" and found.mass_std < MODEL_MASS_TRUST * found.mass \
                         and _turned(recording, found.available_at, noise):
-                    return replace(found, available_at=busy_until,
-                                   details={**found.details, "data_until_s": found.available_at,
-                                            "latency_s": busy_until - found.available_at})
+                    answer = found
+                    break
+            yield arrived, updates, answer
+            if answer is not None:
+                return
     finally:
         numba.set_num_threads(threads)
-    raise IdentificationError(f"no model answer with a mass known within {MODEL_MASS_TRUST:.0%} within "
-                              f"{MODEL_LAST * 1e3:g} ms of first contact")

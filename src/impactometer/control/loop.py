@@ -29,6 +29,7 @@ from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
 from .event import STOPPED_FRACTION, CommonWindow, common_window, impact_force
 from .identified import (
     IDENTIFICATION_WINDOW,
+    LATENCY,
     identify_impact,
     loop_method,
     loop_summary,
@@ -180,7 +181,7 @@ def run_until_stopped(scenario: Scenario, rig: Rig, control, absorber: Absorber,
 
 def _identified(scenario: Scenario, rig: Rig, closed, identification: str, *, noise: float, seed: int,
                 sample_rate: float, control_start: float | None, response_map,
-                processor_speedup: float = 1.0) -> Identification:
+                latency: float) -> Identification:
     """What the loop knows of M1 and V0 and when: the identification's answer (known at ``control_start`` [s]
     where that is given), or the oracle's (from the start of the closed-valve run's second contact pulse)."""
     if identification == "oracle":
@@ -192,7 +193,7 @@ def _identified(scenario: Scenario, rig: Rig, closed, identification: str, *, no
         return Identification(method="oracle", mass=scenario.mass, velocity=scenario.velocity, mass_std=0.0,
                               velocity_std=0.0, available_at=at, error=error)
     found = identify_impact(scenario, rig, method=identification, noise=noise, seed=seed, sample_rate=sample_rate,
-                            response_map=response_map, processor_speedup=processor_speedup)
+                            response_map=response_map, latency=latency)
     if control_start is not None and found.error is None:
         found = dataclasses.replace(found, available_at=float(control_start))
     return found
@@ -245,7 +246,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
            identification: str = "model", noise: float = 0.02, seed: int = 0, absorber: Absorber | None = None,
            sample_rate: float = 50e3, duration: float | None = None, control_start: float | None = None,
            response_map=None, reference: bool = False, reference_evaluations: int = REFERENCE_EVALUATIONS,
-           processor_speedup: float = 1.0) -> AbsorptionResult:
+           latency: float = LATENCY) -> AbsorptionResult:
     """Absorb one impact with the closed loop identify → control.
 
     Parameters
@@ -281,9 +282,11 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         ``reference_evaluations`` for its piecewise-constant programs).
     reference_evaluations : int
         Plant simulations of the piecewise-constant search of the reference (0: that family is skipped).
-    processor_speedup : float
-        What-if of a faster real-time processor for ``identification="model"``: the processor time of the model
-        stream, measured here, is divided by it before it delays the answer [-] (default 1: as measured).
+    latency : float
+        The real-time system's latency budget [s]: an identification's answer is acted on this long after the last
+        sample it used (default :data:`~.identified.LATENCY`, 1 ms: a compiled real-time core). Stated, not
+        measured: the same arguments give the same numbers on any machine. Not used by the oracle, nor with
+        ``control_start``.
 
     Returns
     -------
@@ -294,7 +297,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     _check(scenario, noise, seed, identification, absorber, control_start)
     check_flag("reference", reference)
     check_integer("reference_evaluations", reference_evaluations, low=0, high=10_000)
-    check_real("processor_speedup", processor_speedup, low=1e-3, high=1e6, unit=" [-]")
+    check_real("latency", latency, low=0.0, high=0.1, unit=" [s]")
     names = strategy_names(strategy)
     rig = get_rig(ABSORPTION_RIG if rig is None else rig)
     scenario.check_against(rig)
@@ -303,7 +306,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     closed, _ = plant.simulate_controlled(scenario, rig, drive=absorber.drive, duration=duration,
                                          sample_rate=sample_rate)
     found = _identified(scenario, rig, closed, identification, noise=noise, seed=seed, sample_rate=sample_rate,
-                        control_start=control_start, response_map=response_map, processor_speedup=processor_speedup)
+                        control_start=control_start, response_map=response_map, latency=latency)
     required = impact_force(scenario.mass, scenario.velocity, usable, rig.gravity)
     over = required > absorber.rated_force
     notes = _notes(found, required, usable, absorber)

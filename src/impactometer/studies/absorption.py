@@ -6,7 +6,9 @@ identified from the noisy closed-valve record (:func:`impactometer.control.absor
 M1 and V0 started at the same instant (the oracle: the cost of the identification), and the achievable reference
 (:mod:`impactometer.control.reference`: the best opening program found on the same plant with full knowledge). One
 row per strategy, plus one for the reference, every one carrying the same per-impact columns as ``absorb --json``.
-``--set absorption.control_start_ms=T`` makes the answer known T ms after first contact (with
+The identification's answer is acted on ``absorption.latency`` after the last sample it used (default 1 ms, a
+compiled real-time core; ``--set absorption.latency=3ms``): a stated budget, so the rows are the same for the same
+arguments on any machine. ``--set absorption.control_start_ms=T`` makes the answer known T ms after first contact (with
 ``absorption.identification=oracle``: what a controller that knew M1 and V0 then would reach).
 
 Medians and percentiles of R_B are taken over the **common set**: the impacts on which every row has an R_B. The
@@ -22,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from ..control import absorb
+from ..control.identified import LATENCY
 from ..control.strategies import ALL as ALL_STRATEGIES
 from ..rig import ABSORPTION_RIG, Scenario
 from ..validation import finite_or_none
@@ -33,13 +36,13 @@ NAME = "absorption"
 GRID = 2
 DEFAULTS = {"noise": 0.02, "identification": "model", "strategies": ["closed", "constant", "realtime",
                                                                        "predictive"],
-            "reference_evaluations": 240, "control_start_ms": None, "processor_speedup": 1.0}
+            "reference_evaluations": 240, "control_start_ms": None, "latency": LATENCY}
 SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
             "identification": Setting("choice", choices=("robust", "paper", "model", "oracle")),
             "strategies": Setting("choices", choices=ALL_STRATEGIES),
             "reference_evaluations": Setting("integer", 0, 10_000),
             "control_start_ms": Setting("number", 0.0, 1e3),
-            "processor_speedup": Setting("number", 1e-3, 1e6)}
+            "latency": Setting("number", 0.0, 0.1, "time")}
 #: the strategy run with the oracle, and the labels of the extra rows
 ORACLE_OF = "predictive"
 ORACLE = f"{ORACLE_OF} (oracle)"
@@ -68,13 +71,14 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
     noise = float(options.param(NAME, "noise", DEFAULTS["noise"]))
     strategies = list(options.param(NAME, "strategies", DEFAULTS["strategies"]))
     forced = options.param(NAME, "control_start_ms", DEFAULTS["control_start_ms"])  # what acting earlier would give
+    latency = float(options.param(NAME, "latency", DEFAULTS["latency"]))
     found = absorb(scenario, options.rig, strategy=strategies, reference=True, noise=noise, seed=seed,
                    control_start=None if forced is None else float(forced) * 1e-3,
                    sample_rate=options.sample_rate,
                    identification=options.param(NAME, "identification", DEFAULTS["identification"]),
                    reference_evaluations=int(options.param(NAME, "reference_evaluations",
                                                            DEFAULTS["reference_evaluations"])),
-                   processor_speedup=float(options.param(NAME, "processor_speedup", DEFAULTS["processor_speedup"])))
+                   latency=latency)
     start = found.control_start if math.isfinite(found.control_start) else None  # the oracle starts with the loop
     oracle = absorb(scenario, options.rig, strategy=ORACLE_OF, identification="oracle", control_start=start,
                     noise=noise, seed=seed, sample_rate=options.sample_rate)
@@ -82,6 +86,7 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
     ident = summary["identification"]
     base = {"case": case["case"], "mass_kg": scenario.mass, "velocity_m_s": scenario.velocity,
             "pressure_gauge_Pa": scenario.pressure_gauge, "rig": options.rig.name, "noise": noise, "seed": seed,
+            "latency_s": latency,
             "identified_mass_kg": ident["mass_kg"], "identified_mass_std_kg": ident["mass_std_kg"],
             "identified_velocity_m_s": ident["velocity_m_s"], "identified_available_at_s": ident["available_at_s"],
             "identification_error": ident["error"], "common_window_excluded": summary["common_window_excluded"],
