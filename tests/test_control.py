@@ -394,6 +394,29 @@ def test_the_common_window_is_never_restarted():
     assert m.stage_b_ratio > 1.3 > m.own_window_force_ratio
 
 
+def test_the_wide_window_counts_a_peak_moved_before_the_common_window():
+    """R_B,wide starts 1 ms after the first contact pulse of the closed-valve run: a run whose peak comes between
+    then and t_w (a collision moved ahead of the window) scores it there, while R_B does not see it; without such a
+    peak the two agree."""
+    from impactometer.control.event import WIDE_DELAY
+
+    run, _ = _constant_deceleration_run(stage_a=0.05)
+    usable = float(run.u1.max())
+    window = common_window(_with_chambers(run), usable)
+    assert window.wide_start == pytest.approx(4e-3 + WIDE_DELAY, abs=2 / 20e3)  # the 4 ms collision's end + 1 ms
+    plain = absorption_metrics(run, 0.0, usable, window)
+    assert plain.wide_window_ratio == pytest.approx(plain.stage_b_ratio, rel=1e-9)
+    assert plain.to_dict()["wide_window_start_s"] == window.wide_start
+    moved = SimpleNamespace(**vars(run))
+    force = run.contact_force.copy()
+    force[(run.time > 0.03) & (run.time < 0.035)] = 1500.0  # a collision before t_w = 50 ms
+    moved.contact_force = force
+    m = absorption_metrics(moved, 0.0, usable, window)
+    assert m.stage_b_ratio == pytest.approx(plain.stage_b_ratio, rel=1e-3)  # the phaseless filter leaks a trace
+    assert m.wide_window_ratio > 2.0 * m.stage_b_ratio
+    assert m.wide_window_peak_force == pytest.approx(m.wide_window_ratio * window.denominator, rel=1e-12)
+
+
 def test_a_mass_stopped_in_stage_a_has_no_common_window():
     run, _ = _constant_deceleration_run(stage_a=0.01)
     stopped = SimpleNamespace(**vars(_with_chambers(run)))
@@ -402,7 +425,7 @@ def test_a_mass_stopped_in_stage_a_has_no_common_window():
     assert math.isnan(window.start) and "stage A" in window.reason
     m = absorption_metrics(stopped, 0.005, 0.19, window)
     assert not m.own_window and math.isnan(m.stage_b_ratio) and math.isnan(m.own_window_start)
-    assert m.to_dict()["stage_b_ratio"] is None
+    assert m.to_dict()["stage_b_ratio"] is None and m.to_dict()["wide_window_ratio"] is None
 
 
 def test_bounce_energy_is_the_kinetic_energy_of_the_relative_motion():

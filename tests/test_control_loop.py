@@ -231,8 +231,9 @@ def test_cli_absorb_json_and_plot(tmp_path, capsys):
     data = json.loads(capsys.readouterr().out)
     keys = {"whole_event_peak_ratio", "peak_deceleration_g", "whole_event_efficiency", "stroke_used_m",
             "stage_b_ratio", "common_window_start_s", "floor_force_N", "reference_force_N", "control_start_s",
-            "bottomed_out", "rebound_m"}
+            "bottomed_out", "rebound_m", "wide_window_ratio", "wide_window_start_s"}
     assert keys <= set(data["strategies"]["predictive"])
+    assert data["wide_window_start_s"] < data["common_window_start_s"]
     assert data["rig"] == "drop-stand"
     assert figure.stat().st_size > 10_000
     with pytest.raises(SystemExit) as exit_info:

@@ -29,6 +29,7 @@ TABLE_ROWS = (
     ("  rebound [mm]", "rebound_m", lambda v: f"{v * 1e3:.1f}"),
     ("controller: R_B on the common window (ideal 1)", "stage_b_ratio", lambda v: f"{v:.2f}"),
     ("  CFC 60 peak in the window [N]", "stage_b_peak_force_N", lambda v: f"{v:.0f}"),
+    ("  R_B,wide: from the first pulse's end + 1 ms", "wide_window_ratio", lambda v: f"{v:.2f}"),
     ("  control starts [ms]", "control_start_s", lambda v: f"{v * 1e3:.2f}"),
     ("  M1 estimated at the end [kg]", "estimated_mass_kg", lambda v: f"{v:.2f}"),
     ("supplementary: R on the run's own window", "own_window_force_ratio", lambda v: f"{v:.2f}"),

@@ -26,7 +26,11 @@ Controller (R_B, on a window common to every strategy, the oracle and the refere
   cannot fall below it, whatever the valve does. p is the pressure of both chambers merged adiabatically at t_w
   (the lowest the lower chamber can reach through a valve to the upper one; a valve venting to the atmosphere
   reaches p_atm);
-- R_B = peak of the CFC 60 contact force over [t_w, deepest point] / max(F_ref, F_floor) (ideal 1).
+- R_B = peak of the CFC 60 contact force over [t_w, deepest point] / max(F_ref, F_floor) (ideal 1);
+- R_B,wide: the same peak taken from t_1 + ``WIDE_DELAY`` instead, t_1 the end of the first contact pulse of the
+  closed-valve run, over the same denominator. A controller that moves the stage-B peak before t_w (by acting
+  early, or by letting the bodies part and meet again) would lower R_B without lowering the load; R_B,wide counts
+  such a peak. It is never below R_B where t_1 + ``WIDE_DELAY`` <= t_w.
 
 An impact whose closed-valve run has no sustained contact before its deepest point (a light mass stopped by the gas
 spring in stage A) has no common window: it is excluded from R_B and counted apart, with its reason.
@@ -47,6 +51,9 @@ from .target import stopping_force
 
 #: channel frequency class of the filtered (body-load) contact force
 BODY_CFC = 60
+#: the wide window of R_B starts this long after the end of the first contact pulse [s] (clear of that pulse's
+#: collision, which no valve changes)
+WIDE_DELAY = 1e-3
 #: the mass counts as stopped at its deepest point when its velocity there is below this fraction of V0
 STOPPED_FRACTION = 0.01
 
@@ -61,12 +68,15 @@ class CommonWindow:
     reference_force : F_ref from the closed-valve state at t_w [N].
     floor_force : F_floor at t_w [N].
     reason : Why the impact has no window ("" when it has one).
+    wide_start : Start of the wide window, the end of the closed-valve run's first contact pulse + ``WIDE_DELAY``
+        [s] (NaN without a window).
     """
 
     start: float
     reference_force: float
     floor_force: float
     reason: str = ""
+    wide_start: float = math.nan
 
     @property
     def denominator(self) -> float:
@@ -144,17 +154,21 @@ def common_window(closed_result, usable_stroke: float, *, vented: bool = False) 
     reference = mass * (max(float(r.v1[i]), 0.0) ** 2 / (2.0 * remaining) + g)
     floor = floor_force(r.rig, mass, piston_position=float(r.u2[i]), pressure_lower=float(r.pressure_lower[i]),
                         pressure_upper=float(r.pressure_upper[i]), vented=vented)
-    return CommonWindow(start=float(start), reference_force=float(reference), floor_force=floor)
+    first = contact_pulses(r.time, r.contact_force, sustained_factor=math.inf)[0]
+    return CommonWindow(start=float(start), reference_force=float(reference), floor_force=floor,
+                        wide_start=float(first.end) + WIDE_DELAY)
 
 
-def window_peak(result, window: CommonWindow, *, filtered: np.ndarray | None = None) -> tuple[float, float]:
+def window_peak(result, window: CommonWindow, *, filtered: np.ndarray | None = None,
+                wide: bool = False) -> tuple[float, float]:
     """CFC 60 peak [N] over [t_w, deepest point] of a run and R_B [-] (NaN without a window, or when the run's
-    deepest point comes before t_w)."""
-    if not math.isfinite(window.start):
+    deepest point comes before t_w); ``wide``: over [t_1 + ``WIDE_DELAY``, deepest point] and R_B,wide."""
+    start = window.wide_start if wide else window.start
+    if not (math.isfinite(window.start) and math.isfinite(start)):
         return math.nan, math.nan
     t = result.time
     deepest = int(np.argmax(result.u1))
-    i0 = int(np.searchsorted(t, window.start - 1e-12))
+    i0 = int(np.searchsorted(t, start - 1e-12))
     if i0 > deepest:
         return math.nan, math.nan
     body = body_load(result) if filtered is None else filtered

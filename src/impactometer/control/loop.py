@@ -115,6 +115,7 @@ class AbsorptionResult:
                 "rig": self.rig.name, "usable_stroke_m": self.absorber.usable_stroke(self.rig),
                 "control_start_s": finite_or_none(self.control_start),
                 "common_window_start_s": finite_or_none(window.start),
+                "wide_window_start_s": finite_or_none(window.wide_start),
                 "reference_force_N": finite_or_none(window.reference_force),
                 "floor_force_N": finite_or_none(window.floor_force), "common_window_excluded": window.reason or None,
                 **({} if reference is None else reference.to_dict()),

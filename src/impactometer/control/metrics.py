@@ -5,7 +5,8 @@ Headline (see :mod:`.event`): the whole-event CFC 60 peak / F0, the peak deceler
 (peak × stroke used), the stroke used and its share of the usable stroke, whether the mass stopped (and when),
 bottoming (any bottom-stop force, or a run ended at the bottom stop), the rebound (upward travel of the mass after
 its deepest point); R_B = CFC 60 peak over [t_w, deepest point] / max(F_ref, F_floor) with t_w the impact's first
-sustained contact with the valve closed.
+sustained contact with the valve closed; R_B,wide the same peak from the end of the first contact pulse + 1 ms
+(``wide_window_*``: a peak moved before t_w still counts).
 
 Supplementary, each run on its own window (``own_window_*``, the earlier headline): the deepest point of the mass;
 the run's own stage B is the contact pulse that holds it, when that pulse is not the first one and has lasted, from
@@ -48,7 +49,8 @@ REBOUND_THRESHOLD = 1e-3
 #: units of the keys of ``AbsorptionMetrics.to_dict()``
 UNITS = {"control_start": "s", "impact_force": "N", "whole_event_peak_force": "N", "stroke_used": "m",
          "time_to_stop": "s", "rebound": "m", "common_window_start": "s", "reference_force": "N",
-         "floor_force": "N", "stage_b_peak_force": "N", "own_window_start": "s", "own_window_reference_force": "N",
+         "floor_force": "N", "stage_b_peak_force": "N", "wide_window_start": "s", "wide_window_peak_force": "N",
+         "own_window_start": "s", "own_window_reference_force": "N",
          "own_window_peak_force": "N", "peak_force_stage_a": "N", "peak_force_controlled": "N",
          "peak_force_controlled_cfc60": "N", "max_deceleration": "m_s2", "energy_absorbed": "J",
          "bounce_energy": "J", "stroke_controlled": "m"}
@@ -60,7 +62,9 @@ class AbsorptionMetrics:
 
     Headline: the whole event (``impact_force`` F0 to ``time_to_stop``, ``stopped``, ``bottomed_out``,
     ``rebound``) and the controller on the impact's common window (``common_window_start`` t_w,
-    ``reference_force`` F_ref, ``floor_force`` F_floor, ``stage_b_peak_force``, ``stage_b_ratio`` R_B); see
+    ``reference_force`` F_ref, ``floor_force`` F_floor, ``stage_b_peak_force``, ``stage_b_ratio`` R_B;
+    ``wide_window_start``, ``wide_window_peak_force`` and ``wide_window_ratio`` R_B,wide from the first pulse's end
+    + 1 ms); see
     :mod:`.event`. The ``own_window_*`` and control-start fields are supplementary (module notes).
     """
 
@@ -82,6 +86,9 @@ class AbsorptionMetrics:
     floor_force: float
     stage_b_peak_force: float
     stage_b_ratio: float
+    wide_window_start: float
+    wide_window_peak_force: float
+    wide_window_ratio: float
     own_window: bool
     own_window_start: float
     own_window_reference_force: float
@@ -194,6 +201,7 @@ def absorption_metrics(result, control_start: float, usable_stroke: float,
     window = CommonWindow(start=math.nan, reference_force=math.nan, floor_force=math.nan) if window is None \
         else window
     window_force, ratio = window_peak(result, window, filtered=body)
+    wide_force, wide_ratio = window_peak(result, window, filtered=body, wide=True)
 
     def efficiency(level: float) -> float:
         return float(work / (level * stroke)) if level > 0.0 and stroke > 0.0 else math.nan
@@ -207,7 +215,8 @@ def absorption_metrics(result, control_start: float, usable_stroke: float,
         bottomed_out=bool(np.any(result.bottom_stop_force > 0.0) or "ended_at_bottom" in result.extra),
         rebound=rebound, rebounded=bool(rebound > REBOUND_THRESHOLD),
         common_window_start=window.start, reference_force=window.reference_force, floor_force=window.floor_force,
-        stage_b_peak_force=window_force, stage_b_ratio=ratio,
+        stage_b_peak_force=window_force, stage_b_ratio=ratio, wide_window_start=window.wide_start,
+        wide_window_peak_force=wide_force, wide_window_ratio=wide_ratio,
         own_window=math.isfinite(b.start), own_window_start=b.start, own_window_reference_force=b.reference_force,
         own_window_peak_force=b.peak_force, own_window_force_ratio=b.force_ratio,
         own_window_efficiency=b.efficiency, own_window_force_ratio_first=b.first_force_ratio,

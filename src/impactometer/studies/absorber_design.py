@@ -95,6 +95,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
                      "identified_mass_kg": finite_or_none(result.identified.mass),
                      "stage_b_ratio": finite_or_none(m.stage_b_ratio),
                      "closed_stage_b_ratio": finite_or_none(closed.stage_b_ratio),
+                     "wide_window_ratio": finite_or_none(m.wide_window_ratio),
                      "whole_event_peak_ratio": finite_or_none(m.whole_event_peak_ratio),
                      "closed_whole_event_peak_ratio": finite_or_none(closed.whole_event_peak_ratio),
                      "peak_deceleration_g": finite_or_none(m.peak_deceleration_g),
