@@ -90,6 +90,13 @@ def test_achievable_reference_bounds_the_strategies_and_stops_in_the_stroke(orac
     assert data["achievable_force_ratio"] == pytest.approx(ref.force_ratio)
     assert data["achievable_family"].split(" from ")[0] in ("segments", "level", "moving target")
     assert len(data["achievable_openings"]) in (0, 8)
+    # the best of each family from first contact: the reference is the best of them, or one from the control start
+    families = ref.by_family
+    assert set(families) == {"segments", "level", "moving target"}
+    assert min(families.values()) >= ref.force_ratio
+    if ref.family.endswith("from first contact"):
+        assert families[ref.family.split(" from ")[0]] == ref.force_ratio
+    assert data["achievable_by_family"] == pytest.approx(families)
 
 
 def test_the_reference_from_the_control_start_searches_a_part_of_the_same_family(oracle_run):
@@ -212,16 +219,31 @@ def test_absorption_study_rows_and_summary():
                                               params={"absorption.strategies": ["closed", "predictive"]}))
     assert options.rig.name == "drop-stand"  # the absorber's stand unless one is asked for
     assert options_for(study, StudyOptions()).rig.name == "drop-stand"
-    rows = study.evaluate([{"case": 0, "mass": 30.0, "velocity": 2.0, "pressure_gauge": 210e3}], options)
-    assert [r["strategy"] for r in rows] == ["closed", "predictive", "predictive (oracle)", "achievable reference"]
-    assert len({r["control_start_s"] for r in rows}) == 1  # the oracle and the reference start with the loop
+    case = {"case": 0, "mass": 30.0, "velocity": 2.0, "pressure_gauge": 210e3}
+    rows = study.evaluate([case], options)
+    assert [r["strategy"] for r in rows] == ["closed", "predictive", "predictive (oracle)",
+                                             "predictive (oracle from the control start)", "achievable reference"]
+    starts = {r["strategy"]: r["control_start_s"] for r in rows}
+    assert starts["predictive (oracle)"] == 0.0  # the oracle acts from first contact
+    late = {v for k, v in starts.items() if k != "predictive (oracle)"}
+    assert len(late) == 1 and late.pop() > 0.0  # the second oracle and the reference's second search: the loop's
     assert len({r["common_window_start_s"] for r in rows}) == 1  # one window for every row of the impact
+    assert rows[0]["latency_s"] == 1e-3
     table = {r["strategy"]: r for r in study.aggregate(rows)}
     assert table["predictive"]["median R_B"] < table["closed"]["median R_B"]
     assert table["closed"]["common set"] == 1 and table["predictive"]["bottomed out"] == 0
-    assert table["achievable reference"]["median R_B"] <= table["predictive (oracle)"]["median R_B"]
+    reference = table["achievable reference"]["median R_B"]
+    assert reference <= table["predictive (oracle from the control start)"]["median R_B"]
+    assert reference <= 1.05 * table["predictive (oracle)"]["median R_B"]
+    assert table["predictive (oracle)"]["median R_B"] <= table["predictive (oracle from the control start)"][
+        "median R_B"]
+    for family in ("segments", "level", "moving_target"):
+        assert rows[0][f"achievable_{family}_force_ratio"] >= reference
     summary = study.summary(rows)
     assert "R_B" in summary[0]["quantity"] and "1 impacts of the common set" in summary[0]["ours"]
+    assert any(line["quantity"].startswith("best of each reference family") for line in summary)
+    # the same arguments, the same rows
+    assert study.evaluate([case], options) == rows
 
 
 def test_cli_absorb_json_and_plot(tmp_path, capsys):

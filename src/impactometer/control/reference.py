@@ -22,7 +22,8 @@ it).
 searched again with the valve closed before t_c (family 1 on 8 equal segments of [t_c, T]): the best a program
 reaches that knows M1 and V0 exactly but acts only from when the loop can (``from_start_force_ratio``). The gap
 between the two references is what the answer's time costs; the gap between the second and the loop is what its
-control law costs.
+control law costs. The best of each family from first contact is reported too (``by_family``): the bound a loop
+that acts from first contact is judged against.
 """
 
 from __future__ import annotations
@@ -64,8 +65,10 @@ class AchievableReference:
     """The best program found: R_B [-], whole-event peak / F0 [-], stroke used [m], which family gave it and from
     when (``segments``, ``level`` or ``moving target``, ``from first contact`` or ``from the control start``), its
     level [N] (NaN unless ``level``), its openings per segment [-] (empty unless ``segments``), the number of
-    plant simulations run (R_B NaN when no program is feasible or the impact has no common window), and the R_B of
-    the best program acting only from the control start [-] (NaN without a control start)."""
+    plant simulations run (R_B NaN when no program is feasible or the impact has no common window), the R_B of
+    the best program acting only from the control start [-] (NaN without a control start), and the R_B of the best
+    program of each family acting from first contact [-] (``by_family``: ``segments``, ``level``, ``moving
+    target``; inf where none of it is feasible)."""
 
     force_ratio: float
     whole_event_peak_ratio: float
@@ -75,16 +78,20 @@ class AchievableReference:
     openings: tuple[float, ...]
     runs: int
     from_start_force_ratio: float = math.nan
+    by_family: dict[str, float] = dataclasses.field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """JSON-ready summary with ``achievable_``-prefixed keys."""
+        """JSON-ready summary with ``achievable_``-prefixed keys (``achievable_by_family``: R_B of the best of each
+        family from first contact, None where none is feasible)."""
         finite = [None if not math.isfinite(v) else float(v) for v in
                   (self.force_ratio, self.whole_event_peak_ratio, self.stroke_used, self.level,
                    self.from_start_force_ratio)]
         return {"achievable_force_ratio": finite[0], "achievable_whole_event_peak_ratio": finite[1],
                 "achievable_stroke_used_m": finite[2], "achievable_family": self.family,
                 "achievable_level_N": finite[3], "achievable_openings": list(self.openings),
-                "achievable_runs": self.runs, "achievable_from_start_force_ratio": finite[4]}
+                "achievable_runs": self.runs, "achievable_from_start_force_ratio": finite[4],
+                "achievable_by_family": {name: float(v) if math.isfinite(v) else None
+                                         for name, v in self.by_family.items()}}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -216,10 +223,12 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
             found_openings[when] = tuple(float(v) for v in best_x)
             runs += len(searched) + 1
     late = [o.ratio for (_, begun, _), o in candidates.items() if begun == "the control start"]
+    by_family = {name: min(o.ratio for (f, begun, _), o in candidates.items() if f == name and begun == "first contact")
+                 for name in dict.fromkeys(f for f, _, _ in candidates)}
     (family, when, level), chosen = min(candidates.items(), key=lambda item: item[1].ratio)
     if not math.isfinite(chosen.ratio):
-        return dataclasses.replace(nothing, runs=runs)
+        return dataclasses.replace(nothing, runs=runs, by_family=by_family)
     return AchievableReference(force_ratio=float(chosen.ratio), whole_event_peak_ratio=chosen.peak_ratio,
                                stroke_used=chosen.stroke, family=f"{family} from {when}", level=float(level),
                                openings=found_openings.get(when, ()) if family == "segments" else (), runs=runs,
-                               from_start_force_ratio=float(min(late)) if late else math.nan)
+                               from_start_force_ratio=float(min(late)) if late else math.nan, by_family=by_family)
