@@ -33,7 +33,7 @@ import numpy as np
 
 from ..constants import STANDARD_GRAVITY
 from ..errors import IdentificationError, ParameterError
-from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
+from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, PRESETS, VELOCITY_RANGE
 from ..signals.pulses import detection_levels
 from ..validation import check_real
 
@@ -48,6 +48,8 @@ SWING_FRACTION, SWING_SIGMAS = 0.05, 10.0
 VELOCITY_SLIPS = {1e3: "an acceleration in mm/s² read as m/s²", 1e-3: "an acceleration in m/s² read as mm/s²",
                   STANDARD_GRAVITY: "an acceleration in m/s² read as g",
                   1 / STANDARD_GRAVITY: "an acceleration in g read as m/s²"}
+#: the unit the acceleration was in, for each slip of :data:`VELOCITY_SLIPS`
+ACCELERATION_UNITS = {1e3: "mm/s^2", 1e-3: "m/s^2", STANDARD_GRAVITY: "m/s^2", 1 / STANDARD_GRAVITY: "g"}
 #: how much better (in reduced χ²) an acceleration unit slip must fit to be named; as the better fit's reduced χ² is
 #: taken as at least 1, a slip is looked for only where the answer's own reduced χ² reaches this
 SLIP_GAIN = 25.0
@@ -69,6 +71,83 @@ def check_segment(seg) -> None:
         raise IdentificationError(f"piston_acceleration is constant ({float(a[0])!r} m/s² throughout the impact); "
                                   "expected a measured acceleration")
     check_clipping(seg)
+    check_acceleration_sign(seg)
+
+
+#: the piston and rod mass M2 [kg] a record's first pulse is compared with: the built-in stand's (peak-to-peak
+#: identification does not know the stand)
+ROD_MASS = PRESETS["drop-stand"].cylinder.piston_mass
+#: the mass the first pulse pushes may differ from :data:`ROD_MASS` by this factor either way on a drop stand (the
+#: gas and seal forces, another stand's rod) before a unit slip is looked for [-]
+ROD_MASS_FACTOR = 2.5
+#: the piston's velocity change over the first pulse's rise must exceed its noise this many times to be judged [-]
+PUSH_SIGMAS = 8.0
+
+
+def pushed_mass(seg) -> tuple[float, float, float] | None:
+    """The mass [kg] the first contact pulse accelerates, from the piston's momentum balance over the pulse's rise:
+    ∫Fc dt / Δv2 from the last sample at zero force to the peak, with the impulse [N·s] and Δv2 [m/s]; None where
+    Δv2 is within ``PUSH_SIGMAS`` of its noise (or no pulse has risen).
+
+    Over the short rise the gas and seal forces change little, so the contact force's impulse goes into the
+    piston and rod: on the built-in stands the ratio is 4.0-5.7 kg for M2 = 4 kg (10-50 kg at 1-3 m/s, 100-400
+    kPa). An acceleration in g read as m/s² makes it 9.81 times larger; an accelerometer mounted the other way,
+    or one in the falling mass (a drop weight's striker, which the force slows), makes it negative.
+    """
+    if not seg.pulses:
+        return None
+    pulse = seg.pulses[0]
+    lo, hi = max(pulse.zero, 0), pulse.peak
+    if hi - lo < 2:
+        return None
+    dt = 1.0 / seg.sample_rate
+    impulse = float(np.trapezoid(seg.force[lo:hi + 1], dx=dt))
+    change = float(np.trapezoid(seg.acceleration[lo:hi + 1], dx=dt))
+    noise = seg.noise_acceleration * dt * math.sqrt(hi - lo + 1)
+    if not abs(change) > PUSH_SIGMAS * noise or not impulse > 0.0:
+        return None
+    return impulse / change, impulse, change
+
+
+def check_acceleration_sign(seg) -> None:
+    """IdentificationError when the first contact pulse slows the piston (:func:`pushed_mass` negative): an
+    accelerometer mounted the other way, or a record of another machine, whose accelerometer rides on the falling
+    mass (a drop weight's striker)."""
+    found = pushed_mass(seg)
+    if found is None or found[0] > 0.0:
+        return
+    mass, impulse, change = found
+    what = (f"the contact force pushes with {impulse:.3g} N·s over its first rise while the acceleration channel "
+            f"slows by {-change:.3g} m/s, as a mass of {-mass:.3g} kg that the contact brakes")
+    if -mass <= ROD_MASS_FACTOR * ROD_MASS:
+        raise IdentificationError(f"piston_acceleration reads the impact with the other sign: {what}, where it should "
+                                  "speed the rod up; an accelerometer mounted the other way (pointing up): read it "
+                                  "with --flip-acceleration (flip_acceleration=True)")
+    raise IdentificationError(f"this record is not a drop on a gas-spring rod: {what} (an accelerometer in the falling "
+                              "mass, a drop weight's striker); peak-to-peak identification needs the acceleration of "
+                              "the rod the mass strikes (an accelerometer on the rod mounted the other way reads so "
+                              "too: --flip-acceleration)")
+
+
+def acceleration_unit_slip(seg) -> str | None:
+    """A warning naming an acceleration unit slip that the piston's momentum balance shows (:func:`pushed_mass`
+    :data:`ROD_MASS_FACTOR` times off the rod's mass and within that factor of a slip of
+    :data:`VELOCITY_SLIPS`), or None."""
+    found = pushed_mass(seg)
+    if found is None or found[0] <= 0.0:
+        return None
+    mass = found[0]
+    ratio = mass / ROD_MASS
+    if 1.0 / ROD_MASS_FACTOR <= ratio <= ROD_MASS_FACTOR:
+        return None
+    for factor, text in VELOCITY_SLIPS.items():
+        if 1.0 / ROD_MASS_FACTOR <= ratio * factor <= ROD_MASS_FACTOR:
+            unit = ACCELERATION_UNITS[factor]
+            return (f"the contact force's first rise speeds the piston as a mass of {mass:.3g} kg would, "
+                    f"{ratio:.3g} times the {ROD_MASS:g} kg piston and rod of a drop stand: {text}? "
+                    f"if so, state the acceleration's unit in the file (a column named 'acceleration [{unit}]') "
+                    f"or read it with --acceleration-unit {unit}")
+    return None
 
 
 def check_first_contact(seg) -> None:
