@@ -80,3 +80,33 @@ def test_the_paper_variant_on_filtered_channels_carries_a_caution(drop):
     filtered = identify(filter_recording(drop, 1000), variant="paper")
     assert "low-pass filtered" in filtered.details["caution"]
     assert "low-pass filtered" not in plain.details.get("caution", "")
+
+
+def test_an_acceleration_in_g_under_an_m_s2_header_is_named_with_the_option_that_reads_it(tmp_path):
+    """22 kg at 2 m/s exported in g under '[m/s^2]' gave 88.7 ± 0.9 kg and 0.19 m/s without a word."""
+    rec = record(Scenario(mass=22.0, velocity=2.0, pressure_gauge=200e3), sample_rate=50e3, duration=0.07,
+                 noise=0.01, seed=4, pre_trigger=0.02)
+    rows = np.column_stack([rec.time - rec.time[0], rec.contact_force, rec.piston_acceleration / 9.80665])
+    path = write_csv(tmp_path / "g.csv", "time [s],force [N],acceleration [m/s^2]", rows)
+    slipped = identify(read_recording(path))
+    assert any("an acceleration in g read as m/s²" in w and "--acceleration-unit g" in w for w in slipped.warnings)
+    answer = identify(read_recording(path, acceleration_unit="g"))
+    assert answer.mass == pytest.approx(22.0, rel=0.05) and answer.velocity == pytest.approx(2.0, rel=0.02)
+    assert not any("read as" in w for w in answer.warnings)
+
+
+def test_a_time_column_in_ms_under_an_s_header_is_refused_naming_the_unit_that_reads_it(tmp_path, drop):
+    rows = np.column_stack([(drop.time - drop.time[0]) * 1e3, drop.contact_force, drop.piston_acceleration])
+    path = write_csv(tmp_path / "ms.csv", "time [s],force [N],acceleration [m/s^2]", rows)
+    with pytest.raises(RecordingError, match=r"gives 20 Hz over 70 s, no record of an impact.*--time-unit ms"):
+        read_recording(path)
+    rec = read_recording(path, time_unit="ms")
+    assert rec.sample_rate == pytest.approx(20e3, rel=1e-6)
+    with pytest.raises(RecordingError, match=r"time_unit must be a time unit \(s, ms"):
+        read_recording(path, time_unit="kN")
+
+
+def test_an_accelerometer_mounted_the_other_way_is_named_with_the_option_that_flips_it(drop):
+    flipped = replace(drop, channels={**drop.channels, "piston_acceleration": -drop.piston_acceleration})
+    with pytest.raises(IdentificationError, match=r"other sign.*--flip-acceleration"):
+        identify(flipped)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 import sys
 
+import typer
 from rich.markup import escape
 
 from ..errors import ImpactometerError
@@ -41,9 +42,10 @@ def main(argv: list[str] | None = None) -> None:
     except Exception as exc:
         # click's exceptions (typer may bundle its own copy of click, so match by interface, not by class)
         name = type(exc).__name__
-        if name == "NoArgsIsHelpError":  # the command or a group run bare: its help as click shows it, not one line
-            exc.show()  # type: ignore[attr-defined]
-            sys.exit(getattr(exc, "exit_code", 2))
+        if name == "NoArgsIsHelpError":  # a group run bare asks for its help: shown on stdout, status 0 (as click
+            # before 8.2 did; click 8.2 made it a usage error with status 2)
+            typer.echo(exc.ctx.get_help())  # type: ignore[attr-defined]
+            sys.exit(0)
         if hasattr(exc, "format_message"):
             _fail(exc.format_message(), getattr(exc, "exit_code", 2) or 2)
         if name == "Abort":

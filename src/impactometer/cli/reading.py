@@ -36,6 +36,12 @@ class ReaderOptions:
         "--acceleration-includes-gravity", help="The accelerometer reads a − g: add g back.")] = False
     sample_rate: Annotated[str | None, typer.Option(
         "--sample-rate", metavar="FREQUENCY", help="Sample rate of a file without a time base (e.g. 50kHz).")] = None
+    time_unit: Annotated[str | None, typer.Option(
+        "--time-unit", metavar="UNIT", help="The time column's unit, in place of the file's (e.g. ms).")] = None
+    force_unit: Annotated[str | None, typer.Option(
+        "--force-unit", metavar="UNIT", help="The force's unit, in place of the file's (e.g. kN).")] = None
+    acceleration_unit: Annotated[str | None, typer.Option(
+        "--acceleration-unit", metavar="UNIT", help="The acceleration's unit, in place of the file's (e.g. g).")] = None
     cfc: Annotated[int | None, typer.Option(
         "--cfc", metavar="CLASS", help="Apply a CFC filter class first (60, 180, 600, 1000).")] = None
 
@@ -48,7 +54,9 @@ class ReaderOptions:
                                  acceleration_channel=self.acceleration_channel, group=self.group,
                                  flip_force=self.flip_force, flip_acceleration=self.flip_acceleration,
                                  acceleration_includes_gravity=self.acceleration_includes_gravity,
-                                 sample_rate=quantity(self.sample_rate, "frequency", "--sample-rate"))
+                                 sample_rate=quantity(self.sample_rate, "frequency", "--sample-rate"),
+                                 time_unit=self.time_unit, force_unit=self.force_unit,
+                                 acceleration_unit=self.acceleration_unit)
         if rec.units_note:
             from .app import error_console
 

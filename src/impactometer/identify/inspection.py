@@ -8,11 +8,12 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import RecordingError
-from ..recording import FORCE, TRUTH_KEYS, Recording
+from ..errors import IdentificationError, RecordingError
+from ..recording import ACCELERATION, FORCE, TRUTH_KEYS, Recording
 from ..signals.noise import robust_noise_std
-from ..signals.pulses import Pulse, detect_pulses
-from ..signals.stage_b import stage_b_start, sustained_index
+from ..signals.pulses import Pulse
+from ..signals.stage_b import SUSTAINED_FACTOR, stage_b_start, sustained_index
+from .peak_to_peak.segment import check_channels, segment_bounds, segment_of
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -80,11 +81,26 @@ def _samples_before_contact(recording: Recording) -> int:
     return n
 
 
+def _first_impact(recording: Recording):
+    """The first impact as the identification cuts and prepares it (offsets, noise, contact pulses; see
+    :mod:`.peak_to_peak.segment`) and the sample it starts at; (None, 0) where the record holds no impact."""
+    force = recording.contact_force
+    acceleration = recording.channels.get(ACCELERATION)
+    try:
+        f, a, fs = check_channels(force, np.zeros_like(force) if acceleration is None else acceleration,
+                                  recording.sample_rate)
+        start, stop, _, pre = segment_bounds(f, fs)
+        return segment_of(f, a, fs, recording.start_time, start, stop, pre, {}), start
+    except IdentificationError:
+        return None, 0
+
+
 def inspect_recording(recording: Recording) -> Inspection:
     """Duration, rate, channels with ranges and noise, peak force, contact pulses and stage B of ``recording``.
 
-    Pulses come from the noise-aware detector of :mod:`impactometer.signals.pulses` (detection at 5 σ of the
-    estimated white noise, release at 2 σ), on the force minus its pre-trigger median.
+    The contact pulses are those of the first impact as the identification finds them (:mod:`.peak_to_peak.segment`:
+    the noise-aware detector of :mod:`impactometer.signals.pulses` on the force less its pre-trigger offset, at the
+    noise the identification estimates, ringing left out), so that both report the same pulses.
     """
     if not isinstance(recording, Recording):
         raise RecordingError(f"recording must be a Recording, got {type(recording).__name__}")
@@ -94,24 +110,28 @@ def inspect_recording(recording: Recording) -> Inspection:
     peak = peak_time = None
     offset = 0.0
     if FORCE in recording.channels:
-        f = recording.contact_force
+        force = recording.contact_force
         dt = 1.0 / recording.sample_rate
 
         def t(i: int) -> float:  # as Recording.time gives it, without the array
             return recording.start_time + i / recording.sample_rate
 
-        before = f[:_samples_before_contact(recording)]
-        offset = float(np.median(before)) if before.size >= MIN_OFFSET_SAMPLES else 0.0
-        f = f - offset
+        seg, start = _first_impact(recording)
+        if seg is not None:
+            offset = float(force[start] - seg.force[0])
+        else:
+            before = force[:_samples_before_contact(recording)]
+            offset = float(np.median(before)) if before.size >= MIN_OFFSET_SAMPLES else 0.0
+        f = force - offset
         k = int(np.argmax(f))
         peak, peak_time = float(f[k]), t(k)
-        spans = detect_pulses(f, channels[FORCE].noise)
-        stage_b = sustained_index(spans, size=f.size)  # the identification's rule of stage B
+        spans = [] if seg is None else seg.pulses
+        stage_b = sustained_index(spans, size=seg.force.size if seg is not None else 0, factor=SUSTAINED_FACTOR)
         for k, span in enumerate(spans[:None if stage_b is None else stage_b + 1]):
-            stop = span.end if span.complete else f.size - 1
-            pulses.append(Pulse(start=t(span.zero), peak_time=t(span.peak), end=t(stop),
-                                peak_force=float(f[span.peak]),
-                                impulse=float(np.trapezoid(f[span.zero:stop + 1], dx=dt)),
+            stop = span.end if span.complete else seg.force.size - 1
+            pulses.append(Pulse(start=t(start + span.zero), peak_time=t(start + span.peak), end=t(start + stop),
+                                peak_force=float(seg.force[span.peak]),
+                                impulse=float(np.trapezoid(seg.force[span.zero:stop + 1], dx=dt)),
                                 sustained=k == stage_b))
     return Inspection(duration=recording.duration, sample_rate=recording.sample_rate,
                       start_time=recording.start_time, samples=len(recording), channels=channels, peak_force=peak,

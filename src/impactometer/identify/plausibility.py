@@ -21,7 +21,8 @@ with physical bounds and with the recorded force:
   never does, as a compressive contact force does, is recognised as a swap.
 
 Every failed check gives one sentence; the sentences are the result's ``warnings`` (and the command line prints
-them). The checks never change the answer.
+them). The checks never change the answer; an answer that the recorded impulse contradicts outright (more than
+:data:`IMPULSE_REFUSAL` times what it allows) is refused.
 """
 
 from __future__ import annotations
@@ -33,13 +34,15 @@ import numpy as np
 
 from ..constants import STANDARD_GRAVITY
 from ..errors import IdentificationError, ParameterError
-from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, VELOCITY_RANGE
+from ..rig import FREE_FALL_HEIGHTS, MASS_RANGE, PRESETS, VELOCITY_RANGE
 from ..signals.pulses import detection_levels
 from ..validation import check_real
 
 #: the recorded impulse (energy) may exceed what the answer allows by this factor before a warning (noise,
 #: offsets, the piston's gas and friction forces)
 IMPULSE_SLACK, ENERGY_SLACK = 1.1, 1.25
+#: a recorded impulse this many times what the answer allows contradicts the answer: it is refused, not warned of
+IMPULSE_REFUSAL = 2.0
 #: relative standard error of mass or velocity above which the answer is poorly determined
 RELATIVE_ERROR_LIMIT = 0.25
 #: a force channel dipping below zero by more than this fraction of its peak (and many noise σ) is suspect
@@ -48,6 +51,8 @@ SWING_FRACTION, SWING_SIGMAS = 0.05, 10.0
 VELOCITY_SLIPS = {1e3: "an acceleration in mm/s² read as m/s²", 1e-3: "an acceleration in m/s² read as mm/s²",
                   STANDARD_GRAVITY: "an acceleration in m/s² read as g",
                   1 / STANDARD_GRAVITY: "an acceleration in g read as m/s²"}
+#: the unit the acceleration was in, for each slip of :data:`VELOCITY_SLIPS`
+ACCELERATION_UNITS = {1e3: "mm/s^2", 1e-3: "m/s^2", STANDARD_GRAVITY: "m/s^2", 1 / STANDARD_GRAVITY: "g"}
 #: how much better (in reduced χ²) an acceleration unit slip must fit to be named; as the better fit's reduced χ² is
 #: taken as at least 1, a slip is looked for only where the answer's own reduced χ² reaches this
 SLIP_GAIN = 25.0
@@ -69,6 +74,85 @@ def check_segment(seg) -> None:
         raise IdentificationError(f"piston_acceleration is constant ({float(a[0])!r} m/s² throughout the impact); "
                                   "expected a measured acceleration")
     check_clipping(seg)
+    check_acceleration_sign(seg)
+
+
+#: the piston and rod mass M2 [kg] a record's first pulse is compared with: the built-in stand's (peak-to-peak
+#: identification does not know the stand)
+ROD_MASS = PRESETS["drop-stand"].cylinder.piston_mass
+#: the mass the first pulse pushes may differ from :data:`ROD_MASS` by this factor either way on a drop stand (the
+#: gas and seal forces, another stand's rod) before a unit slip is looked for [-]
+ROD_MASS_FACTOR = 2.5
+#: the piston's velocity change over the first pulse's rise must exceed its noise this many times to be judged [-]
+PUSH_SIGMAS = 8.0
+
+
+def pushed_mass(seg) -> tuple[float, float, float] | None:
+    """The mass [kg] the first contact pulse accelerates, from the piston's momentum balance over the pulse's rise:
+    ∫Fc dt / Δv2 from the last sample at zero force to the peak, with the impulse [N·s] and Δv2 [m/s]; None where
+    Δv2 is within ``PUSH_SIGMAS`` of its noise (or no pulse has risen).
+
+    Over the short rise the gas and seal forces change little, so the contact force's impulse goes into the
+    piston and rod: on the built-in stands the ratio is 4.0-5.7 kg for M2 = 4 kg (10-50 kg at 1-3 m/s, 100-400
+    kPa). An acceleration in g read as m/s² makes it 9.81 times larger; an accelerometer mounted the other way,
+    or one in the falling mass (a drop weight's striker, which the force slows), makes it negative.
+    """
+    if not seg.pulses:
+        return None
+    pulse = seg.pulses[0]
+    lo, hi = max(pulse.zero, 0), pulse.peak
+    if hi - lo < 2:
+        return None
+    dt = 1.0 / seg.sample_rate
+    impulse = float(np.trapezoid(seg.force[lo:hi + 1], dx=dt))
+    change = float(np.trapezoid(seg.acceleration[lo:hi + 1], dx=dt))
+    noise = seg.noise_acceleration * dt * math.sqrt(hi - lo + 1)
+    if not abs(change) > PUSH_SIGMAS * noise or not impulse > 0.0:
+        return None
+    return impulse / change, impulse, change
+
+
+def check_acceleration_sign(seg) -> None:
+    """IdentificationError when the first contact pulse slows the piston (:func:`pushed_mass` negative): an
+    accelerometer mounted the other way, or a record of another machine, whose accelerometer rides on the falling
+    mass (a drop weight's striker)."""
+    found = pushed_mass(seg)
+    if found is None or found[0] > 0.0:
+        return
+    mass, impulse, change = found
+    what = (f"the contact force pushes with {impulse:.3g} N·s over its first rise while the acceleration channel "
+            f"slows by {-change:.3g} m/s, as a mass of {-mass:.3g} kg that the contact brakes")
+    if -mass <= ROD_MASS_FACTOR * ROD_MASS:
+        raise IdentificationError(f"piston_acceleration reads the impact with the other sign: {what}, where it should "
+                                  "speed the rod up; an accelerometer mounted the other way (pointing up): read it "
+                                  "with --flip-acceleration (flip_acceleration=True); one in the falling mass (a drop "
+                                  "weight's striker) reads so too, and such a record is not a drop on a gas-spring "
+                                  "rod")
+    raise IdentificationError(f"this record is not a drop on a gas-spring rod: {what} (an accelerometer in the falling "
+                              "mass, a drop weight's striker); peak-to-peak identification needs the acceleration of "
+                              "the rod the mass strikes (an accelerometer on the rod mounted the other way reads so "
+                              "too: --flip-acceleration)")
+
+
+def acceleration_unit_slip(seg) -> str | None:
+    """A warning naming an acceleration unit slip that the piston's momentum balance shows (:func:`pushed_mass`
+    :data:`ROD_MASS_FACTOR` times off the rod's mass and within that factor of a slip of
+    :data:`VELOCITY_SLIPS`), or None."""
+    found = pushed_mass(seg)
+    if found is None or found[0] <= 0.0:
+        return None
+    mass = found[0]
+    ratio = mass / ROD_MASS
+    if 1.0 / ROD_MASS_FACTOR <= ratio <= ROD_MASS_FACTOR:
+        return None
+    for factor, text in VELOCITY_SLIPS.items():
+        if 1.0 / ROD_MASS_FACTOR <= ratio * factor <= ROD_MASS_FACTOR:
+            unit = ACCELERATION_UNITS[factor]
+            return (f"the contact force's first rise speeds the piston as a mass of {mass:.3g} kg would, "
+                    f"{ratio:.3g} times the {ROD_MASS:g} kg piston and rod of a drop stand: {text}? "
+                    f"if so, state the acceleration's unit in the file (a column named 'acceleration [{unit}]') "
+                    f"or read it with --acceleration-unit {unit}")
+    return None
 
 
 def check_first_contact(seg) -> None:
@@ -117,8 +201,8 @@ def flat_top(x: np.ndarray, noise: float, pulses, sign: int = 1) -> tuple[int, i
     resolution), or None when the samples there look like a peak.
 
     A quantised peak may sit a few samples at one level: about 2·√(2(q + 2σ)/|x''|) samples for a quantum q, noise
-    σ and the curvature x'' ≈ x_max·(π/T)² of a contact pulse of T samples (``pulses``, the force's; the whole record
-    where the extreme lies in none). A flat top twice that long, or the extreme reached in two different pulses to
+    σ and the curvature x'' ≈ x_max·(π/T)² of a contact pulse of T samples (``pulses``, the force's; the flight
+    between two pulses where the extreme lies in none). A flat top twice that long, or the extreme reached in two different pulses to
     the last digit (for two samples or more in each), is a clipped channel. An extreme within 5 σ of zero is no
     top.
     """
@@ -127,18 +211,25 @@ def flat_top(x: np.ndarray, noise: float, pulses, sign: int = 1) -> tuple[int, i
     if not top > 5.0 * noise:
         return None
     at_top = np.flatnonzero(y >= top - 1e-12 * abs(top))
-    k = int(at_top[0])
-    run = int(np.argmax(np.diff(np.r_[at_top, -2]) != 1)) + 1
+    runs = np.split(at_top, np.flatnonzero(np.diff(at_top) != 1) + 1)
+    # the longest run at the extreme (a channel clipped below the depth of several dips touches its rail for a
+    # sample or two in the first ones: judged by the first run, 82 samples on the rail at 100 kHz went unseen)
+    longest = max(runs, key=len)
+    k, run = int(longest[0]), int(longest.size)
 
     def inside(p, i):
         return p.first <= i and (not p.complete or i < p.end)
 
     pulse = next((p for p in pulses if inside(p, k)), None)
     # pulses in which the extreme holds for two samples or more (single samples at one quantised level are chance)
-    runs = np.split(at_top, np.flatnonzero(np.diff(at_top) != 1) + 1)
     held = [int(r[0]) for r in runs if r.size >= 2]
     rails = sum(any(inside(p, i) for i in held) for p in pulses)
-    length = y.size if pulse is None else (y.size if not pulse.complete else pulse.end) - pulse.zero
+    if pulse is not None:
+        length = (y.size if not pulse.complete else pulse.end) - pulse.zero
+    else:  # in a flight between pulses (the rod's deceleration by the gas), or before or after them
+        before = [p.end for p in pulses if p.complete and p.end <= k]
+        after = [p.zero for p in pulses if p.zero > k]
+        length = (min(after) if after else y.size) - (max(before) if before else 0)
     curvature = top * (np.pi / max(length, 1)) ** 2
     near = y[max(k - 2 * run - 8, 0):k + 3 * run + 8]
     steps = np.diff(np.unique(near))
@@ -228,9 +319,13 @@ def check_answer(mass: float, velocity: float, *, force: np.ndarray | None = Non
         allowed = mass * (2.0 * velocity + gravity * taus)
         worst = int(np.argmax(recorded / allowed))
         if recorded[worst] > IMPULSE_SLACK * allowed[worst]:
-            out.append(f"the contact force carries {recorded[worst]:.3g} N·s within {taus[worst] * 1e3:.3g} ms of "
-                       f"first contact; M1 = {mass:.3g} kg at V0 = {velocity:.3g} m/s can take at most "
-                       f"{allowed[worst]:.3g} N·s (rebounding elastically): the mass or the velocity is too small")
+            text = (f"the contact force carries {recorded[worst]:.3g} N·s within {taus[worst] * 1e3:.3g} ms of "
+                    f"first contact; M1 = {mass:.3g} kg at V0 = {velocity:.3g} m/s can take at most "
+                    f"{allowed[worst]:.3g} N·s (rebounding elastically): the mass or the velocity is too small")
+            if recorded[worst] > IMPULSE_REFUSAL * allowed[worst]:
+                raise IdentificationError(f"{text}, {recorded[worst] / allowed[worst]:.3g} times over: the answer "
+                                          "is refused (the pulses found are not those of this method's model)")
+            out.append(text)
         if acceleration is not None:
             out += _energy(mass, velocity, force[k0:ends[0] + 1], acceleration[k0:ends[0] + 1], dt, gravity)
     misfit = (f"; the residuals are {math.sqrt(reduced_chi2):.3g} times the noise" if reduced_chi2 is not None

@@ -66,7 +66,9 @@ def read_raw(path: str | Path, *, group: str | None = None) -> RawData:
 
 def read_recording(path: str | Path, *, force_channel: str | None = None, acceleration_channel: str | None = None,
                    group: str | None = None, flip_force: bool = False, flip_acceleration: bool = False,
-                   acceleration_includes_gravity: bool = False, sample_rate: float | None = None) -> Recording:
+                   acceleration_includes_gravity: bool = False, sample_rate: float | None = None,
+                   time_unit: str | None = None, force_unit: str | None = None,
+                   acceleration_unit: str | None = None) -> Recording:
     """Read a recording from a lab file.
 
     Parameters
@@ -83,6 +85,9 @@ def read_recording(path: str | Path, *, force_channel: str | None = None, accele
         The accelerometer reads specific force (a − g along the downward axis, −g at rest): g is added back.
     sample_rate : float, optional
         Sample rate [Hz] for files that state none.
+    time_unit, force_unit, acceleration_unit : str, optional
+        The unit the time column, the force or the acceleration is in (``"ms"``, ``"kN"``, ``"g"``), in place of
+        the one the file states (an export in g under an ``[m/s^2]`` header) or assumes.
 
     Returns
     -------
@@ -97,7 +102,9 @@ def read_recording(path: str | Path, *, force_channel: str | None = None, accele
     try:
         return assemble(raw, force_channel=force_channel, acceleration_channel=acceleration_channel,
                         flip_force=flip_force, flip_acceleration=flip_acceleration,
-                        acceleration_includes_gravity=acceleration_includes_gravity, sample_rate=sample_rate)
+                        acceleration_includes_gravity=acceleration_includes_gravity, sample_rate=sample_rate,
+                        units={"time": time_unit, "contact_force": force_unit,
+                               "piston_acceleration": acceleration_unit})
     except ImpactometerError:
         raise
     except Exception as exc:

@@ -270,17 +270,76 @@ def merge_metadata(parts: Levels, source: str, *, tolerance: float = 1e-6) -> di
     return merged
 
 
+#: the channels whose unit a reader option may state instead of the file (channel -> the option's stem:
+#: ``time_unit``, ``force_unit``, ``acceleration_unit``; ``--time-unit`` ... on the command line)
+UNIT_OPTIONS = {"time": "time", FORCE: "force", ACCELERATION: "acceleration"}
+
+
+def check_unit_options(units: Mapping[str, str | None] | None, source: str) -> dict[str, str]:
+    """The units given for channels (:data:`UNIT_OPTIONS`), checked against each channel's dimension; None values
+    left out. RecordingError naming the option, its value and what was expected."""
+    if units is None:
+        return {}
+    if not isinstance(units, Mapping):
+        raise RecordingError(f"units must be a mapping of channel to unit, got {type(units).__name__}")
+    out: dict[str, str] = {}
+    for channel, unit in units.items():
+        if channel not in UNIT_OPTIONS:
+            raise RecordingError(f"units: channel must be one of {sorted(UNIT_OPTIONS)}, got {channel!r}")
+        if unit is None:
+            continue
+        option = f"{UNIT_OPTIONS[channel]}_unit"
+        if not isinstance(unit, str) or not unit.strip():
+            raise RecordingError(f"{option} must be a unit text such as 'g' or 'ms', got {unit!r}")
+        dimension = "time" if channel == "time" else CHANNEL_DIMENSIONS[channel]
+        known = unit_factor(unit, dimension=None, field=option, source=source)
+        if known is None or known[0] != dimension:
+            valid = list(UNITS.get(dimension, {})) + list(EXTRA_UNITS.get(dimension, {}))
+            article = "an" if dimension[0] in "aeiou" else "a"
+            raise RecordingError(f"{option} must be {article} {dimension} unit ({', '.join(valid)}), got {unit!r}")
+        out[channel] = unit.strip()
+    return out
+
+
 #: a time column without a unit whose step, read in seconds, gives a rate below this is refused [Hz]
 UNITLESS_RATE_FLOOR = 1e3
 
 
+#: a record whose time column gives a rate below this cannot resolve a contact pulse (which lasts milliseconds) [Hz]
+IMPACT_RATE_FLOOR = 1e3
+
+
+def check_impact_time_base(rate: float, size: int, unit: str, source: str) -> None:
+    """RecordingError for a time column, in its stated ``unit``, that gives no impact record: a rate below
+    :data:`IMPACT_RATE_FLOOR` (a time column in ms under an ``[s]`` header made a 50 kHz, 70 ms record a 50 Hz,
+    70 s one, whose contact pulses fall within a sample). The message names the unit that gives a rate an impact
+    record can have."""
+    duration = size / rate
+    if rate >= IMPACT_RATE_FLOOR:
+        return
+    known = unit_factor(unit, dimension="time", field="time", source=source)
+    factor = known[1] if known is not None else 1.0
+    others = [(name, value) for name, value in UNITS["time"].items() if value < factor
+              and rate * factor / value >= IMPACT_RATE_FLOOR]
+    hint = ""
+    if others:
+        name, value = max(others, key=lambda item: item[1])
+        hint = (f"; read in {name} it gives {rate * factor / value:g} Hz over {duration * value / factor:.3g} s: "
+                f"read it with --time-unit {name} (time_unit={name!r})")
+    raise RecordingError(f"{source}: the time column, read in its stated unit {unit!r}, gives {rate:g} Hz over "
+                         f"{duration:.3g} s, no record of an impact (a contact pulse lasts milliseconds, within one "
+                         f"sample here){hint}")
+
+
 def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_channel: str | None = None,
              flip_force: bool = False, flip_acceleration: bool = False,
-             acceleration_includes_gravity: bool = False, sample_rate: float | None = None) -> Recording:
+             acceleration_includes_gravity: bool = False, sample_rate: float | None = None,
+             units: Mapping[str, str | None] | None = None) -> Recording:
     """Build a Recording from what a reader found (see :func:`impactometer.io.read_recording`)."""
     source = raw.source
     columns = dict(raw.columns)
     raw_time = raw.time
+    given_units = check_unit_options(units, source)
     if raw_time is None:
         for name in list(columns):
             bare, unit_in_name = split_unit(name)
@@ -288,6 +347,11 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
                 values, unit = columns.pop(name)
                 raw_time = (values, unit or unit_in_name)
                 break
+    if "time" in given_units:
+        if raw_time is None:
+            raise RecordingError(f"{source}: time_unit={given_units['time']!r} (--time-unit) applies to a time column, "
+                                 "and the file has none (it states its sample rate)")
+        raw_time = (raw_time[0], given_units["time"])
     names = list(columns)
     if not names:
         raise RecordingError(f"{source}: no data channels found")
@@ -303,10 +367,10 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
     for name, (values, unit) in columns.items():
         bare, unit_in_name = split_unit(name)
         unit = unit if unit not in (None, "") else unit_in_name
-        if unit in (None, "") and name in (force_name, acc_name) and not units_in.get(FORCE if name == force_name
-                                                                                      else ACCELERATION):
-            assumed[name] = "N" if name == force_name else "m/s^2"
         target = FORCE if name == force_name else ACCELERATION if name == acc_name else bare
+        unit = given_units.get(target, unit)
+        if unit in (None, "") and name in (force_name, acc_name) and not units_in.get(target):
+            assumed[name] = "N" if name == force_name else "m/s^2"
         if target in channels:
             raise RecordingError(f"{source}: two columns give channel {target!r}; rename one or pick channels "
                                  f"with force_channel / acceleration_channel")
@@ -345,6 +409,8 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
                 raise RecordingError(
                     f"{source}: the time column states no unit; read in seconds its step gives {time_rate:g} Hz, "
                     f"no sample rate for an impact record; expected the units stated {unit_statement(source)}")
+        else:
+            check_impact_time_base(time_rate, np.size(raw_time[0]), str(raw_time[1]), source)
         if rate is not None and abs(time_rate - rate) > 1e-3 * rate:
             raise RecordingError(f"{source}: time column gives {time_rate:g} Hz but the file states {rate:g} Hz")
         rate, start = rate or time_rate, time_start  # a stated rate is exact, a printed time column rounded
@@ -370,6 +436,7 @@ def assemble(raw: RawData, *, force_channel: str | None = None, acceleration_cha
     flags = {"flip_force": flip_force, "flip_acceleration": flip_acceleration,
              "acceleration_includes_gravity": acceleration_includes_gravity}
     metadata["read_options"] = {k: True for k, v in flags.items() if v}
+    metadata["read_options"].update({f"{UNIT_OPTIONS[k]}_unit": v for k, v in given_units.items()})
     if not metadata["read_options"]:
         del metadata["read_options"]
     return Recording(sample_rate=rate, channels=channels, start_time=0.0 if start is None else float(start),

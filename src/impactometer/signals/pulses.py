@@ -304,6 +304,34 @@ def detect_pulses(force: np.ndarray, noise: float, *, force_scale: float | None 
     return PulseDetector(noise, scale, start=start).push(f)
 
 
+#: a pulse whose peak rises less than ``RINGING_FACTOR`` times above the deepest the force falls below zero right
+#: after it, where that is more than ``RINGING_SIGMAS`` noise σ, is ringing, not contact (:func:`without_ringing`) [-]
+RINGING_FACTOR, RINGING_SIGMAS = 3.0, 4.0
+
+
+def without_ringing(spans: list[PulseSpan], force: np.ndarray, noise: float) -> list[PulseSpan]:
+    """The pulses of ``spans`` that are contact, not ringing: a contact only pushes, a load cell rings both ways.
+
+    A complete pulse is left out where the force, within the pulse's own length after its end, swings below zero
+    by more than ``RINGING_SIGMAS`` times the ``noise`` [N] and by more than 1/``RINGING_FACTOR`` of the pulse's
+    peak (a ringing lobe is followed by a trough of about its size; a contact pulse by a flight at zero force, or
+    by the anti-alias filter's undershoot of about 5 % of its rise): a 20 N blip of a striker's ringing after its
+    main pulse was counted as a pulse (and made the identification wait for a second pulse that never came).
+    Pulses still running at the end of the data are kept.
+    """
+    f = np.asarray(force, dtype=float)
+    kept = []
+    for span in spans:
+        if span.complete:
+            width = span.end - span.zero
+            near = f[span.end:span.end + width + 1]
+            swing = -float(near.min()) if near.size else 0.0
+            if swing > RINGING_SIGMAS * noise and RINGING_FACTOR * swing > float(f[span.peak]):
+                continue
+        kept.append(span)
+    return kept
+
+
 def first_peak(force: np.ndarray, span: PulseSpan, drop: float) -> int | None:
     """Index of the first maximum of a pulse that the force then falls below by more than ``drop`` [N].
 

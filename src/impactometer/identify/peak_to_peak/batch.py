@@ -24,7 +24,7 @@ from ...errors import IdentificationError, RecordingError
 from ...recording import Recording
 from ...signals.stage_b import sustained_index
 from ..details import EquationsUsed, PeakToPeakDetails, RowsUsed
-from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, check_answer, check_segment
+from ..plausibility import SLIP_GAIN, VELOCITY_SLIPS, acceleration_unit_slip, check_answer, check_segment
 from ..result import Identification
 from .early import combine, solve_early
 from .gls import Equations
@@ -92,7 +92,10 @@ def answer_warnings(seg: Segment, result: Identification, gravity: float) -> tup
                          noise_force=seg.noise_force, acceleration=seg.acceleration,
                          noise_acceleration=seg.noise_acceleration, reduced_chi2=chi2, mass_std=result.mass_std,
                          velocity_std=result.velocity_std)
-    if chi2 is not None and chi2 >= SLIP_GAIN:  # below, no slip can fit SLIP_GAIN times better
+    slip = acceleration_unit_slip(seg)
+    if slip:
+        found += (slip,)
+    elif chi2 is not None and chi2 >= SLIP_GAIN:  # below, no slip can fit SLIP_GAIN times better
         found += _unit_slip(seg, gravity, chi2)
     scatter = details.equations.turning_scatter if details.equations is not None else 0.0
     if fitted and scatter > TURNING_SCATTER_LIMIT * abs(result.velocity):

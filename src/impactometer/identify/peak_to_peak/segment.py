@@ -17,7 +17,14 @@ from ...recording import check_sample_rate
 from ...signals import trigger
 from ...signals.extrema import VERTEX_HALF_MAX, smoothing_margin, turning_points, vertex
 from ...signals.noise import quiet_noise_std, robust_noise_std
-from ...signals.pulses import RELEASE_SIGMAS, PulseSpan, detect_pulses, detection_levels, first_peak
+from ...signals.pulses import (
+    RELEASE_SIGMAS,
+    PulseSpan,
+    detect_pulses,
+    detection_levels,
+    first_peak,
+    without_ringing,
+)
 from ...signals.stage_b import SUSTAINED_FACTOR, sustained_index
 from .onsets import onset_index, separation_index
 
@@ -166,7 +173,8 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
     sa = max(sa, quantum(acceleration) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(acceleration))))
     f = force - f0
     a = acceleration - a0
-    pulses = detect_pulses(f, sf, start=max(n_pre, 0))  # nothing before the pre-trigger statistics' end
+    # nothing before the pre-trigger statistics' end; ringing is no contact
+    pulses = without_ringing(detect_pulses(f, sf, start=max(n_pre, 0)), f, sf)
     return Segment(f, a, sample_rate, start_time, sf, sa, max(n_pre, 0), pulses, {} if cache is None else cache,
                    correlation)
 
