@@ -321,7 +321,7 @@ class Corpus:
                  "NaN": "[cylinder]\nbore = nan\n", "negative": "[cylinder]\nstroke = -0.1\n",
                  "rod wider than bore": "[cylinder]\nrod_diameter = 0.1\n", "law 'glue'": '[contact]\nlaw = "glue"\n',
                  "not TOML": "[[[", "binary": "\x00\x01\x02", "section not a table": "cylinder = 3\n",
-                 "gamma 7": "[gas]\ngamma = 7.0\n", "infinite stiffness": "[stops]\nstiffness = inf\n"}
+                 "gamma 7": "[gas]\ngamma = 7.0\n", "infinite stiffness": "[stops]\nstiffness = inf\n", "empty": ""}
         out = []
         for i, (label, text) in enumerate(texts.items()):
             path = self.path(f"bad{i}.toml")

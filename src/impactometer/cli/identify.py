@@ -320,7 +320,8 @@ def _print_estimate(est, stage: str, as_json: bool) -> None:
                      law_choice=est.details.get("law_choice"), sigma_given=est.details.get("sigma_given"))
         typer.echo(json.dumps(d))
         return
-    model = "" if took is None else (f"  [{stage}, {est.details.get('contact_law')}, chi2/dof "
+    model = "" if took is None else (f"  [{stage}, {est.details.get('window_ms', float('nan')):.3g} ms after contact, "
+                                     f"{est.details.get('contact_law')}, chi2/dof "
                                      f"{est.details.get('reduced_chi2', float('nan')):.3g}, took {took * 1e3:.1f} ms]")
     console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} "
                   f"M1 = {with_uncertainty(est.mass, est.mass_std, 'kg')}  "

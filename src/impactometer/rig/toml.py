@@ -40,9 +40,9 @@ def read_table(path: str | Path) -> dict[str, Any]:
     except RecursionError:
         raise ParameterError(f"rig file {str(path)!r} nests arrays or tables too deeply; expected a stand "
                              "description (sections of numbers)") from None
-    if not set(table) - {"name", PROVENANCE_KEY}:
-        raise ParameterError(f"rig file {str(path)!r} holds no stand parameters; expected a stand description "
-                             "(sections such as [contact], [cylinder], [gas], [friction]); an empty file is not taken "
+    if not set(table) - {PROVENANCE_KEY}:
+        raise ParameterError(f"rig file {str(path)!r} holds no stand; expected a stand description (a name, "
+                             "sections such as [contact], [cylinder], [gas], [friction]); an empty file is not taken "
                              "for the built-in stand")
     return table
 
