@@ -52,7 +52,7 @@ class ParameterError(ImpactometerError, ValueError):
 
 
 class ParameterTypeError(ParameterError, TypeError):
-    """A parameter is of the wrong type (a number where names are expected, a list where a table is)."""
+    """A parameter is of the wrong type (a number where names are expected, a text where a function is)."""
 
 
 class UnitError(ParameterError):
