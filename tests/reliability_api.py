@@ -17,6 +17,9 @@ from impactometer.control.strategies import strategy_names
 from impactometer.errors import ImpactometerError
 from impactometer.filters import cfc_corridor, filter_recording
 from impactometer.identify.inspection import inspect_recording
+from impactometer.identify.model_fit import cramer_rao
+from impactometer.identify.model_fit import identify as identify_model
+from impactometer.identify.model_fit.streaming import ModelStream
 from impactometer.identify.peak_to_peak import identify, identify_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier, stream_arrays
 from impactometer.identify.plausibility import check_answer
@@ -50,6 +53,7 @@ def calls(recording: Recording, path: Path, map_path: Path, folder: Path) -> dic
     rmap = load_map(map_path)
     f, a = recording.contact_force, recording.piston_acceleration
     scenario = Scenario(mass=30.0, velocity=2.0)
+    short = Recording(sample_rate=5e4, channels={"contact_force": np.zeros(10), "piston_acceleration": np.zeros(10)})
     out = folder / "api"
     out.mkdir(exist_ok=True)
     return {
@@ -64,6 +68,10 @@ def calls(recording: Recording, path: Path, map_path: Path, folder: Path) -> dic
         "identify": lambda x, y: identify(x, variant=y),
         "StreamingIdentifier": lambda x, y: StreamingIdentifier(x, start_time=y),
         "StreamingIdentifier.push": lambda x, y: StreamingIdentifier(5e4).push(x, y),
+        # a record too short for the model fit: its options are checked, then the record is refused
+        "model_fit.identify": lambda x, y: identify_model(short, uncertain=x, pressure=y),
+        "model_fit.cramer_rao": lambda x, y: cramer_rao(short, at=x, mass=y),
+        "ModelStream": lambda x, y: ModelStream(5e4, metadata=x, cadence=y),
         "stream_arrays": lambda x, y: stream_arrays(f, a, 5e4, chunk=x, variant=y),
         "identify_features": lambda x, y: identify_features(x, rmap, pressure_gauge=y),
         "identify_features options": lambda x, y: identify_features([5000.0, 20.0], rmap, search=x, available_at=y),

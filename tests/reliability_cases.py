@@ -49,7 +49,8 @@ class Corpus:
         for build in (self.stream_vs_identify, self.another_stand, self.duplicated, self.outputs, self.settings,
                       self.rates, self.maps, self.truth_metadata, self.implausible, self.smaller, self.stands,
                       self.csv_structure, self.contents, self.options, self.late_trigger, self.clipped_acceleration,
-                      self.slow_errors, self.map_pressure, self.csv_decimals, self.high_rates, self.special_targets):
+                      self.slow_errors, self.map_pressure, self.csv_decimals, self.high_rates, self.special_targets,
+                      self.pointing):
             out += build()
         return out
 
@@ -321,13 +322,35 @@ class Corpus:
                  "NaN": "[cylinder]\nbore = nan\n", "negative": "[cylinder]\nstroke = -0.1\n",
                  "rod wider than bore": "[cylinder]\nrod_diameter = 0.1\n", "law 'glue'": '[contact]\nlaw = "glue"\n',
                  "not TOML": "[[[", "binary": "\x00\x01\x02", "section not a table": "cylinder = 3\n",
-                 "gamma 7": "[gas]\ngamma = 7.0\n", "infinite stiffness": "[stops]\nstiffness = inf\n"}
+                 "gamma 7": "[gas]\ngamma = 7.0\n", "infinite stiffness": "[stops]\nstiffness = inf\n", "empty": ""}
         out = []
         for i, (label, text) in enumerate(texts.items()):
             path = self.path(f"bad{i}.toml")
             path.write_text(text)
             out.append(Case("stand files", label, ["simulate", "--rig", str(path)]))
         return out
+
+    def pointing(self) -> list[Case]:
+        """Refusals that name the way out: the option given in vain, the option's own text, the file's field."""
+        contact = int(np.flatnonzero(self.rec.time >= 0.0)[0])
+        short = self.recording("short.h5", self.f[:contact + int(0.005 * FS)], self.a[:contact + int(0.005 * FS)])
+        missing = self.path("never-written.h5")
+        empty, rubber = self.path("empty.toml"), self.path("rubber.toml")
+        empty.write_text("")
+        rubber.write_text('[contact]\nlaw = "rubber"\n')
+        model = ["--method", "model"]
+        return [Case("pointing", "--flip-force on a force of the right sign",
+                     ["identify", str(self.base), "--flip-force"], reason="leave --flip-force out"),
+                Case("pointing", "stream --cadence 0ms, before reading", ["stream", str(missing), *model, "--cadence",
+                                                                          "0ms"], reason="--cadence 0ms: must be > 0"),
+                Case("pointing", "stream --first 100ms, before reading", ["stream", str(missing), *model, "--first",
+                                                                          "100ms"], reason="--first 100ms: must be <="),
+                Case("pointing", "stream --method model on 5 ms of contact", ["stream", str(short), *model],
+                     reason="needs at least 10 ms"),
+                Case("pointing", "empty stand file", ["simulate", "--rig", str(empty)], reason="holds no stand"),
+                Case("pointing", "stand file with law 'rubber'", ["identify", str(self.base), *model, "--rig",
+                                                                  str(rubber)],
+                     reason=f"--rig {rubber}: contact.law must be one of")]
 
     def csv_structure(self) -> list[Case]:
         rng = np.random.default_rng(5)

@@ -1,6 +1,7 @@
 """``impactometer identify`` and ``stream`` on a recording file written in the test."""
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from impactometer.io import write_recording
 from impactometer.model import simulate
 from impactometer.recording import Recording
 from impactometer.rig import Scenario
+from impactometer.sensors import record
 
 
 @pytest.fixture(scope="module")
@@ -204,3 +206,54 @@ def test_identify_and_stream_say_why_there_is_no_early_answer(pad_file, capsys):
     assert "early" in capsys.readouterr().out.replace("\n", " ")  # the table says so too
     main(["identify", str(pad_file), "--json", "--variant", "paper"])
     assert "the paper variant gives no early answer" in json.loads(capsys.readouterr().out)["early_reason"]
+
+
+def test_flip_force_on_a_file_of_the_right_sign_says_to_leave_it_out(rec_file, capsys):
+    for command in ("identify", "stream", "inspect"):
+        assert _exit([command, str(rec_file), "--flip-force"]) == 2
+        _assert_error_line(capsys.readouterr(), "--flip-force", "positive in compression already", "leave")
+
+
+def test_stream_options_are_refused_before_the_file_is_read(tmp_path, capsys):
+    missing = tmp_path / "not-there.h5"  # never read: the options are refused first
+    for option, value, expected in (("--cadence", "0ms", "must be > 0 [s]"), ("--first", "1ms", "must be >= 0.002"),
+                                    ("--first", "100ms", "must be <= 0.015")):
+        assert _exit(["stream", str(missing), "--method", "model", option, value]) == 2
+        _assert_error_line(capsys.readouterr(), f"{option} {value}: {expected}")
+
+
+def test_stream_model_refuses_a_record_too_short_before_any_estimate(tmp_path, capsys):
+    path = tmp_path / "short.h5"
+    write_recording(record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3), sample_rate=50e3,
+                           duration=0.005, noise=0.02, seed=3, pre_trigger=0.02), path)
+    assert _exit(["stream", str(path), "--method", "model"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""  # no first estimate printed before the refusal
+    _assert_error_line(captured, "ms after first contact", "needs at least 10 ms")
+
+
+def test_a_stream_that_cannot_keep_its_cadence_says_so_once(tmp_path, capsys, monkeypatch):
+    path = tmp_path / "drop.h5"
+    write_recording(record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3), sample_rate=50e3,
+                           duration=0.03, noise=0.02, seed=4, pre_trigger=0.02), path)
+    ticks = iter(range(10**6))  # a processor clock on which every push takes a second
+    monkeypatch.setattr(time, "thread_time", lambda: float(next(ticks)))
+    main(["stream", str(path), "--method", "model", "--cadence", "5ms"])
+    notes = [line for line in capsys.readouterr().err.splitlines() if "more than the cadence" in line]
+    assert len(notes) == 1 and "of 5 ms" in notes[0] and "--cadence" in notes[0]
+    monkeypatch.setattr(time, "thread_time", lambda: 0.0)  # a machine that keeps up: nothing said
+    main(["stream", str(path), "--method", "model", "--cadence", "5ms"])
+    assert "cadence" not in capsys.readouterr().err
+
+
+def test_the_model_fit_falls_back_naming_the_stand_the_file_states_and_keeps_the_early_answer(tmp_path, capsys):
+    path = tmp_path / "stiff.h5"
+    write_recording(record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=200e3), "drop-stand-stiff",
+                           sample_rate=50e3, duration=0.1, noise=0.02, seed=3, pre_trigger=0.02), path)
+    main(["identify", str(path), "--json"])
+    plain = json.loads(capsys.readouterr().out)
+    main(["identify", str(path), "--method", "model", "--json"])
+    model = json.loads(capsys.readouterr().out)
+    assert model["path"] == "fallback"  # the built-in stand does not describe a record of the stiff one
+    assert any("--rig='drop-stand-stiff'" in warning for warning in model["warnings"])
+    assert plain["early"] is not None and model["early"] == plain["early"]  # the robust answer, early one included

@@ -8,10 +8,11 @@ import math
 import h5py
 import numpy as np
 import pytest
+from rich.markup import escape
 
 from impactometer.cli import main
 from impactometer.constants import STANDARD_GRAVITY
-from impactometer.rig import get_rig
+from impactometer.rig import Scenario, get_rig
 
 
 def run(args, capsys):
@@ -133,3 +134,22 @@ def test_error_line_keeps_bracketed_units(capsys):
     status, out, err = run(["simulate", "--mass", "0kg"], capsys)
     assert_error_line(status, out, err)
     assert "--mass 0kg: must be >= 0.1 [kg]" in err
+
+
+def test_the_demo_shows_when_each_answer_was_available():
+    """The model stream's first answer, milliseconds after contact, beside the batch answers at the record's end."""
+    from impactometer.cli.demo import identification_table
+    from impactometer.identify.model_fit.select import STAGES
+
+    stand = get_rig()
+    table = identification_table(Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3,
+                                                      gravity=stand.gravity), stand)
+    assert table.columns[-1].header == escape("available at [ms after contact]")  # as rich prints it
+    rows = dict(zip(table.columns[0]._cells, table.columns[-1]._cells, strict=True))
+    first = next(float(at) for label, at in rows.items() if label.startswith("model stream, first"))
+    # the first answer reads the first window (4 ms) after the contact instant the trigger places; before the
+    # second window (8 ms) of the batch fit's continuation
+    assert 0.0 < first < STAGES[1][0] * 1e3
+    model = next(label for label in rows if label.startswith("model ("))
+    assert float(rows["robust, final"]) > first and float(rows[model]) > first
+    assert list(rows.values()) == sorted(rows.values(), key=float)  # in the order the answers came

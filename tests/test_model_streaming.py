@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from impactometer.cli import main
-from impactometer.errors import IdentificationError, ParameterError
-from impactometer.identify.model_fit import identify
+from impactometer.errors import IdentificationError, ParameterError, ParameterTypeError, StreamFinishedError
+from impactometer.identify.model_fit import cramer_rao, identify
 from impactometer.identify.model_fit.select import STAGES
-from impactometer.identify.model_fit.streaming import ModelStream, stream_model_arrays
+from impactometer.identify.model_fit.streaming import ModelStream, check_schedule, stream_model_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
 from impactometer.io import write_recording
 from impactometer.recording import Recording
@@ -283,3 +283,32 @@ def test_without_robust_starts_the_stream_gives_the_same_answers():
     assert len(bare) == len(default) >= 5 and stream.robust.estimates == []
     for a, b in zip(default, bare, strict=True):
         assert (a.mass, a.velocity, a.available_at, a.method) == (b.mass, b.velocity, b.available_at, b.method)
+
+
+def test_wrong_types_and_values_of_the_api_are_refused_naming_the_field():
+    rec = _record(30.0, 2.0, 100e3, 61, duration=0.02)
+    for call, field in ((lambda: identify(rec, uncertain=5), "uncertain"),
+                        (lambda: ModelStream(50e3, metadata=[1]), "metadata")):
+        with pytest.raises(ParameterTypeError, match=rf"^{field} must be .*, got ") as caught:
+            call()
+        assert isinstance(caught.value, TypeError) and caught.value.field == field
+    with pytest.raises(ParameterError, match=r"at must be one of \['truth', 'estimate'\], got 'bogus'"):
+        cramer_rao(rec, at="bogus")
+    for flag in (True, np.bool_(False)):  # a flag is no pressure, not 1 Pa (nor 0 Pa)
+        with pytest.raises(ParameterError, match=r"pressure must be a number within \[0, .*\[Pa gauge\].*got"):
+            identify(rec, pressure=flag)
+        with pytest.raises(ParameterError, match="pressure must be"):
+            ModelStream(50e3, pressure=flag)
+        with pytest.raises(ParameterError, match="mass must be"):
+            cramer_rao(rec, mass=flag)
+    with pytest.raises(ParameterError, match=r"cadence must be > 0 \[s\], got 0"):
+        check_schedule(cadence=0.0)  # without a sample rate: what the command line checks before reading
+    assert check_schedule(cadence=0.005) == (0.005, STAGES[0][0], 0.05)
+
+
+def test_a_push_after_finish_is_refused_by_the_model_stream():
+    stream = ModelStream(50e3)
+    stream.push(np.zeros(100), np.zeros(100))
+    assert stream.finish() is None
+    with pytest.raises(StreamFinishedError, match=r"push\(\) after finish\(\): this ModelStream"):
+        stream.push(np.zeros(10), np.zeros(10))

@@ -218,8 +218,31 @@ def test_partial_toml_takes_defaults_and_law_defaults(tmp_path):
 def test_bad_toml_is_a_parameter_error_naming_the_file(tmp_path, text, match):
     path = tmp_path / "bad.toml"
     path.write_text(text, encoding="utf-8")
-    with pytest.raises(ParameterError, match=match):
+    with pytest.raises(ParameterError, match=match) as caught:
         load_toml(path)
+    assert str(path) in str(caught.value)
+
+
+@pytest.mark.parametrize("text", ["", "# nothing yet\n", "[provenance]\nsource = \"x\"\n"])
+def test_a_toml_without_stand_parameters_is_refused_not_taken_for_the_built_in_stand(tmp_path, text):
+    path = tmp_path / "lab.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ParameterError, match=r"lab.toml' holds no stand; expected a stand description"):
+        get_rig(path)
+
+
+def test_a_bad_field_of_a_stand_file_is_reported_as_the_file_not_as_an_option(tmp_path):
+    """On the command line the error names the option that gave the file (--rig), the file and its field, not
+    the option the field stands for elsewhere (--contact)."""
+    from impactometer.cli.app import given
+
+    path = tmp_path / "lab.toml"
+    path.write_text('[contact]\nlaw = "rubber"\n', encoding="utf-8")
+    with pytest.raises(ParameterError) as caught, given(rig=str(path), contact="auto"):
+        get_rig(str(path))
+    assert str(caught.value).startswith(f"--rig {path}: contact.law must be one of") and "--contact" not in str(
+        caught.value)
+    assert caught.value.field == "rig"
 
 
 def test_get_rig_errors(tmp_path):

@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from impactometer.errors import IdentificationError, ParameterError
+from impactometer.errors import IdentificationError, ParameterError, StreamFinishedError
 from impactometer.identify.peak_to_peak import identify_arrays
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier, stream_arrays
 from impactometer.model import simulate
@@ -198,3 +198,13 @@ def test_a_stream_that_only_triggers_and_buffers_gives_no_estimate():
     assert all(x == y for x, y in triggers)
     assert len({t for t, _ in triggers if t is not None}) == 2  # two impacts, the stream re-armed between them
     assert full.estimates and bare.estimates == [] and bare.outcomes == []
+
+
+def test_a_push_after_finish_is_refused():
+    ident = StreamingIdentifier(50e3)
+    ident.push(np.zeros(100), np.zeros(100))
+    assert ident.finish() is None and ident.finish() is None  # finishing again changes nothing
+    with pytest.raises(StreamFinishedError, match=r"push\(\) after finish\(\).*new one"):
+        ident.push(np.zeros(10), np.zeros(10))
+    with pytest.raises(RuntimeError):  # the builtin it matches
+        ident.push(np.zeros(10), np.zeros(10))

@@ -51,6 +51,10 @@ class ParameterError(ImpactometerError, ValueError):
     """A parameter (stand, scenario, option) is missing, of the wrong type or out of range."""
 
 
+class ParameterTypeError(ParameterError, TypeError):
+    """A parameter is of the wrong type (a number where names are expected, a text where a function is)."""
+
+
 class UnitError(ParameterError):
     """A quantity with a unit suffix could not be parsed or has the wrong dimension."""
 
@@ -65,6 +69,10 @@ class RecordingError(ImpactometerError, ValueError):
 
 class IdentificationError(ImpactometerError, ValueError):
     """The signal does not allow an identification (no impact, too short, saturated, ...)."""
+
+
+class StreamFinishedError(ImpactometerError, RuntimeError):
+    """Samples were pushed into a streaming identifier after its ``finish()``."""
 
 
 class ResponseMapError(ImpactometerError, ValueError):

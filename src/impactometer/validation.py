@@ -1,9 +1,9 @@
 """The one parameter check of the package: is a value a real number (or an integer) within bounds?
 
-Every public function validates its numeric arguments through :func:`check_real` or :func:`check_integer` (its
-flags through :func:`check_flag`), so a ``bool`` (which Python counts as an ``int``), a string, a NaN or an
-out-of-range value is refused the same way everywhere, with a message naming the field, the value and what was
-expected.
+Every public function validates its numeric arguments through :func:`check_real` or :func:`check_integer` (arrays
+of numbers through :func:`real_array`, its flags through :func:`check_flag`), so a ``bool`` (which Python counts as
+an ``int``), a string, a NaN or an out-of-range value is refused the same way everywhere, with a message naming the
+field, the value and what was expected.
 """
 
 from __future__ import annotations
@@ -98,6 +98,30 @@ def check_flag(name: str, value: Any, *, error: type[Exception] = ParameterError
     if not isinstance(value, (bool, np.bool_)):
         raise _refused(error, name, "must be True or False", shown(value))
     return bool(value)
+
+
+def holds_flag(values: Any) -> bool:
+    """True where ``values`` is a bool or holds one (a bool array, a list or tuple with a bool in it): numpy would
+    read True as 1 and False as 0."""
+    if isinstance(values, (bool, np.bool_)):
+        return True
+    if isinstance(values, (list, tuple)):
+        return any(holds_flag(v) for v in values)
+    if isinstance(values, np.ndarray):
+        return values.dtype == bool or (values.dtype == object and any(holds_flag(v) for v in values.ravel()))
+    return False
+
+
+def real_array(name: str, values: Any, *, unit: str = "", error: type[Exception] = ParameterError) -> np.ndarray:
+    """``values`` (a number or an array of them) as a float array, or ``error`` naming ``name`` where it is or
+    holds a bool, a text or anything else that is not a real number; finiteness and bounds are the caller's."""
+    expected = f"must be a number or an array of numbers{unit}"
+    if holds_flag(values):
+        raise _refused(error, name, expected, shown(values))
+    try:
+        return np.asarray(values, dtype=float)
+    except (TypeError, ValueError):
+        raise _refused(error, name, expected, shown(values)) from None
 
 
 def is_finite(value: Any) -> bool:

@@ -176,7 +176,13 @@ def speak(error: ImpactometerError, texts: dict[str, object]) -> str:
         return str(error)
     if key is not None:
         return f"{option_name(key)} {texts[key]}: {error.expected}"
-    message = str(error)
+    return speak_text(str(error), texts)
+
+
+def speak_text(message: str, texts: dict[str, object]) -> str:
+    """``message`` (an error's or a warning's) with the Python names of the options ``texts`` written as the
+    options (see :func:`given`)."""
+    keys = {core: key for core, key in CORE_NAMES.items() if key in texts} | {key: key for key in texts}
     for core, key in keys.items():
         if option_name(key) in message:  # the message names the option already
             continue

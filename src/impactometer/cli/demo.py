@@ -79,7 +79,8 @@ def identification_table(scenario, stand) -> Table:
                        pre_trigger=0.02)
     table = Table(title=f"2. identification from force + acceleration at {SAMPLE_RATE / 1e3:g} kHz, "
                         f"{NOISE:.0%} noise (truth: M1 = {scenario.mass:g} kg, V0 = {scenario.velocity:.3f} m/s)")
-    for column in ("method", "M1 [kg]", "error [%]", "V0 [m/s]", "error [%]", "E [J]", "ready [ms]"):
+    for column in ("method", "M1 [kg]", "error [%]", "V0 [m/s]", "error [%]", "E [J]",
+                   "available at [ms after contact]"):
         table.add_column(escape(column), justify="left" if column == "method" else "right",
                          no_wrap=column in ("method", "M1 [kg]", "V0 [m/s]"))
     answers = []
@@ -97,12 +98,20 @@ def identification_table(scenario, stand) -> Table:
                          "final answer rests on the turning points of stage B")
         answers.append((variant if variant == "paper" else "robust, final", found))
     from ..identify.model_fit import identify as identify_model
+    from ..identify.model_fit.streaming import CADENCE
 
     try:  # the whole record fitted with the stand model, the contact law chosen by BIC
         model = identify_model(recording, rig=stand)
         answers.append((f"model ({model.details.get('contact_law')})", model))
     except IdentificationError as exc:
         table.add_row("model", f"failed: {exc}", "", "", "", "", "")
+    first = first_stream_answer(recording, stand)
+    if first is not None:
+        answers.append((f"model stream, first ({first.details.get('contact_law')})", first))
+        notes.append(f"model stream, first: the stand's answer from the first {first.details['window_ms']:.3g} ms "
+                     "of contact, σ with the stand's parameters held at its values; updates follow every "
+                     f"{CADENCE * 1e3:g} ms (impactometer stream --method model)")
+    answers.sort(key=lambda item: item[1].available_at)  # the simulated clock starts contact at 0
     for label, found in answers:
         table.add_row(label, with_uncertainty(found.mass, found.mass_std),
                       f"{100 * (found.mass / scenario.mass - 1):+.1f}",
@@ -113,3 +122,18 @@ def identification_table(scenario, stand) -> Table:
     if cautions or notes:
         table.caption = "\n".join(cautions + notes)
     return table
+
+
+def first_stream_answer(recording, stand):
+    """The model stream's first answer on ``recording`` (replayed in 64-sample chunks until it comes), or None
+    when the stream gives none before the record ends."""
+    from ..identify.model_fit.streaming import ModelStream
+
+    stream = ModelStream(recording.sample_rate, start_time=recording.start_time, metadata=recording.metadata,
+                         rig=stand)
+    f, a = recording.contact_force, recording.piston_acceleration
+    for k in range(0, f.size, 64):
+        found = stream.push(f[k:k + 64], a[k:k + 64])
+        if found:
+            return found[0]
+    return None

@@ -126,7 +126,10 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
 
         with given(variant=variant), announce_compilation("identifying M1 and V0", compile_time="about 5-20 s"):
             result = identify_p2p(rec, variant=variant, contact_phase=contact_phase)
+    from .app import speak_text
+
     data = result.to_dict()
+    data["warnings"] = [speak_text(warning, {"rig": rig, "pressure": pressure}) for warning in data["warnings"]]
     if as_json:
         typer.echo(json.dumps(data))
     else:
@@ -173,11 +176,16 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
         raise ParameterError("--cadence, --first, --rig and --pressure are options of --method model")
     if chunk < 1:
         raise ParameterError(f"--chunk must be >= 1 [samples], got {chunk}")
-    rec = reader.read(file)
     if method == "model":
-        _stream_model(file, rec, {"cadence": quantity(cadence, "time", "--cadence"),
-                                  "first": quantity(first, "time", "--first")}, rig, pressure, chunk, realtime, as_json)
+        from ..identify.model_fit.streaming import check_schedule
+
+        durations = {"cadence": quantity(cadence, "time", "--cadence"), "first": quantity(first, "time", "--first")}
+        with given(cadence=cadence, first=first):  # before the file is read
+            check_schedule(**{name: value for name, value in durations.items() if value is not None})
+        _stream_model(file, reader.read(file), durations, {"cadence": cadence, "first": first, "rig": rig,
+                                                            "pressure": pressure}, chunk, realtime, as_json)
         return
+    rec = reader.read(file)
     from ..identify.peak_to_peak import check_unfiltered
     from ..identify.peak_to_peak.streaming import StreamingIdentifier
 
@@ -187,7 +195,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
                                     contact_phase=contact_phase)
     concluded = 0
 
-    def report(new: list, at: float) -> None:
+    def report(new: list, at: float, took: float) -> None:
         nonlocal concluded
         concluded = _report(ident, new, concluded, at, as_json)
 
@@ -204,7 +212,7 @@ def stream(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recording 
 
 def _replay(rec, ident, chunk: int, realtime: bool, report) -> None:
     """Push the recording through ``ident`` in chunks (at the file's pace with ``realtime``), reporting each push's
-    estimates with the time of its last sample."""
+    estimates with the time of its last sample [s] and the processor time the push took on this thread [s]."""
     f, a = rec.contact_force, rec.piston_acceleration
     t_wall = clock.perf_counter()
     # a line on standard error if the first impact compiles the kernels; estimates print as they come
@@ -214,32 +222,45 @@ def _replay(rec, ident, chunk: int, realtime: bool, report) -> None:
                 lag = k / rec.sample_rate - (clock.perf_counter() - t_wall)
                 if lag > 0:
                     clock.sleep(lag)
-            report(ident.push(f[k:k + chunk], a[k:k + chunk]),
-                   rec.start_time + min(k + chunk, f.size) / rec.sample_rate)
+            busy = clock.thread_time()
+            new = ident.push(f[k:k + chunk], a[k:k + chunk])
+            report(new, rec.start_time + min(k + chunk, f.size) / rec.sample_rate, clock.thread_time() - busy)
 
 
-def _stream_model(file: Path, rec, durations: dict, rig: str | None, pressure: str | None, chunk: int,
-                  realtime: bool, as_json: bool) -> None:
+def _stream_model(file: Path, rec, durations: dict, texts: dict, chunk: int, realtime: bool, as_json: bool) -> None:
     """``stream --method model``: the model's first answer, its updates every cadence and the final answer, each
     with the wall time it took; a closing line with the median and 90th percentile of the updates' times.
-    ``durations``: ``cadence`` and ``first`` [s] as given (None: the defaults)."""
+    ``durations``: ``cadence`` and ``first`` [s] as given (None: the defaults); ``texts``: the options as the user
+    wrote them (``cadence``, ``first``, ``rig``, ``pressure``)."""
     import numpy as np
 
+    from ..identify.model_fit import _check_length
     from ..identify.model_fit.streaming import ModelStream
+    from .app import error_console
 
     given_times = {name: value for name, value in durations.items() if value is not None}
-    with given(rig=rig, pressure=pressure, **{name: f"{value:g}s" for name, value in given_times.items()}):
-        ident = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, rig=rig,
-                            pressure=quantity(pressure, "pressure", "--pressure"), **given_times)
+    with given(**texts):
+        ident = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, rig=texts["rig"],
+                            pressure=quantity(texts["pressure"], "pressure", "--pressure"), **given_times)
+    _check_length(rec)  # the final answer's record, before any estimate is printed
 
-    def report(new: list, at: float) -> None:
+    behind = False
+
+    def report(new: list, at: float, took: float) -> None:
+        nonlocal behind
         for est in new:
             _print_estimate(est, est.details.get("stage", "update"), as_json)
+        if not behind and took > ident.cadence and any(est.details.get("stage") == "update" for est in new):
+            behind = True  # said once
+            error_console.print(f"note: an update took {took * 1e3:.3g} ms of processor time, more than the cadence "
+                                f"of {ident.cadence * 1e3:g} ms: live, this stream would fall behind its cadence on "
+                                "this machine (a longer --cadence keeps up)", highlight=False, markup=False,
+                                soft_wrap=True)
 
     _replay(rec, ident, chunk, realtime, report)
     shown = len(ident.estimates)
     final = ident.finish()  # raises the refusal of the last impact
-    report(ident.estimates[shown:], 0.0)
+    report(ident.estimates[shown:], 0.0, 0.0)
     if final is None:
         raise IdentificationError("no estimate: the stream holds no impact")
     times = np.array([est.details["update_time_s"] for est in ident.estimates if est.details.get("stage") == "update"])
@@ -299,7 +320,8 @@ def _print_estimate(est, stage: str, as_json: bool) -> None:
                      law_choice=est.details.get("law_choice"), sigma_given=est.details.get("sigma_given"))
         typer.echo(json.dumps(d))
         return
-    model = "" if took is None else (f"  [{stage}, {est.details.get('contact_law')}, chi2/dof "
+    model = "" if took is None else (f"  [{stage}, {est.details.get('window_ms', float('nan')):.3g} ms after contact, "
+                                     f"{est.details.get('contact_law')}, chi2/dof "
                                      f"{est.details.get('reduced_chi2', float('nan')):.3g}, took {took * 1e3:.1f} ms]")
     console.print(f"t = {est.available_at * 1e3:9.3f} ms  {kind:8s} "
                   f"M1 = {with_uncertainty(est.mass, est.mass_std, 'kg')}  "

@@ -57,6 +57,8 @@ class ReaderOptions:
                                  sample_rate=quantity(self.sample_rate, "frequency", "--sample-rate"),
                                  time_unit=self.time_unit, force_unit=self.force_unit,
                                  acceleration_unit=self.acceleration_unit)
+        if self.flip_force:
+            _check_flip(path, rec)
         if rec.units_note:
             from .app import error_console
 
@@ -67,6 +69,20 @@ class ReaderOptions:
             with given(cfc=self.cfc):
                 rec = filter_recording(rec, self.cfc)
         return rec
+
+
+def _check_flip(path: Path, rec) -> None:
+    """ParameterError where the force read with ``--flip-force`` reads the contact with the other sign: the file's
+    force was positive in compression already."""
+    from ..errors import ParameterError
+    from ..identify.peak_to_peak.segment import inverted_dip
+
+    dip = inverted_dip(rec.contact_force)
+    if dip is not None:
+        low, noise = dip
+        raise ParameterError(f"--flip-force: read with its sign changed, the force of {path.name} falls to "
+                             f"{low:.4g} N ({-low / max(noise, 1e-300):.3g} times its noise) and never rises as far: "
+                             "the file's force is positive in compression already; leave --flip-force out")
 
 
 #: the defaults of every reader option (frozen, so one shared instance serves as the default argument)

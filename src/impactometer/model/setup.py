@@ -9,6 +9,7 @@ from numba import njit, prange
 
 from ..errors import ParameterError
 from ..rig import Rig, Scenario, parameter_names
+from ..validation import real_array
 from . import dynamics as d
 from .forces import LAW_CODES, VALVE_LAWS, pneumatic_force, stop_force
 
@@ -65,13 +66,13 @@ def pack_batch(rig: Rig, mass, velocity, pressure_gauge,
     for key in overrides:
         if key not in names:
             raise ParameterError(f"unknown stand parameter {key!r} in overrides; expected one of {names}")
+    named = {"mass": (mass, " [kg]"), "velocity": (velocity, " [m/s]"), "pressure_gauge": (pressure_gauge, " [Pa]"),
+             **{f"overrides[{key!r}]": (value, "") for key, value in overrides.items()}}
+    numbers = [real_array(name, value, unit=unit) for name, (value, unit) in named.items()]
     try:
-        arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in
-                                       (mass, velocity, pressure_gauge, *overrides.values())))
+        arrays = np.broadcast_arrays(*numbers)
     except ValueError as exc:
         raise ParameterError(f"mass, velocity, pressure_gauge and overrides must broadcast together: {exc}") from None
-    except TypeError:
-        raise ParameterError("mass, velocity, pressure_gauge and overrides must be numbers or numeric arrays") from None
     flat = [np.atleast_1d(a).ravel() for a in arrays]
     if flat[0].size == 0:
         raise ParameterError("mass, velocity, pressure_gauge must hold at least one scenario, got empty arrays")

@@ -17,7 +17,7 @@ from ..errors import ParameterError
 from ..outputs import as_path
 from ..validation import check_real
 from .parts import VALVE_LAW_PARAMETERS, Contact, Cylinder, Friction, Gas, Stops, Valve, contact_law_name
-from .toml import PROVENANCE_KEY, read_table, write_table
+from .toml import PROVENANCE_KEY, loading, read_table, write_table
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -145,7 +145,11 @@ def parameter_names() -> list[str]:
 def load_toml(path: str | Path) -> Rig:
     """Load a stand from a TOML file."""
     path = as_path(path, "rig file")
-    return from_dict(read_table(path), source=str(path))
+    table = read_table(path)
+    try:
+        return from_dict(table, source=str(path))
+    except ParameterError as exc:
+        raise loading(path, exc) from None
 
 
 def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False,

@@ -34,12 +34,26 @@ def read_table(path: str | Path) -> dict[str, Any]:
     if not path.is_file():
         raise ParameterError(f"rig file {str(path)!r} does not exist")
     try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
+        table = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise ParameterError(f"rig file {str(path)!r} is not valid TOML: {exc}") from None
     except RecursionError:
         raise ParameterError(f"rig file {str(path)!r} nests arrays or tables too deeply; expected a stand "
                              "description (sections of numbers)") from None
+    if not set(table) - {PROVENANCE_KEY}:
+        raise ParameterError(f"rig file {str(path)!r} holds no stand; expected a stand description (a name, "
+                             "sections such as [contact], [cylinder], [gas], [friction]); an empty file is not taken "
+                             "for the built-in stand")
+    return table
+
+
+def loading(path: Path, error: ParameterError) -> ParameterError:
+    """``error``, raised while building the stand of the file at ``path``, as an error about that file: its message
+    names the file and the file's field, and its ``field`` is ``rig`` (the option that named the file), not the
+    stand parameter the file got wrong."""
+    message = str(error)
+    about = message if message.startswith(f"{path}: ") else f"{path}: {message}"
+    return ParameterError(about, field="rig", expected=about.removeprefix(f"{path}: "))
 
 
 def write_table(data: dict[str, Any], path: str | Path, *, overwrite: bool = False,

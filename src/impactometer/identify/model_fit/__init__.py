@@ -22,9 +22,10 @@ import numpy as np
 
 from ...errors import IdentificationError, ParameterError, RecordingError, shown
 from ...recording import Recording
-from ...rig import CONTACT_LAWS, STAND_KEY, Rig, contact_law_name, fingerprint, get_rig
+from ...rig import CONTACT_LAWS, PRESETS, STAND_KEY, Rig, contact_law_name, fingerprint, get_rig
 from ...sensors import anti_alias_delay
 from ...signals.noise import quiet_noise_std, robust_noise_std
+from ...validation import check_real
 from ..plausibility import check_answer
 from ..result import Identification
 from .fit import LawFit, Observed, weighted_jacobian
@@ -51,6 +52,8 @@ NOISE_FLOOR = 1e-6
 CHANNELS = ("contact_force", "piston_acceleration")
 #: samples the contact instant starts before the crude trigger when the robust answer fails
 TRIGGER_LEAD = 2
+#: the points a Cramér-Rao bound is evaluated at (:func:`cramer_rao`'s ``at``)
+BOUND_POINTS = ("truth", "estimate")
 #: where a fitted pre-charge starts when the recording states none [Pa gauge]
 DEFAULT_PRESSURE_START = 200e3
 
@@ -66,10 +69,8 @@ def _pressure(recording: Recording, pressure: float | None, rig: Rig) -> float |
                                  f"{shown(stated)}") from None
     if pressure is None:
         return stated
-    if not (isinstance(pressure, (int, float)) and math.isfinite(pressure)
-            and 0.0 <= pressure <= rig.cylinder.rated_pressure_gauge):
-        raise ParameterError(f"pressure must be a number in [0, {rig.cylinder.rated_pressure_gauge:g}] [Pa gauge] "
-                             f"(the rating of {rig.name!r}), got {shown(pressure)}")
+    pressure = check_real("pressure", pressure, low=0.0, high=rig.cylinder.rated_pressure_gauge,
+                          unit=f" [Pa gauge] (the rating of {rig.name!r})", state_range=True)
     if stated is not None and abs(pressure - stated) > max(1e3, PRESSURE_TOLERANCE * abs(stated)):
         raise ParameterError(f"pressure {pressure:g} Pa gauge contradicts the recording's metadata "
                              f"pressure_gauge_Pa = {stated:g} Pa; expected agreement within "
@@ -160,11 +161,17 @@ def _channels_of(recording: Recording) -> None:
 
 
 def _stand_warning(recording: Recording, rig: Rig) -> tuple[str, ...]:
+    """The warning of a recording that states another stand than ``rig``, naming the preset it states (metadata
+    ``rig``) to pass instead."""
     stated = recording.metadata.get(STAND_KEY)
     if stated is None or str(stated) == fingerprint(rig):
         return ()
+    name = recording.metadata.get("rig")
+    preset = isinstance(name, str) and name in PRESETS and name != rig.name and str(stated) == fingerprint(
+        PRESETS[name])
     return (f"the recording states a stand with other parameters (fingerprint {str(stated)[:16]}) than "
-            f"{rig.name!r}; the fit takes {rig.name!r}'s parameters except those it frees",)
+            f"{rig.name!r}; the fit takes {rig.name!r}'s parameters except those it frees"
+            + (f" -- the recording was made on the preset {name!r}: pass rig={name!r}" if preset else ""),)
 
 
 def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: float | None = None,
@@ -211,8 +218,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     rig = get_rig(rig)
     laws = _laws(contact)
     free_names = check_uncertain(uncertain, laws)
-    if not (isinstance(max_reduced_chi2, (int, float)) and max_reduced_chi2 >= 1.0):
-        raise ParameterError(f"max_reduced_chi2 must be a number >= 1, got {shown(max_reduced_chi2)}")
+    max_reduced_chi2 = check_real("max_reduced_chi2", max_reduced_chi2, low=1.0, unit=" [-]", state_range=True)
     p0 = _pressure(recording, pressure, rig)
     design = _design(recording)
     trigger = _check_length(recording)
@@ -247,11 +253,15 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                                       f"leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g}"))
     if best is None or best.reduced_chi2 > max_reduced_chi2:
         assert robust is not None  # without a robust answer the case was refused above
+        # the answer is the robust one, with its early answer (the start above did without it)
+        robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
+                                 recording.start_time)
         reason = ("every contact law's fit failed: " + "; ".join(f"{k}: {v.get('error')}" for k, v in selection.items())
                   if best is None else
                   f"the best model ({best.law}) leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g}: "
                   "it does not describe this record, so the robust answer is given")
-        return replace(robust, method="model/fallback", warnings=(*robust.warnings, reason),
+        return replace(robust, method="model/fallback",
+                       warnings=(*_stand_warning(recording, rig), *robust.warnings, reason),
                        details={**robust.details, **common, "path": "fallback", "reason": reason,
                                 "contact_law": None if best is None else best.law})
     return _answer(recording, rig, best, common)
@@ -326,6 +336,8 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
     CramerRao
     """
     _channels_of(recording)
+    if not (isinstance(at, str) and at in BOUND_POINTS):
+        raise ParameterError(f"at must be one of {list(BOUND_POINTS)}, got {shown(at)}")
     rig = get_rig(rig)
     law = rig.contact.law
     free = free_parameters(law, check_uncertain(uncertain, (law,)))
@@ -333,10 +345,9 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
              "velocity": recording.metadata.get("velocity_m_s") if velocity is None else velocity}
     values: dict[str, float] = {}
     for name, value in given.items():
-        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-            raise ParameterError(f"{name} must be a number > 0 (or stated in the recording's metadata), got "
-                                 f"{shown(value)}")
-        values[name] = float(value)
+        values[name] = check_real(name, value, low=0.0, low_open=True,
+                                  unit=f" [{'kg' if name == 'mass' else 'm/s'}] (or stated in the recording's "
+                                  "metadata)", state_range=True)
     p0 = _pressure(recording, pressure, rig)
     if p0 is None:
         raise ParameterError("pressure must be given [Pa gauge] (the recording's metadata states none): the bound "

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from ...errors import IdentificationError, ParameterError
+from ...errors import IdentificationError, ParameterError, ParameterTypeError, shown
 from ...model import dynamics as d
 from ...model import fast
 from ...model.setup import initial_states, pack
@@ -96,9 +96,12 @@ def check_uncertain(uncertain: Sequence[str] | None, laws: Sequence[str]) -> tup
     """
     if uncertain is None:
         return None
+    valid = ["contact", *STAND_PARAMETERS]
     if isinstance(uncertain, str):
         uncertain = [name.strip() for name in uncertain.split(",") if name.strip()]
-    valid = ["contact", *STAND_PARAMETERS]
+    elif not (isinstance(uncertain, Sequence) and all(isinstance(name, str) for name in uncertain)):
+        raise ParameterTypeError(f"uncertain must be None, a name or a list of names of stand parameters (any of "
+                                 f"{valid}), got {shown(uncertain)}")
     names = tuple(dict.fromkeys(str(name) for name in uncertain))
     for name in names:
         if name not in valid:

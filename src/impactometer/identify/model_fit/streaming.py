@@ -37,13 +37,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ...errors import IdentificationError, ParameterError, shown
+from ...errors import IdentificationError, ParameterError, ParameterTypeError, shown
 from ...recording import Recording, check_sample_rate
 from ...rig import STAND_KEY, Rig, get_rig
 from ...sensors import anti_alias_delay
 from ...validation import check_integer, check_real
 from .. import model_fit as batch
-from ..peak_to_peak.streaming import StreamingIdentifier, last_outcome
+from ..peak_to_peak.streaming import StreamingIdentifier, check_open, last_outcome
 from ..result import Identification
 from .early import LEAD_SAMPLES
 from .first_window import warm
@@ -63,6 +63,21 @@ PRE_TRIGGER = 0.02
 MIN_FIRST = 0.002
 #: starts of the grid tried in turn for the first answer, where the robust stream has none yet
 GRID_STARTS = 3
+
+
+def check_schedule(cadence: float = CADENCE, first: float = STAGES[0][0], window: float = WINDOW, *,
+                   sample_rate: float | None = None) -> tuple[float, float, float]:
+    """``cadence``, ``first`` and ``window`` [s] of a :class:`ModelStream` as floats, or ParameterError naming the
+    one out of range: the cadence at least a sample period (> 0 where ``sample_rate`` [Hz] is not known yet),
+    ``first`` from ``MIN_FIRST`` to the screening window, ``window`` at least ``first`` plus one cadence."""
+    if sample_rate is None:
+        cadence = check_real("cadence", cadence, low=0.0, low_open=True, unit=" [s]", error=ParameterError)
+    else:
+        cadence = check_real("cadence", cadence, low=1.0 / sample_rate, unit=" [s]", error=ParameterError)
+    first = check_real("first", first, low=MIN_FIRST, high=STAGES[SCREEN_WINDOW][0], unit=" [s]",
+                       error=ParameterError)
+    window = check_real("window", window, low=first + cadence, unit=" [s]", error=ParameterError)
+    return cadence, first, window
 
 
 @dataclass
@@ -120,15 +135,14 @@ class ModelStream:
                  contact: str | None = "auto", cadence: float = CADENCE, window: float = WINDOW,
                  first: float = STAGES[0][0], robust_starts: bool = True):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
-        self.cadence = check_real("cadence", cadence, low=1.0 / sample_rate, unit=" [s]", error=ParameterError)
-        self.first = check_real("first", first, low=MIN_FIRST, high=STAGES[SCREEN_WINDOW][0], unit=" [s]",
-                                error=ParameterError)
-        self.window = check_real("window", window, low=self.first + self.cadence, unit=" [s]",
-                                 error=ParameterError)
+        self.cadence, self.first, self.window = check_schedule(cadence, first, window, sample_rate=sample_rate)
         self.robust = StreamingIdentifier(sample_rate, start_time=start_time, estimates=robust_starts)
         self.sample_rate, self.start_time = float(sample_rate), float(start_time)
         self.rig, self.laws = get_rig(rig), batch._laws(contact)
         self.uncertain, self.contact = check_uncertain(uncertain, self.laws), contact
+        if metadata is not None and not isinstance(metadata, dict):
+            raise ParameterTypeError(f"metadata must be None or a dict (the recording's metadata), got "
+                                     f"{shown(metadata)}", field="metadata", expected="must be None or a dict")
         self.metadata = dict(metadata or {})
         probe = self._recording(np.zeros((2, 1)), 0)
         #: the warning of a stand other than the recording's, stated once: the updates' records leave it out (its
@@ -150,6 +164,7 @@ class ModelStream:
         self.outcomes: list[Identification | IdentificationError] = []
         self.update_times: list[float] = []
         self.last_record: Recording | None = None
+        self.finished = False  # finish() called: no more samples
 
     def _arm(self) -> dict:
         """The predictions of the start grid for the window it is ranked on (the first window, at most
@@ -176,7 +191,9 @@ class ModelStream:
         return [] if self._impact is None else self._impact.fit.notes
 
     def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
-        """Feed samples (any number); return the model's estimates that became available."""
+        """Feed samples (any number); return the model's estimates that became available (StreamFinishedError
+        after :meth:`finish`)."""
+        check_open(self)
         try:
             f = np.atleast_1d(np.asarray(force_chunk, dtype=float))
             a = np.atleast_1d(np.asarray(acceleration_chunk, dtype=float))
@@ -342,6 +359,7 @@ class ModelStream:
         IdentificationError
             The refusal of the batch fit for that impact (too short, no pre-trigger, ...).
         """
+        self.finished = True
         if self._impact is not None and not self._impact.done:
             self._conclude(self._impact, self.robust.seen)
         return last_outcome(self.outcomes)

@@ -197,15 +197,25 @@ def lag_correlation(x: np.ndarray) -> float:
 INVERTED_SIGMAS = 10.0
 
 
-def no_impact(force: np.ndarray, noise: float | None = None) -> IdentificationError:
-    """The error for a record in which no contact pulse was found, naming the likely slip: a force channel of the
-    wrong sign (a load cell in tension) shows the impact as deep negative pulses."""
+def inverted_dip(force: np.ndarray, noise: float | None = None) -> tuple[float, float] | None:
+    """(the force's deepest dip below its level before the impact [N], its noise σ [N]) where the force reads the
+    contact with the other sign (it falls ``INVERTED_SIGMAS`` times its noise and more than twice as far as it
+    rises); else None."""
     x = np.asarray(force, dtype=float)
     noise = robust_noise_std(x) if noise is None else noise
     centre = float(np.median(x[: max(x.size // 10, 1)])) if x.size else 0.0  # the level before the impact
     low, high = (float(np.min(x)) - centre, float(np.max(x)) - centre) if x.size else (0.0, 0.0)
+    return (low, noise) if -low > INVERTED_SIGMAS * noise and -low > 2.0 * max(high, 0.0) else None
+
+
+def no_impact(force: np.ndarray, noise: float | None = None) -> IdentificationError:
+    """The error for a record in which no contact pulse was found, naming the likely slip: a force channel of the
+    wrong sign (a load cell in tension) shows the impact as deep negative pulses."""
+    noise = robust_noise_std(np.asarray(force, dtype=float)) if noise is None else noise
     text = f"no impact found: the contact force never leaves its noise (noise {noise:.3g} N)"
-    if -low > INVERTED_SIGMAS * noise and -low > 2.0 * max(high, 0.0):
+    dip = inverted_dip(force, noise)
+    if dip is not None:
+        low = dip[0]
         return IdentificationError(f"{text} upwards, but it falls to {low:.4g} N ({-low / max(noise, 1e-300):.3g} "
                                    "times its noise): the force channel reads the contact with the other sign (a "
                                    "load cell in tension?); read it with --flip-force (flip_force=True)")

@@ -13,7 +13,7 @@ import contextlib
 import numpy as np
 from numba import njit
 
-from ...errors import IdentificationError, ParameterError
+from ...errors import IdentificationError, ParameterError, StreamFinishedError
 from ...recording import check_sample_rate
 from ...signals import trigger
 from ...signals.stage_b import is_sustained
@@ -99,6 +99,7 @@ class StreamingIdentifier:
         self._step = self.capacity // 4
         self._events = np.zeros((3 * self._step + 2, 2), dtype=np.int64)
         self.seen = 0
+        self.finished = False  # finish() called: no more samples
         self._start: int | None = None  # first buffered sample of the running impact; None while armed
         self._pre = 0
         self._early: Identification | None = None
@@ -138,7 +139,14 @@ class StreamingIdentifier:
         return self._force[idx], self._acc[idx]
 
     def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
-        """Feed samples (any number, down to one); return the estimates that became available."""
+        """Feed samples (any number, down to one); return the estimates that became available.
+
+        Raises
+        ------
+        StreamFinishedError
+            After :meth:`finish`: the stream has ended (start a new identifier for another stream).
+        """
+        check_open(self)
         try:
             f = np.asarray(force_chunk, dtype=np.float64)
             a = np.asarray(acceleration_chunk, dtype=np.float64)
@@ -272,9 +280,17 @@ class StreamingIdentifier:
             The refusal the batch function gives for that impact (saturated force, dead accelerometer, no
             positive mass, too few contact pulses, ...).
         """
+        self.finished = True
         if self._start is not None:
             self._conclude(self.seen, self.seen - 1)
         return last_outcome(self.outcomes)
+
+
+def check_open(stream) -> None:
+    """StreamFinishedError where ``stream`` (a streaming identifier) has been finished."""
+    if stream.finished:
+        raise StreamFinishedError(f"push() after finish(): this {type(stream).__name__} has ended its stream; "
+                                  "create a new one for more samples")
 
 
 def last_outcome(outcomes: list[Identification | IdentificationError]) -> Identification | None:

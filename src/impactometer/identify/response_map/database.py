@@ -13,7 +13,7 @@ from scipy.interpolate import CubicSpline
 from ...errors import ParameterError, ResponseMapError
 from ...recording import check_sample_rate
 from ...rig import Rig, from_dict
-from ...validation import is_integer
+from ...validation import is_integer, real_array
 from .features import get_feature_set
 
 SCHEMA_VERSION = 1
@@ -22,11 +22,7 @@ MAX_VALUES = 100_000_000
 
 
 def _axis(values, name: str, unit: str) -> np.ndarray:
-    try:
-        arr = np.asarray(values, dtype=float).ravel()
-    except (TypeError, ValueError):
-        raise ResponseMapError(f"{name} must be a non-empty, finite, strictly increasing axis {unit}, got "
-                               f"{type(values).__name__} that does not hold numbers") from None
+    arr = real_array(name, values, unit=f" {unit}", error=ResponseMapError).ravel()
     expected = f"{name} must be a non-empty, finite, strictly increasing axis {unit}"
     if arr.size < 1:
         raise ResponseMapError(f"{expected}, got no values")
