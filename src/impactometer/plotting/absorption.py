@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 
-from ..control.event import BODY_CFC, body_load
 from . import _pyplot, legend_outside
 
 #: line colour per strategy (and per oracle run)
@@ -23,7 +22,7 @@ LONG_RUN = 2.5
 THIN, THICK = 0.4, 1.6
 
 
-def plot_absorption(result, ax=None):
+def plot_absorption(result, body_loads, body_cfc, ax=None):
     """The paper's Fig. 10b: contact force of every strategy vs time (thin: as simulated; thick: CFC 60, the load
     the metrics are judged on), the control start, the first sustained contact and the common window of R_B (shaded
     to the deepest point of the last run to reach it), F_ref, F_floor and F0; the first milliseconds zoomed (the
@@ -33,6 +32,10 @@ def plot_absorption(result, ax=None):
     Parameters
     ----------
     result : AbsorptionResult
+    body_loads : dict
+        Strategy -> the CFC-filtered contact force of its run [N] (``control.event.body_load``).
+    body_cfc : int
+        The CFC class of that filter.
     ax : Axes or sequence of Axes, optional
         One Axes: the force history; two: with the displacements; three: the zoom, the force history and the
         displacements.
@@ -55,7 +58,7 @@ def plot_absorption(result, ax=None):
     for name, run in result.runs.items():
         r = run.result
         colour = COLOURS.get(name)
-        body = body_load(r)
+        body = body_loads[name]
         t = r.time * 1e3
         force.plot(t, r.contact_force / 1e3, lw=THIN, color=colour, alpha=0.5)
         m = run.metrics
@@ -104,7 +107,7 @@ def plot_absorption(result, ax=None):
                                                     f"M1 = {ident.mass:.3g} kg, V0 = {ident.velocity:.3g} m/s"
     fig.suptitle(f"{result.rig.name}: M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, "
                  f"p0 = {s.pressure_gauge / 1e3:g} kPa\n{how}", fontsize=10)
-    _style_keys(force, "thin: as simulated", f"thick: CFC {BODY_CFC} (the metrics are judged on it)", (THIN, THICK),
+    _style_keys(force, "thin: as simulated", f"thick: CFC {body_cfc} (the metrics are judged on it)", (THIN, THICK),
                 ("-", "-"))
     legend_outside(force)
     if zoom is not None:
