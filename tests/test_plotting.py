@@ -199,6 +199,13 @@ def test_absorption_figure_clips_no_force_and_labels_its_lines(absorbed):
                                                                                   6)]
     # the mass and the piston of every run are both drawn (the mass passes the piston by the pad's compression)
     assert len([line for line in motion.get_lines() if len(line.get_xdata()) > 2]) == 2 * len(absorbed.runs)
+    # every panel has a legend a reader takes in at a glance, and no entry stands in two: the runs and the
+    # instants by the zoom, the forces and the line styles by the force history, the bodies by the displacements
+    entries = [[t.get_text() for t in ax.get_legend().get_texts()] for ax in (zoom, force, motion)]
+    assert all(0 < len(panel) <= 8 for panel in entries), entries
+    assert sum(len(panel) for panel in entries) == len({t for panel in entries for t in panel})
+    assert [t.split(":")[0] for t in entries[0][:len(absorbed.runs)]] == list(absorbed.runs)
+    assert any(t.startswith("control starts") for t in entries[0])
 
 
 @pytest.fixture(scope="module")

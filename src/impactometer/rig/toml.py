@@ -32,15 +32,22 @@ def read_table(path: str | Path) -> dict[str, Any]:
                              "description (sections of numbers)") from None
 
 
-def write_table(data: dict[str, Any], path: str | Path, *, overwrite: bool = False,
-                provenance: dict[str, Any] | None = None) -> Path:
-    """Write the stand table ``data`` to ``path``, with a ``[provenance]`` table when ``provenance`` is given (plain
-    numbers, strings, lists and tables; None values are left out); refuses to overwrite unless ``overwrite``."""
-    path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
+def table_text(data: dict[str, Any], provenance: dict[str, Any] | None = None) -> str:
+    """The stand table ``data`` as TOML text, with a ``[provenance]`` table when ``provenance`` is given (plain
+    numbers, strings, lists and tables; None values are left out)."""
     if provenance is not None:
         data = {**data, PROVENANCE_KEY: plain(provenance, nonfinite="keep", drop_none=True)}
+    return tomli_w.dumps(data)
+
+
+def write_table(data: dict[str, Any], path: str | Path, *, overwrite: bool = False,
+                provenance: dict[str, Any] | None = None) -> Path:
+    """Write the stand table ``data`` to ``path`` (:func:`table_text`); refuses to overwrite unless
+    ``overwrite``."""
+    path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
+    text = table_text(data, provenance)
     try:
-        path.write_text(tomli_w.dumps(data), encoding="utf-8")
+        path.write_text(text, encoding="utf-8")
     except OSError as exc:
         raise write_failed(path, exc) from None
     return path
