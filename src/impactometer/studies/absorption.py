@@ -51,7 +51,7 @@ METRICS = ("whole_event_peak_ratio", "peak_deceleration_g", "whole_event_efficie
            "stage_b_peak_force_N", "common_window_start_s", "floor_force_N", "reference_force_N", "impact_force_N",
            "control_start_s", "whole_event_peak_force_N", "own_window_force_ratio", "own_window_start_s",
            "peak_force_stage_a_N")
-#: acceptance targets of the absorber (the issue's): median and 90th percentile of R_B, improvement over the closed
+#: the absorber's design targets: median and 90th percentile of R_B, improvement over the closed
 #: valve, rebound limit [m] and the share of impacts below it, identified vs oracle R_B (deviation, share), median
 #: R_B against the achievable reference's, the identification's early answer [s] and its share
 TARGETS = {"median": 1.2, "p90": 1.5, "improvement": 2.0, "rebound": 5e-3, "rebound_share": 0.95,
