@@ -11,11 +11,11 @@ import pytest
 
 from impactometer.control import absorb
 from impactometer.filters import filter_recording
+from impactometer.identify.inspection import inspect_recording
 from impactometer.identify.peak_to_peak import identify, used_samples
 from impactometer.model import simulate
 from impactometer.plotting import ACCELERATION_LABEL
 from impactometer.plotting.identification import plot_identification
-from impactometer.plotting.recordings import plot_recording
 from impactometer.plotting.simulation import plot_simulation
 from impactometer.plotting.studies import (
     plot_case_bars,
@@ -240,10 +240,10 @@ def test_identification_figure_marks_the_samples_the_robust_answer_used(stiff_re
 
 def test_filtered_recording_says_so_and_every_figure_uses_one_acceleration_unit(stiff_recording):
     filtered = filter_recording(stiff_recording, 180)
-    fig = plot_recording(filtered)
+    fig = inspect_recording(filtered).plot(filtered)
     assert "CFC 180 filtered" in fig.axes[0].get_title()
     assert "contact force, CFC 180 filtered" in _texts(fig)
-    assert "no CFC filter applied" in plot_recording(stiff_recording).axes[0].get_title()
+    assert "no CFC filter applied" in inspect_recording(stiff_recording).plot(stiff_recording).axes[0].get_title()
     labels = [fig.axes[1].get_ylabel(),
               plot_identification(identify(stiff_recording), stiff_recording).axes[1].get_ylabel(),
               plot_simulation(simulate(Scenario(mass=25, velocity=1.8, pressure_gauge=1.5e5), "drop-stand-stiff",
