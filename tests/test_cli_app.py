@@ -116,7 +116,7 @@ def test_overwrite_is_the_flag_and_force_its_hidden_earlier_name():
     root = typer.main.get_command(app)
     writers = {path for path, command in _commands(root) if any("--overwrite" in p.opts for p in command.params)}
     assert writers == {("simulate",), ("absorb",), ("demo",), ("identify",), ("record",), ("inspect",), ("study",),
-                       ("map", "build"), ("calibrate",), ("validate",)}
+                       ("map", "build"), ("calibrate",), ("validate",), ("rig", "show")}
     for path in writers:
         options = {word.strip(",") for word in _help(path).split() if word.startswith("--")}
         assert "--overwrite" in options and "--force" not in options, path
