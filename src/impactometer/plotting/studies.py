@@ -237,15 +237,20 @@ def plot_absorption_study(rows: Sequence[Row], *, values: dict[str, dict[str, np
 
     ``values``: strategy -> column -> its values on the common set, impact by impact; ``kept`` and ``left``: how many
     impacts the common set holds and leaves out; ``targets``: the study's targets (``median``, ``p90``,
-    ``oracle_deviation``, ``achievable``). The study computes them (``studies.absorption``)."""
+    ``oracle_deviation``, ``achievable``). The study computes them (``studies.absorption``); a run without
+    ``strategy``, its oracle or the reference draws those panels empty."""
     plt = _pyplot()
     strategies = list(values)
+
+    def on_common_set(name: str, column: str) -> np.ndarray:
+        return values.get(name, {}).get(column, np.full(kept, np.nan))
+
     impacts = list(dict.fromkeys(r["case"] for r in rows))
     fig, axes = plt.subplots(1, 4, figsize=(19, 4.8), constrained_layout=True,
                              gridspec_kw={"width_ratios": [1.5, 1.3, 1, 1]})
     for ax, column, label in ((axes[0], "stage_b_ratio", "R_B on the common window [-] (ideal 1)"),
                               (axes[1], "whole_event_peak_ratio", "whole-event CFC 60 peak / F0 [-]")):
-        data = [values[name][column] for name in strategies]
+        data = [on_common_set(name, column) for name in strategies]
         data = [d[np.isfinite(d)] for d in data]
         ax.boxplot([d if d.size else np.array([np.nan]) for d in data])
         ax.set_xticks(range(1, len(strategies) + 1), strategies, rotation=20, fontsize=8)
@@ -265,12 +270,12 @@ def plot_absorption_study(rows: Sequence[Row], *, values: dict[str, dict[str, np
     axes[1].set_yticks([1.0, 2.0, 3.0, 5.0, 10.0], ["1", "2", "3", "5", "10"])
     axes[1].yaxis.set_minor_formatter("")
     figure_legend(fig)
-    mine = values[strategy]["stage_b_ratio"]
-    mass = values[strategy]["mass_kg"]
+    mine = on_common_set(strategy, "stage_b_ratio")
+    mass = on_common_set(strategy, "mass_kg")
     sc = None
     for ax, other, label in ((axes[2], f"{strategy} (oracle)", f"R_B, {strategy} with the true M1, V0"),
                              (axes[3], reference, "R_B of the achievable reference")):
-        theirs = values[other]["stage_b_ratio"]
+        theirs = on_common_set(other, "stage_b_ratio")
         sc = ax.scatter(theirs, mine, c=mass, cmap="viridis", s=16)
         finite = np.concatenate([mine[np.isfinite(mine)], theirs[np.isfinite(theirs)]])
         top = float(finite.max()) * 1.05 if finite.size else 2.0
@@ -280,7 +285,7 @@ def plot_absorption_study(rows: Sequence[Row], *, values: dict[str, dict[str, np
         ax.fill_between(line, (1.0 - band) * line, (1.0 + band) * line, color="tab:gray", alpha=0.2, lw=0)
         ax.set(xlabel=label, ylabel=f"R_B, {strategy} (identified)", xlim=(0.9, top), ylim=(0.9, top))
         ax.grid(alpha=0.3)
-    late = values[reference]["achievable_from_start_force_ratio"]
+    late = on_common_set(reference, "achievable_from_start_force_ratio")
     if np.isfinite(late).any():  # the best program that acts only from the loop's control start
         axes[3].scatter(late, mine, s=22, facecolors="none", edgecolors="k", lw=0.6,
                         label="reference acting from the control start")
