@@ -14,7 +14,7 @@ process, one compiled thread; the robust answer's time included).
 
     python scripts/accuracy_model.py --subset 12 --seeds 1            # a quick look
     python scripts/accuracy_model.py                                   # 125 cases, one seed, pad stand
-    python scripts/accuracy_model.py --subset 25 --fit-pressure        # pre-charge unknown, as the issue's CRB
+    python scripts/accuracy_model.py --subset 25 --fit-pressure        # pre-charge unknown, as in the CRB tables
 """
 
 from __future__ import annotations

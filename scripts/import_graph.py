@@ -1,13 +1,19 @@
-"""Import graph of the package: cycles between modules, and the internal imports made inside functions.
+"""Import graph of the package: cycles between modules, the internal imports made inside functions, and the
+imports of the view layer from below the command line.
 
-    python scripts/import_graph.py          # cycles (exit status 1 if any) and a count of function-level imports
+    python scripts/import_graph.py          # cycles and view imports (exit status 1 if any), a count of
+                                            # function-level imports
     python scripts/import_graph.py -v       # ... and which module imports which inside its functions
 
 Every import is an arrow of the graph, wherever it is made: one under ``if TYPE_CHECKING:`` (a module that names
-another in its annotations depends on it as much as one that calls it) and one inside a function (it still runs), so
-a cycle through either is a cycle -- except a function-level import of the ``plotting`` package: that is a result's
-``.plot()`` reaching the view layer (python-control's pattern: the computation never imports matplotlib), which sits
-above everything and may read what it draws.
+another in its annotations depends on it as much as one that calls it) and one inside a function (it still runs);
+and importing ``a.b.c`` runs the ``__init__`` of the package ``a.b`` first, so it is an arrow to that package too
+(and so through whatever the package re-exports), unless the package holds the importing module (then it is
+already being imported). A cycle through any of these is a cycle.
+
+The view layer (``plotting``) sits beside the command line, above everything else: below ``cli`` it may be imported
+only inside a result's ``.plot()`` method (python-control's pattern: the computation never imports matplotlib), and
+since such an import is an arrow like any other, a figure that called back into the logic below would make a cycle.
 """
 
 from __future__ import annotations
@@ -19,8 +25,10 @@ from collections import defaultdict
 from pathlib import Path
 
 PACKAGE = "impactometer"
-#: the view layer: reached from below only by ``.plot()`` methods, inside the function
+#: the view layer: reached from below the command line only by ``.plot()`` methods, inside the method
 VIEW = f"{PACKAGE}.plotting"
+#: the layers allowed to import the view layer anywhere
+EDGE = (f"{PACKAGE}.cli", VIEW)
 
 
 def modules(root: Path) -> dict[str, Path]:
@@ -42,35 +50,56 @@ def _resolve(module: str, is_package: bool, node: ast.ImportFrom) -> str | None:
     return ".".join(base) + (f".{node.module}" if node.module else "")
 
 
-def import_graph(root: Path) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
-    """(every internal import arrow, the arrows made inside functions) between modules of the package."""
+def _within(name: str, package: str) -> bool:
+    return name == package or name.startswith(package + ".")
+
+
+def _plot_methods(tree: ast.AST) -> set[int]:
+    """ids of the nodes inside a method named ``plot`` of a class."""
+    return {id(n) for c in ast.walk(tree) if isinstance(c, ast.ClassDef) for f in c.body
+            if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)) and f.name == "plot" for n in ast.walk(f)}
+
+
+def import_graph(root: Path) -> tuple[dict[str, set[str]], dict[str, set[str]], list[str]]:
+    """(every internal import arrow, the arrows made inside functions, the imports of the view layer from below the
+    command line other than in a ``.plot()`` method) between modules of the package."""
     mods = modules(root)
     edges: dict[str, set[str]] = defaultdict(set)
     inside: dict[str, set[str]] = defaultdict(set)
+    misplaced: list[str] = []
     for name, path in mods.items():
         tree = ast.parse(path.read_text(encoding="utf-8"))
         in_function = {id(n) for f in ast.walk(tree) if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef))
                        for n in ast.walk(f)}
+        in_plot = _plot_methods(tree)
         for node in ast.walk(tree):
             if isinstance(node, ast.ImportFrom):
                 target = _resolve(name, path.name == "__init__.py", node)
-                if not target or not target.startswith(PACKAGE):
+                if not target or not _within(target, PACKAGE):
                     continue
                 targets = [f"{target}.{a.name}" if f"{target}.{a.name}" in mods else target for a in node.names]
             elif isinstance(node, ast.Import):
-                targets = [a.name for a in node.names if a.name.startswith(PACKAGE)]
+                targets = [a.name for a in node.names if _within(a.name, PACKAGE)]
             else:
                 continue
             for target in targets:
                 while target not in mods and "." in target:
                     target = target.rsplit(".", 1)[0]
-                if target != name:
-                    if id(node) in in_function:
-                        inside[name].add(target)
-                        if target.startswith(VIEW):
-                            continue
-                    edges[name].add(target)
-    return edges, inside
+                if target == name:
+                    continue
+                if id(node) in in_function:
+                    inside[name].add(target)
+                if (_within(target, VIEW) and not any(_within(name, edge) for edge in EDGE)
+                        and id(node) not in in_plot):
+                    misplaced.append(f"{name} -> {target} (line {node.lineno})")
+                edges[name].add(target)
+                # the packages that hold the target run first, unless they hold the importer too
+                package = target.rsplit(".", 1)[0] if "." in target else ""
+                while package and package in mods:
+                    if not _within(name, package):
+                        edges[name].add(package)
+                    package = package.rsplit(".", 1)[0] if "." in package else ""
+    return edges, inside, sorted(set(misplaced))
 
 
 def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
@@ -114,15 +143,18 @@ def main() -> int:
     parser.add_argument("-v", "--verbose", action="store_true", help="list the function-level imports")
     parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parents[1] / "src" / PACKAGE)
     args = parser.parse_args()
-    edges, inside = import_graph(args.root)
+    edges, inside, misplaced = import_graph(args.root)
     groups = cycles(edges)
     for group in groups:
         print("cycle:", " <-> ".join(group))
-    print(f"{len(groups)} import cycle(s); {sum(len(v) for v in inside.values())} internal imports inside functions")
+    for line in misplaced:
+        print("view imported below the command line, outside a .plot() method:", line)
+    print(f"{len(groups)} import cycle(s); {len(misplaced)} import(s) of the view layer from below the command line "
+          f"outside a .plot() method; {sum(len(v) for v in inside.values())} internal imports inside functions")
     if args.verbose:
         for name in sorted(inside):
             print(f"  {name} -> {', '.join(sorted(inside[name]))}")
-    return 1 if groups else 0
+    return 1 if groups or misplaced else 0
 
 
 if __name__ == "__main__":

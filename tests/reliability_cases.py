@@ -426,7 +426,7 @@ class Corpus:
                  "--extra nope": ["record", "--out", str(self.path("n.csv")), "--extra", "nope", "--force"]}
         return [Case("command options", label, argv) for label, argv in cases.items()]
 
-    # issue 30: records from outside our own corpus -------------------------------------------------------------
+    # records from outside our own corpus ---------------------------------------------------------------------
     def _pair(self, category: str, label: str, path: Path, expect: str, truth=None, **judged) -> list[Case]:
         """The case for identify and the same for stream, which must agree with it."""
         return [Case(category, f"identify: {label}", ["identify", str(path), "--json"], expect, truth, **judged),
@@ -470,7 +470,7 @@ class Corpus:
         return out
 
     def slow_errors(self) -> list[Case]:
-        """Drift, an offset without pre-trigger and hum, on the issue's truth record (seed 0, 20 ms of pre-trigger):
+        """Drift, an offset without pre-trigger and hum, on the reference truth record (seed 0, 20 ms of pre-trigger):
         within 3 standard errors, or refused naming the hum."""
         truth = record(Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3), sample_rate=FS,
                        duration=0.1, noise=0.01, seed=0, pre_trigger=0.02)

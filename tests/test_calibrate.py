@@ -2,7 +2,7 @@
 recovered from 6 drops at 1 % noise made with the reference integrator; held-back drops reproduced; the calibrated
 stand used by the model-based identification; a contact law outside the family fitted flagged; bad input refused.
 
-Tolerances: every fitted parameter within 2 stated σ (the issue's criterion; a Gaussian estimate fails it with
+Tolerances: every fitted parameter within 2 stated σ (the calibration's criterion; a Gaussian estimate fails it with
 probability 5 % per parameter, so a miss is a finding, not flakiness: the seeds are fixed); held-back drops at 5 %
 noise with median force NRMSE <= 3 %.
 """
@@ -98,7 +98,7 @@ def test_held_back_drops_reproduced(calibration, held_back):
 
 
 def test_identification_with_the_calibrated_stand(calibration):
-    # records as the model-identification issue states its accuracy: 50 ms after contact, 20 ms pre-trigger, 5 %
+    # records as docs/model_identification.md states its accuracy: 50 ms after contact, 20 ms pre-trigger, 5 %
     # noise (on 100 ms records one of these drops gets a Fisher σ far too small: a grazing contact late in the record
     # makes the likelihood non-smooth; see docs/calibration.md)
     held_back = drops(HELD_BACK, noise=0.05, seed=2, duration=0.05)

@@ -117,10 +117,26 @@ def test_overwrite_is_the_flag_and_force_its_hidden_earlier_name():
     root = typer.main.get_command(app)
     writers = {path for path, command in _commands(root) if any("--overwrite" in p.opts for p in command.params)}
     assert writers == {("simulate",), ("absorb",), ("demo",), ("identify",), ("record",), ("inspect",), ("study",),
-                       ("map", "build"), ("calibrate",), ("validate",)}
+                       ("map", "build"), ("calibrate",), ("validate",), ("rig", "show")}
     for path in writers:
         options = {word.strip(",") for word in _help(path).split() if word.startswith("--")}
         assert "--overwrite" in options and "--force" not in options, path
+
+
+def test_absorb_table_names_what_auto_ran_and_what_its_stroke_rows_measure(capsys, monkeypatch):
+    """The table names the strategy ``auto`` ran, says what the stroke share and bottoming out measure (the mass
+    passes the piston's usable stroke by the pad's compression without bottoming out), and keeps to
+    ``PIPED_WIDTH`` characters off a terminal."""
+    from impactometer.cli.app import PIPED_WIDTH
+    from impactometer.control.strategies import ALL, AUTO
+
+    monkeypatch.delenv("COLUMNS", raising=False)
+    status, out, err = run(["absorb", "--strategy", "auto", "--method", "oracle"], capsys)
+    assert status == 0, err
+    assert f"auto ({AUTO})" in out and AUTO in ALL
+    assert "mass travel / usable stroke (pad included)" in out and "bottomed out (piston on the bottom stop)" in out
+    assert "the controller's limit on the piston" in out
+    assert max(len(line) for line in out.splitlines()) <= PIPED_WIDTH
 
 
 def test_absorb_takes_the_response_map_as_identify_spells_it(capsys):
@@ -186,12 +202,14 @@ def test_speak_maps_core_names_to_options():
 
 
 def test_study_summary_in_a_pipe_keeps_paths_whole(tmp_path, capsys):
-    """Written to a file or a pipe (no terminal: rich would wrap at 80 columns), no table breaks a path."""
+    """Written to a file or a pipe (no terminal), no path is broken: the folder on a line of its own, the files in
+    the table by name."""
     out = tmp_path / ("a folder whose name makes every path longer than eighty columns" + "/case s")
     out.parent.mkdir()
     status, text, err = run(["study", "peak-force", "--out", str(out), "--grid", "2", "--workers", "1"], capsys)
     assert status == 0, err
-    assert str(out / "peak-force.csv") in text and f"studies in {out} (" in text, text
+    assert f"studies in {out} (" in text and f"report written to {out / 'index.html'}" in text, text
+    assert "peak-force.csv" in text and max(len(line) for line in text.splitlines() if "│" in line) <= 120, text
 
 
 def test_bare_impactometer_prints_its_help_and_exits_0_with_the_installed_click():

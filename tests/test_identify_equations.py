@@ -277,7 +277,7 @@ def test_contact_phase_option_answers_and_covers_on_noisy_pad_records(law):
 
 
 def _pad_impact(seed=0):
-    """30 kg from 0.2 m on the pad stand, 1 % noise, 20 ms pre-trigger (the issue's truth data)."""
+    """30 kg from 0.2 m on the pad stand, 1 % noise, 20 ms pre-trigger (the reference truth record)."""
     return record(Scenario.from_height(mass=30.0, height=0.2, pressure_gauge=200e3), sample_rate=FS, duration=0.1,
                   noise=0.01, seed=seed, pre_trigger=0.02)
 

@@ -150,7 +150,7 @@ def test_a_start_from_a_grid_where_the_robust_answer_fails(monkeypatch):
 def test_cramer_rao_bound_of_a_pad_record():
     rec = _record(30.0, 2.0, 200e3, 51)
     bound = cramer_rao(rec)
-    # the figures for the pad stand at 5 % noise: σ(M1) ≈ 0.37 %, σ(V0) ≈ 0.13 % on average over the grid
+    # the stated figures for the pad stand at 5 % noise: σ(M1) ≈ 0.37 %, σ(V0) ≈ 0.13 % on average over the grid
     assert 0.001 < bound.mass_relative < 0.01 and 0.0005 < bound.velocity_relative < 0.003
     assert bound.at == "truth" and bound.contact_law == "hysteretic"
     fixed = cramer_rao(rec, uncertain=[])

@@ -11,29 +11,33 @@ import pytest
 
 from impactometer.control import absorb
 from impactometer.filters import filter_recording
-from impactometer.identify.peak_to_peak import identify
+from impactometer.identify.inspection import inspect_recording
+from impactometer.identify.peak_to_peak import identify, used_samples
 from impactometer.model import simulate
 from impactometer.plotting import ACCELERATION_LABEL
-from impactometer.plotting.absorption import plot_absorption
-from impactometer.plotting.identification import plot_identification, used_samples
-from impactometer.plotting.recordings import plot_recording
+from impactometer.plotting.identification import plot_identification
 from impactometer.plotting.simulation import plot_simulation
 from impactometer.plotting.studies import (
-    plot_absorption_study,
     plot_case_bars,
     plot_map_recordings,
     plot_map_tables,
     plot_mean_error_vs,
     plot_noise,
     plot_peak_force,
-    plot_valve_design,
     text_colour,
 )
 from impactometer.recording import Recording
 from impactometer.rig import Scenario
+from impactometer.studies import StudyOptions, get_study, load_studies
 from impactometer.studies.valve_design import valve_label
 
 METHODS = ("paper", "robust-early", "robust")
+
+
+def _study_figure(name, rows):
+    """The figure of study ``name`` drawn from ``rows``, with the values the study computes for it."""
+    load_studies()
+    return get_study(name).drawing(rows, StudyOptions()).plot()
 
 
 @pytest.fixture(autouse=True)
@@ -128,7 +132,7 @@ def test_valve_design_text_contrasts_and_an_empty_count_map_is_dropped():
     rows = [{"impact": i, "effective_area_mm2": a, "response_time_ms": t, "valve": valve_label(a, t),
              "stage_b_ratio": 1.0 + a / 400 + t + i, "bottomed_out": False}
             for a in (25.0, 100.0, 400.0) for t in (1.0, 3.0) for i in range(2)]
-    fig = plot_valve_design(rows)
+    fig = _study_figure("valve-design", rows)
     maps = [a for a in fig.axes if a.images]
     assert [a.get_title() for a in maps] == ["median R_B", "90th percentile R_B"]
     assert "on the 2 impacts every valve has it for" in fig._suptitle.get_text()
@@ -140,7 +144,7 @@ def test_valve_design_text_contrasts_and_an_empty_count_map_is_dropped():
             assert text.get_color() == text_colour(image.cmap(image.norm(image.get_array()[y, x])))
     assert text_colour((1.0, 1.0, 0.0, 1.0)) == "k" and text_colour((0.27, 0.0, 0.33, 1.0)) == "w"
     rows[0]["bottomed_out"] = True
-    fig = plot_valve_design(rows)
+    fig = _study_figure("valve-design", rows)
     assert [a.get_title() for a in fig.axes if a.images][-1] == "runs bottomed out"
 
 
@@ -159,7 +163,8 @@ def test_the_other_study_figures_keep_their_legends_off_the_titles():
                    "mass_kg": 10.0 * c} for c in range(1, 4)
                   for s in ("closed", "predictive", "predictive (oracle)", "achievable reference")]
     figures = [plot_map_tables(tables, "size", "map size", title="Response map: error vs database size"),
-               plot_map_recordings(recordings), plot_peak_force(peaks), plot_absorption_study(absorption)]
+               plot_map_recordings(recordings), plot_peak_force(peaks),
+               _study_figure("absorption", absorption)]
     for fig in figures:
         assert fig.legends and _clear_of_title(fig)
     texts = _texts(figures[0])
@@ -174,7 +179,7 @@ def absorbed():
 
 
 def test_absorption_figure_clips_no_force_and_labels_its_lines(absorbed):
-    fig = plot_absorption(absorbed)
+    fig = absorbed.plot()
     zoom, force, motion = fig.axes
     peak = max(float(run.result.contact_force.max()) for run in absorbed.runs.values()) / 1e3
     assert force.get_ylim()[1] >= peak and zoom.get_ylim()[1] >= peak
@@ -194,6 +199,13 @@ def test_absorption_figure_clips_no_force_and_labels_its_lines(absorbed):
                                                                                   6)]
     # the mass and the piston of every run are both drawn (the mass passes the piston by the pad's compression)
     assert len([line for line in motion.get_lines() if len(line.get_xdata()) > 2]) == 2 * len(absorbed.runs)
+    # every panel has a legend a reader takes in at a glance, and no entry stands in two: the runs and the
+    # instants by the zoom, the forces and the line styles by the force history, the bodies by the displacements
+    entries = [[t.get_text() for t in ax.get_legend().get_texts()] for ax in (zoom, force, motion)]
+    assert all(0 < len(panel) <= 8 for panel in entries), entries
+    assert sum(len(panel) for panel in entries) == len({t for panel in entries for t in panel})
+    assert [t.split(":")[0] for t in entries[0][:len(absorbed.runs)]] == list(absorbed.runs)
+    assert any(t.startswith("control starts") for t in entries[0])
 
 
 @pytest.fixture(scope="module")
@@ -212,7 +224,7 @@ def test_identification_figure_marks_the_samples_the_robust_answer_used(stiff_re
     assert rows["onsets"].size == used["onsets"]
     assert rows["turning_a"].size + rows["turning_b"].size == used["extrema"]
     assert rows["separations"].size == used["separations"]
-    fig = plot_identification(result, stiff_recording)
+    fig = result.plot(stiff_recording, used=rows)
     texts = _texts(fig)
     for key, label in (("onsets", "onsets used"), ("extrema", "turning points used, stage A"),
                        ("separations", "separations used")):
@@ -228,10 +240,10 @@ def test_identification_figure_marks_the_samples_the_robust_answer_used(stiff_re
 
 def test_filtered_recording_says_so_and_every_figure_uses_one_acceleration_unit(stiff_recording):
     filtered = filter_recording(stiff_recording, 180)
-    fig = plot_recording(filtered)
+    fig = inspect_recording(filtered).plot(filtered)
     assert "CFC 180 filtered" in fig.axes[0].get_title()
     assert "contact force, CFC 180 filtered" in _texts(fig)
-    assert "no CFC filter applied" in plot_recording(stiff_recording).axes[0].get_title()
+    assert "no CFC filter applied" in inspect_recording(stiff_recording).plot(stiff_recording).axes[0].get_title()
     labels = [fig.axes[1].get_ylabel(),
               plot_identification(identify(stiff_recording), stiff_recording).axes[1].get_ylabel(),
               plot_simulation(simulate(Scenario(mass=25, velocity=1.8, pressure_gauge=1.5e5), "drop-stand-stiff",

@@ -6,7 +6,6 @@ import pytest
 from impactometer.errors import RecordingError
 from impactometer.identify.inspection import inspect_recording
 from impactometer.io import read_recording, write_recording
-from impactometer.plotting.recordings import plot_recording
 from impactometer.recording import Recording
 from impactometer.rig import Scenario
 from impactometer.sensors import record
@@ -126,7 +125,7 @@ def test_inspection_without_a_force_channel():
 
 
 def test_plot_marks_the_pulses(noisy):
-    fig = plot_recording(noisy)
+    fig = inspect_recording(noisy).plot(noisy)
     force_axis = fig.axes[0]
     assert len(force_axis.patches) == len(inspect_recording(noisy).pulses)
     assert force_axis.get_ylabel() == "contact force [kN]"  # as every figure of the package labels it

@@ -254,3 +254,41 @@ def test_get_rig_errors(tmp_path):
         get_rig(tmp_path / "missing.toml")
     with pytest.raises(ParameterError, match="contact.law must be one of"):
         get_rig(contact="glue")
+
+
+def _rig_show(args, capsys):
+    from test_cli_simulate import run
+
+    return run(["rig", "show", *args], capsys)
+
+
+@pytest.mark.parametrize("name", sorted(PRESETS))
+def test_rig_show_writes_every_preset_as_a_file_that_reads_back_as_it(name, tmp_path, capsys):
+    status, printed, err = _rig_show([name], capsys)
+    assert status == 0 and err == "", err
+    path = tmp_path / "base.toml"
+    status, out, err = _rig_show([name, "--out", str(path)], capsys)
+    assert status == 0 and str(path) in out, err
+    assert path.read_text(encoding="utf-8") == printed and printed.startswith(f"# The stand {name}, written by")
+    assert load_toml(path) == PRESETS[name]
+    status, out, err = _rig_show([name, "--out", str(path)], capsys)  # a saved file is never replaced unasked
+    assert status == 2 and "exists; pass --overwrite" in err and out == ""
+    assert _rig_show([name, "--out", str(path), "--overwrite", "--contact", "kv"], capsys)[0] == 0
+    assert load_toml(path) == PRESETS[name].with_contact("kv")
+
+
+def test_rig_show_refuses_what_is_no_stand(tmp_path, capsys):
+    status, out, err = _rig_show(["tower"], capsys)
+    assert status == 2 and "tower" in err and "drop-stand" in err and out == ""
+    status, out, err = _rig_show(["drop-stand", "--out", str(tmp_path / "base.txt")], capsys)
+    assert status == 2 and "expected one of .toml" in err and not (tmp_path / "base.txt").exists()
+
+
+def test_the_stand_file_in_the_docs_is_what_rig_show_prints(capsys):
+    """docs/simulation.md shows the built-in stand's file as `impactometer rig show drop-stand` prints it."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[1] / "docs" / "simulation.md").read_text(encoding="utf-8")
+    block = doc.split("<!-- rig show drop-stand -->\n```toml\n", 1)[1].split("```\n", 1)[0]
+    status, printed, _ = _rig_show(["drop-stand"], capsys)
+    assert status == 0 and block == printed

@@ -13,7 +13,7 @@ from impactometer.errors import ParameterError
 from impactometer.studies import StudyOptions, get_study, load_studies, run_study
 from impactometer.studies.base import indexed_cases
 from impactometer.studies.identification import failures, fallbacks
-from impactometer.studies.tables import pick, read_csv
+from impactometer.tables import pick, read_csv
 
 load_studies()
 

@@ -17,7 +17,7 @@ from impactometer.errors import ParameterError
 from impactometer.studies import StudyOptions, executors, run_study
 from impactometer.studies.executors import compiling
 from impactometer.studies.store import LOCK, atomic_write, locked, read_chunk
-from impactometer.studies.tables import read_csv
+from impactometer.tables import read_csv
 
 SMALL = dict(grid=3, params={"peak-force.chunk_size": 4})  # 27 cases in 7 chunks
 

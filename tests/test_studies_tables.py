@@ -56,7 +56,7 @@ def test_every_study_is_covered_here():
 def test_every_figure_a_study_names_is_drawn_by_the_plotting_module():
     from impactometer.plotting import studies as figures
 
-    named = [study.plot.args[0] for study in STUDIES.values() if isinstance(study.plot, partial)]
+    named = [study.drawing.args[0] for study in STUDIES.values() if isinstance(study.drawing, partial)]
     assert named and all(callable(getattr(figures, name, None)) for name in named)
 
 
@@ -75,7 +75,7 @@ def test_study_rows_aggregate_summary_and_figure(name):
     assert study.aggregate(rows)
     for line in study.summary(rows):
         assert set(line) == {"quantity", "ours", "paper"} and all(isinstance(v, str) for v in line.values())
-    fig = study.plot(rows, options)
+    fig = study.drawing(rows, options).plot()
     assert fig.axes
     import matplotlib.pyplot as plt
 
@@ -101,7 +101,7 @@ def test_noise_of_a_case_does_not_depend_on_its_chunk():
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from impactometer.studies.tables import read_csv, to_csv  # noqa: E402
+from impactometer.tables import read_csv, to_csv  # noqa: E402
 
 _cells = st.one_of(st.integers(-10**12, 10**12), st.floats(allow_nan=False, allow_infinity=False, width=64),
                    st.text(alphabet=st.characters(blacklist_categories=("Cs",), blacklist_characters="\r\x00"),

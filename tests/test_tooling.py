@@ -11,35 +11,72 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_no_import_cycle():
+def test_no_import_cycle_and_plotting_only_at_the_edge():
     """The layers point one way: no two modules of the package import each other, even through others, in their
-    annotations or inside functions (scripts/import_graph.py says what counts)."""
+    annotations, inside functions or through a package's ``__init__``; and below ``cli`` the figures are reached
+    only from a result's ``.plot()`` (scripts/import_graph.py says what counts)."""
     done = subprocess.run([sys.executable, str(ROOT / "scripts" / "import_graph.py")], cwd=ROOT,
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stdout + done.stderr
+    assert done.stdout.startswith("0 import cycle(s); 0 import(s) of the view layer"), done.stdout
 
 
-def test_import_graph_counts_annotation_and_function_imports(tmp_path):
-    """An import under ``if TYPE_CHECKING:`` and one inside a function are arrows of the graph; a function-level
-    import of the plotting package (a ``.plot()`` reaching the view layer) is not."""
+def _graph(tmp_path, sources: dict[str, str]) -> subprocess.CompletedProcess:
     package = tmp_path / "impactometer"
-    sources = {
+    for name, text in sources.items():
+        (package / name).parent.mkdir(parents=True, exist_ok=True)
+        (package / name).write_text(text, encoding="utf-8")
+    return subprocess.run([sys.executable, str(ROOT / "scripts" / "import_graph.py"), "--root", str(package)],
+                          cwd=ROOT, capture_output=True, text=True)
+
+
+def _cycles(done: subprocess.CompletedProcess) -> list[str]:
+    return sorted(line for line in done.stdout.splitlines() if line.startswith("cycle:"))
+
+
+def test_import_graph_counts_annotation_function_and_package_imports(tmp_path):
+    """An import under ``if TYPE_CHECKING:``, one inside a function (a ``.plot()`` too) and the ``__init__`` of the
+    package that holds the imported module are arrows of the graph."""
+    done = _graph(tmp_path, {
         "__init__.py": "",
         "annotated.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .names import Name\n",
         "names.py": "from .annotated import Annotated\n",
         "caller.py": "def call():\n    from .called import function\n",
         "called.py": "from .caller import call\n",
-        "result.py": "def plot():\n    from .plotting import draw\n",
-        "plotting/__init__.py": "from ..result import Result\n",
-    }
-    for name, text in sources.items():
-        (package / name).parent.mkdir(parents=True, exist_ok=True)
-        (package / name).write_text(text, encoding="utf-8")
-    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "import_graph.py"), "--root", str(package)],
-                          cwd=ROOT, capture_output=True, text=True)
+        "result.py": "class Result:\n    def plot(self):\n        from .plotting.figures import draw\n",
+        "plotting/__init__.py": "",
+        "plotting/figures.py": "from ..result import Result\n",
+        "logic/__init__.py": "from .core import solve\n",
+        "logic/core.py": "def solve():\n    from .answer import Answer\n",
+        "logic/answer.py": "class Answer:\n    def plot(self):\n        from ..plotting.logic_figure import draw\n",
+        "plotting/logic_figure.py": "from ..logic.helpers import helper\n",
+        "logic/helpers.py": "",
+    })
     assert done.returncode == 1, done.stdout + done.stderr
-    assert sorted(line for line in done.stdout.splitlines() if line.startswith("cycle:")) == [
-        "cycle: impactometer.annotated <-> impactometer.names", "cycle: impactometer.called <-> impactometer.caller"]
+    assert _cycles(done) == [
+        "cycle: impactometer.annotated <-> impactometer.names", "cycle: impactometer.called <-> impactometer.caller",
+        "cycle: impactometer.logic <-> impactometer.logic.answer <-> impactometer.logic.core "
+        "<-> impactometer.plotting.logic_figure",
+        "cycle: impactometer.plotting.figures <-> impactometer.result"]
+
+
+def test_import_graph_reports_plotting_below_the_command_line(tmp_path):
+    """Below ``cli`` the plotting package may be imported only inside a ``.plot()`` method; ``cli`` may import it
+    anywhere; a figure that reads no logic back makes no cycle."""
+    done = _graph(tmp_path, {
+        "__init__.py": "",
+        "plotting/__init__.py": "",
+        "plotting/figures.py": "import numpy\n",
+        "result.py": "class Result:\n    def plot(self):\n        from .plotting.figures import draw\n",
+        "study.py": "def figure(rows):\n    from .plotting import figures\n",
+        "table.py": "from .plotting.figures import draw\n",
+        "cli/__init__.py": "from ..plotting.figures import draw\n",
+    })
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert _cycles(done) == []
+    reported = [line.split(": ", 1)[1] for line in done.stdout.splitlines() if line.startswith("view imported")]
+    assert reported == ["impactometer.study -> impactometer.plotting.figures (line 2)",
+                        "impactometer.table -> impactometer.plotting.figures (line 1)"]
 
 
 def test_measured_figures_are_rendered_from_the_recorded_results():

@@ -13,7 +13,8 @@ import numpy as np
 __all__ = ["plain"]
 
 
-def plain(value: Any, *, nonfinite: Literal["null", "text", "keep"] = "null", max_items: int | None = None) -> Any:
+def plain(value: Any, *, nonfinite: Literal["null", "text", "keep"] = "null", max_items: int | None = None,
+          drop_none: bool = False) -> Any:
     """A copy of ``value`` made of JSON types: mappings as dicts with string keys, sequences and arrays as lists,
     numpy numbers as Python numbers, bytes decoded as UTF-8, anything else as its text.
 
@@ -26,12 +27,14 @@ def plain(value: Any, *, nonfinite: Literal["null", "text", "keep"] = "null", ma
         spell it themselves).
     max_items : int, optional
         An array with more elements becomes ``"<array SHAPE>"`` (None: every array is copied).
+    drop_none : bool
+        Leave None values out of mappings and sequences (for formats without a null, such as TOML).
     """
     def copy(item: Any) -> Any:
         if isinstance(item, Mapping):
-            return {str(k): copy(v) for k, v in item.items()}
+            return {str(k): copy(v) for k, v in item.items() if not (drop_none and v is None)}
         if isinstance(item, (list, tuple)):
-            return [copy(v) for v in item]
+            return [copy(v) for v in item if not (drop_none and v is None)]
         if isinstance(item, np.ndarray):
             return copy(item.tolist()) if max_items is None or item.size <= max_items else f"<array {item.shape}>"
         if isinstance(item, np.generic):

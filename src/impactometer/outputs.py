@@ -167,10 +167,10 @@ def write_atomically(path: Path, write: Callable[[Path], object], *, overwrite: 
 
 def save_figure(fig, path: str | Path, *, dpi: int = 120, overwrite: bool = True) -> Path:
     """Save a matplotlib figure (format from the extension) next to ``path`` and move it into place
-    (:func:`write_atomically`); close it."""
-    from .plotting import _pyplot
+    (:func:`write_atomically`); close it (in pyplot, which drew it)."""
+    import matplotlib.pyplot as plt
 
     try:
         return write_atomically(Path(path), lambda temporary: fig.savefig(temporary, dpi=dpi), overwrite=overwrite)
     finally:
-        _pyplot().close(fig)
+        plt.close(fig)

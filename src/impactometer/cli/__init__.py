@@ -11,7 +11,7 @@ from rich.markup import escape
 
 from ..errors import ImpactometerError
 from ..outputs import write_failed
-from . import calibrate, control, demo, identify, recordings, response_map, simulate, studies  # noqa: F401  (register commands)
+from . import calibrate, control, demo, identify, recordings, response_map, rig, simulate, studies  # noqa: F401  (register commands)
 from .app import app, error_console
 
 __all__ = ["app", "main"]

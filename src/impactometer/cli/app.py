@@ -73,21 +73,21 @@ class App(typer.Typer):
 app = App(add_completion=False, pretty_exceptions_enable=False,
           help="On-line impact load identification and adaptive impact absorption.")
 
-#: width of the output where it is not a terminal and COLUMNS does not say: wide enough that no table breaks a path
-UNBROKEN_WIDTH = 10_000
+#: width of the tables where the output is not a terminal and COLUMNS does not say [characters]
+PIPED_WIDTH = 120
 
 
 class _Console(Console):
-    """A rich Console that, writing to a file or a pipe (and COLUMNS unset), is as wide as its widest line: a table
-    takes the width of its content, so a path in a table or its title is never broken (rich wraps at 80 columns
-    where the output is not a terminal)."""
+    """A rich Console that, writing to a file or a pipe (and COLUMNS unset), lays tables out :data:`PIPED_WIDTH`
+    characters wide (rich's default there is 80); plain lines are printed whole (``soft_wrap``), so a path or a
+    one-line message is never broken."""
 
     @property
     def size(self) -> ConsoleDimensions:
         size = Console.size.fget(self)  # type: ignore[attr-defined]
         if self.is_terminal or self._width is not None or "COLUMNS" in os.environ:
             return size
-        return ConsoleDimensions(UNBROKEN_WIDTH, size.height)
+        return ConsoleDimensions(PIPED_WIDTH, size.height)
 
     @size.setter
     def size(self, new_size: tuple[int, int]) -> None:

@@ -21,11 +21,11 @@ TABLE_ROWS = (
     ("whole event: CFC 60 peak / F0 (ideal 1)", "whole_event_peak_ratio", lambda v: f"{v:.2f}"),
     ("  peak deceleration of the mass [g]", "peak_deceleration_g", lambda v: f"{v:.1f}"),
     ("  η = absorbed work / (peak × stroke used)", "whole_event_efficiency", lambda v: f"{v:.2f}"),
-    ("  stroke used [mm]", "stroke_used_m", lambda v: f"{v * 1e3:.1f}"),
-    ("  stroke utilisation", "stroke_utilisation", lambda v: f"{v:.2f}"),
+    ("  stroke used by the mass [mm]", "stroke_used_m", lambda v: f"{v * 1e3:.1f}"),
+    ("  mass travel / usable stroke (pad included)", "stroke_utilisation", lambda v: f"{v:.2f}"),
     ("  time to stop [ms]", "time_to_stop_s", lambda v: f"{v * 1e3:.1f}"),
     ("  stopped", "stopped", lambda v: "yes" if v else "NO (cannot stop)"),
-    ("  bottomed out", "bottomed_out", lambda v: "YES" if v else "no"),
+    ("  bottomed out (piston on the bottom stop)", "bottomed_out", lambda v: "YES" if v else "no"),
     ("  rebound [mm]", "rebound_m", lambda v: f"{v * 1e3:.1f}"),
     ("controller: R_B on the common window (ideal 1)", "stage_b_ratio", lambda v: f"{v:.2f}"),
     ("  CFC 60 peak in the window [N]", "stage_b_peak_force_N", lambda v: f"{v:.0f}"),
@@ -41,7 +41,9 @@ TABLE_ROWS = (
 
 
 def metrics_table(result) -> Table:
-    """Rich table: one column per strategy."""
+    """Rich table: one column per strategy (``auto`` named with the strategy it ran)."""
+    from ..control.strategies import AUTO
+
     data = result.to_dict()
     ident = data["identification"]
     title = (f"{result.scenario.mass:g} kg at {result.scenario.velocity:.3f} m/s, p0 = "
@@ -51,10 +53,13 @@ def metrics_table(result) -> Table:
     window = (f"common window from {data['common_window_start_s'] * 1e3:.2f} ms (first sustained contact): "
               f"F_ref = {data['reference_force_N']:.0f} N, F_floor = {data['floor_force_N']:.0f} N"
               if data["common_window_start_s"] is not None else f"no common window: {data['common_window_excluded']}")
-    table = Table(title=f"{title}\nF0 = {next(iter(data['strategies'].values()))['impact_force_N']:.0f} N; {window}")
+    usable = data["usable_stroke_m"] * 1e3
+    table = Table(title=f"{title}\nF0 = {next(iter(data['strategies'].values()))['impact_force_N']:.0f} N; {window}",
+                  caption=f"usable stroke {usable:.0f} mm: the controller's limit on the piston; the mass goes "
+                          "further by the pad's compression")
     table.add_column("metric")
     for name in data["strategies"]:
-        table.add_column(name, justify="right")
+        table.add_column(f"auto ({AUTO})" if name == "auto" else name, justify="right")
     for label, key, fmt in TABLE_ROWS:
         cells = []
         for values in data["strategies"].values():

@@ -138,7 +138,9 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
             detail += f", {data['contact_law']} contact"
         console.print(_table(data, f"{file.name}: {method} ({detail})"))
     if plot is not None:
-        save_figure(result.plot(rec), plot)
+        from ..identify.peak_to_peak import used_samples
+
+        save_figure(result.plot(rec, used=used_samples(result, rec)), plot)
         if not as_json:
             console.print(f"figure written to {plot}")
 

@@ -154,7 +154,5 @@ def inspect(
         for table in _inspection_tables(rec, result):
             console.print(table)
     if plot is not None:
-        from ..plotting.recordings import plot_recording
-
-        save_figure(plot_recording(rec, inspection=result), plot)
+        save_figure(result.plot(rec), plot)
         console.print(f"figure written to {plot}")

@@ -264,13 +264,15 @@ def study(
             if signals.terminated:
                 raise typer.Exit(128 + signal.SIGTERM) from None
             raise typer.Abort() from None
-    table = Table(title=f"studies in {out} ({time.perf_counter() - start:.1f} s)")
+    # the folder on a line of its own (printed whole), the files in the table by name: a path is never broken
+    console.print(f"studies in {out} ({time.perf_counter() - start:.1f} s)", highlight=False, markup=False)
+    table = Table()
     for column in ("study", "cases", "reused chunks", "wall [s]", "compute [s]", "table", "files"):
         table.add_column(escape(column), overflow="fold",
                          justify="left" if column in ("study", "table", "files") else "right")
     for run in runs:
         table.add_row(run.name, str(run.cases), f"{run.reused_chunks}/{run.chunks}", f"{run.wall_time:.1f}",
-                      f"{run.compute_time:.1f}", str(run.table), "kept (finished earlier)" if run.kept else "written")
+                      f"{run.compute_time:.1f}", run.table.name, "kept (finished earlier)" if run.kept else "written")
     console.print(table)
     if all(run.kept for run in runs) and report_found and not force:
         console.print(f"finished earlier with these options: tables, figures and report {out / 'index.html'} kept "

@@ -26,7 +26,7 @@ from ..signals.pulses import contact_pulses
 from ..validation import check_flag, check_integer, check_real, finite_or_none
 from . import simulate as plant
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
-from .event import STOPPED_FRACTION, CommonWindow, common_window, impact_force
+from .event import BODY_CFC, STOPPED_FRACTION, CommonWindow, body_load, common_window, impact_force
 from .identified import (
     IDENTIFICATION_WINDOW,
     LATENCY,
@@ -126,10 +126,12 @@ class AbsorptionResult:
                 "over_capacity": self.over_capacity, "notes": list(self.notes), "strategies": strategies}
 
     def plot(self, ax=None):
-        """The force histories of every strategy on one figure (the paper's Fig. 10b); see ``control.plots``."""
+        """The force histories of every strategy on one figure (the paper's Fig. 10b;
+        :func:`impactometer.plotting.absorption.plot_absorption`)."""
         from ..plotting.absorption import plot_absorption
 
-        return plot_absorption(self, ax=ax)
+        loads = {name: body_load(run.result) for name, run in self.runs.items()}
+        return plot_absorption(self, loads, BODY_CFC, ax=ax)
 
 
 def _knew(history: dict[str, np.ndarray], result) -> float:

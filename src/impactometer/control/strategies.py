@@ -14,7 +14,7 @@ settings of the controller (:class:`~impactometer.control.settings.ControlSettin
   and sets the command that brings the opening, after the lag, to what the predicted state needs; re-planned at
   every sample as the estimates improve. It acts from the control start, in stage A when the identification
   comes before stage B.
-- ``auto``: the better of ``realtime`` and ``predictive`` on the acceptance grid (``predictive``).
+- ``auto``: the better of ``realtime`` and ``predictive`` on the acceptance grid (:data:`AUTO`: ``predictive``).
 
 Every valve strategy keeps the valve closed while the closed gas spring is needed to stop the bodies within the
 remaining stroke (``control.controller.must_close``). After the stop, ``realtime`` and ``predictive`` brake the
@@ -171,10 +171,12 @@ def plan_constant(context: ControlContext) -> ControlSettings:
     return context.base("constant", opening=optimal_constant_opening(context))
 
 
+#: the strategy ``auto`` runs: the better of ``realtime`` and ``predictive`` on the acceptance grid
+AUTO = "predictive"
 #: strategy name -> planner(context) -> controller settings
 STRATEGIES: dict[str, Callable[[ControlContext], ControlSettings]] = {
-    "closed": plan_closed, "constant": plan_constant, "realtime": plan_realtime, "predictive": plan_predictive,
-    "auto": plan_predictive}
+    "closed": plan_closed, "constant": plan_constant, "realtime": plan_realtime, "predictive": plan_predictive}
+STRATEGIES["auto"] = STRATEGIES[AUTO]
 #: the strategies of ``"all"`` (``auto`` is another name of one of them)
 ALL = ("closed", "constant", "realtime", "predictive")
 

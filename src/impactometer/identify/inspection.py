@@ -53,6 +53,14 @@ class Inspection:
     stage_b_start: float | None
     truth: dict[str, float]
 
+    def plot(self, recording: Recording, axes=None):
+        """Figure of ``recording`` (the one inspected): contact force and piston acceleration vs time, the pulses
+        shaded and their peaks marked (:func:`impactometer.plotting.recordings.plot_recording`; matplotlib imported
+        lazily)."""
+        from ..plotting.recordings import plot_recording
+
+        return plot_recording(recording, self, axes=axes)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (SI units, keys suffixed with the unit)."""
         return {"duration_s": self.duration, "sample_rate_Hz": self.sample_rate, "start_time_s": self.start_time,

@@ -160,10 +160,11 @@ class Identification:
                 out[key] = plain(value)
         return out
 
-    def plot(self, recording=None, ax=None):
+    def plot(self, recording=None, ax=None, *, used=None):
         """Figure of the answer (:func:`impactometer.plotting.identification.plot_identification`; matplotlib
-        imported lazily): with a recording, its force and acceleration with the instants used marked; without,
-        mass and velocity (early and final answer) against the time they were known."""
+        imported lazily): with a recording, its force and acceleration with the instants used marked, and with
+        ``used`` (:func:`impactometer.identify.peak_to_peak.used_samples`) the samples a robust answer's equations
+        read; without a recording, mass and velocity (early and final answer) against the time they were known."""
         from ..plotting.identification import plot_identification
 
-        return plot_identification(self, recording, ax=ax)
+        return plot_identification(self, recording, ax=ax, used=used)

@@ -105,20 +105,6 @@ def valve_mass_flow(p_up, t_up, p_down, valve_area, p):
 
 
 @njit(cache=True, error_model="numpy")
-def chamber_flow(y, p, valve_area, vol_lower, vol_upper):
-    """Mass flow through valve Z from the lower to the upper chamber [kg/s] (negative the other way) and R·T of
-    the gas that flows times that flow [W·(γ−1)/γ], at opening ``valve_area`` [m²] and chamber volumes [m³]."""
-    r_gas = p[GAS_CONSTANT]
-    if y[P_LOWER] >= y[P_UPPER]:
-        t_lower = y[P_LOWER] * vol_lower / (y[M_LOWER] * r_gas)
-        mdot = valve_mass_flow(y[P_LOWER], t_lower, y[P_UPPER], valve_area, p)
-        return mdot, r_gas * t_lower * mdot
-    t_upper = y[P_UPPER] * vol_upper / (y[M_UPPER] * r_gas)
-    mdot = -valve_mass_flow(y[P_UPPER], t_upper, y[P_LOWER], valve_area, p)
-    return mdot, r_gas * t_upper * mdot
-
-
-@njit(cache=True, error_model="numpy")
 def rhs(y, p, valve_area, dy):
     """Time derivative of the state ``y`` into ``dy`` for a valve opening ``valve_area`` [m²]."""
     u2 = y[U2]

@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 
-from ..control.event import BODY_CFC, body_load
 from . import _pyplot, legend_outside
 
 #: line colour per strategy (and per oracle run)
@@ -23,7 +22,7 @@ LONG_RUN = 2.5
 THIN, THICK = 0.4, 1.6
 
 
-def plot_absorption(result, ax=None):
+def plot_absorption(result, body_loads, body_cfc, ax=None):
     """The paper's Fig. 10b: contact force of every strategy vs time (thin: as simulated; thick: CFC 60, the load
     the metrics are judged on), the control start, the first sustained contact and the common window of R_B (shaded
     to the deepest point of the last run to reach it), F_ref, F_floor and F0; the first milliseconds zoomed (the
@@ -33,6 +32,10 @@ def plot_absorption(result, ax=None):
     Parameters
     ----------
     result : AbsorptionResult
+    body_loads : dict
+        Strategy -> the CFC-filtered contact force of its run [N] (``control.event.body_load``).
+    body_cfc : int
+        The CFC class of that filter.
     ax : Axes or sequence of Axes, optional
         One Axes: the force history; two: with the displacements; three: the zoom, the force history and the
         displacements.
@@ -49,22 +52,25 @@ def plot_absorption(result, ax=None):
         fig = axes[0].figure
     zoom, force, motion = (axes[0], axes[1], axes[2]) if len(axes) >= 3 else (None, axes[0],
                                                                              axes[1] if len(axes) > 1 else None)
+    # the legends share the entries out: the runs and the instants by the first panel, the forces and the line
+    # styles by the force history, the bodies and the stroke by the displacements (each a handful, none repeated)
+    key = zoom if zoom is not None else force
     start = result.control_start
     window = max(ZOOM, 1.25 * start) if math.isfinite(start) else ZOOM
     deepest_of = {}
     for name, run in result.runs.items():
         r = run.result
         colour = COLOURS.get(name)
-        body = body_load(r)
+        body = body_loads[name]
         t = r.time * 1e3
         force.plot(t, r.contact_force / 1e3, lw=THIN, color=colour, alpha=0.5)
         m = run.metrics
-        force.plot(t, body / 1e3, lw=THICK, color=colour,
-                   label=f"{name}: R_B = {m.stage_b_ratio:.2f}, peak / F0 = {m.whole_event_peak_ratio:.2f}")
+        label = f"{name}: R_B = {m.stage_b_ratio:.2f}, peak / F0 = {m.whole_event_peak_ratio:.2f}"
+        force.plot(t, body / 1e3, lw=THICK, color=colour, label=label if key is force else None)
         if zoom is not None:
             early = r.time <= window
             zoom.plot(t[early], r.contact_force[early] / 1e3, lw=THIN * 2, color=colour, alpha=0.6)
-            zoom.plot(t[early], body[early] / 1e3, lw=THICK, color=colour)
+            zoom.plot(t[early], body[early] / 1e3, lw=THICK, color=colour, label=label)
         if motion is not None:
             motion.plot(t, r.u1 * 1e3, lw=1.1, color=colour)
             motion.plot(t, r.u2 * 1e3, lw=0.9, ls="--", color=colour)
@@ -77,10 +83,10 @@ def plot_absorption(result, ax=None):
     for a in axes:
         if math.isfinite(start):
             a.axvline(start * 1e3, color="k", ls=":", lw=1,
-                      label=f"control starts ({start * 1e3:.1f} ms)" if a is force else None)
+                      label=f"control starts ({start * 1e3:.1f} ms)" if a is key else None)
         if math.isfinite(common.start):
             a.axvline(common.start * 1e3, color="tab:green", ls="-.", lw=1,
-                      label=f"first sustained contact ({common.start * 1e3:.1f} ms)" if a is force else None)
+                      label=f"first sustained contact ({common.start * 1e3:.1f} ms)" if a is key else None)
             a.axvspan(common.start * 1e3, deepest * 1e3, color="tab:green", alpha=0.06,
                       label="common window of R_B (to the deepest point)" if a is force else None)
         a.grid(alpha=0.3)
@@ -104,10 +110,11 @@ def plot_absorption(result, ax=None):
                                                     f"M1 = {ident.mass:.3g} kg, V0 = {ident.velocity:.3g} m/s"
     fig.suptitle(f"{result.rig.name}: M1 = {s.mass:g} kg, V0 = {s.velocity:.2f} m/s, "
                  f"p0 = {s.pressure_gauge / 1e3:g} kPa\n{how}", fontsize=10)
-    _style_keys(force, "thin: as simulated", f"thick: CFC {BODY_CFC} (the metrics are judged on it)", (THIN, THICK),
+    _style_keys(force, "thin: as simulated", f"thick: CFC {body_cfc} (the metrics are judged on it)", (THIN, THICK),
                 ("-", "-"))
     legend_outside(force)
     if zoom is not None:
+        legend_outside(zoom)
         zoom.set_xlim(0.0, window * 1e3)
         zoom.set_ylabel("contact force [kN]")
         zoom.set_title(f"first {window * 1e3:.0f} ms: the collision the identification reads (the valve is closed "

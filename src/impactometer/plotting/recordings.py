@@ -4,20 +4,20 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..identify.inspection import inspect_recording
 from ..recording import ACCELERATION, FORCE
 from . import ACCELERATION_LABEL, _pyplot, legend_outside, shade_pulses
 
 
-def plot_recording(recording, axes=None, *, inspection=None):
-    """Contact force and piston acceleration vs time (ms), contact pulses shaded and their peaks marked.
+def plot_recording(recording, inspection, axes=None):
+    """Contact force and piston acceleration vs time (ms), contact pulses shaded and their peaks marked
+    (``Inspection.plot``).
 
     Parameters
     ----------
     recording : Recording
+    inspection : Inspection
+        What :func:`impactometer.identify.inspection.inspect_recording` found in ``recording``: its pulses.
     axes : sequence of two matplotlib Axes, optional
-    inspection : Inspection, optional
-        Result of :func:`impactometer.identify.inspection.inspect_recording` (computed when not given).
 
     Returns
     -------
@@ -33,8 +33,6 @@ def plot_recording(recording, axes=None, *, inspection=None):
     else:
         axes = np.atleast_1d(axes)
         fig = axes[0].figure
-    if inspection is None:
-        inspection = inspect_recording(recording)
     t = recording.time * 1e3
     colors = {FORCE: "k", ACCELERATION: "tab:red"}
     # the two sensor channels are SI inside; drawn as every figure draws them

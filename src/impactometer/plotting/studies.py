@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from ..studies.tables import Row, flag, group_stats, number, pick
+from ..tables import Row, group_stats, number, pick
 from . import _pyplot, figure_legend, labelled
 
 #: colour per compared method
@@ -229,57 +229,63 @@ def plot_map_recordings(rows: Sequence[Row]):
     return fig
 
 
-def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
-    """Absorber strategies on the common set of impacts (``studies.absorption.common_set``, where the reference
-    exists too): the distribution of R_B per strategy (oracle and achievable reference included) and of the
-    whole-event CFC 60 peak / F0, and per
-    impact the identified ``strategy`` against its oracle and against the achievable reference."""
-    from ..studies.absorption import REFERENCE, TARGETS, common_set, values_on
+def plot_absorption_study(rows: Sequence[Row], *, values: dict[str, dict[str, np.ndarray]], kept: int, left: int,
+                          targets: dict[str, float], reference: str, strategy: str = "predictive"):
+    """Absorber strategies on the common set of impacts (where the reference exists too): the distribution of R_B
+    per strategy (oracle and achievable reference included) and of the whole-event CFC 60 peak / F0, and per impact
+    the identified ``strategy`` against its oracle and against the achievable reference (``reference``).
 
+    ``values``: strategy -> column -> its values on the common set, impact by impact; ``kept`` and ``left``: how many
+    impacts the common set holds and leaves out; ``targets``: the study's targets (``median``, ``p90``,
+    ``oracle_deviation``, ``achievable``). The study computes them (``studies.absorption``); a run without
+    ``strategy``, its oracle or the reference draws those panels empty."""
     plt = _pyplot()
-    strategies = list(dict.fromkeys(r["strategy"] for r in rows))
-    kept, left = common_set(rows)
+    strategies = list(values)
+
+    def on_common_set(name: str, column: str) -> np.ndarray:
+        return values.get(name, {}).get(column, np.full(kept, np.nan))
+
     impacts = list(dict.fromkeys(r["case"] for r in rows))
     fig, axes = plt.subplots(1, 4, figsize=(19, 4.8), constrained_layout=True,
                              gridspec_kw={"width_ratios": [1.5, 1.3, 1, 1]})
     for ax, column, label in ((axes[0], "stage_b_ratio", "R_B on the common window [-] (ideal 1)"),
                               (axes[1], "whole_event_peak_ratio", "whole-event CFC 60 peak / F0 [-]")):
-        data = [values_on(rows, kept, name, column) for name in strategies]
+        data = [on_common_set(name, column) for name in strategies]
         data = [d[np.isfinite(d)] for d in data]
         ax.boxplot([d if d.size else np.array([np.nan]) for d in data])
         ax.set_xticks(range(1, len(strategies) + 1), strategies, rotation=20, fontsize=8)
         ax.axhline(1.0, color="k", lw=0.8)
         ax.set(ylabel=label, yscale="log")
         ax.grid(alpha=0.3, which="both")
-    axes[0].axhline(TARGETS["median"], color="tab:green", ls="--", lw=0.8,
-                    label=f"target median R_B {TARGETS['median']:g}")
-    axes[0].axhline(TARGETS["p90"], color="tab:olive", ls=":", lw=0.8,
-                    label=f"target 90th percentile R_B {TARGETS['p90']:g}")
-    ticks = [1.0, TARGETS["median"], TARGETS["p90"], 2.0, 3.0, 5.0]
+    axes[0].axhline(targets["median"], color="tab:green", ls="--", lw=0.8,
+                    label=f"target median R_B {targets['median']:g}")
+    axes[0].axhline(targets["p90"], color="tab:olive", ls=":", lw=0.8,
+                    label=f"target 90th percentile R_B {targets['p90']:g}")
+    ticks = [1.0, targets["median"], targets["p90"], 2.0, 3.0, 5.0]
     axes[0].set_yticks(ticks, [f"{tick:g}" for tick in ticks])
     axes[0].yaxis.set_minor_formatter("")
-    axes[0].set_title(f"common set: {len(kept)} of {len(impacts)} impacts ({len(left)} left out, named in the "
+    axes[0].set_title(f"common set: {kept} of {len(impacts)} impacts ({left} left out, named in the "
                       "report)", fontsize=9)
     axes[1].axhline(3.0, color="tab:green", ls="--", lw=0.8, label="design target: 90th percentile peak / F0 3")
     axes[1].set_yticks([1.0, 2.0, 3.0, 5.0, 10.0], ["1", "2", "3", "5", "10"])
     axes[1].yaxis.set_minor_formatter("")
     figure_legend(fig)
-    mine = values_on(rows, kept, strategy, "stage_b_ratio")
-    mass = values_on(rows, kept, strategy, "mass_kg")
+    mine = on_common_set(strategy, "stage_b_ratio")
+    mass = on_common_set(strategy, "mass_kg")
     sc = None
     for ax, other, label in ((axes[2], f"{strategy} (oracle)", f"R_B, {strategy} with the true M1, V0"),
-                             (axes[3], REFERENCE, "R_B of the achievable reference")):
-        theirs = values_on(rows, kept, other, "stage_b_ratio")
+                             (axes[3], reference, "R_B of the achievable reference")):
+        theirs = on_common_set(other, "stage_b_ratio")
         sc = ax.scatter(theirs, mine, c=mass, cmap="viridis", s=16)
         finite = np.concatenate([mine[np.isfinite(mine)], theirs[np.isfinite(theirs)]])
         top = float(finite.max()) * 1.05 if finite.size else 2.0
         line = np.array([0.9, top])
         ax.plot(line, line, "k--", lw=0.8)
-        band = TARGETS["oracle_deviation"] if other.endswith("(oracle)") else TARGETS["achievable"] - 1.0
+        band = targets["oracle_deviation"] if other.endswith("(oracle)") else targets["achievable"] - 1.0
         ax.fill_between(line, (1.0 - band) * line, (1.0 + band) * line, color="tab:gray", alpha=0.2, lw=0)
         ax.set(xlabel=label, ylabel=f"R_B, {strategy} (identified)", xlim=(0.9, top), ylim=(0.9, top))
         ax.grid(alpha=0.3)
-    late = values_on(rows, kept, REFERENCE, "achievable_from_start_force_ratio")
+    late = on_common_set(reference, "achievable_from_start_force_ratio")
     if np.isfinite(late).any():  # the best program that acts only from the loop's control start
         axes[3].scatter(late, mine, s=22, facecolors="none", edgecolors="k", lw=0.6,
                         label="reference acting from the control start")
@@ -291,27 +297,15 @@ def plot_absorption_study(rows: Sequence[Row], *, strategy: str = "predictive"):
     return fig
 
 
-def plot_valve_design(rows: Sequence[Row]):
+def plot_valve_design(rows: Sequence[Row], *, areas: Sequence[float], times: Sequence[float],
+                      grids: dict[str, np.ndarray], kept: int):
     """Maps over valve size × response time: median and 90th-percentile R_B (on the common set of impacts) and the
     number of bottomed-out runs (the last map only where a run bottomed out; otherwise the title says that none
-    did). Each cell's number is written in black or white, whichever stands out from the cell's colour."""
-    plt = _pyplot()
-    areas = sorted({r["effective_area_mm2"] for r in rows})
-    times = sorted({r["response_time_ms"] for r in rows})
-    from ..studies.absorption import common_set, values_on
-    from ..studies.valve_design import valve_label
+    did). Each cell's number is written in black or white, whichever stands out from the cell's colour.
 
-    kept, _ = common_set(rows, key="impact", group="valve")
-    grids = {key: np.full((len(times), len(areas)), np.nan) for key in ("median", "p90", "bottomed")}
-    for i, t in enumerate(times):
-        for j, a in enumerate(areas):
-            chosen = [r for r in rows if r["effective_area_mm2"] == a and r["response_time_ms"] == t]
-            values = values_on(rows, kept, valve_label(a, t), "stage_b_ratio", key="impact", group="valve")
-            values = values[np.isfinite(values)]
-            if values.size:
-                grids["median"][i, j] = np.median(values)
-                grids["p90"][i, j] = np.percentile(values, 90)
-            grids["bottomed"][i, j] = sum(flag(r.get("bottomed_out")) for r in chosen)
+    ``areas`` [mm²] and ``times`` [ms]: the axes; ``grids``: ``median``, ``p90`` and ``bottomed``, each
+    (times × areas); ``kept``: the impacts of the common set. The study computes them (``studies.valve_design``)."""
+    plt = _pyplot()
     maps = [("median", "median R_B"), ("p90", "90th percentile R_B")]
     bottomed = int(np.nansum(grids["bottomed"]))
     if bottomed:
@@ -321,7 +315,7 @@ def plot_valve_design(rows: Sequence[Row]):
         annotated_map(ax, grids[key], [f"{a:g}" for a in areas], [f"{t:g}" for t in times], count=key == "bottomed")
         ax.set(xlabel="effective area of the open valve [mm²]", ylabel="response time 10-90 % [ms]", title=title)
     none = "" if bottomed else f"; none of the {len(rows)} runs bottomed out (no map of them)"
-    fig.suptitle(f"Valve design: R_B of the predictive absorber over valve size and speed, on the {len(kept)} "
+    fig.suptitle(f"Valve design: R_B of the predictive absorber over valve size and speed, on the {kept} "
                  f"impacts every valve has it for\n(ISO 6358 valves, C ≈ S/5 dm³/(s·bar)){none}")
     return fig
 
@@ -344,24 +338,25 @@ def annotated_map(ax, grid: np.ndarray, xticks: Sequence[str], yticks: Sequence[
     return image
 
 
-def plot_absorber_design(rows: Sequence[Row]):
+def plot_absorber_design(rows: Sequence[Row], *, designs: Sequence[Row], early: float, targets: dict[str, float]):
     """The absorber designs: every design on the plane whole-event p90 peak / F0 × p90 R_B (colour: the share of
     early identification answers; the Pareto front joined, the target box shaded), and maps over pre-charge × pad
     stiffness of the whole-event p90 peak / F0, the p90 R_B and the early answers, each cell the best over the
-    sweep's other axes (valve, piston mass) for that quantity (``studies.absorber_design.designs``)."""
-    from ..studies.absorber_design import EARLY, TARGETS, designs
+    sweep's other axes (valve, piston mass) for that quantity.
 
+    ``designs``: one row per design (``studies.absorber_design.designs``); ``early``: what counts as an early
+    answer [s]; ``targets``: ``whole_event_p90`` and ``stage_b_p90``."""
     plt = _pyplot()
-    table = designs(list(rows))
+    table = list(designs)
     fig, axes = plt.subplots(1, 4, figsize=(21, 4.8), constrained_layout=True)
     x = np.array([d["p90 peak / F0"] for d in table])
     y = np.array([d["p90 R_B"] for d in table])
-    early = np.array([d["early answers"] for d in table])
-    sc = axes[0].scatter(x, y, c=early, cmap="viridis", vmin=0.0, vmax=1.0, s=30, edgecolors="k", linewidths=0.4)
+    shares = np.array([d["early answers"] for d in table])
+    sc = axes[0].scatter(x, y, c=shares, cmap="viridis", vmin=0.0, vmax=1.0, s=30, edgecolors="k", linewidths=0.4)
     front = sorted((d for d in table if d["Pareto"]), key=lambda d: d["p90 peak / F0"])
     axes[0].plot([d["p90 peak / F0"] for d in front], [d["p90 R_B"] for d in front], "k--", lw=0.8,
                  label="Pareto front (no run bottomed out)")
-    axes[0].fill_between([0.9, TARGETS["whole_event_p90"]], 0.9, TARGETS["stage_b_p90"], color="tab:green",
+    axes[0].fill_between([0.9, targets["whole_event_p90"]], 0.9, targets["stage_b_p90"], color="tab:green",
                          alpha=0.12, label="targets: p90 peak / F0 <= 3 and p90 R_B <= 1.5")
     for d in front:
         axes[0].annotate(d["design"], (d["p90 peak / F0"], d["p90 R_B"]), fontsize=6, xytext=(3, 3),
@@ -370,13 +365,13 @@ def plot_absorber_design(rows: Sequence[Row]):
     axes[0].set_xticks([1.0, 2.0, 3.0, 5.0, 10.0], ["1", "2", "3", "5", "10"])
     axes[0].xaxis.set_minor_formatter("")
     axes[0].grid(alpha=0.3, which="both")
-    fig.colorbar(sc, ax=axes[0], label=f"share of answers within {EARLY * 1e3:g} ms")
+    fig.colorbar(sc, ax=axes[0], label=f"share of answers within {early * 1e3:g} ms")
     pressures = sorted({d["p0 [kPa]"] for d in table})
     pads = sorted({d["pad [N/m]"] for d in table})
     for ax, key, title, best in ((axes[1], "p90 peak / F0", "whole-event p90 peak / F0 (lowest)", np.nanmin),
                                  (axes[2], "p90 R_B", "p90 R_B (lowest; blank: an impact without a window)",
                                   np.nanmin),
-                                 (axes[3], "early answers", f"share of answers within {EARLY * 1e3:g} ms (highest)",
+                                 (axes[3], "early answers", f"share of answers within {early * 1e3:g} ms (highest)",
                                   np.nanmax)):
         grid = np.full((len(pressures), len(pads)), np.nan)
         for i, p in enumerate(pressures):

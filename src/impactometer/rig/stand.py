@@ -17,7 +17,7 @@ from ..errors import ParameterError
 from ..outputs import as_path
 from ..validation import check_real
 from .parts import VALVE_LAW_PARAMETERS, Contact, Cylinder, Friction, Gas, Stops, Valve, contact_law_name
-from .toml import PROVENANCE_KEY, loading, read_table, write_table
+from .toml import PROVENANCE_KEY, loading, read_table, table_text, write_table
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -150,6 +150,13 @@ def load_toml(path: str | Path) -> Rig:
         return from_dict(table, source=str(path))
     except ParameterError as exc:
         raise loading(path, exc) from None
+
+
+def toml_text(rig: Rig) -> str:
+    """``rig`` as the text of its TOML file (what :func:`save_toml` writes; :func:`load_toml` reads it back)."""
+    if not isinstance(rig, Rig):
+        raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
+    return table_text(to_dict(rig))
 
 
 def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False,

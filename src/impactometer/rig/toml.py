@@ -11,21 +11,11 @@ from typing import Any
 import tomli_w
 
 from ..errors import ParameterError
+from ..jsonable import plain
 from ..outputs import as_path, check_file, write_failed
 
 #: the table of a stand file that says where its numbers came from (read past by :func:`~impactometer.rig.from_dict`)
 PROVENANCE_KEY = "provenance"
-
-
-def _plain(value: Any) -> Any:
-    """``value`` as TOML holds it: numpy numbers as Python ones, tuples as lists, None left out of tables."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items() if v is not None}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value if v is not None]
-    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
-        return value.item()
-    return value
 
 
 def read_table(path: str | Path) -> dict[str, Any]:
@@ -56,15 +46,22 @@ def loading(path: Path, error: ParameterError) -> ParameterError:
     return ParameterError(about, field="rig", expected=about.removeprefix(f"{path}: "))
 
 
+def table_text(data: dict[str, Any], provenance: dict[str, Any] | None = None) -> str:
+    """The stand table ``data`` as TOML text, with a ``[provenance]`` table when ``provenance`` is given (plain
+    numbers, strings, lists and tables; None values are left out)."""
+    if provenance is not None:
+        data = {**data, PROVENANCE_KEY: plain(provenance, nonfinite="keep", drop_none=True)}
+    return tomli_w.dumps(data)
+
+
 def write_table(data: dict[str, Any], path: str | Path, *, overwrite: bool = False,
                 provenance: dict[str, Any] | None = None) -> Path:
-    """Write the stand table ``data`` to ``path``, with a ``[provenance]`` table when ``provenance`` is given (plain
-    numbers, strings, lists and tables; None values are left out); refuses to overwrite unless ``overwrite``."""
+    """Write the stand table ``data`` to ``path`` (:func:`table_text`); refuses to overwrite unless
+    ``overwrite``."""
     path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
-    if provenance is not None:
-        data = {**data, PROVENANCE_KEY: _plain(provenance)}
+    text = table_text(data, provenance)
     try:
-        path.write_text(tomli_w.dumps(data), encoding="utf-8")
+        path.write_text(text, encoding="utf-8")
     except OSError as exc:
         raise write_failed(path, exc) from None
     return path

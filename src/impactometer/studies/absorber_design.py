@@ -28,9 +28,9 @@ import numpy as np
 from ..control import Absorber, ValveDrive, absorb
 from ..control.valve import iso6358_valve
 from ..rig import ABSORPTION_RIG, Scenario
+from ..tables import flag, number
 from ..validation import finite_or_none
-from .base import PAPER_RANGES, Row, Setting, Study, StudyOptions, case_seed, grid_size, plotted_by, register
-from .tables import flag, number
+from .base import PAPER_RANGES, Row, Setting, Study, StudyFigure, StudyOptions, case_seed, grid_size, register
 
 NAME = "absorber-design"
 #: values per axis of the M1 × V0 grid of each design (the report's maps: ``--grid 3``)
@@ -112,6 +112,11 @@ def _p90(values: np.ndarray) -> float:
     return float(np.percentile(values, 90)) if values.size else math.nan
 
 
+def _figure(rows: list[Row], options: StudyOptions) -> StudyFigure:
+    return StudyFigure("plot_absorber_design", rows, {"designs": designs(list(rows)), "early": EARLY,
+                                                      "targets": TARGETS})
+
+
 def designs(rows: list[Row]) -> list[Row]:
     """One row per design: its parameters, the whole-event and R_B 90th percentiles (R_B: NaN unless every impact
     has a common window; ``with R_B`` counts those that have), early answers, bottoming, and whether it is on the
@@ -171,5 +176,5 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 STUDY = register(Study(name=NAME, title="Absorber design: pre-charge × pad × valve, whole event and R_B",
                        figure="", cases=_cases, evaluate=_evaluate, aggregate=designs, summary=_summary,
-                       plot=plotted_by("plot_absorber_design"), chunk_size=4, defaults=DEFAULTS, settings=SETTINGS,
+                       drawing=_figure, chunk_size=4, defaults=DEFAULTS, settings=SETTINGS,
                        rig=ABSORPTION_RIG))

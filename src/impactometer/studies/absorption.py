@@ -31,9 +31,9 @@ from ..control import absorb
 from ..control.identified import LATENCY
 from ..control.strategies import ALL as ALL_STRATEGIES
 from ..rig import ABSORPTION_RIG, Scenario
+from ..tables import flag, number
 from ..validation import finite_or_none
-from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
-from .tables import flag, number
+from .base import Row, Setting, Study, StudyFigure, StudyOptions, case_seed, register, scenario_grid
 
 NAME = "absorption"
 #: default values per grid axis (8 impacts at the corners of the ranges; ``--grid 5`` gives the paper's 125)
@@ -63,7 +63,7 @@ METRICS = ("whole_event_peak_ratio", "peak_deceleration_g", "whole_event_efficie
            "common_window_start_s", "floor_force_N", "reference_force_N", "impact_force_N",
            "control_start_s", "whole_event_peak_force_N", "own_window_force_ratio", "own_window_start_s",
            "peak_force_stage_a_N")
-#: acceptance targets of the absorber (the issue's): median and 90th percentile of R_B, improvement over the closed
+#: the absorber's design targets: median and 90th percentile of R_B, improvement over the closed
 #: valve, rebound limit [m] and the share of impacts below it, identified vs oracle R_B (deviation, share), median
 #: R_B against the achievable reference's, the identification's early answer [s] and its share
 TARGETS = {"median": 1.2, "p90": 1.5, "improvement": 2.0, "rebound": 5e-3, "rebound_share": 0.95,
@@ -157,6 +157,21 @@ def values_on(rows: Sequence[Row], impacts: Sequence[Any], strategy: str, column
     """``column`` of ``strategy`` on ``impacts`` (in that order; NaN where missing)."""
     by = {(r[key], r[group]): r for r in rows}
     return np.array([number((by.get((i, strategy)) or {}).get(column)) for i in impacts])
+
+
+#: the columns the study's figure draws, per strategy, on the common set of impacts
+FIGURE_COLUMNS = ("stage_b_ratio", "whole_event_peak_ratio", "mass_kg", "achievable_from_start_force_ratio")
+
+
+def _figure(rows: list[Row], options: StudyOptions) -> StudyFigure:
+    """The figure's values: each strategy's :data:`FIGURE_COLUMNS` on the common set of impacts
+    (:func:`common_set`), how many impacts it holds and how many it leaves out, the targets."""
+    kept, left = common_set(rows)
+    strategies = list(dict.fromkeys(r["strategy"] for r in rows))
+    values = {name: {column: values_on(rows, kept, name, column) for column in FIGURE_COLUMNS}
+              for name in strategies}
+    return StudyFigure("plot_absorption_study", rows, {"values": values, "kept": len(kept), "left": len(left),
+                                                       "targets": TARGETS, "reference": REFERENCE})
 
 
 def _stat(values: np.ndarray, q: float) -> float:
@@ -303,5 +318,5 @@ def _summary(rows: list[Row]) -> list[Row]:
 STUDY = register(Study(name=NAME, title="Adaptive absorption: whole event and R_B on a common window, strategies, "
                                         "oracle, achievable reference",
                        figure="Fig. 10b", cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=plotted_by("plot_absorption_study"), chunk_size=1, defaults=DEFAULTS, settings=SETTINGS,
+                       drawing=_figure, chunk_size=1, defaults=DEFAULTS, settings=SETTINGS,
                        rig=ABSORPTION_RIG))

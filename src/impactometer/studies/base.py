@@ -31,7 +31,7 @@ from ..validation import check_flag, check_integer, check_real, is_integer
 __all__ = ["MAX_GRID", "MAX_SCENARIOS", "MAX_SEEDS", "MODULES", "PAPER_HEIGHTS", "PAPER_RANGES", "STUDIES", "Row",
            "Setting", "Study", "StudyOptions", "case_seed", "check_params", "get_study", "grid_size", "hashed_seed",
            "indexed_cases", "load_studies", "options_for", "paper_grid", "plotted_by", "register", "relative_error",
-           "scenario_grid"]
+           "StudyFigure", "scenario_grid"]
 
 Row = dict[str, Any]
 
@@ -220,7 +220,8 @@ class Study:
     evaluate : ``(cases, options) -> rows``; cases carry their ``case`` index. Must be a module-level function.
     aggregate : ``rows -> small table`` shown in the report.
     summary : ``rows -> [{"quantity", "ours", "paper"}]`` lines of the report's summary.
-    plot : ``(rows, options) -> matplotlib Figure``.
+    drawing : ``(rows, options) -> StudyFigure``: the figure's function and the values computed for it
+        (:class:`StudyFigure`; its ``.plot()`` draws it).
     chunk_size : Cases per persisted chunk.
     requires : Modules the study needs; while one is missing the study is listed as unavailable.
     defaults : Study-specific settings and their defaults (override through ``StudyOptions.params``).
@@ -235,7 +236,7 @@ class Study:
     evaluate: Callable[[list[Row], StudyOptions], list[Row]]
     aggregate: Callable[[list[Row]], list[Row]]
     summary: Callable[[list[Row]], list[Row]]
-    plot: Callable[[list[Row], StudyOptions], Any]
+    drawing: Callable[[list[Row], StudyOptions], StudyFigure]
     chunk_size: int = 25
     requires: tuple[str, ...] = ()
     defaults: Mapping[str, Any] = field(default_factory=dict)
@@ -306,16 +307,31 @@ def load_studies() -> dict[str, Study]:
     return STUDIES
 
 
-def _draw(function: str, rows: list[Row], options: StudyOptions) -> Any:
-    from ..plotting import studies as figures
+@dataclass(frozen=True)
+class StudyFigure:
+    """What a study's figure shows: the tidy ``rows`` and the ``values`` the study computed from them for the figure
+    (keyword arguments of ``function``, a figure of :mod:`impactometer.plotting.studies`, which draws them and
+    computes nothing of the study's own)."""
 
-    return getattr(figures, function)(rows)
+    function: str
+    rows: list[Row]
+    values: Mapping[str, Any] = field(default_factory=dict)
+
+    def plot(self) -> Any:
+        """The matplotlib figure (matplotlib imported here, when the figure is drawn)."""
+        from ..plotting import studies as figures
+
+        return getattr(figures, self.function)(self.rows, **self.values)
 
 
-def plotted_by(function: str) -> Callable[[list[Row], StudyOptions], Any]:
-    """A study's ``plot`` that draws the rows alone with ``function`` of :mod:`impactometer.plotting.studies`,
-    imported when the figure is drawn (running a study does not import matplotlib)."""
-    return partial(_draw, function)
+def _rows_alone(function: str, rows: list[Row], options: StudyOptions) -> StudyFigure:
+    return StudyFigure(function, list(rows))
+
+
+def plotted_by(function: str) -> Callable[[list[Row], StudyOptions], StudyFigure]:
+    """A study's ``drawing`` for a figure that draws the rows alone: ``function`` of
+    :mod:`impactometer.plotting.studies` (running a study does not import matplotlib)."""
+    return partial(_rows_alone, function)
 
 
 def options_for(study: Study, options: StudyOptions) -> StudyOptions:

@@ -45,5 +45,5 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 STUDY = register(Study(name=NAME, title="Per-case mass and velocity error at chosen pressures",
                        figure="Figs. 3-4", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
-                       aggregate=_aggregate, summary=with_failures(_summary), plot=plotted_by("plot_case_bars"),
+                       aggregate=_aggregate, summary=with_failures(_summary), drawing=plotted_by("plot_case_bars"),
                        chunk_size=5, requires=REQUIRES, defaults=DEFAULTS, settings=SETTINGS))

@@ -18,8 +18,8 @@ from ..errors import ImpactometerError
 from ..recording import Recording
 from ..rig import Rig
 from ..sensors import apply_sensors, record_batch
+from ..tables import finite_values, group_stats, percent_labels, pick
 from .base import Row, Setting, StudyOptions, case_seed, relative_error
-from .tables import finite_values, group_stats, percent_labels, pick
 
 #: the module the peak-to-peak studies need
 REQUIRES = ("impactometer.identify.peak_to_peak",)

@@ -77,5 +77,5 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 STUDY = register(Study(name=NAME, title="Identification error vs Gaussian noise on force, acceleration, both",
                        figure="Fig. 6", cases=_cases, evaluate=_evaluate, aggregate=_aggregate,
-                       summary=with_failures(_summary), plot=plotted_by("plot_noise"), chunk_size=2,
+                       summary=with_failures(_summary), drawing=plotted_by("plot_noise"), chunk_size=2,
                        requires=MODEL_REQUIRES, defaults=DEFAULTS, settings=SETTINGS))

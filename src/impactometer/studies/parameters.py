@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from functools import partial
 
-from .base import Row, Study, StudyOptions, register, scenario_grid
+from .base import Row, Study, StudyFigure, StudyOptions, register, scenario_grid
 from .identification import REQUIRES, by_method, evaluate_noisy, mean_abs, pct, per_method, seeded_grid, with_failures
 
 NAME = "parameters"
@@ -43,13 +43,13 @@ def _summary(rows: list[Row]) -> list[Row]:
     return out
 
 
-def _plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_mean_error_vs
+def _figure(rows: list[Row], options: StudyOptions) -> StudyFigure:
     title = f"Mean identification error vs scenario parameters (noise {options.noise * 100:g} % of RMS)"
-    return plot_mean_error_vs(rows, AXES, errors=("mass_error", "velocity_error"), title=title)
+    return StudyFigure("plot_mean_error_vs", rows, {"parameters": AXES, "errors": ("mass_error", "velocity_error"),
+                                                    "title": title})
 
 
 STUDY = register(Study(name=NAME, title="Mean mass error vs impacting mass, pressure and velocity",
                        figure="Fig. 5", cases=_cases, evaluate=partial(evaluate_noisy, NAME),
-                       aggregate=_aggregate, summary=with_failures(_summary), plot=_plot, chunk_size=10,
+                       aggregate=_aggregate, summary=with_failures(_summary), drawing=_figure, chunk_size=10,
                        requires=REQUIRES))

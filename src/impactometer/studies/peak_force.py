@@ -18,8 +18,8 @@ from ..model import simulate_batch
 from ..rig import Rig
 from ..sensors import record_batch
 from ..signals.pulses import contact_pulses
+from ..tables import finite_values, group_stats, percent_labels
 from .base import Row, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
-from .tables import finite_values, group_stats, percent_labels
 
 NAME = "peak-force"
 
@@ -118,4 +118,4 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 STUDY = register(Study(name=NAME, title="First-pulse peak force: simulator vs two-body closed form", figure="",
                        cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=_summary,
-                       plot=plotted_by("plot_peak_force"), chunk_size=25))
+                       drawing=plotted_by("plot_peak_force"), chunk_size=25))

@@ -8,9 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ParameterError
+from ..tables import columns, fmt
 from . import store
 from .base import STUDIES, load_studies
-from .tables import columns, fmt
 
 #: marker of a report written by impactometer (an index.html without it is a user file)
 MARKER = "<!-- impactometer study report -->"

@@ -14,9 +14,9 @@ import numpy as np
 
 from ..identify.response_map.features import FEATURE_SETS
 from ..identify.response_map.search import SEARCHES
-from .base import MAX_GRID, Row, Setting, Study, StudyOptions, plotted_by, register
+from ..tables import pick
+from .base import MAX_GRID, Row, Setting, Study, StudyFigure, StudyOptions, plotted_by, register
 from .map_tables import CASES, PAPER_SIZES, map_size_table, recordings_table, window_table
-from .tables import pick
 
 REQUIRES = ("impactometer.identify.response_map",)
 MAP_SIZE = "map-size"
@@ -146,16 +146,15 @@ def _window_summary(rows: list[Row]) -> list[Row]:
              "paper": "insensitive to T"}]
 
 
-def _map_plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_map_tables
-    return plot_map_tables(rows, "size", "database size N (N×N)", title="Response map: error and time vs "
-                                                                         "database size")
+def _map_figure(rows: list[Row], options: StudyOptions) -> StudyFigure:
+    return StudyFigure("plot_map_tables", rows, {"x": "size", "xlabel": "database size N (N×N)",
+                                                 "title": "Response map: error and time vs database size"})
 
 
-def _window_plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_map_tables
-    return plot_map_tables(rows, "window_s", "integration window T [ms]", log_x=False, x_scale=1e3,
-                           title="Response map (max-impulse): error vs integration window")
+def _window_figure(rows: list[Row], options: StudyOptions) -> StudyFigure:
+    return StudyFigure("plot_map_tables", rows, {"x": "window_s", "xlabel": "integration window T [ms]",
+                                                 "log_x": False, "x_scale": 1e3,
+                                                 "title": "Response map (max-impulse): error vs integration window"})
 
 
 def _recordings_cases(options: StudyOptions) -> list[Row]:
@@ -193,15 +192,15 @@ def _recordings_summary(rows: list[Row]) -> list[Row]:
 
 STUDY_MAP = register(Study(name=MAP_SIZE, title="Response map: error and time per identification vs database size",
                            figure="Fig. 8", cases=_map_cases, evaluate=_map_evaluate, aggregate=_map_aggregate,
-                           summary=_map_summary, plot=_map_plot, chunk_size=1, requires=REQUIRES,
+                           summary=_map_summary, drawing=_map_figure, chunk_size=1, requires=REQUIRES,
                            defaults=MAP_DEFAULTS, settings=MAP_SETTINGS))
 STUDY_WINDOW = register(Study(name=WINDOW, title="Response map: error vs integration window T (max-impulse)",
                               figure="Fig. 9", cases=_window_cases, evaluate=_window_evaluate,
-                              aggregate=_window_aggregate, summary=_window_summary, plot=_window_plot,
+                              aggregate=_window_aggregate, summary=_window_summary, drawing=_window_figure,
                               chunk_size=3, requires=REQUIRES, defaults=WINDOW_DEFAULTS,
                               settings=WINDOW_SETTINGS))
 STUDY_RECORDINGS = register(Study(name=RECORDINGS, title="Response map from noisy calibration recordings: error on "
                                                         "held-back recordings", figure="", cases=_recordings_cases,
                                   evaluate=_recordings_evaluate, aggregate=_recordings_aggregate,
-                                  summary=_recordings_summary, plot=plotted_by("plot_map_recordings"), chunk_size=1,
+                                  summary=_recordings_summary, drawing=plotted_by("plot_map_recordings"), chunk_size=1,
                                   requires=REQUIRES, defaults=RECORDINGS_DEFAULTS, settings=RECORDINGS_SETTINGS))

@@ -17,12 +17,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import ParameterError
-from ..outputs import check_folder
+from ..outputs import check_folder, save_figure
+from ..tables import to_csv
 from . import store
 from .base import STUDIES, Row, StudyOptions, get_study, indexed_cases, load_studies, options_for
 from .executors import Status, backend, closing_executor, plain_row
 from .report import check_target, write_report
-from .tables import to_csv
 
 __all__ = ["StudyRun", "available_studies", "run_studies", "run_study"]
 
@@ -137,7 +137,7 @@ def _run_locked(name, study, out: Path, options: StudyOptions, start: float, *, 
     if not (finished and table.exists()):
         store.atomic_write(table, to_csv(rows))
     if not (finished and figure.exists()):
-        store.save_figure(study.plot(rows, options), figure)
+        save_figure(study.drawing(rows, options).plot(), figure, dpi=110)
     compute = math.fsum(results[i][1] for i in results)
     run = StudyRun(name=name, rows=rows, table=table, figure=figure, cases=len(cases), chunks=len(chunks),
                    reused_chunks=reused, wall_time=time.perf_counter() - start, compute_time=compute, kept=kept)

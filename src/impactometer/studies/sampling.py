@@ -7,7 +7,7 @@ above 30-40 kHz with outliers near 20 %, and recommends 50 kHz or more.
 from __future__ import annotations
 
 from ..sensors import MAX_SAMPLE_RATE, MIN_SAMPLE_RATE
-from .base import Row, Setting, Study, StudyOptions, case_seed, register, scenario_grid
+from .base import Row, Setting, Study, StudyFigure, StudyOptions, case_seed, register, scenario_grid
 from .identification import (
     DEFAULT_METHODS,
     MODEL_REQUIRES,
@@ -82,14 +82,13 @@ def _summary(rows: list[Row]) -> list[Row]:
              "paper": "< 5 % mean, outliers ≈ 20 %"}]
 
 
-def _plot(rows: list[Row], options: StudyOptions):
-    from ..plotting.studies import plot_mean_error_vs
-    return plot_mean_error_vs(rows, (("sample_rate", "sampling frequency [kHz]", 1e-3),),
-                              errors=("mass_error", "velocity_error"), maximum=True, log_x=True,
-                              reference=(5.0, "paper: mean < 5 % above 30-40 kHz"),
-                              title="Identification error vs sampling frequency (mean and max over the grid)")
+def _figure(rows: list[Row], options: StudyOptions) -> StudyFigure:
+    return StudyFigure("plot_mean_error_vs", rows, {
+        "parameters": (("sample_rate", "sampling frequency [kHz]", 1e-3),), "errors": ("mass_error", "velocity_error"),
+        "maximum": True, "log_x": True, "reference": (5.0, "paper: mean < 5 % above 30-40 kHz"),
+        "title": "Identification error vs sampling frequency (mean and max over the grid)"})
 
 
 STUDY = register(Study(name=NAME, title="Mean and maximum error vs sampling frequency", figure="Fig. 7",
                        cases=_cases, evaluate=_evaluate, aggregate=_aggregate, summary=with_failures(_summary),
-                       plot=_plot, chunk_size=7, requires=MODEL_REQUIRES, defaults=DEFAULTS, settings=SETTINGS))
+                       drawing=_figure, chunk_size=7, requires=MODEL_REQUIRES, defaults=DEFAULTS, settings=SETTINGS))

@@ -178,18 +178,6 @@ def atomic_write(path: Path, data: str | bytes) -> Path:
     return path
 
 
-def save_figure(fig, path: Path, *, dpi: int = 110) -> Path:
-    """Save a matplotlib figure as PNG atomically and close it."""
-    import io
-
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi)
-    from ..plotting import _pyplot
-
-    _pyplot().close(fig)
-    return atomic_write(path, buffer.getvalue())
-
-
 def chunk_path(folder: Path, index: int) -> Path:
     return folder / f"chunk-{index:05d}.json"
 

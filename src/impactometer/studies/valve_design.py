@@ -19,10 +19,10 @@ import numpy as np
 from ..control import Absorber, ValveDrive, absorb
 from ..control.valve import iso6358_valve
 from ..rig import ABSORPTION_RIG, Scenario
+from ..tables import flag
 from ..validation import finite_or_none
 from .absorption import common_set, values_on
-from .base import Row, Setting, Study, StudyOptions, case_seed, plotted_by, register, scenario_grid
-from .tables import flag
+from .base import Row, Setting, Study, StudyFigure, StudyOptions, case_seed, register, scenario_grid
 
 NAME = "valve-design"
 #: impacts: values per axis of the M1 × V0 × p0 grid (8 impacts; the report's maps: ``--grid 3`` and the five sizes
@@ -84,6 +84,26 @@ def valve_label(area_mm2: float, response_ms: float) -> str:
     return f"{float(area_mm2):g} mm², {float(response_ms):g} ms"
 
 
+def _figure(rows: list[Row], options: StudyOptions) -> StudyFigure:
+    """The figure's maps over valve size × response time: median and 90th-percentile R_B on the common set of
+    impacts (every valve has R_B on them) and the number of runs that bottomed out."""
+    areas = sorted({r["effective_area_mm2"] for r in rows})
+    times = sorted({r["response_time_ms"] for r in rows})
+    kept, _ = common_set(rows, key="impact", group="valve")
+    grids = {key: np.full((len(times), len(areas)), np.nan) for key in ("median", "p90", "bottomed")}
+    for i, t in enumerate(times):
+        for j, a in enumerate(areas):
+            chosen = [r for r in rows if r["effective_area_mm2"] == a and r["response_time_ms"] == t]
+            values = values_on(rows, kept, valve_label(a, t), "stage_b_ratio", key="impact", group="valve")
+            values = values[np.isfinite(values)]
+            if values.size:
+                grids["median"][i, j] = np.median(values)
+                grids["p90"][i, j] = np.percentile(values, 90)
+            grids["bottomed"][i, j] = sum(flag(r.get("bottomed_out")) for r in chosen)
+    return StudyFigure("plot_valve_design", rows, {"areas": areas, "times": times, "grids": grids,
+                                                   "kept": len(kept)})
+
+
 def _valves(rows: list[Row]) -> list[Row]:
     out = []
     kept, _ = common_set(rows, key="impact", group="valve")
@@ -125,5 +145,5 @@ def _summary(rows: list[Row]) -> list[Row]:
 
 STUDY = register(Study(name=NAME, title="Valve design: R_B on the common window over valve size and response time",
                        figure="", cases=_cases, evaluate=_evaluate, aggregate=_valves, summary=_summary,
-                       plot=plotted_by("plot_valve_design"), chunk_size=5, defaults=DEFAULTS, settings=SETTINGS,
+                       drawing=_figure, chunk_size=5, defaults=DEFAULTS, settings=SETTINGS,
                        rig=ABSORPTION_RIG))

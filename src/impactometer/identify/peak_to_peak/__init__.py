@@ -32,6 +32,7 @@ from .batch import (
     identify_arrays,
     solve,
     solve_robust,
+    used_samples,
 )
 from .options import check_unfiltered
 from .paper import PAPER_NOISE_LIMIT, paper_caution, solve_paper
@@ -39,4 +40,4 @@ from .paper import PAPER_NOISE_LIMIT, paper_caution, solve_paper
 __all__ = ["EARLY_REFUSAL", "GRAVITY", "LAG_FRACTION", "MAX_RELATIVE_STD", "NO_EARLY_DATA", "PAPER_NOISE_LIMIT",
            "TURNING_SCATTER_LIMIT", "VARIANT_SOLVERS", "answer_warnings", "check_unfiltered", "details_of",
            "early_answer", "early_refusal", "equations", "identify", "identify_arrays", "paper_caution", "solve",
-           "solve_paper", "solve_robust"]
+           "solve_paper", "solve_robust", "used_samples"]

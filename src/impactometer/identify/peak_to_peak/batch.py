@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ...constants import STANDARD_GRAVITY
-from ...errors import IdentificationError, RecordingError
+from ...errors import IdentificationError, ImpactometerError, RecordingError
 from ...recording import Recording
 from ...signals.stage_b import sustained_index
 from ..details import EquationsUsed, PeakToPeakDetails, RowsUsed
@@ -148,6 +148,53 @@ def equations(seg: Segment) -> tuple[Equations, float, float]:
                     peaks=np.array([float(p.peak) for p in complete]), stage_b_samples=span,
                     gaps=gaps.reshape(-1, 2))
     return eqs, float(onsets[0]), float(stds[0])
+
+
+def used_samples(result, recording) -> dict[str, np.ndarray] | None:
+    """Times [s] of what a robust answer's equations read in ``recording``, or None when there is nothing to mark
+    (another method, or a recording that does not give the answer's segment again).
+
+    The answer's details count its rows (``details['equations']``) but keep no sample; the segment is prepared
+    again from the recording as :func:`identify` prepared it, and its rows found again (:func:`equations`); it is
+    the answer's segment when its first contact is the answer's t00. Keys: ``onsets`` (t00 left out),
+    ``turning_a`` and ``turning_b`` (the force's turning points in stage A and in stage B), ``separations``,
+    ``contact_phase`` ((start, end) of each stretch a contact-phase fit read), each empty when the answer did not
+    use it; ``onsets_found`` (every onset, used or not). The answer's figure marks them:
+    ``result.plot(recording, used=used_samples(result, recording))``.
+    """
+    used = result.details.get("equations")
+    if result.family != "peak-to-peak" or not isinstance(used, dict):
+        return None
+    try:
+        force, acceleration, rate = check_channels(recording.contact_force, recording.piston_acceleration,
+                                                   recording.sample_rate)
+        start, stop, _, pre = segment_bounds(force, rate)
+        seg = segment_of(force, acceleration, rate, float(recording.start_time), start, stop, pre, {})
+        eqs, t00, _ = equations(seg)
+    except ImpactometerError:
+        return None
+    if not math.isclose(seg.time_of(t00), result.t00, abs_tol=0.5 / rate):
+        return None
+
+    def times(index, chosen=True) -> np.ndarray:  # times [s] of the chosen fractional sample indices
+        index = np.asarray(index, dtype=float)
+        return seg.start_time + index[np.broadcast_to(np.asarray(chosen, dtype=bool), index.shape)] / rate
+
+    turning = used.get("extrema", 0) > 0
+    stage_b = np.asarray(eqs.stage_b, dtype=bool)
+    stretches = []
+    fit = used.get("contact_phase")
+    if isinstance(fit, dict) and fit.get("samples", 0) > 0:
+        ends = (lambda p: p.peak + 1) if fit.get("branches") == "loading" else (lambda p: p.end if p.complete
+                                                                                 else seg.force.size - 1)
+        stretches = [(seg.time_of(p.zero), seg.time_of(ends(p))) for p in seg.pulses[:2]]
+    return {"onsets_found": times(eqs.onsets),
+            # the rows count the onsets kept; which of several were dropped is not kept: all, or none, is marked
+            "onsets": times(eqs.onsets, used.get("onsets", 0) == eqs.onsets.size and eqs.onsets.size > 0),
+            "turning_a": times(eqs.extrema, ~stage_b if turning else False),
+            "turning_b": times(eqs.extrema, stage_b if turning else False),
+            "separations": times(eqs.separations, used.get("separations", 0) > 0),
+            "contact_phase": np.array(stretches, dtype=float).reshape(-1, 2)}
 
 
 def _determined(eqs: Equations, dof: int = 1) -> bool:

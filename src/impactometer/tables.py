@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..validation import is_finite
+from .validation import is_finite
 
 Row = dict[str, Any]
 
