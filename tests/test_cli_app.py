@@ -48,7 +48,8 @@ def test_identify_and_stream_take_the_reader_options_of_inspect():
         return {word for line in text.splitlines() for word in line.split() if word.startswith("--")}
 
     reader = {"--sample-rate", "--force-channel", "--acceleration-channel", "--group", "--flip-force",
-              "--flip-acceleration", "--acceleration-includes-gravity", "--cfc"}
+              "--flip-acceleration", "--acceleration-includes-gravity", "--cfc", "--time-unit", "--force-unit",
+              "--acceleration-unit"}
     for command in ("inspect", "identify", "stream"):
         assert reader <= options(command), command
 

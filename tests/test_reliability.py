@@ -33,7 +33,8 @@ CATEGORIES = ("stream vs identify", "map of another stand", "duplicated statemen
               "study settings", "sample rates", "map files", "truth metadata", "implausible answers",
               "smaller breaks", "stand files", "CSV structure", "recording content", "command options",
               "late trigger", "clipped acceleration", "slow acceleration errors", "map pressure", "CSV decimal style",
-              "high sample rates", "special output targets", "pointing")
+              "high sample rates", "special output targets", "pointing", "unit slips", "other machines",
+              "clipped in a flight", "1 MHz DAQ", "bare command")
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
 

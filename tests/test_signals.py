@@ -844,3 +844,25 @@ def test_the_jacobian_of_the_residuals_is_their_derivative():
         down[j] -= h
         numeric = (contact_law.residuals(up, *args) - contact_law.residuals(down, *args)) / (2.0 * h)
         assert numeric == pytest.approx(jac[:, j], rel=1e-5, abs=1e-5 * np.max(np.abs(jac[:, j])))
+
+
+@pytest.mark.parametrize("periods, amplitude", [(1.5, 1.4), (0.9, 5.0)])
+def test_a_mains_hum_in_the_pre_trigger_is_found_and_extrapolated_and_white_noise_shows_none(periods, amplitude):
+    """A 50 Hz hum over 1.5 periods at 10 σ, or 0.9 of one at 37 σ (σ: its amplitude's standard error): it comes
+    back within 30 % over 5000 samples in at least 40 of 50 draws and is left alone in the others (60 Hz fits
+    about as well); white noise shows none."""
+    from impactometer.signals.noise import mains_hum
+
+    fs = 50e3
+    n = int(periods * fs / 50.0)
+    t = np.arange(5000) / fs
+    errors, found_in_noise = [], 0
+    for seed in range(50):
+        rng = np.random.default_rng(seed)
+        hum = amplitude * np.sin(2 * np.pi * 50.0 * t + rng.uniform(0.0, 2.0 * np.pi))
+        found = mains_hum(2.0 + hum[:n] + rng.normal(0.0, 3.0, n), fs, t.size)
+        errors.append(np.nan if found is None else np.max(np.abs(found - hum)) / amplitude)
+        found_in_noise += mains_hum(2.0 + rng.normal(0.0, 3.0, n), fs, t.size) is not None
+    errors = np.array(errors)
+    assert np.isnan(errors).sum() <= 10 and np.nanmax(errors) < 0.3
+    assert found_in_noise == 0

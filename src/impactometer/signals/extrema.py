@@ -50,8 +50,18 @@ def wrong_curvature(curvature, sign):
 TURN_SIGMAS = 5.0
 #: the vertex fit reaches from a turning point until the force has moved this fraction of its swing [-]
 VERTEX_DROP = 0.25
-#: fewest and most samples on each side of a turning point in its vertex fit
+#: fewest and most samples on each side of a turning point in its vertex fit (most: at up to ``VERTEX_RATE``)
 VERTEX_HALF_MIN, VERTEX_HALF_MAX = 3, 128
+#: the sample rate up to which the vertex fit reaches ``VERTEX_HALF_MAX`` samples; above it, the same time [Hz]
+VERTEX_RATE = 50e3
+
+
+def vertex_reach(sample_rate: float) -> int:
+    """Most samples on each side of a turning point in its vertex fit at ``sample_rate`` [Hz]: ``VERTEX_HALF_MAX``
+    up to ``VERTEX_RATE``, the same time span (2.56 ms) above it. Fixed in samples, the fit saw 128 µs at 1 MHz of
+    turning points in stage B that are milliseconds wide: fewer of them were timed, with standard errors that
+    left M1 and V0 five standard errors off."""
+    return max(VERTEX_HALF_MAX, int(round(VERTEX_HALF_MAX * float(sample_rate) / VERTEX_RATE)))
 
 
 def turning_points(force: np.ndarray, lo: int, hi: int, noise: float, width: int) -> list[tuple[int, int, float]]:
@@ -112,33 +122,36 @@ def _vertex_profile(t: np.ndarray, y: np.ndarray, grid: np.ndarray) -> tuple[np.
     return sse, coef
 
 
-def smoothing_margin(width: int) -> int:
-    """Samples on each side of a turning point that :func:`vertex` smooths over ``width`` samples, beyond its fit:
-    with ``VERTEX_HALF_MAX`` the reach of the samples a vertex reads (a cache key of its answer)."""
-    return 8 * width + 64
+def smoothing_margin(width: int, reach: int = VERTEX_HALF_MAX) -> int:
+    """Samples on each side of a turning point that :func:`vertex` smooths over ``width`` samples for a fit that
+    reaches up to ``reach`` samples (:func:`vertex_reach`): with ``reach`` the samples a vertex reads (a cache key
+    of its answer)."""
+    return 8 * width + 64 + max(int(reach) - VERTEX_HALF_MAX, 0)
 
 
 def vertex(force: np.ndarray, centre: int, sign: int, swing: float, noise: float,
-           width: int = 1) -> tuple[float, float, float] | None:
+           width: int = 1, reach: int = VERTEX_HALF_MAX) -> tuple[float, float, float] | None:
     """Sub-sample time [samples], its standard error [samples] and the force [N] of a turning point.
 
     Where the overlap turns, the force of any contact law turns with zero slope, but its curvature may differ
     on the two sides (a hysteretic contact loads and unloads along different lines: a cusp-like peak). So the
     samples around ``centre`` -- out to where the force, smoothed over ``width`` samples, has moved
-    ``VERTEX_DROP`` of the ``swing`` on each side -- are fitted with F = F_E + a±·s² + c±·s³, s = t − E, the
-    coefficients on each side of E free; E is scanned like an onset. None where the window leaves the data or
-    the best E is not a maximum (``sign`` = +1) or a minimum (−1) inside the window.
+    ``VERTEX_DROP`` of the ``swing`` on each side, up to ``reach`` samples (:func:`vertex_reach`) -- are fitted
+    with F = F_E + a±·s² + c±·s³, s = t − E, the coefficients on each side of E free; E is scanned like an onset.
+    None where the window leaves the data or the best E is not a maximum (``sign`` = +1) or a minimum (−1) inside
+    the window.
     """
     f = np.asarray(force, dtype=float)
     width = max(int(width), 1)
-    lo_w, hi_w = max(centre - smoothing_margin(width), 0), min(centre + smoothing_margin(width), f.size)
+    margin = smoothing_margin(width, reach)
+    lo_w, hi_w = max(centre - margin, 0), min(centre + margin, f.size)
     x = np.convolve(f[lo_w:hi_w], np.ones(width) / width, mode="same")
     c = centre - lo_w
     level, drop = x[c], VERTEX_DROP * abs(swing)
     left = right = VERTEX_HALF_MIN
-    while left < VERTEX_HALF_MAX and c - left - 1 >= width // 2 and abs(x[c - left] - level) < drop:
+    while left < reach and c - left - 1 >= width // 2 and abs(x[c - left] - level) < drop:
         left += 1
-    while right < VERTEX_HALF_MAX and c + right + 1 < x.size - width // 2 and abs(x[c + right] - level) < drop:
+    while right < reach and c + right + 1 < x.size - width // 2 and abs(x[c + right] - level) < drop:
         right += 1
     if centre - left < 0 or centre + right >= f.size or c - left < width // 2 or c + right >= x.size - width // 2:
         return None

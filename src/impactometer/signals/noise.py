@@ -69,3 +69,50 @@ def second_difference_noise_std(sum_squares, count):
     inflates it (:func:`robust_noise_std` is the robust form for a whole signal).
     """
     return np.sqrt(sum_squares / (SECOND_DIFFERENCE_VARIANCE * count))
+
+
+#: mains frequencies [Hz] looked for in a pre-trigger
+MAINS = (50.0, 60.0)
+#: a mains hum is removed where its amplitude stands this many standard errors above zero (white noise alone
+#: reaches it with a chance of about 4e-6 per frequency) [-]
+HUM_SIGMAS = 5.0
+#: fewest periods of the mains a pre-trigger must span for its hum to be extrapolated over the impact [-]
+HUM_PERIODS = 0.8
+
+
+def mains_hum(quiet: np.ndarray, sample_rate: float, size: int) -> np.ndarray | None:
+    """The mains hum of a channel over ``size`` samples from the start of its quiet span ``quiet`` (a pre-trigger:
+    offset, white noise and perhaps a hum), or None where the span shows none.
+
+    The span is fitted with a constant and a sine and cosine at each mains frequency (:data:`MAINS`) it spans
+    ``HUM_PERIODS`` of; the frequency whose fit leaves the least is taken where its amplitude stands
+    ``HUM_SIGMAS`` standard errors above zero (the two coefficients against their covariance: a χ² of two degrees
+    of freedom) and fits better than the other by as much (else none is taken). The hum, phase-locked to the
+    mains, is extrapolated over the impact (a trend or a harmonic in the fit made that extrapolation from less
+    than a period several times the hum itself): a hum of 0.2 % of the acceleration's peak at 50 Hz, left in, put
+    M1 three standard errors off.
+    """
+    x = np.asarray(quiet, dtype=float)
+    n = x.size
+    time = np.arange(n) / float(sample_rate)
+    found = []
+    for frequency in MAINS:
+        if n < HUM_PERIODS * sample_rate / frequency or n < 16:
+            continue
+        phase = 2.0 * np.pi * frequency * time
+        design = np.column_stack([np.ones(n), np.sin(phase), np.cos(phase)])
+        fit, *_ = np.linalg.lstsq(design, x, rcond=None)
+        rest = x - design @ fit
+        variance = float(rest @ rest) / max(n - design.shape[1], 1)
+        if not variance > 0.0:
+            continue
+        cov = np.linalg.pinv(design.T @ design)[1:, 1:] * variance
+        if float(fit[1:] @ np.linalg.solve(cov, fit[1:])) > HUM_SIGMAS ** 2:
+            found.append((float(rest @ rest), variance, frequency, fit[1:]))
+    found.sort(key=lambda item: item[0])
+    # two mains frequencies that fit about as well cannot be told apart: the wrong one, extrapolated, doubles the hum
+    if not found or (len(found) > 1 and (found[1][0] - found[0][0]) / found[0][1] < HUM_SIGMAS ** 2):
+        return None
+    _, _, frequency, (sine, cosine) = found[0]
+    wave = 2.0 * np.pi * frequency * np.arange(size) / float(sample_rate)
+    return sine * np.sin(wave) + cosine * np.cos(wave)

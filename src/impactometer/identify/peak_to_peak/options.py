@@ -9,6 +9,7 @@ import numpy as np
 
 from ...errors import IdentificationError, shown
 from ...recording import START_TIME_LIMIT, Recording
+from ...signals.noise import MAINS
 from ...validation import check_real
 from ..plausibility import CHANNEL_SYMBOLS
 from ..result import VARIANTS
@@ -83,8 +84,6 @@ def filtered_caution(recording: Recording, variant: str) -> str | None:
 COLOURED_LIMIT = 0.5
 
 
-#: mains frequencies [Hz] a correlated pre-trigger is looked at for hum (with their second harmonics)
-MAINS = (50.0, 60.0)
 
 
 def check_white_noise(seg: Segment) -> None:

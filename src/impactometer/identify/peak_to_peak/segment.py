@@ -15,8 +15,8 @@ import numpy as np
 from ...errors import IdentificationError
 from ...recording import check_sample_rate
 from ...signals import trigger
-from ...signals.extrema import VERTEX_HALF_MAX, smoothing_margin, turning_points, vertex
-from ...signals.noise import quiet_noise_std, robust_noise_std
+from ...signals.extrema import smoothing_margin, turning_points, vertex, vertex_reach
+from ...signals.noise import mains_hum, quiet_noise_std, robust_noise_std
 from ...signals.pulses import (
     RELEASE_SIGMAS,
     PulseSpan,
@@ -155,10 +155,15 @@ def quiet_samples(force: np.ndarray, acceleration: np.ndarray, pre: int) -> int:
 def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, start_time: float,
             pre: int, *, cache: dict | None = None) -> Segment:
     """Offsets and noise from the first ``pre`` samples (less the guard and the foot of the first rise,
-    :func:`quiet_samples`), then the pulses of the impact."""
+    :func:`quiet_samples`), a mains hum they show removed (:func:`~impactometer.signals.noise.mains_hum`), then
+    the pulses of the impact."""
     n_pre = quiet_samples(force, acceleration, pre)
     correlation = 0.0
-    if n_pre >= MIN_PRE_SAMPLES:
+    steps = quantum(force), quantum(acceleration)
+    if n_pre >= MIN_PRE_SAMPLES:  # a mains hum the pre-trigger shows is removed from the whole segment
+        hums = [mains_hum(x[:n_pre], sample_rate, x.size) for x in (force, acceleration)]
+        force, acceleration = (x if hum is None else x - hum for x, hum in zip((force, acceleration), hums,
+                                                                                 strict=True))
         f0, a0 = float(np.mean(force[:n_pre])), float(np.mean(acceleration[:n_pre]))
         sf, sa = float(quiet_noise_std(force[:n_pre])), float(quiet_noise_std(acceleration[:n_pre]))
         # the impact's own noise (median second difference) where it is clearly larger than the pre-trigger's
@@ -169,8 +174,8 @@ def prepare(force: np.ndarray, acceleration: np.ndarray, sample_rate: float, sta
         n_pre, f0, a0 = 0, 0.0, 0.0
         sf, sa = robust_noise_std(force), robust_noise_std(acceleration)
     # resolution floor: quantisation noise (step/√12), and rounding of exact (simulated) data
-    sf = max(sf, quantum(force) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(force))))
-    sa = max(sa, quantum(acceleration) / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(acceleration))))
+    sf = max(sf, steps[0] / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(force))))
+    sa = max(sa, steps[1] / np.sqrt(12.0), 1e-6 * float(np.max(np.abs(acceleration))))
     f = force - f0
     a = acceleration - a0
     # nothing before the pre-trigger statistics' end; ringing is no contact
@@ -309,6 +314,7 @@ def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     first = seg.pulses[0]
     width = max(((first.end if first.complete else seg.force.size) - first.zero) // SMOOTH_PER_PULSE, 1)
     times, stds, stage = [], [], []
+    most = vertex_reach(seg.sample_rate)
     for k, pulse in enumerate(seg.pulses):
         hi = pulse.end if pulse.complete else seg.force.size
         key = ("extrema", pulse.zero, hi, width, seg.noise_force)
@@ -316,10 +322,10 @@ def extrema(seg: Segment) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
             found = []
             for centre, sign, swing in turning_points(seg.force, pulse.zero, hi, seg.noise_force, width):
                 # the samples the vertex fit may read: a key that changes until they have all arrived
-                reach = min(seg.force.size, centre + VERTEX_HALF_MAX + smoothing_margin(width))
+                reach = min(seg.force.size, centre + most + smoothing_margin(width, most))
                 point = ("vertex", centre, sign, round(swing, 6), width, seg.noise_force, reach)
                 if point not in seg.onset_cache:
-                    seg.onset_cache[point] = vertex(seg.force, centre, sign, swing, seg.noise_force, width)
+                    seg.onset_cache[point] = vertex(seg.force, centre, sign, swing, seg.noise_force, width, most)
                 if seg.onset_cache[point] is not None:
                     found.append(seg.onset_cache[point][:2])
             seg.onset_cache[key] = found
