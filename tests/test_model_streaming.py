@@ -278,6 +278,24 @@ def test_the_engines_paths_agree(mass, velocity, pressure, seed):
         assert abs(compiled.values[name] - reference.values[name]) <= 0.05 * reference.std(name)
 
 
+def test_a_prior_is_one_more_residual_row():
+    """A Gaussian prior on a named unknown of the table: one residual row (variable − its mean)/σ'; a loose one
+    leaves the answer, a tight one holds the unknown at its mean."""
+    from impactometer.identify.model_fit.engine import Residuals, fit_law
+
+    data, layout, values = _first_window(30.0, 2.0, 100e3, 21)
+    free = fit_law(data, layout, values)
+    loose = fit_law(data, layout.with_prior("velocity", 2.5, 1e3), values)
+    tight = fit_law(data, layout.with_prior("velocity", 2.1, 1e-6), values)
+    assert abs(loose.values["velocity"] - free.values["velocity"]) <= 0.05 * free.std("velocity")
+    assert tight.values["velocity"] == pytest.approx(2.1, rel=1e-5) and tight.residuals == free.residuals + 1
+    problem = Residuals(data, layout.with_prior("velocity", 2.1, 0.05))
+    x = np.r_[layout.variables(values), data.offsets / data.noise]
+    r, jac = problem.residuals(x), problem.jacobian(x)
+    assert r[-1] == pytest.approx((x[1] - np.log(2.1)) / (0.05 / 2.1)) and jac[-1, 1] == pytest.approx(2.1 / 0.05)
+    assert r.size == jac.shape[0] == Residuals(data, layout).residuals(x).size + 1
+
+
 def test_without_robust_starts_the_stream_gives_the_same_answers():
     """The real-time loop's stream (``robust_starts=False``: the robust stream only triggers and buffers) answers
     as the default one does where no robust estimate comes before the first window's end."""

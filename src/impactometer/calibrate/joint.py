@@ -103,29 +103,25 @@ class _Joint:
     """Residuals and Jacobian of one family on every drop, each drop up to the end of its window, the shared
     variables outside ``active`` held at their values in ``x0``."""
 
-    def __init__(self, drops: Sequence[ObservedDrop], layouts: Sequence[Layout], shared: int, velocity_sigma: float,
-                 end: float | None, x0: np.ndarray, active: np.ndarray):
+    def __init__(self, drops: Sequence[ObservedDrop], layouts: Sequence[Layout], shared: int, end: float | None,
+                 x0: np.ndarray, active: np.ndarray):
         self.models = [Residuals(drop.data if end is None else window(drop.data, drop.contact_time + end), layout)
                        for drop, layout in zip(drops, layouts, strict=True)]
-        self.shared, self.sigma, self.x0, self.active = shared, velocity_sigma, x0, active
-        self.gate = np.log([drop.velocity for drop in drops])
-        self.sizes = [model.size for model in self.models]
+        self.shared, self.x0, self.active = shared, x0, active
+        self.sizes = [model.data.size for model in self.models]
         self.columns = [np.r_[shared + 4 * i, shared + 4 * i + 1, np.arange(shared), shared + 4 * i + 2,
                               shared + 4 * i + 3] for i in range(len(drops))]
 
     @property
     def size(self) -> int:
-        """Number of residuals: every drop's samples and one velocity prior per drop."""
-        return int(sum(self.sizes)) + len(self.models)
+        """Number of residuals: every drop's samples and its velocity prior."""
+        return int(sum(model.size for model in self.models))
 
     def full(self, xa: np.ndarray) -> np.ndarray:
         """The joint vector of the active variables ``xa``."""
         out = self.x0.copy()
         out[self.active] = xa
         return out
-
-    def velocities(self, x: np.ndarray) -> np.ndarray:
-        return x[self.shared::len(NUISANCES)][:len(self.models)]
 
     def parts(self, x: np.ndarray) -> list[np.ndarray] | None:
         """Each drop's weighted residuals at the joint vector ``x`` (None where a drop's model cannot be
@@ -134,29 +130,26 @@ class _Joint:
         return None if any(part is None for part in parts) else parts  # type: ignore[return-value]
 
     def residuals(self, xa: np.ndarray) -> np.ndarray | None:
-        """Every drop's weighted residuals, then the velocity priors (ln V0 − ln V_gate)/σ."""
-        x = self.full(xa)
-        parts = self.parts(x)
-        return None if parts is None else np.concatenate([*parts, (self.velocities(x) - self.gate) / self.sigma])
+        """Every drop's weighted residuals, each with its velocity prior's row."""
+        parts = self.parts(self.full(xa))
+        return None if parts is None else np.concatenate(parts)
 
     def jacobian(self, xa: np.ndarray) -> np.ndarray:
         """The joint Jacobian, assembled from each drop's block (its rows touch the shared columns and its own)."""
         x = self.full(xa)
         blocks = [model.jacobian(local(x, i, self.shared)) for i, model in enumerate(self.models)]
-        jac = np.zeros((sum(block.shape[0] for block in blocks) + len(self.models), x.size))
+        jac = np.zeros((sum(block.shape[0] for block in blocks), x.size))
         row = 0
         for i, block in enumerate(blocks):
             jac[row:row + block.shape[0], self.columns[i]] = block
             row += block.shape[0]
-        jac[row + np.arange(len(self.models)), self.shared + len(NUISANCES) * np.arange(len(self.models))] = \
-            1.0 / self.sigma
         return jac[:, self.active]
 
     def drop_chi2(self, x: np.ndarray) -> tuple[float, ...]:
         """Each drop's χ² of its samples at the joint vector ``x``."""
         parts = self.parts(x)
         assert parts is not None  # at an answer of the fit
-        return tuple(float(part @ part) + model.constant for part, model in zip(parts, self.models, strict=True))
+        return tuple(model.sample_chi2(part) for part, model in zip(parts, self.models, strict=True))
 
     @property
     def constant(self) -> float:
@@ -174,10 +167,13 @@ def start_vector(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free:
     return np.r_[shared, np.ravel(own)].astype(float)
 
 
-def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[ObservedDrop]) -> tuple[Layout, ...]:
-    """Each drop's layout: V0 and the contact instant unknown, M1 and p0 known, the ``free`` stand parameters."""
+def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[ObservedDrop], *,
+                 velocity_sigma: float) -> tuple[Layout, ...]:
+    """Each drop's layout: V0 (with the light gate's reading as its prior of relative σ ``velocity_sigma``) and the
+    contact instant unknown, M1 and p0 known, the ``free`` stand parameters."""
     return tuple(make_layout(rig, law, free, pressure=drop.pressure, contact_time=drop.contact_time,
-                             sample_rate=drop.data.grid.sample_rate, mass=drop.mass) for drop in drops)
+                             sample_rate=drop.data.grid.sample_rate, mass=drop.mass).with_prior(
+                                 "velocity", drop.velocity, velocity_sigma * drop.velocity) for drop in drops)
 
 
 def fit_stage(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...], x0: np.ndarray, *,
@@ -189,7 +185,7 @@ def fit_stage(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tu
     active = np.ones(x0.size, dtype=bool)
     if kind != "all":
         active[:len(free)] = [kind == "contact" and name.startswith("contact.") for name in free]
-    joint = _Joint(drops, layouts, len(free), velocity_sigma, end, x0, active)
+    joint = _Joint(drops, layouts, len(free), end, x0, active)
     try:
         answer = solve(joint, x0[active], evaluations=evaluations, tolerance=tolerance, information=information)
     except IdentificationError as exc:
@@ -204,7 +200,7 @@ def fit_family(drops: Sequence[ObservedDrop], rig: Rig, law: str, free: tuple[st
     """Fit the family of ``law`` jointly over ``drops`` through ``stages`` (from ``x0``, default the stand's own
     values, see :func:`start_vector`) by :func:`~impactometer.identify.model_fit.engine.staged`; returns the last
     stage's :class:`Family` and its vector. ``progress`` is called after each stage."""
-    layouts = make_layouts(rig, law, free, drops)
+    layouts = make_layouts(rig, law, free, drops, velocity_sigma=velocity_sigma)
     x = start_vector(drops, layouts, free, stand_values(rig, law, free)) if x0 is None else x0
     last = len(stages) - 1
 
@@ -223,7 +219,7 @@ def fit_family(drops: Sequence[ObservedDrop], rig: Rig, law: str, free: tuple[st
         jac = answer.jacobian
     else:  # the Fisher information of every unknown, the held ones too
         every = np.ones(x.size, dtype=bool)
-        jac = _Joint(drops, layouts, len(free), velocity_sigma, stages[-1][0], x, every).jacobian(x)
+        jac = _Joint(drops, layouts, len(free), stages[-1][0], x, every).jacobian(x)
     root = np.asarray(np.linalg.qr(jac, mode="r"))
     drop_chi2 = joint.drop_chi2(x)
     family = Family(law=law, free=free, layouts=layouts, x=x, root=root, chi2=answer.chi2 + joint.constant,

@@ -196,7 +196,7 @@ class Residuals:
     only under a causal sensor model: their residuals about each channel's mean m over them give χ² a constant,
     and the two rows sqrt(head)·(m − offset) stand for the rest. So χ² = |r|² + ``constant`` and JᵀJ are those of
     every sample, while the model is predicted on the samples after the head only (a first window holds ~1000
-    pre-trigger samples for ~200 after contact).
+    pre-trigger samples for ~200 after contact). Each prior of the layout adds one row last.
     """
 
     def __init__(self, data: Observed, layout: Layout, *, in_turn: bool = False):
@@ -212,12 +212,20 @@ class Residuals:
         self.constant = float(np.sum(np.square(scaled[:, :head] - self.mean[:, None])))
         self.root = np.sqrt(head)
         self.steps = np.where(np.array(layout.names) == "contact_time", CONTACT_TIME_STEP, STEP)
+        self.prior_index = np.array([j for j, _, _ in layout.priors], dtype=np.int64)
+        self.prior_mean = np.array([mean for _, mean, _ in layout.priors])
+        self.prior_sigma = np.array([sigma for _, _, sigma in layout.priors])
         self._last: tuple[bytes, np.ndarray] | None = None
 
     @property
     def size(self) -> int:
-        """Number of samples the residuals stand for (both channels)."""
-        return self.data.size
+        """Number of residuals χ² holds: every sample of both channels and one per prior."""
+        return self.data.size + self.prior_index.size
+
+    def sample_chi2(self, r: np.ndarray) -> float:
+        """The samples' share of χ² of residuals ``r`` (the priors' rows left out)."""
+        samples = r[:r.size - self.prior_index.size]
+        return float(samples @ samples) + self.constant
 
     def _predicted(self, rows: np.ndarray) -> np.ndarray:
         params, times = self.layout.packed(rows)
@@ -246,7 +254,8 @@ class Residuals:
             tail = self.tail - x[self.q:, None] - self.model(x)
         except IdentificationError:
             return None
-        return np.r_[tail.ravel(), self.root * (self.mean - x[self.q:])]
+        return np.r_[tail.ravel(), self.root * (self.mean - x[self.q:]),
+                     (x[self.prior_index] - self.prior_mean) / self.prior_sigma]
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂residuals/∂x (rows of :meth:`residuals`, q + 2)."""
@@ -258,10 +267,11 @@ class Residuals:
             steps = -self.steps
             moved = self._predicted(x[None, :self.q] + np.diag(steps))
         n = self.tail.shape[1]
-        jac = np.zeros((2 * n + 2, self.q + 2))
+        jac = np.zeros((2 * n + 2 + self.prior_index.size, self.q + 2))
         jac[:2 * n, :self.q] = ((base[None] - moved).reshape(self.q, -1) / steps[:, None]).T
         jac[:n, self.q] = jac[n:2 * n, self.q + 1] = -1.0
         jac[2 * n, self.q] = jac[2 * n + 1, self.q + 1] = -self.root
+        jac[2 * n + 2 + np.arange(self.prior_index.size), self.prior_index] = 1.0 / self.prior_sigma
         return jac
 
 

@@ -11,7 +11,7 @@ are handled by the fit (:mod:`.engine`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit, prange
@@ -130,8 +130,9 @@ class Layout:
 
     ``names`` lists the nonlinear unknowns (the core ones, then the stand parameters, then ``pressure_gauge`` when
     it is fitted) and ``specs`` their (packed index, transform, parameter); ``base`` is the packed parameter vector
-    of the stand with the law and known values; ``origin`` is the contact instant [s] from which the
-    ``contact_time`` variable counts sample periods.
+    of the stand with the law and known values (the held parameters); ``origin`` is the contact instant [s] from
+    which the ``contact_time`` variable counts sample periods; ``priors`` the Gaussian priors on unknowns, each
+    (index into ``names``, mean, σ) of its fit variable and one more residual row (:meth:`with_prior`).
     """
 
     names: tuple[str, ...]
@@ -140,6 +141,18 @@ class Layout:
     law: str
     origin: float
     sample_rate: float
+    priors: tuple[tuple[int, float, float], ...] = ()
+
+    def with_prior(self, name: str, mean: float, sigma: float) -> Layout:
+        """This layout with a Gaussian prior of ``mean`` and ``sigma`` [SI] on the unknown ``name``: the residual row
+        (variable − variable(mean))/σ', σ' the prior's σ through the slope of the transform at the mean (a log
+        variable: the relative σ)."""
+        j = self.names.index(name)
+        _, kind, param = self.specs[j]
+        mean_variable = float(to_variable((mean - self.origin) * self.sample_rate if name == "contact_time" else mean,
+                                          kind, param))
+        spread = sigma / abs(self.derivative(name, mean_variable))
+        return replace(self, priors=(*self.priors, (j, mean_variable, float(spread))))
 
     def variables(self, values: dict[str, float]) -> np.ndarray:
         """Fit variables of physical values (name -> value [SI])."""
