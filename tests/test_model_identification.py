@@ -16,6 +16,7 @@ import pytest
 
 from impactometer.cli import main
 from impactometer.errors import IdentificationError, ParameterError
+from impactometer.identify.details import ModelDetails, PeakToPeakDetails
 from impactometer.identify.model_fit import cramer_rao, identify
 from impactometer.identify.model_fit import forward as fw
 from impactometer.identify.peak_to_peak import identify as identify_robust
@@ -41,6 +42,8 @@ def test_round_trip_on_the_pad_stand(mass, velocity, pressure, seed):
     answer = identify(rec)
     assert answer.method == "model/ml" and answer.details["path"] == "ml"
     assert answer.details["contact_law"] == "hysteretic"
+    assert isinstance(answer.details, ModelDetails) and answer.details.fallback is None
+    assert answer.details.t00 == answer.details["t00"] and answer.to_dict()["path"] == "ml"
     assert abs(answer.mass - mass) <= Z * answer.mass_std
     assert abs(answer.velocity - velocity) <= Z * answer.velocity_std
     assert CHI2_BAND[0] <= answer.details["reduced_chi2"] <= CHI2_BAND[1]
@@ -80,6 +83,10 @@ def test_a_fit_restricted_to_the_wrong_law_falls_back():
     robust = identify_robust(rec)
     assert answer.mass == robust.mass and answer.velocity == robust.velocity
     _never_much_worse(answer, robust, 30.0, 2.0)
+    # both answers typed: the model's details carry the robust answer's own
+    assert isinstance(answer.details, ModelDetails) and answer.details.path == "fallback"
+    assert isinstance(answer.details.fallback, PeakToPeakDetails) and answer.details.fallback == robust.details
+    assert answer.details["t00"] == robust.details["t00"] and answer.details.model_selection
 
 
 def test_a_pad_with_other_parameters_is_fitted():

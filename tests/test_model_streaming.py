@@ -8,6 +8,7 @@ import pytest
 
 from impactometer.cli import main
 from impactometer.errors import IdentificationError, ParameterError, ParameterTypeError, StreamFinishedError
+from impactometer.identify.details import ModelDetails
 from impactometer.identify.model_fit import cramer_rao, identify
 from impactometer.identify.model_fit.select import STAGES
 from impactometer.identify.model_fit.streaming import ModelStream, check_schedule, stream_model_arrays
@@ -50,6 +51,7 @@ def test_first_answer_and_updates_round_trip(mass, velocity, pressure, seed):
         assert abs(est.mass - mass) <= Z * est.mass_std, est.details["stage"]
         assert abs(est.velocity - velocity) <= Z * est.velocity_std, est.details["stage"]
         assert est.details["update_time_s"] > 0 and est.details["cadence_s"] == stream.cadence
+        assert isinstance(est.details, ModelDetails) and est.details.stream.stage == est.details["stage"]
     # the first answer with the stand's law; the others screened on the first window at the next update
     # (one at each update), and kept
     assert "screened on the first" in got[0].details["law_choice"]
@@ -215,14 +217,13 @@ def test_a_deferred_update_reads_the_record_up_to_the_time_it_was_deferred_to():
 def _first_window(mass, velocity, pressure, seed):
     """A record's first 4 ms as the stream's first fit reads it, and the core layout started 20 % off in M1 and
     5 % in V0 (first contact at t = 0 on the record's clock)."""
-    from impactometer.identify import model_fit as batch
-    from impactometer.identify.model_fit.fit import window
+    from impactometer.identify.model_fit import engine
     from impactometer.identify.model_fit.select import Start, start_law
 
     rec = _record(mass, velocity, pressure, seed)
-    design = batch._design(rec)
+    design = engine.anti_alias_design(rec)
     contact = 0.0
-    data = window(batch._observe(rec, design, contact, min_duration=0.0), contact + STAGES[0][0])
+    data = engine.window(engine.observe(rec, design, contact, min_duration=0.0), contact + STAGES[0][0])
     start = Start(mass=1.2 * mass, velocity=0.95 * velocity, contact_time=contact, pressure=pressure,
                   pressure_start=pressure)
     layouts, values = start_law(get_rig(), get_rig().contact.law, None, start, rec.sample_rate)
@@ -230,47 +231,69 @@ def _first_window(mass, velocity, pressure, seed):
 
 
 def test_the_streams_predictions_on_the_calling_thread_equal_the_batch_fits():
-    from impactometer.identify.model_fit.early import predict_in_turn
     from impactometer.identify.model_fit.forward import predict
 
     data, layout, values = _first_window(30.0, 2.0, 100e3, 21)
     rows = layout.variables(values)[None, :] + np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 1.5], [-1.0, 0.4, -2.0]])
     params, times = layout.packed(rows)
-    assert np.array_equal(predict_in_turn(data.grid, params, times), predict(data.grid, params, times))
-    with pytest.raises(IdentificationError, match="outside the ranges"):
-        predict_in_turn(data.grid, *layout.packed(np.array([[-20.0, 0.0, 0.0]])))
+    assert np.array_equal(predict(data.grid, params, times, in_turn=True), predict(data.grid, params, times))
+    for in_turn in (True, False):  # one range check
+        with pytest.raises(IdentificationError, match="outside"):
+            predict(data.grid, *layout.packed(np.array([[-20.0, 0.0, 0.0]])), in_turn=in_turn)
 
 
 @pytest.mark.parametrize(("mass", "velocity", "pressure", "seed"), [(30.0, 2.0, 100e3, 21), (10.0, 3.0, 400e3, 22)])
-def test_the_streams_first_window_fits_agree_with_the_batch_fit(mass, velocity, pressure, seed):
-    from impactometer.identify.model_fit.early import fit_window, refine_window
-    from impactometer.identify.model_fit.first_window import fit_first_window, refine_first_window, takes
-    from impactometer.identify.model_fit.fit import MAX_EVALUATIONS, fit_law, refine
+def test_the_engines_paths_agree(mass, velocity, pressure, seed):
+    """The one solver run three ways on a first window (Python with predictions on the thread pool, Python on the
+    calling thread, compiled) finds the same optimum, fitted to convergence and updated by one step."""
+    from impactometer.identify.model_fit.engine import fit_law
+    from impactometer.identify.model_fit.first_window import fit_window, takes
 
     data, layout, values = _first_window(mass, velocity, pressure, seed)
     assert takes(data, layout)
     batch = fit_law(data, layout, values)
-    python = fit_window(data, layout, values)
-    compiled = fit_first_window(data, layout, values, evaluations=MAX_EVALUATIONS)
-    assert compiled is not None and python.converged and compiled.converged
-    for fit in (python, compiled):  # the same optimum (the pre-trigger through its sums), the same σ up to the
-        # scatter of a finite-difference Jacobian between points a few hundredths of σ apart (fit.STEP: the
-        # integrator's step sequence changes with the point; 5 % here, where 4 ms tell M1 to 7 %)
-        assert fit.chi2 == pytest.approx(batch.chi2, rel=1e-6, abs=1e-3)
-        for name in ("mass", "velocity"):
-            assert abs(fit.values[name] - batch.values[name]) <= 0.05 * batch.std(name)
-            assert fit.std(name) == pytest.approx(batch.std(name), rel=0.1)
-    # an update from 2 % off: one step as fit.refine takes it, on the calling thread and compiled
+    python = fit_law(data, layout, values, in_turn=True)
+    compiled = fit_window(data, layout, values)
+    assert batch.converged and python.converged and compiled.converged
+    # the same predictions, the same arithmetic: equal to rounding
+    assert python.chi2 == pytest.approx(batch.chi2, rel=1e-9)
+    for name in ("mass", "velocity"):
+        assert python.values[name] == pytest.approx(batch.values[name], rel=1e-9)
+    # compiled: the last bit of M1 and V0 differs (its exp), and with it the finite-difference Jacobian's scatter
+    # (engine.STEP: the integrator's step sequence changes with the point; 5 % here, where 4 ms tell M1 to 7 %)
+    assert compiled.chi2 == pytest.approx(batch.chi2, rel=1e-6, abs=1e-3)
+    for name in ("mass", "velocity"):
+        assert abs(compiled.values[name] - batch.values[name]) <= 0.05 * batch.std(name)
+        assert compiled.std(name) == pytest.approx(batch.std(name), rel=0.1)
+    # an update from 2 % off: one step, on the thread pool, on the calling thread and compiled
     moved = {**batch.values, "mass": 1.02 * batch.values["mass"]}
-    reference = refine(data, layout, moved, batch.offsets)
-    python = refine_window(data, layout, moved, batch.offsets)
-    compiled = refine_first_window(data, layout, moved, batch.offsets)
-    assert compiled is not None
+    reference = fit_law(data, layout, moved, offsets=batch.offsets, jacobians=1)
+    python = fit_law(data, layout, moved, offsets=batch.offsets, jacobians=1, in_turn=True)
+    compiled = fit_window(data, layout, moved, batch.offsets, jacobians=1)
+    assert reference.chi2 < fit_law(data, layout, moved, offsets=batch.offsets, evaluations=1).chi2
     assert python.chi2 == pytest.approx(reference.chi2, rel=1e-9)
     assert python.std("mass") == pytest.approx(reference.std("mass"), rel=1e-6)
     for name in ("mass", "velocity"):
         assert python.values[name] == pytest.approx(reference.values[name], rel=1e-9)
         assert abs(compiled.values[name] - reference.values[name]) <= 0.05 * reference.std(name)
+
+
+def test_a_prior_is_one_more_residual_row():
+    """A Gaussian prior on a named unknown of the table: one residual row (variable − its mean)/σ'; a loose one
+    leaves the answer, a tight one holds the unknown at its mean."""
+    from impactometer.identify.model_fit.engine import Residuals, fit_law
+
+    data, layout, values = _first_window(30.0, 2.0, 100e3, 21)
+    free = fit_law(data, layout, values)
+    loose = fit_law(data, layout.with_prior("velocity", 2.5, 1e3), values)
+    tight = fit_law(data, layout.with_prior("velocity", 2.1, 1e-6), values)
+    assert abs(loose.values["velocity"] - free.values["velocity"]) <= 0.05 * free.std("velocity")
+    assert tight.values["velocity"] == pytest.approx(2.1, rel=1e-5) and tight.residuals == free.residuals + 1
+    problem = Residuals(data, layout.with_prior("velocity", 2.1, 0.05))
+    x = np.r_[layout.variables(values), data.offsets / data.noise]
+    r, jac = problem.residuals(x), problem.jacobian(x)
+    assert r[-1] == pytest.approx((x[1] - np.log(2.1)) / (0.05 / 2.1)) and jac[-1, 1] == pytest.approx(2.1 / 0.05)
+    assert r.size == jac.shape[0] == Residuals(data, layout).residuals(x).size + 1
 
 
 def test_without_robust_starts_the_stream_gives_the_same_answers():

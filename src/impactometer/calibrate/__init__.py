@@ -18,8 +18,8 @@ from datetime import UTC, datetime
 import numpy as np
 
 from ..errors import IdentificationError, ParameterError, shown
-from ..identify.model_fit import MAX_REDUCED_CHI2, MIN_DURATION, _laws
-from ..identify.model_fit.fit import _Model, window
+from ..identify.model_fit import MAX_REDUCED_CHI2, MIN_DURATION
+from ..identify.model_fit.engine import Residuals, contact_laws, window
 from ..identify.model_fit.forward import STAND_PARAMETERS, contact_parameters, free_parameters
 from ..identify.model_fit.information import covariance
 from ..identify.model_fit.select import SCREEN_MARGIN
@@ -102,7 +102,7 @@ def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = Non
     the base stand, the parameters fitted, the laws and the drops."""
     base = get_rig(rig)
     names = check_fit(fit)
-    laws = _laws(contact)
+    laws = contact_laws(contact)
     for law in laws:  # a contact parameter named must belong to a law fitted
         unknown = [n for n in names if n.startswith("contact.") and n not in contact_parameters(law)]
         if len(laws) == 1 and unknown:
@@ -243,8 +243,7 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
         data = drop.data if duration is None else window(drop.data, drop.contact_time + duration)
         local = best.local(i)
         own = best.layouts[i].values(local)
-        simulated = _Model(data, best.layouts[i]).prediction(local) * data.noise[:, None] + \
-            (local[-2:] * data.noise)[:, None]
+        simulated = Residuals(data, best.layouts[i]).predicted(local)
         j = s + len(NUISANCES) * i
         fits.append(DropFit(source=drop.source, mass=drop.mass, pressure=drop.pressure, velocity_gate=drop.velocity,
                             velocity=own["velocity"],

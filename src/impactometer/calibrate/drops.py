@@ -1,6 +1,6 @@
 """The drops of a calibration set as the joint fit reads them: each recording with its truth (M1 weighed, V0 from
 the light gate, p0 set by the operator), checked, and observed as the model-based identification observes a record
-(:func:`impactometer.identify.model_fit._observe`: both channels, their noise σ from the pre-trigger, the sensor
+(:func:`impactometer.identify.model_fit.engine.observe`: both channels, their noise σ from the pre-trigger, the sensor
 model of the samples)."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from ..errors import RecordingError, shown
-from ..identify.model_fit import TRIGGER_LEAD, _channels_of, _check_length, _design, _observe
-from ..identify.model_fit.fit import Observed
+from ..identify.model_fit import TRIGGER_LEAD
+from ..identify.model_fit.engine import Observed, anti_alias_design, check_channels, check_length, observe
 from ..recording import Recording
 from ..rig import MASS_RANGE, STAND_KEY, VELOCITY_RANGE
 from ..sensors import anti_alias_delay
@@ -83,14 +83,14 @@ def read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
     if not isinstance(recordings, Sequence) or isinstance(recordings, (str, bytes)):
         raise RecordingError(f"recordings must be a sequence of Recording, got {type(recordings).__name__}")
     for recording in recordings:
-        _channels_of(recording)
+        check_channels(recording)
     check_one_stand(recordings)
     drops = []
     for recording in recordings:
         truth = _truth(recording)
-        design = _design(recording)
-        trigger = _check_length(recording)
-        data = _observe(recording, design, trigger)
+        design = anti_alias_design(recording)
+        trigger = check_length(recording)
+        data = observe(recording, design, trigger)
         start = trigger - anti_alias_delay(design, recording.sample_rate) - TRIGGER_LEAD / recording.sample_rate
         drops.append(ObservedDrop(source=str(recording.source), mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
                           pressure=truth["pressure_gauge_Pa"], data=data, contact_time=start))

@@ -3,12 +3,13 @@
 Shared unknowns: the stand parameters fitted (default the contact law's parameters, the seal friction and both
 dead volumes). Per-drop nuisances: V0 (with the light gate's reading as a Gaussian prior of relative σ
 ``velocity_sigma``), the contact instant and both sensor offsets; M1 and p0 are known. Each drop is predicted and
-differentiated by the model-based identification's engine (:class:`impactometer.identify.model_fit.fit._Model`:
+differentiated by the model-based identification's engine (:class:`impactometer.identify.model_fit.engine.Residuals`:
 the compiled integrator through the recording's sensor model, one batch of integrations per drop and Jacobian),
 so the joint Jacobian is assembled block by block: a drop's rows depend only on the shared unknowns and its own
-nuisances. The fit continues over growing windows after each drop's contact (:data:`STAGES`) as
-:mod:`impactometer.identify.model_fit.select` does for one record: the first holds the stand and finds each drop's
-V0 and contact instant, the later free everything.
+nuisances; the engine's solver (:func:`~impactometer.identify.model_fit.engine.solve`) fits it. The fit continues
+over growing windows after each drop's contact (:data:`STAGES`, :func:`~impactometer.identify.model_fit.engine.staged`)
+as :mod:`impactometer.identify.model_fit.select` does for one record: the first holds the stand and finds each
+drop's V0 and contact instant, the later free everything.
 """
 
 from __future__ import annotations
@@ -18,10 +19,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..errors import IdentificationError
-from ..identify.model_fit.fit import TOLERANCE, Quality, _Model, window
+from ..identify.model_fit.engine import TOLERANCE, Quality, Residuals, Solution, solve, staged, window
 from ..identify.model_fit.forward import Layout, make_layout, stand_values, to_variable
 from ..rig import Rig
 from .drops import ObservedDrop
@@ -36,8 +36,8 @@ STAGES = ((0.004, "core"), (0.008, "contact"), (0.015, "contact"), (0.03, "all")
 SCREEN_STAGE = 3
 #: most residual evaluations of one stage
 STAGE_EVALUATIONS = 100
-#: relative change of χ² and of the variables at which the last stage has converged (MINPACK's ftol and xtol): the
-#: engine's 1e-6 of a χ² of 50 000 left the optimum up to 0.3 σ of a parameter off (Δχ² ~ 0.1)
+#: relative reduction of χ² at which the last stage has converged (the engine's stopping rule): the engine's 1e-6
+#: of a χ² of 50 000 left the optimum up to 0.3 σ of a parameter off (Δχ² ~ 0.1)
 FINAL_TOLERANCE = 1e-10
 #: per-drop nuisances, in the order they take in the vector of unknowns
 NUISANCES = ("velocity", "contact_time", "offset.contact_force", "offset.piston_acceleration")
@@ -82,7 +82,7 @@ class Family(Quality):
         return self.drop_chi2[i] / max(self.drop_residuals[i] - len(NUISANCES), 1)
 
     def local(self, i: int, x: np.ndarray | None = None) -> np.ndarray:
-        """Drop ``i``'s vector of :class:`~impactometer.identify.model_fit.fit._Model` (V0, contact instant, the
+        """Drop ``i``'s vector of :class:`~impactometer.identify.model_fit.engine.Residuals` (V0, contact instant, the
         shared variables, the offsets) of the joint vector ``x`` (default the optimum)."""
         return local(self.x if x is None else x, i, len(self.free))
 
@@ -100,53 +100,61 @@ def local(x: np.ndarray, i: int, shared: int) -> np.ndarray:
 
 
 class _Joint:
-    """Residuals and Jacobian of one family on every drop, each drop up to the end of its window."""
+    """Residuals and Jacobian of one family on every drop, each drop up to the end of its window, the shared
+    variables outside ``active`` held at their values in ``x0``."""
 
-    def __init__(self, drops: Sequence[ObservedDrop], layouts: Sequence[Layout], shared: int, velocity_sigma: float,
-                 end: float | None):
-        self.models = [_Model(drop.data if end is None else window(drop.data, drop.contact_time + end), layout)
+    def __init__(self, drops: Sequence[ObservedDrop], layouts: Sequence[Layout], shared: int, end: float | None,
+                 x0: np.ndarray, active: np.ndarray):
+        self.models = [Residuals(drop.data if end is None else window(drop.data, drop.contact_time + end), layout)
                        for drop, layout in zip(drops, layouts, strict=True)]
-        self.shared, self.sigma = shared, velocity_sigma
-        self.gate = np.log([drop.velocity for drop in drops])
+        self.shared, self.x0, self.active = shared, x0, active
         self.sizes = [model.data.size for model in self.models]
         self.columns = [np.r_[shared + 4 * i, shared + 4 * i + 1, np.arange(shared), shared + 4 * i + 2,
                               shared + 4 * i + 3] for i in range(len(drops))]
 
     @property
     def size(self) -> int:
-        return int(sum(self.sizes)) + len(self.models)
+        """Number of residuals: every drop's samples and its velocity prior."""
+        return int(sum(model.size for model in self.models))
 
-    def velocities(self, x: np.ndarray) -> np.ndarray:
-        return x[self.shared::len(NUISANCES)][:len(self.models)]
+    def full(self, xa: np.ndarray) -> np.ndarray:
+        """The joint vector of the active variables ``xa``."""
+        out = self.x0.copy()
+        out[self.active] = xa
+        return out
 
-    def residuals(self, x: np.ndarray) -> np.ndarray:
-        """Every drop's weighted residuals, then the velocity priors (ln V0 − ln V_gate)/σ."""
+    def parts(self, x: np.ndarray) -> list[np.ndarray] | None:
+        """Each drop's weighted residuals at the joint vector ``x`` (None where a drop's model cannot be
+        integrated)."""
         parts = [model.residuals(local(x, i, self.shared)) for i, model in enumerate(self.models)]
-        return np.concatenate([*parts, (self.velocities(x) - self.gate) / self.sigma])
+        return None if any(part is None for part in parts) else parts  # type: ignore[return-value]
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
+    def residuals(self, xa: np.ndarray) -> np.ndarray | None:
+        """Every drop's weighted residuals, each with its velocity prior's row."""
+        parts = self.parts(self.full(xa))
+        return None if parts is None else np.concatenate(parts)
+
+    def jacobian(self, xa: np.ndarray) -> np.ndarray:
         """The joint Jacobian, assembled from each drop's block (its rows touch the shared columns and its own)."""
-        jac = np.zeros((self.size, x.size))
+        x = self.full(xa)
+        blocks = [model.jacobian(local(x, i, self.shared)) for i, model in enumerate(self.models)]
+        jac = np.zeros((sum(block.shape[0] for block in blocks), x.size))
         row = 0
-        for i, model in enumerate(self.models):
-            jac[row:row + self.sizes[i], self.columns[i]] = _jacobian(model, local(x, i, self.shared))
-            row += self.sizes[i]
-        jac[row + np.arange(len(self.models)), self.shared + len(NUISANCES) * np.arange(len(self.models))] = \
-            1.0 / self.sigma
-        return jac
+        for i, block in enumerate(blocks):
+            jac[row:row + block.shape[0], self.columns[i]] = block
+            row += block.shape[0]
+        return jac[:, self.active]
 
+    def drop_chi2(self, x: np.ndarray) -> tuple[float, ...]:
+        """Each drop's χ² of its samples at the joint vector ``x``."""
+        parts = self.parts(x)
+        assert parts is not None  # at an answer of the fit
+        return tuple(model.sample_chi2(part) for part, model in zip(parts, self.models, strict=True))
 
-def _jacobian(model: _Model, x: np.ndarray) -> np.ndarray:
-    """``model``'s Jacobian at ``x`` by forward differences, or by backward ones where a forward step leaves the
-    range the model is integrated in (a fit of a family that does not describe the drops runs to its edges)."""
-    try:
-        return model.jacobian(x)
-    except IdentificationError:
-        model.steps = -model.steps
-        try:
-            return model.jacobian(x)
-        finally:
-            model.steps = -model.steps
+    @property
+    def constant(self) -> float:
+        """χ² of the drops' heads about their means (see :class:`~impactometer.identify.model_fit.engine.Residuals`)."""
+        return float(sum(model.constant for model in self.models))
 
 
 def start_vector(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...],
@@ -159,60 +167,62 @@ def start_vector(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free:
     return np.r_[shared, np.ravel(own)].astype(float)
 
 
-def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[ObservedDrop]) -> tuple[Layout, ...]:
-    """Each drop's layout: V0 and the contact instant unknown, M1 and p0 known, the ``free`` stand parameters."""
+def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[ObservedDrop], *,
+                 velocity_sigma: float) -> tuple[Layout, ...]:
+    """Each drop's layout: V0 (with the light gate's reading as its prior of relative σ ``velocity_sigma``) and the
+    contact instant unknown, M1 and p0 known, the ``free`` stand parameters."""
     return tuple(make_layout(rig, law, free, pressure=drop.pressure, contact_time=drop.contact_time,
-                             sample_rate=drop.data.grid.sample_rate, mass=drop.mass) for drop in drops)
+                             sample_rate=drop.data.grid.sample_rate, mass=drop.mass).with_prior(
+                                 "velocity", drop.velocity, velocity_sigma * drop.velocity) for drop in drops)
 
 
 def fit_stage(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...], x0: np.ndarray, *,
               velocity_sigma: float, end: float | None, kind: str, evaluations: int = STAGE_EVALUATIONS,
-              tolerance: float = TOLERANCE):
+              tolerance: float = TOLERANCE, information: bool = False) -> tuple[Solution, _Joint]:
     """One stage: the joint least-squares fit on the window ``end`` [s] after each drop's start contact instant
     (None: whole records), the shared variables held where ``kind`` is ``"core"`` and all but the contact law's
-    where it is ``"contact"``; returns the scipy answer with the full vector as ``x`` and the joint problem."""
-    joint = _Joint(drops, layouts, len(free), velocity_sigma, end)
+    where it is ``"contact"``; returns the engine's solution with the full vector as ``x`` and the joint problem."""
     active = np.ones(x0.size, dtype=bool)
     if kind != "all":
         active[:len(free)] = [kind == "contact" and name.startswith("contact.") for name in free]
-
-    def full(xa: np.ndarray) -> np.ndarray:
-        out = x0.copy()
-        out[active] = xa
-        return out
-
-    answer = least_squares(lambda xa: joint.residuals(full(xa)), x0[active],
-                           jac=lambda xa: joint.jacobian(full(xa))[:, active], method="lm", max_nfev=evaluations,
-                           x_scale=1.0, ftol=tolerance, xtol=tolerance)
-    if answer.status < 0 or not np.all(np.isfinite(answer.fun)):
-        raise IdentificationError(f"the joint {layouts[0].law} fit failed: {answer.message}")
-    answer.x = full(answer.x)
-    return answer, joint
+    joint = _Joint(drops, layouts, len(free), end, x0, active)
+    try:
+        answer = solve(joint, x0[active], evaluations=evaluations, tolerance=tolerance, information=information)
+    except IdentificationError as exc:
+        raise IdentificationError(f"the joint {layouts[0].law} fit failed: {exc}") from None
+    return Solution(x=joint.full(answer.x), residuals=answer.residuals, chi2=answer.chi2, jacobian=answer.jacobian,
+                    evaluations=answer.evaluations, converged=answer.converged), joint
 
 
 def fit_family(drops: Sequence[ObservedDrop], rig: Rig, law: str, free: tuple[str, ...], *, velocity_sigma: float,
                stages: Sequence[tuple[float | None, str]], x0: np.ndarray | None = None, final: bool = True,
                progress: Callable[[], None] | None = None) -> tuple[Family, np.ndarray]:
     """Fit the family of ``law`` jointly over ``drops`` through ``stages`` (from ``x0``, default the stand's own
-    values, see :func:`start_vector`); returns the last stage's :class:`Family` and its vector. ``progress`` is
-    called after each stage."""
-    layouts = make_layouts(rig, law, free, drops)
+    values, see :func:`start_vector`) by :func:`~impactometer.identify.model_fit.engine.staged`; returns the last
+    stage's :class:`Family` and its vector. ``progress`` is called after each stage."""
+    layouts = make_layouts(rig, law, free, drops, velocity_sigma=velocity_sigma)
     x = start_vector(drops, layouts, free, stand_values(rig, law, free)) if x0 is None else x0
-    evaluations = 0
-    answer = joint = None
-    for k, (end, kind) in enumerate(stages):
-        answer, joint = fit_stage(drops, layouts, free, x, velocity_sigma=velocity_sigma, end=end, kind=kind,
-                                  tolerance=FINAL_TOLERANCE if final and k == len(stages) - 1 else TOLERANCE)
-        x, evaluations = answer.x, evaluations + int(answer.nfev)
+    last = len(stages) - 1
+
+    def fit_one(stage, state):
+        k, (end, kind) = stage
+        answer, joint = fit_stage(drops, layouts, free, state[0].x if state else x, velocity_sigma=velocity_sigma,
+                                  end=end, kind=kind, information=k == last,
+                                  tolerance=FINAL_TOLERANCE if final and k == last else TOLERANCE)
         if progress is not None:
             progress()
-    assert answer is not None and joint is not None  # stages is never empty
-    jac = answer.jac if stages[-1][1] == "all" else joint.jacobian(x)
+        return answer, joint, (state[2] if state else 0) + answer.evaluations
+
+    answer, joint, evaluations = staged(tuple(enumerate(stages)), fit_one, None)
+    x = answer.x
+    if joint.active.all():
+        jac = answer.jacobian
+    else:  # the Fisher information of every unknown, the held ones too
+        every = np.ones(x.size, dtype=bool)
+        jac = _Joint(drops, layouts, len(free), stages[-1][0], x, every).jacobian(x)
     root = np.asarray(np.linalg.qr(jac, mode="r"))
-    fun = answer.fun
-    bounds = np.cumsum([0, *joint.sizes])
-    drop_chi2 = tuple(float(fun[a:b] @ fun[a:b]) for a, b in zip(bounds[:-1], bounds[1:], strict=True))
-    family = Family(law=law, free=free, layouts=layouts, x=x, root=root, chi2=float(fun @ fun), residuals=fun.size,
-                    drop_chi2=drop_chi2, drop_residuals=tuple(joint.sizes), evaluations=evaluations,
-                    converged=answer.status > 0)
+    drop_chi2 = joint.drop_chi2(x)
+    family = Family(law=law, free=free, layouts=layouts, x=x, root=root, chi2=answer.chi2 + joint.constant,
+                    residuals=joint.size, drop_chi2=drop_chi2, drop_residuals=tuple(joint.sizes),
+                    evaluations=evaluations, converged=answer.converged)
     return family, x

@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import IdentificationError
-from ..identify.model_fit.fit import weighted_jacobian, window
+from ..identify.model_fit.engine import weighted_jacobian, window
 from ..identify.model_fit.forward import make_layout
 from ..identify.model_fit.information import covariance
 from ..rig import MASS_RANGE, VELOCITY_RANGE, Rig

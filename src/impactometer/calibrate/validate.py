@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..identify.model_fit.fit import _Model, fit_law, window
+from ..identify.model_fit.engine import Residuals, fit_law, staged, window
 from ..identify.model_fit.forward import make_layout
 from ..recording import Recording
 from ..rig import Rig, get_rig
@@ -91,11 +91,16 @@ def validate_drop(drop: ObservedDrop, rig: Rig) -> DropValidation:
     """One drop reproduced by ``rig`` (its own contact law), V0 held at the light gate's."""
     layout = make_layout(rig, rig.contact.law, (), pressure=drop.pressure, contact_time=drop.contact_time,
                          sample_rate=drop.data.grid.sample_rate, mass=drop.mass, velocity=drop.velocity)
-    start = {"contact_time": drop.contact_time}
-    first = fit_law(window(drop.data, drop.contact_time + FIRST_WINDOW), layout, start, information=False)
-    fit = fit_law(replace(drop.data, offsets=first.offsets), layout, first.values, information=False)
     data = drop.data
-    simulated = _Model(data, layout).prediction(fit.x) * data.noise[:, None] + fit.offsets[:, None]
+
+    def fit_one(end, state):  # the first window finds the contact instant, the whole record the offsets
+        values, offsets, _ = state
+        part = data if end is None else window(data, drop.contact_time + end)
+        fit = fit_law(part, layout, values, offsets=offsets, information=False)
+        return fit.values, fit.offsets, fit
+
+    _, _, fit = staged((FIRST_WINDOW, None), fit_one, ({"contact_time": drop.contact_time}, data.offsets, None))
+    simulated = Residuals(data, layout).predicted(fit.x)
     rate = data.grid.sample_rate
     onset = max(0, int(math.floor((fit.values["contact_time"] - data.grid.start_time) * rate)))
     force = data.channels[0, onset:] - fit.offsets[0]

@@ -212,3 +212,77 @@ class ResponseMapDetails(Details):
     def named(self) -> dict[str, Any]:
         return {"residual": self.residual, "features": dict(self.features), "feature_set": self.feature_set,
                 "pressure_gauge": self.pressure_gauge, "extrapolated": self.extrapolated}
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class StreamStage(Details):
+    """Where in a model stream an answer was given."""
+
+    #: ``first``, ``update`` or ``final``
+    stage: str
+    #: record between updates [s]
+    cadence: float
+    #: record read after first contact [s]
+    window: float
+    #: which contact law the stream follows and why
+    law_choice: str
+    #: what the σ assumes of the stand (before the stand is freed)
+    sigma_given: str | None = None
+    #: processor time of the answer [s]
+    update_time: float | None = None
+
+    def named(self) -> dict[str, Any]:
+        return _present({"stage": self.stage, "cadence_s": self.cadence, "window_ms": self.window * 1e3,
+                         "law_choice": self.law_choice, "sigma_given": self.sigma_given,
+                         "update_time_s": self.update_time})
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ModelDetails(Details):
+    """What a model answer used: the fit's path (``ml``: the fit's answer; ``fallback``: the robust answer, the
+    model not describing the record) and why, the contact law chosen and every law's fit, where the fit started,
+    the robust answer, the noise and the fit's figures. A fall-back carries the robust answer's own typed details
+    (``fallback``); its mapping holds both."""
+
+    path: str
+    reason: str
+    contact_law: str | None
+    #: the rule the contact law was chosen by, and law -> its fit's figures (or why it failed or was dropped)
+    criterion: str | None = None
+    model_selection: Mapping[str, Any] | None = None
+    #: where the fit started (``mass_kg``, ``velocity_m_s``, ``contact_time_s``, ``from``)
+    start: Mapping[str, Any] | None = None
+    #: the robust answer (``mass_kg``, ``velocity_m_s`` and their σ) or why it failed (``error``)
+    robust: Mapping[str, Any] | None = None
+    #: noise σ of the channels [N], [m/s²] and the anti-alias design the model reproduced
+    noise_force: float | None = None
+    noise_acceleration: float | None = None
+    anti_alias: str | None = None
+    #: the fit's first contact [s], χ²/dof, χ², degrees of freedom
+    t00: float | None = None
+    reduced_chi2: float | None = None
+    chi2: float | None = None
+    dof: int | None = None
+    #: Cramér-Rao σ of M1 and V0 at the estimate (the bound's mapping)
+    crb: Mapping[str, Any] | None = None
+    #: the span of the record after first contact the fit read [s] and why it ends there
+    fit_span: float | None = None
+    fit_span_reason: str | None = None
+    #: fitted stand parameter -> value [SI] and its σ
+    parameters: Mapping[str, Any] | None = None
+    #: on fall-back, the details of the robust answer given
+    fallback: Mapping[str, Any] | None = None
+    #: in a stream, where the answer was given
+    stream: StreamStage | None = None
+
+    def named(self) -> dict[str, Any]:
+        base = {} if self.fallback is None else (
+            self.fallback.named() if isinstance(self.fallback, Details) else dict(self.fallback))
+        own = {"model_selection": self.model_selection, "criterion": self.criterion, "start": self.start,
+               "robust": self.robust, "noise_force_N": self.noise_force,
+               "noise_acceleration_m_s2": self.noise_acceleration, "anti_alias": self.anti_alias,
+               "path": self.path, "reason": self.reason, "t00": self.t00, "reduced_chi2": self.reduced_chi2,
+               "chi2": self.chi2, "dof": self.dof, "crb": self.crb, "fit_span_s": self.fit_span,
+               "fit_span": self.fit_span_reason, "parameters": self.parameters}
+        return {**base, **_present(own), "contact_law": self.contact_law,
+                **({} if self.stream is None else self.stream.named())}

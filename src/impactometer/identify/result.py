@@ -65,7 +65,8 @@ class Identification:
         :class:`.details.EquationsUsed`), ``chi2``, ``dof``, noise levels, ``caution``. Response map: a
         :class:`.details.ResponseMapDetails` -- ``residual`` (eq. (7) [-]), ``features``, ``feature_set``,
         ``pressure_gauge`` [Pa gauge], ``extrapolated``. The typed details are also read-only mappings by these
-        names (:class:`.details.Details`). Model: ``path`` (``ml`` or ``fallback``) and ``reason``, ``contact_law``,
+        names (:class:`.details.Details`). Model: a :class:`.details.ModelDetails` -- ``path`` (``ml`` or
+        ``fallback``, which carries the robust answer's typed details as well) and ``reason``, ``contact_law``,
         ``criterion`` and ``model_selection`` (each law's fit), ``reduced_chi2``, ``parameters`` (the stand
         parameters fitted), ``crb`` (Cramér-Rao σ of M1 and V0), ``robust`` (its answer or why it failed),
         ``start`` (where the fit started: the robust answer or a grid).

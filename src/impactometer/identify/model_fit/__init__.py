@@ -2,7 +2,7 @@
 record, both channels and every sample, with the stand model of paper eqs. (1)-(2).
 
 The record is predicted through the stand model and the recording's own sensor model (:mod:`.forward`) and fitted
-by weighted least squares (:mod:`.fit`, each channel weighted by its noise σ from the pre-trigger), started from the
+by weighted least squares (:mod:`.engine`, each channel weighted by its noise σ from the pre-trigger), started from the
 robust peak-to-peak answer (from a grid of impacts where that fails). Unknowns: M1, V0, the contact instant
 (between samples), both sensor offsets, the stand parameters marked uncertain (default: the contact law's parameters
 and the seal friction) and the charge pressure unless it is known. Each contact-law family of the project is fitted
@@ -18,38 +18,36 @@ import math
 from collections.abc import Sequence
 from dataclasses import replace
 
-import numpy as np
-
 from ...errors import IdentificationError, ParameterError, RecordingError, shown
 from ...recording import Recording
-from ...rig import CONTACT_LAWS, PRESETS, STAND_KEY, Rig, contact_law_name, fingerprint, get_rig
+from ...rig import PRESETS, STAND_KEY, Rig, fingerprint, get_rig
 from ...sensors import anti_alias_delay
-from ...signals.noise import quiet_noise_std, robust_noise_std
 from ...validation import check_real
+from ..details import ModelDetails
 from ..plausibility import check_answer
 from ..result import Identification
-from .fit import LawFit, Observed, weighted_jacobian
-from .forward import check_uncertain, free_parameters, make_grid, make_layout, stand_values
+from .engine import (
+    MIN_DURATION,
+    LawFit,
+    anti_alias_design,
+    check_channels,
+    check_length,
+    contact_laws,
+    observe,
+    weighted_jacobian,
+)
+from .forward import check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, bound_of, covariance
 from .select import CRITERION, Start, fit_laws, grid_start
 
-__all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2"]
+__all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
 
 #: χ²/dof of the best law above which the model is taken not to describe the record: the robust answer is given
 MAX_REDUCED_CHI2 = 1.5
 #: χ²/dof above which an answer of the model carries a warning (model error beyond the noise)
 WARN_REDUCED_CHI2 = 1.1
-#: fewest samples before first contact (the noise σ of each channel comes from them)
-MIN_PRE_SAMPLES = 64
-#: samples next to first contact left out of the noise estimate (the filter's foot of the first rise)
-GUARD_SAMPLES = 16
-#: shortest record after first contact the fit accepts [s] (the first pulses of a pad record last ~5 ms)
-MIN_DURATION = 0.01
 #: a pressure given and one in the metadata contradict each other beyond this fraction (or 1 kPa) [-]
 PRESSURE_TOLERANCE = 0.02
-#: noise σ assumed for a channel without noise (a simulated record), as a fraction of its peak [-]
-NOISE_FLOOR = 1e-6
-CHANNELS = ("contact_force", "piston_acceleration")
 #: samples the contact instant starts before the crude trigger when the robust answer fails
 TRIGGER_LEAD = 2
 #: the points a Cramér-Rao bound is evaluated at (:func:`cramer_rao`'s ``at``)
@@ -78,86 +76,9 @@ def _pressure(recording: Recording, pressure: float | None, rig: Rig) -> float |
     return float(pressure)
 
 
-def _laws(contact: str | None) -> tuple[str, ...]:
-    """The contact laws fitted: every law the project has for ``"auto"``/None, else the one named."""
-    if contact is None or contact == "auto":
-        return tuple(CONTACT_LAWS)
-    return (contact_law_name(contact),)
 
 
-def _design(recording: Recording) -> str:
-    """The anti-alias design the recording's channels went through (metadata ``anti_alias``; none stated: plain
-    sampling)."""
-    design = recording.metadata.get("anti_alias", "none")
-    if design not in ("causal", "zero-phase", "none"):
-        raise IdentificationError(f"{recording.source}: metadata anti_alias = {shown(design)} names a filter the "
-                                  "model cannot reproduce; expected 'causal', 'zero-phase' or 'none'")
-    if isinstance(recording.metadata.get("cfc"), dict):
-        raise IdentificationError(f"{recording.source}: CFC-filtered channels; the model fit predicts the channels "
-                                  "through the recording's anti-alias filter only -- identify the unfiltered record")
-    return design
 
-
-def _observe(recording: Recording, design: str, contact_time: float, min_duration: float = MIN_DURATION) -> Observed:
-    """The record as the fit reads it, with each channel's noise σ from the samples before ``contact_time``, and
-    at least ``min_duration`` [s] after it."""
-    data = np.vstack([np.asarray(recording.channel(name), dtype=float) for name in CHANNELS])
-    fs = recording.sample_rate
-    onset = int(math.floor((contact_time - recording.start_time) * fs))
-    after = (data.shape[1] - 1 - onset) / fs
-    if after < min_duration:
-        raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
-                                  f"the model fit needs at least {min_duration * 1e3:g} ms")
-    pre = onset - GUARD_SAMPLES
-    if pre < MIN_PRE_SAMPLES:
-        raise IdentificationError(f"{recording.source}: {max(pre, 0)} samples before first contact; the model fit "
-                                  f"needs at least {MIN_PRE_SAMPLES + GUARD_SAMPLES} (the noise of each channel is "
-                                  "measured there) -- record with a pre-trigger")
-    # the model of the pre-trigger is an offset plus white noise: the sample standard deviation is its most
-    # efficient σ (the median second difference of robust_noise_std scatters 2-3 times more: 10 % off on a record
-    # of 1000 pre-trigger samples)
-    noise = quiet_noise_std(data[:, :pre], axis=1, ddof=1)
-    floor = NOISE_FLOOR * np.max(np.abs(data - np.median(data[:, :pre], axis=1)[:, None]), axis=1)
-    noise = np.maximum(noise, np.maximum(floor, 1e-300))
-    grid = make_grid(recording.start_time, fs, data.shape[1], design)
-    return Observed(channels=data, noise=noise, grid=grid, offsets=np.median(data[:, :pre], axis=1))
-
-
-def _check_length(recording: Recording, min_duration: float = MIN_DURATION) -> float:
-    """IdentificationError for a record without the pre-trigger or the length after first contact the fit needs;
-    else the crude instant of first contact [s].
-
-    Checked before the robust answer (which fails on such records with reasons of its own): the first
-    ``MIN_PRE_SAMPLES`` + ``GUARD_SAMPLES`` samples of the force must be quiet (within 8 σ of their median, σ by
-    :func:`~impactometer.signals.noise.robust_noise_std`), and first contact, the first sample 10 σ off, must leave
-    ``min_duration`` [s] of record.
-    """
-    force = np.asarray(recording.channel("contact_force"), dtype=float)
-    need = MIN_PRE_SAMPLES + GUARD_SAMPLES
-    head = force[:need]
-    level = float(np.median(head))
-    sd = max(robust_noise_std(head), 1e-12 * float(np.max(np.abs(force))), 1e-300)
-    if force.size <= need or np.max(np.abs(head - level)) > 8.0 * sd:
-        raise IdentificationError(f"{recording.source}: the force is not quiet over the first {need} samples; the "
-                                  f"model fit needs at least {need} samples before first contact (the noise of "
-                                  "each channel is measured there) -- record with a pre-trigger")
-    above = np.flatnonzero(np.abs(force - level) > 10.0 * sd)
-    if not above.size:
-        raise IdentificationError(f"{recording.source}: no impact: the force never leaves its noise ({sd:.3g} N)")
-    after = (force.size - 1 - above[0]) / recording.sample_rate
-    if after < min_duration:
-        raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
-                                  f"the model fit needs at least {min_duration * 1e3:g} ms")
-    return recording.start_time + above[0] / recording.sample_rate
-
-
-def _channels_of(recording: Recording) -> None:
-    if not isinstance(recording, Recording):
-        raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
-    missing = [name for name in CHANNELS if name not in recording.channels]
-    if missing:
-        raise IdentificationError(f"{recording.source}: channel(s) {missing} missing; the model fit needs "
-                                  f"{list(CHANNELS)}, found {sorted(recording.channels)}")
 
 
 def _stand_warning(recording: Recording, rig: Rig) -> tuple[str, ...]:
@@ -214,14 +135,14 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     """
     from ..peak_to_peak import identify_arrays as identify_robust
 
-    _channels_of(recording)
+    check_channels(recording)
     rig = get_rig(rig)
-    laws = _laws(contact)
+    laws = contact_laws(contact)
     free_names = check_uncertain(uncertain, laws)
     max_reduced_chi2 = check_real("max_reduced_chi2", max_reduced_chi2, low=1.0, unit=" [-]", state_range=True)
     p0 = _pressure(recording, pressure, rig)
-    design = _design(recording)
-    trigger = _check_length(recording)
+    design = anti_alias_design(recording)
+    trigger = check_length(recording)
     pressure_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_START
     delay = anti_alias_delay(design, recording.sample_rate)
     try:
@@ -230,21 +151,21 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     except IdentificationError as exc:
         robust, failed = None, str(exc)
     if robust is not None:
-        data = _observe(recording, design, robust.t00)
+        data = observe(recording, design, robust.t00)
         start = Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay, pressure=p0,
                       pressure_start=pressure_start)
     else:  # a few samples before the crude trigger: the first window's fit finds the instant
-        data = _observe(recording, design, trigger)
+        data = observe(recording, design, trigger)
         start = grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0, pressure_start)
     fits, selection = fit_laws(data, rig, laws, free_names, start)
-    common = {"model_selection": selection, "criterion": CRITERION,
-              "start": {"mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time,
-                        "from": "robust" if robust is not None else "grid"},
-              "robust": {"error": failed} if robust is None else
-              {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
-               "velocity_std_m_s": robust.velocity_std},
-              "noise_force_N": float(data.noise[0]), "noise_acceleration_m_s2": float(data.noise[1]),
-              "anti_alias": design}
+    common = ModelDetails(
+        path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,
+        start={"mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time,
+               "from": "robust" if robust is not None else "grid"},
+        robust={"error": failed} if robust is None else
+        {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
+         "velocity_std_m_s": robust.velocity_std},
+        noise_force=float(data.noise[0]), noise_acceleration=float(data.noise[1]), anti_alias=design)
     best = min(fits.values(), key=lambda f: f.bic) if fits else None
     if robust is None and (best is None or best.reduced_chi2 > max_reduced_chi2):
         raise IdentificationError(f"{recording.source}: no answer: the robust method failed ({failed}) and the "
@@ -262,13 +183,13 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                   "it does not describe this record, so the robust answer is given")
         return replace(robust, method="model/fallback",
                        warnings=(*_stand_warning(recording, rig), *robust.warnings, reason),
-                       details={**robust.details, **common, "path": "fallback", "reason": reason,
-                                "contact_law": None if best is None else best.law})
+                       details=replace(common, path="fallback", reason=reason,
+                                       contact_law=None if best is None else best.law, fallback=robust.details))
     return _answer(recording, rig, best, common)
 
 
-def _answer(recording: Recording, rig: Rig, best: LawFit, common: dict) -> Identification:
-    """The :class:`Identification` of the chosen fit."""
+def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails) -> Identification:
+    """The :class:`Identification` of the chosen fit (its details ``common``'s, with the fit's)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     crb = bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
@@ -287,12 +208,13 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: dict) -> Ident
                      f"the standard errors are inflated by {inflation:.3g}")
     end = recording.start_time + (recording.contact_force.size - 1) / recording.sample_rate
     t00 = best.values["contact_time"]
-    details = {**common, "path": "ml", "reason": f"the {best.law} model has the smallest BIC and fits the record "
-               f"to chi2/dof = {best.reduced_chi2:.3g}", "contact_law": best.law, "t00": t00,
-               "reduced_chi2": best.reduced_chi2, "chi2": best.chi2, "dof": best.dof, "crb": crb.to_dict(),
-               **({} if best.span is None else {"fit_span_s": best.span[0], "fit_span": best.span[1]}),
-               "parameters": {name: {"value": best.values[name], "std": best.std(name) * inflation}
-                              for name in best.layout.names[3:]}}
+    details = replace(
+        common, path="ml", reason=f"the {best.law} model has the smallest BIC and fits the record to chi2/dof = "
+        f"{best.reduced_chi2:.3g}", contact_law=best.law, t00=t00, reduced_chi2=best.reduced_chi2, chi2=best.chi2,
+        dof=best.dof, crb=crb.to_dict(), fit_span=None if best.span is None else best.span[0],
+        fit_span_reason=None if best.span is None else best.span[1],
+        parameters={name: {"value": best.values[name], "std": best.std(name) * inflation}
+                    for name in best.layout.names[3:]})
     return Identification(mass=mass, velocity=velocity, mass_std=crb.mass_std * inflation,
                           velocity_std=crb.velocity_std * inflation, available_at=end, method="model/ml",
                           warnings=tuple(found), details=details)
@@ -335,7 +257,7 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
     -------
     CramerRao
     """
-    _channels_of(recording)
+    check_channels(recording)
     if not (isinstance(at, str) and at in BOUND_POINTS):
         raise ParameterError(f"at must be one of {list(BOUND_POINTS)}, got {shown(at)}")
     rig = get_rig(rig)
@@ -352,8 +274,8 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
     if p0 is None:
         raise ParameterError("pressure must be given [Pa gauge] (the recording's metadata states none): the bound "
                              "is evaluated at a known impact on a known stand")
-    design = _design(recording)
-    data = _observe(recording, design, contact_time + anti_alias_delay(design, recording.sample_rate))
+    design = anti_alias_design(recording)
+    data = observe(recording, design, contact_time + anti_alias_delay(design, recording.sample_rate))
     layout = make_layout(rig, law, free, pressure=None if pressure_unknown else p0, contact_time=contact_time,
                          sample_rate=recording.sample_rate)
     point = {**values, "contact_time": contact_time, **stand_values(rig, law, free), "pressure_gauge": p0}

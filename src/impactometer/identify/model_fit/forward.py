@@ -5,13 +5,13 @@ the sensor model of :mod:`impactometer.sensors` (the same anti-alias filter and 
 
 The unknowns are held in a parameter vector ``theta`` (:class:`Layout`): M1, V0, the contact instant, the stand
 parameters marked uncertain and, when it is not known, the charge pressure; the two sensor offsets are linear and
-are handled by the fit (:mod:`.fit`).
+are handled by the fit (:mod:`.engine`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numba import njit, prange
@@ -19,7 +19,7 @@ from numba import njit, prange
 from ...errors import IdentificationError, ParameterError, ParameterTypeError, shown
 from ...model import dynamics as d
 from ...model import fast
-from ...model.setup import initial_states, pack
+from ...model.setup import contact_state, initial_states, pack
 from ...model.simulate import MAX_STEP, absolute_tolerance
 from ...rig import CONTACT_LAWS, Rig, Scenario
 from ...sensors import ANTI_ALIAS, causal_taps, internal_layout
@@ -133,8 +133,9 @@ class Layout:
 
     ``names`` lists the nonlinear unknowns (the core ones, then the stand parameters, then ``pressure_gauge`` when
     it is fitted) and ``specs`` their (packed index, transform, parameter); ``base`` is the packed parameter vector
-    of the stand with the law and known values; ``origin`` is the contact instant [s] from which the
-    ``contact_time`` variable counts sample periods.
+    of the stand with the law and known values (the held parameters); ``origin`` is the contact instant [s] from
+    which the ``contact_time`` variable counts sample periods; ``priors`` the Gaussian priors on unknowns, each
+    (index into ``names``, mean, σ) of its fit variable and one more residual row (:meth:`with_prior`).
     """
 
     names: tuple[str, ...]
@@ -143,6 +144,18 @@ class Layout:
     law: str
     origin: float
     sample_rate: float
+    priors: tuple[tuple[int, float, float], ...] = ()
+
+    def with_prior(self, name: str, mean: float, sigma: float) -> Layout:
+        """This layout with a Gaussian prior of ``mean`` and ``sigma`` [SI] on the unknown ``name``: the residual row
+        (variable − variable(mean))/σ', σ' the prior's σ through the slope of the transform at the mean (a log
+        variable: the relative σ)."""
+        j = self.names.index(name)
+        _, kind, param = self.specs[j]
+        mean_variable = float(to_variable((mean - self.origin) * self.sample_rate if name == "contact_time" else mean,
+                                          kind, param))
+        spread = sigma / abs(self.derivative(name, mean_variable))
+        return replace(self, priors=(*self.priors, (j, mean_variable, float(spread))))
 
     def variables(self, values: dict[str, float]) -> np.ndarray:
         """Fit variables of physical values (name -> value [SI])."""
@@ -269,21 +282,35 @@ def make_grid(start_time: float, sample_rate: float, size: int, design: str) -> 
                 factor=factor, pad=pad, taps=taps[::-1].copy())
 
 
-@njit(cache=True, parallel=True, error_model="numpy")
-def _integrate_rows(params, y0, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
-    """Integrate each row from its contact instant: row s at the instants ``offsets - shifts[s]`` after contact,
-    zero before it (the last instant before it at the state of contact)."""
-    for s in prange(params.shape[0]):
-        status[s] = integrate_row(params[s], y0[s], offsets, shifts[s], channel_index, rtol, atol, max_step,
-                                  max_steps, out[s])
+#: the packed parameters a trial point is checked on, and their ranges (:data:`TRIAL_RANGES`)
+_RANGE_INDEX = np.array(list(TRIAL_RANGES), dtype=np.int64)
+_RANGE_LOW, _RANGE_HIGH = (np.array([bounds[k] for bounds in TRIAL_RANGES.values()]) for k in (0, 1))
+#: status of a row whose charge cannot carry the piston (it would rest on the bottom stop), and of one outside
+#: :data:`TRIAL_RANGES`
+NO_START, OUTSIDE = -100, -101
 
 
 @njit(cache=True, error_model="numpy")
-def integrate_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max_steps, out):
-    """One row of :func:`_integrate_rows` on the calling thread: the channels ``out`` (channels, instants) at
-    ``offsets - shift`` after contact, zero before the last instant before it, which is integrated too (it holds
-    the state at contact: a contact force that jumps at first touch shares the jump with it, fast.share_jump).
-    Returns the integrator's status."""
+def outside_ranges(p):
+    """The first packed index of row ``p`` outside :data:`TRIAL_RANGES` (a NaN is outside); -1 where none is: the
+    one range check of every prediction of a fit."""
+    for k in range(_RANGE_INDEX.size):
+        value = p[_RANGE_INDEX[k]]
+        if not (_RANGE_LOW[k] <= value <= _RANGE_HIGH[k]):
+            return _RANGE_INDEX[k]
+    return -1
+
+
+@njit(cache=True, error_model="numpy")
+def predict_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max_steps, out):
+    """One row of a prediction on the calling thread: the channels ``out`` (channels, instants) at ``offsets -
+    shift`` after contact, zero before the last instant before it, which is integrated too (it holds the state at
+    contact: a contact force that jumps at first touch shares the jump with it, fast.share_jump). ``y0`` is scratch
+    for the state at contact. Returns the integrator's status, :data:`OUTSIDE` or :data:`NO_START`."""
+    if outside_ranges(p) >= 0:
+        return OUTSIDE
+    if not contact_state(p, y0):
+        return NO_START
     t = offsets - shift
     first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
     for j in range(channel_index.size):
@@ -293,35 +320,54 @@ def integrate_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, ma
     return status
 
 
-def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray) -> np.ndarray:
+@njit(cache=True, parallel=True, error_model="numpy")
+def _predict_rows(params, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
+    """:func:`predict_row` of every row on the thread pool."""
+    for s in prange(params.shape[0]):
+        status[s] = predict_row(params[s], np.empty(d.N_STATE), offsets, shifts[s], channel_index, rtol, atol,
+                                max_step, max_steps, out[s])
+
+
+@njit(cache=True, error_model="numpy")
+def _predict_in_turn(params, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
+    """:func:`predict_row` of every row, one after the other on the calling thread."""
+    y0 = np.empty(d.N_STATE)
+    for s in range(params.shape[0]):
+        status[s] = predict_row(params[s], y0, offsets, shifts[s], channel_index, rtol, atol, max_step, max_steps,
+                                out[s])
+
+
+def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_turn: bool = False) -> np.ndarray:
     """Recorded contact force [N] and piston acceleration [m/s²] without offsets and noise, shape (m, 2, size), of
-    packed parameter rows (m, N_PARAM) with first contact at ``contact_times`` (m,) [s] on the recording's clock.
+    packed parameter rows (m, N_PARAM) with first contact at ``contact_times`` (m,) [s] on the recording's clock;
+    ``in_turn``: on the calling thread, one row after the other (the same numbers; a launch on the thread pool
+    cost 1-10 ms on a loaded machine, twenty integrations of a first window).
 
     Raises
     ------
     IdentificationError
-        When the stand cannot carry the piston at a row's pressure or the integrator fails.
+        For a row outside :data:`TRIAL_RANGES` or a contact instant that is not finite, when the stand cannot
+        carry the piston at a row's pressure or the integrator fails.
     """
     params = np.ascontiguousarray(params, dtype=float)
-    for index, (low, high) in TRIAL_RANGES.items():
-        bad = ~((params[:, index] >= low) & (params[:, index] <= high))
-        if bad.any():
-            raise IdentificationError(f"the model is not integrated at packed parameter {index} = "
-                                      f"{params[bad, index][0]!r}, outside [{low:g}, {high:g}]")
     if not np.all(np.isfinite(contact_times)):
         raise IdentificationError("the model is not integrated at a contact instant that is not finite")
-    try:
-        y0 = initial_states(params)
-    except ParameterError as exc:
-        raise IdentificationError(f"the model cannot start: {exc}") from None
     offsets = grid.offsets
     out = np.empty((params.shape[0], 2, offsets.size))
     status = np.zeros(params.shape[0], dtype=np.int64)
     shifts = np.asarray(contact_times, dtype=float) - grid.start_time
-    _integrate_rows(params, y0, offsets, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL),
-                    MAX_STEP, MAX_FIT_STEPS, out, status)
+    kernel = _predict_in_turn if in_turn else _predict_rows
+    kernel(params, offsets, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS,
+           out, status)
     if np.any(status != fast.OK):
         i = int(np.flatnonzero(status != fast.OK)[0])
+        if status[i] == OUTSIDE:
+            index = int(outside_ranges(params[i]))
+            low, high = TRIAL_RANGES[index]
+            raise IdentificationError(f"the model is not integrated at packed parameter {index} = "
+                                      f"{params[i, index]!r}, outside [{low:g}, {high:g}]")
+        if status[i] == NO_START:
+            raise IdentificationError("the model cannot start: the charge is too low to carry the piston")
         raise IdentificationError(f"the model's integration failed ({fast.STATUS_TEXT[int(status[i])]}) at "
                                   f"M1 = {params[i, d.MASS]:.4g} kg, V0 = {params[i, d.VELOCITY]:.4g} m/s")
     return sensed(grid, out)

@@ -2,7 +2,7 @@
 window, the screen of the contact laws, and one update per cadence warm-started from the last.
 
 The state of one impact is a :class:`Growing`; the functions here advance it. Every window of the record reaches
-them as an :class:`~.fit.Observed` whose last sample is the last one the answer may read.
+them as an :class:`~.engine.Observed` whose last sample is the last one the answer may read.
 """
 
 from __future__ import annotations
@@ -14,9 +14,8 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .early import fit_window, refine_window
-from .first_window import fit_first_window, refine_first_window, takes
-from .fit import MAX_EVALUATIONS, LawFit, Observed
+from .engine import MAX_EVALUATIONS, LawFit, Observed
+from .first_window import fit_window
 from .forward import Layout
 from .select import (
     EARLY_MARGIN,
@@ -31,8 +30,10 @@ from .select import (
     start_law,
 )
 
-#: Levenberg-Marquardt steps of one update
+#: Levenberg-Marquardt steps of one update, and the residual evaluations each may take (the dampings it tries
+#: until χ² falls)
 UPDATE_STEPS = 1
+STEP_EVALUATIONS = 3
 #: residual evaluations of each other law's fit on the first window for the screen (the batch fit takes
 #: SCREEN_EVALUATIONS = 8): fewer only leave a law's χ² higher, and a law is dropped only where the stand's law
 #: explains the window down to the noise; on the pad stand the wrong laws lose by 7e3-9e5 against a margin of 1e3
@@ -57,6 +58,17 @@ class LawState:
 
 
 @dataclass
+class Pending:
+    """The first window's screen still to do: the window, its length [s] after contact, the laws still to fit on
+    it and the fits made of the others."""
+
+    data: Observed | None = None
+    span: float = 0.0
+    laws: tuple[str, ...] = ()
+    fitted: dict[str, LawState] = field(default_factory=dict)
+
+
+@dataclass
 class Growing:
     """The fit of one impact's growing record: the stand, the laws to consider, the unknowns marked uncertain, the
     laws followed (``states``), where their fits started, the laws still to screen on the first window
@@ -68,7 +80,7 @@ class Growing:
     uncertain: tuple[str, ...] | None
     states: dict[str, LawState] = field(default_factory=dict)
     start: Start | None = None
-    pending: tuple = (None, 0.0, (), {})
+    pending: Pending = field(default_factory=Pending)
     chosen: str | None = None
     choice: str = ""
     notes: list[str] = field(default_factory=list)
@@ -96,14 +108,7 @@ def _fit_core(growing: Growing, law: str, data: Observed, core: dict | None, eva
     layouts, values = start_law(growing.rig, law, growing.uncertain, growing.start, data.grid.sample_rate)
     if core is not None:
         values.update({name: core[name] for name in ("mass", "velocity", "contact_time")})
-    layout = layouts("core", values)
-    if not takes(data, layout):
-        fit = fit_window(data, layout, values, evaluations=evaluations, information=information)
-    elif (compiled := fit_first_window(data, layout, values, evaluations=evaluations,
-                                       information=information)) is not None:
-        fit = compiled
-    else:
-        raise IdentificationError(f"the {law} model cannot be integrated at the fit's start or its answer")
+    fit = fit_window(data, layouts("core", values), values, evaluations=evaluations, information=information)
     return LawState(layouts, {**values, **fit.values}, fit.offsets, fit)
 
 
@@ -128,8 +133,8 @@ def first_fit(growing: Growing, data: Observed, span: float, starts: list[Start]
     if found is None:
         return None
     growing.states, growing.start = {own: found[0]}, found[1]
-    growing.pending = (data, span, tuple(law for law in growing.laws if law != own), {})
-    if growing.pending[2]:
+    growing.pending = Pending(data, span, tuple(law for law in growing.laws if law != own))
+    if growing.pending.laws:
         growing.choice = (f"{own} (the stand's law) for the first answer; the other laws are screened on the first "
                           f"{span * 1e3:.3g} ms at the next update")
         if not explains(found[0].fit, data):
@@ -141,7 +146,9 @@ def screen_pending(growing: Growing, *, every: bool = False) -> None:
     """One law still to screen (``every``: all of them) fitted on the first window from the first law's answer, in
     ``STREAM_SCREEN_EVALUATIONS``; once none is left, the laws screened as the batch fit screens them on that
     window, and the law chosen where one is left."""
-    data, span, others, fitted = growing.pending
+    pending = growing.pending
+    data, span, others, fitted = pending.data, pending.span, pending.laws, pending.fitted
+    assert data is not None  # a window is pending while laws are
     first = next(iter(growing.states.values()))
     for law in others if every else others[:1]:
         try:
@@ -149,7 +156,7 @@ def screen_pending(growing: Growing, *, every: bool = False) -> None:
         except IdentificationError as exc:
             growing.notes.append(f"{law} on the first {span * 1e3:.3g} ms: {exc}")
     rest = () if every else others[1:]
-    growing.pending = (data if rest else None, span, rest, fitted)
+    growing.pending = Pending(data if rest else None, span, rest, fitted)
     if rest:
         return
     better = min(fitted.values(), key=lambda state: state.fit.chi2, default=None)
@@ -179,21 +186,15 @@ def _keep(growing: Growing, dropped: dict[str, str], why: str, span: float, *, o
 
 
 def _refine(data: Observed, layout: Layout, values: dict, offsets: np.ndarray, steps: int) -> LawFit:
-    """``steps`` Levenberg-Marquardt steps: compiled for the layout with the stand held (:mod:`.first_window`),
-    else :func:`.early.refine_window`."""
-    if not takes(data, layout):
-        return refine_window(data, layout, values, offsets, steps=steps)
-    fit = refine_first_window(data, layout, values, offsets, steps=steps)
-    if fit is None:
-        raise IdentificationError(f"the {layout.law} model cannot be integrated at the update's start")
-    return fit
+    """``steps`` Levenberg-Marquardt steps from ``values`` and ``offsets`` (:func:`.first_window.fit_window`)."""
+    return fit_window(data, layout, values, offsets, evaluations=1 + STEP_EVALUATIONS * steps, jacobians=steps)
 
 
 def update(growing: Growing, data: Observed, span: float) -> LawFit | None:
     """One update on the record so far (``span`` [s] after contact): the pending screen first; each law followed
-    refined from its last values (:func:`.fit.refine`), the stand held before ``STAGES[SCREEN_WINDOW]`` and every
+    refined from its last values (:func:`_refine`), the stand held before ``STAGES[SCREEN_WINDOW]`` and every
     unknown free from it on, where the smallest BIC chooses among the laws left (and the choice is kept)."""
-    if growing.pending[2]:
+    if growing.pending.laws:
         screen_pending(growing)
     kind = "core" if span < STAGES[SCREEN_WINDOW][0] else "all"
     for law, state in list(growing.states.items()):

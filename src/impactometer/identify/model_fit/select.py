@@ -21,7 +21,7 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .fit import MAX_EVALUATIONS, LawFit, Observed, fit_law, window
+from .engine import MAX_EVALUATIONS, LawFit, Observed, fit_law, staged, window
 from .forward import Grid, free_parameters, horizon, make_layout, predict, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
@@ -174,12 +174,14 @@ def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
 
 
 def fit_stages(data: Observed, layouts: Layouts, values: dict, offsets, stages, start: Start, *,
-            evaluations: int = MAX_EVALUATIONS):
-    """Fit the windows of ``stages`` in turn (None: the record up to its :func:`~.forward.horizon` at the last
-    window's answer), each from the last one's answer; returns the last fit (its covariance only for the last
-    window), its values and its offsets."""
-    fit = None
-    for end, kind in stages:
+               evaluations: int = MAX_EVALUATIONS):
+    """Fit the windows of ``stages`` in turn (:func:`.engine.staged`; None: the record up to its
+    :func:`~.forward.horizon` at the last window's answer), each from the last one's answer; returns the last fit
+    (its covariance only for the last window), its values and its offsets."""
+
+    def fit_one(stage, state):
+        end, kind = stage
+        _, values, offsets = state
         layout = layouts(kind, values)
         if end is None:
             span = data.grid.start_time + (data.grid.size - 1) / data.grid.sample_rate - values["contact_time"]
@@ -187,12 +189,12 @@ def fit_stages(data: Observed, layouts: Layouts, values: dict, offsets, stages, 
             part = window(data, values["contact_time"] + reach) if reach < span else data
         else:
             part = window(data, start.contact_time + end)
-        fit = fit_law(replace(part, offsets=offsets), layout, values, evaluations=evaluations,
-                      information=end is None)
+        fit = fit_law(part, layout, values, offsets=offsets, evaluations=evaluations, information=end is None)
         if end is None:
             fit = replace(fit, span=(reach, why))
-        values, offsets = {**values, **fit.values}, fit.offsets
-    return fit, values, offsets
+        return fit, {**values, **fit.values}, fit.offsets
+
+    return staged(stages, fit_one, (None, values, offsets))
 
 
 #: the grid of impacts a start is sought on when the robust answer fails: M1 [kg] × V0 [m/s], geometric

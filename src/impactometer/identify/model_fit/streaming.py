@@ -16,9 +16,9 @@ algorithms, this class the schedule):
   left, each is updated up to ``STAGES[SCREEN_WINDOW]`` (15 ms), where the smallest BIC chooses. The choice is
   kept; the final answer revisits it (the batch fit compares every law again).
 - **Updates** every ``cadence`` of record after the first answer: the fit of the record so far, warm-started from
-  the last update's optimum, by one Levenberg-Marquardt step (:func:`.fit.refine`: one Jacobian, one or two
-  residuals); a few more where it leaves χ²/dof above 1.1. Before 15 ms the stand is held; from it on every
-  unknown of the batch fit is free.
+  the last update's optimum, by one Levenberg-Marquardt step of the engine's solver (:func:`.engine.solve`: one
+  Jacobian, one or two residuals); a few more where it leaves χ²/dof above 1.1. Before 15 ms the stand is held;
+  from it on every unknown of the batch fit is free.
 - **Final answer** once ``window`` (50 ms) of record after first contact has arrived, or at ``finish()``:
   :func:`~impactometer.identify.model_fit.identify` of the buffered samples, the batch answer of the same samples.
 
@@ -43,11 +43,21 @@ from ...rig import STAND_KEY, Rig, get_rig
 from ...sensors import anti_alias_delay
 from ...validation import check_integer, check_real
 from .. import model_fit as batch
+from ..details import ModelDetails, StreamStage
 from ..peak_to_peak.streaming import StreamingIdentifier, check_open, last_outcome
 from ..result import Identification
-from .early import LEAD_SAMPLES
+from .engine import (
+    CHANNELS,
+    LEAD_SAMPLES,
+    LawFit,
+    Observed,
+    anti_alias_design,
+    check_length,
+    contact_laws,
+    observe,
+    window,
+)
 from .first_window import warm
-from .fit import LawFit, Observed, window
 from .forward import check_uncertain, make_grid
 from .growing import Growing, explains, first_fit, update
 from .select import SCREEN_WINDOW, STAGES, Start, grid_predictions, grid_starts
@@ -138,7 +148,7 @@ class ModelStream:
         self.cadence, self.first, self.window = check_schedule(cadence, first, window, sample_rate=sample_rate)
         self.robust = StreamingIdentifier(sample_rate, start_time=start_time, estimates=robust_starts)
         self.sample_rate, self.start_time = float(sample_rate), float(start_time)
-        self.rig, self.laws = get_rig(rig), batch._laws(contact)
+        self.rig, self.laws = get_rig(rig), contact_laws(contact)
         self.uncertain, self.contact = check_uncertain(uncertain, self.laws), contact
         if metadata is not None and not isinstance(metadata, dict):
             raise ParameterTypeError(f"metadata must be None or a dict (the recording's metadata), got "
@@ -149,7 +159,7 @@ class ModelStream:
         #: fingerprint of the stand cost a sixth of a millisecond an answer)
         self._stand_notes = batch._stand_warning(probe, self.rig)
         self._update_metadata = {k: v for k, v in self.metadata.items() if k != STAND_KEY}
-        self.design = batch._design(probe)
+        self.design = anti_alias_design(probe)
         self.pressure = batch._pressure(probe, pressure, self.rig)
         self.delay = anti_alias_delay(self.design, sample_rate)
         self._grid_model = make_grid(self.start_time, sample_rate, 1, self.design)
@@ -181,7 +191,7 @@ class ModelStream:
             return {}
 
     def _recording(self, channels: np.ndarray, first: int, metadata: dict | None = None) -> Recording:
-        return Recording(sample_rate=self.sample_rate, channels=dict(zip(batch.CHANNELS, channels, strict=True)),
+        return Recording(sample_rate=self.sample_rate, channels=dict(zip(CHANNELS, channels, strict=True)),
                          start_time=self.start_time + first / self.sample_rate,
                          metadata=self.metadata if metadata is None else metadata, source="stream")
 
@@ -237,10 +247,10 @@ class ModelStream:
         self.estimates = []
 
     def _observe(self, recording: Recording, contact_time: float) -> Observed:
-        """The record as the fit reads it (:func:`~impactometer.identify.model_fit._observe`), on a grid whose
+        """The record as the fit reads it (:func:`.engine.observe`), on a grid whose
         sensor model the stream made once: the design of the anti-alias FIR costs a quarter of a millisecond, a
         first answer little more than a millisecond."""
-        data = batch._observe(recording, "none", contact_time, min_duration=0.0)  # the design only makes the grid
+        data = observe(recording, "none", contact_time, min_duration=0.0)  # the design only makes the grid
         return replace(data, grid=replace(self._grid_model, start_time=data.grid.start_time, size=data.grid.size))
 
     def _stop(self, contact: float, after: float) -> int:
@@ -259,7 +269,7 @@ class ModelStream:
                                     self._update_metadata)
         try:
             if not impact.checked:  # a pre-trigger, as the batch fit needs one (the same for every update)
-                batch._check_length(recording, min_duration=0.0)
+                check_length(recording, min_duration=0.0)
                 impact.checked = True
             data = self._observe(recording, impact.contact_time)
             fit = self._first(impact, data, span) if not impact.fit.states else update(impact.fit, data, span)
@@ -303,11 +313,13 @@ class ModelStream:
             growing.notes.append(f"up to {span * 1e3:.3g} ms after first contact: the {fit.law} model with the "
                                  "stand held does not explain the samples after contact down to their noise")
             return []
-        common = {"stage": stage, "cadence_s": self.cadence, "window_ms": span * 1e3,
-                  "law_choice": growing.choice or "not yet: the laws are compared on the first "
-                  f"{STAGES[SCREEN_WINDOW][0] * 1e3:g} ms",
-                  "sigma_given": "the stand's parameters held at the rig's values" if held else
-                  "every unknown of the batch fit free"}
+        start = growing.start
+        common = ModelDetails(path="", reason="", contact_law=None, start={} if start is None else {
+            "mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time},
+            stream=StreamStage(stage=stage, cadence=self.cadence, window=span, law_choice=growing.choice or (
+                "not yet: the laws are compared on the first "f"{STAGES[SCREEN_WINDOW][0] * 1e3:g} ms"),
+                sigma_given="the stand's parameters held at the rig's values" if held else
+                "every unknown of the batch fit free"))
         if fit.reduced_chi2 > batch.MAX_REDUCED_CHI2:
             if not self.robust.estimates:
                 return []
@@ -315,16 +327,16 @@ class ModelStream:
             reason = (f"the best model ({fit.law}) leaves chi2/dof = {fit.reduced_chi2:.3g} > "
                       f"{batch.MAX_REDUCED_CHI2:g} on the record so far: the robust stream's answer is given")
             answer = replace(robust, method="model/fallback", available_at=recording.start_time + (
-                recording.contact_force.size - 1) / self.sample_rate, details={
-                **robust.details, **common, "path": "fallback", "reason": reason, "contact_law": fit.law})
+                recording.contact_force.size - 1) / self.sample_rate, details=replace(
+                common, path="fallback", reason=reason, contact_law=fit.law, fallback=robust.details))
         else:
-            start = growing.start
-            answer = batch._answer(recording, self.rig, fit, {**common, "start": {} if start is None else {
-                "mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time}})
+            answer = batch._answer(recording, self.rig, fit, common)
             answer = replace(answer, warnings=(*self._stand_notes, *answer.warnings))
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
-        answer = replace(answer, details={**answer.details, "update_time_s": elapsed})
+        details = answer.details
+        assert isinstance(details, ModelDetails) and details.stream is not None  # made above
+        answer = replace(answer, details=replace(details, stream=replace(details.stream, update_time=elapsed)))
         self.estimates.append(answer)
         return [answer]
 
@@ -343,9 +355,10 @@ class ModelStream:
             self.outcomes.append(exc)
             return []
         span = recording.start_time + (recording.contact_force.size - 1) / self.sample_rate - impact.contact_time
-        final = replace(final, details={**final.details, "stage": "final", "cadence_s": self.cadence,
-                                        "window_ms": span * 1e3, "update_time_s": time.perf_counter() - clock,
-                                        "law_choice": f"the batch fit's; in the stream: {impact.fit.choice}"})
+        stage = StreamStage(stage="final", cadence=self.cadence, window=span, update_time=time.perf_counter() - clock,
+                            law_choice=f"the batch fit's; in the stream: {impact.fit.choice}")
+        assert isinstance(final.details, ModelDetails)  # identify's
+        final = replace(final, details=replace(final.details, stream=stage))
         self.outcomes.append(final)
         self.estimates.append(final)
         return [final]

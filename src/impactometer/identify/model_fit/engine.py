@@ -1,0 +1,490 @@
+"""The fitting engine of every model fit of the project (the batch fit, the stream's first window and updates, the
+calibration and the validation): a record as the fit reads it (:class:`Observed`), the weighted residual problem
+of a layout on it (:class:`Residuals`), one Levenberg-Marquardt solver (:func:`solve`: one damping step,
+:func:`damped_step`, and one stopping rule, :func:`stops`) and one answer (:class:`LawFit`).
+
+::
+
+    Layout (named unknowns)  ->  Residuals (data − offset − model)/σ, Jacobian  ->  solve  ->  Solution  ->  LawFit
+
+The compiled first-window fit of the stream (:mod:`.first_window`) runs the same step and stopping rule inside
+its own compiled loop.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+from numba import njit
+
+from ...errors import IdentificationError, shown
+from ...recording import Recording
+from ...rig import CONTACT_LAWS, contact_law_name
+from ...signals.noise import quiet_noise_std, robust_noise_std
+from .forward import Grid, Layout, make_grid, predict
+from .information import covariance
+
+#: finite-difference step of the Jacobian in the fit variables (ln of a positive value, value/scale of a linear
+#: one) and in sample periods for the contact instant. Smaller steps let the integrator's error (its step sequence
+#: changes with the parameters, and the contact opens and closes between steps) into the differences: at 1e-6 the
+#: Fisher information of M1 came out 8-25 times too large on two pad records (σ(M1) 0.18 % instead of 0.53 %);
+#: from 1e-4 to 1e-3 it agrees within 4 %
+STEP = 3e-4
+CONTACT_TIME_STEP = 1e-2
+#: most residual evaluations of one fit (a pad record converges in 11-18)
+MAX_EVALUATIONS = 40
+#: relative reduction of χ² (predicted by the linearised model, or achieved) at which a fit has converged
+#: (MINPACK's ftol): 1e-6 of χ² is ~0.01 on a record of 7000 residuals, nothing beside its scatter of ±120
+TOLERANCE = 1e-6
+#: Marquardt damping of the first step (relative to the diagonal of JᵀJ), its floor, and the damping at which a fit
+#: that finds no lower χ² stops (at the minimum to the precision of the model); :func:`adapt` moves it in between
+FIRST_DAMPING, LEAST_DAMPING, MOST_DAMPING = 1e-3, 1e-12, 1e8
+
+#: fewest samples before first contact (the noise σ of each channel comes from them)
+MIN_PRE_SAMPLES = 64
+#: samples next to first contact left out of the noise estimate (the filter's foot of the first rise)
+GUARD_SAMPLES = 16
+#: shortest record after first contact the fit accepts [s] (the first pulses of a pad record last ~5 ms)
+MIN_DURATION = 0.01
+#: noise σ assumed for a channel without noise (a simulated record), as a fraction of its peak [-]
+NOISE_FLOOR = 1e-6
+CHANNELS = ("contact_force", "piston_acceleration")
+#: samples before the fit's first contact kept in the predicted part of the record (the rest before it, where every
+#: trial point's model is zero, enters through its sums only): a trial contact instant earlier than this is
+#: refused, as a point outside the ranges is
+LEAD_SAMPLES = 64
+
+
+@njit(cache=True, error_model="numpy")
+def damped_step(jac, r, damping):
+    """The Levenberg-Marquardt step −(JᵀJ + λ·diag JᵀJ)⁻¹Jᵀr of residuals ``r`` with Jacobian ``jac`` and damping
+    λ, solved in column-scaled variables (the one damping step of every fit)."""
+    scale = np.sqrt(np.sum(jac * jac, axis=0))
+    for k in range(scale.size):
+        if scale[k] == 0.0:
+            scale[k] = 1.0
+    scaled = jac / scale
+    normal = scaled.T @ scaled
+    lifted = normal + damping * np.diag(np.diag(normal))
+    return -np.linalg.lstsq(lifted, scaled.T @ r)[0] / scale
+
+
+@njit(cache=True, error_model="numpy")
+def adapt(damping, growth, gain):
+    """The damping and its growth factor after a step of ``gain`` = achieved / predicted reduction of χ² (Nielsen's
+    rule, H. B. Nielsen, IMM-REP-1999-05): a step that lowers χ² (gain > 0) lowers the damping by up to a factor 3
+    as the linearised model predicted it well; one that does not raises it by ``growth``, which doubles with each
+    failure in a row (a few failures reach any damping)."""
+    if gain > 0.0:
+        return max(damping * max(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3), LEAST_DAMPING), 2.0
+    return damping * growth, 2.0 * growth
+
+
+@njit(cache=True, error_model="numpy")
+def stops(chi2, lower, damping, tolerance):
+    """The stopping rule of every fit: χ² falls (predicted by the linearised model or achieved: ``lower``) by no
+    more than ``tolerance`` of it, or no damping up to :data:`MOST_DAMPING` finds a lower χ²."""
+    return 0.0 <= chi2 - lower <= tolerance * chi2 or damping > MOST_DAMPING
+
+
+class Problem(Protocol):
+    """A weighted least-squares problem: ``residuals(x)`` (None where the model cannot be evaluated at ``x``)
+    and ``jacobian(x)``."""
+
+    def residuals(self, x: np.ndarray) -> np.ndarray | None: ...
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class Solution:
+    """What :func:`solve` found: the variables ``x``, the residuals there and their sum of squares ``chi2``, the
+    last Jacobian made (at ``x`` unless the Jacobians ran out), the residual evaluations and whether the stopping
+    rule ended the fit."""
+
+    x: np.ndarray
+    residuals: np.ndarray
+    chi2: float
+    jacobian: np.ndarray
+    evaluations: int
+    converged: bool
+
+
+def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS, tolerance: float = TOLERANCE,
+          jacobians: int | None = None, information: bool = True) -> Solution:
+    """Levenberg-Marquardt on ``problem`` from ``x``: damped steps (:func:`damped_step`), the damping lowered after
+    a step that lowers χ² and raised after one that does not (:func:`adapt`), until :func:`stops` (converged),
+    ``evaluations`` residual evaluations are spent, or ``jacobians`` Jacobians are made (an update of a fit whose
+    window grew a little: one Jacobian and one or a few residual evaluations). With ``information`` the Jacobian of the
+    answer is made at it (else the last one made, where the fit stops).
+
+    Raises
+    ------
+    IdentificationError
+        When the problem cannot be evaluated at ``x``.
+    """
+    x = np.asarray(x, dtype=float)
+    r = problem.residuals(x)
+    if r is None:
+        raise IdentificationError("the model cannot be integrated at the fit's start")
+    chi2, count, made, damping, growth, converged = float(r @ r), 1, 1, FIRST_DAMPING, 2.0, False
+    jac = problem.jacobian(x)
+    while count < evaluations:
+        step = damped_step(jac, r, damping)
+        predicted = r + jac @ step
+        lower = float(predicted @ predicted)
+        if stops(chi2, lower, damping, tolerance):
+            converged = True
+            break
+        trial = x + step
+        r_trial = problem.residuals(trial)
+        count += 1
+        new = np.inf if r_trial is None else float(r_trial @ r_trial)
+        damping, growth = adapt(damping, growth, (chi2 - new) / max(chi2 - lower, 1e-300))
+        if not new < chi2:
+            if stops(chi2, new, damping, tolerance):  # no damping lowers χ²: at the minimum to the model precision
+                converged = True
+                break
+            continue
+        assert r_trial is not None  # a lower χ²
+        converged = stops(chi2, new, damping, tolerance)
+        x, r, chi2 = trial, r_trial, new
+        if jacobians is not None and made >= jacobians:
+            break
+        if not converged or information:
+            jac = problem.jacobian(x)
+            made += 1
+        if converged:
+            break
+    return Solution(x=x, residuals=r, chi2=chi2, jacobian=jac, evaluations=count, converged=converged)
+
+
+@dataclass(frozen=True)
+class Observed:
+    """What the fit reads of a recording: both channels (2, n) [N], [m/s²], their noise σ (2,) from the
+    pre-trigger, the grid and sensor model of the samples, and the start values of the offsets (2,)."""
+
+    channels: np.ndarray
+    noise: np.ndarray
+    grid: Grid
+    offsets: np.ndarray
+
+    @property
+    def size(self) -> int:
+        """Number of residuals (both channels)."""
+        return int(self.channels.size)
+
+
+def window(data: Observed, end: float) -> Observed:
+    """``data`` up to the instant ``end`` [s] on the recording's clock (all of it when ``end`` is past its end)."""
+    n = min(data.channels.shape[1], int(math.floor((end - data.grid.start_time) * data.grid.sample_rate)) + 1)
+    return replace(data, channels=data.channels[:, :n], grid=replace(data.grid, size=n))
+
+
+class Residuals:
+    """The weighted residuals (data − offset − model)/σ of ``layout`` on ``data`` as functions of the variables
+    ``x`` (the layout's, then the two offsets in units of each channel's σ), and their Jacobian (forward
+    differences of the layout's variables, :data:`STEP`, backward ones where a forward step leaves the range the
+    model is integrated in; exact for the offsets). The prediction at the last point is kept. ``in_turn``
+    predicts on the calling thread (:func:`.forward.predict`).
+
+    The samples more than :data:`LEAD_SAMPLES` before the layout's first contact (``head``) hold offset and noise
+    only under a causal sensor model: their residuals about each channel's mean m over them give χ² a constant,
+    and the two rows sqrt(head)·(m − offset) stand for the rest. So χ² = |r|² + ``constant`` and JᵀJ are those of
+    every sample, while the model is predicted on the samples after the head only (a first window holds ~1000
+    pre-trigger samples for ~200 after contact). Each prior of the layout adds one row last.
+    """
+
+    def __init__(self, data: Observed, layout: Layout, *, in_turn: bool = False):
+        self.data, self.layout, self.q, self.noise, self.in_turn = data, layout, len(layout.names), data.noise, in_turn
+        grid, scaled = data.grid, data.channels / data.noise[:, None]
+        onset = int(np.floor((layout.origin - grid.start_time) * grid.sample_rate))
+        head = max(onset - LEAD_SAMPLES, 0) if grid.design in ("causal", "none") else 0
+        self.head = head
+        self.earliest = grid.start_time + (head + 1) / grid.sample_rate  # a contact before it reaches the head
+        self.grid = replace(grid, start_time=grid.start_time + head / grid.sample_rate, size=grid.size - head)
+        self.tail = scaled[:, head:]
+        self.mean = scaled[:, :head].mean(axis=1) if head else np.zeros(2)
+        self.constant = float(np.sum(np.square(scaled[:, :head] - self.mean[:, None])))
+        self.root = np.sqrt(head)
+        self.steps = np.where(np.array(layout.names) == "contact_time", CONTACT_TIME_STEP, STEP)
+        self.prior_index = np.array([j for j, _, _ in layout.priors], dtype=np.int64)
+        self.prior_mean = np.array([mean for _, mean, _ in layout.priors])
+        self.prior_sigma = np.array([sigma for _, _, sigma in layout.priors])
+        self._last: tuple[bytes, np.ndarray] | None = None
+
+    @property
+    def size(self) -> int:
+        """Number of residuals χ² holds: every sample of both channels and one per prior."""
+        return self.data.size + self.prior_index.size
+
+    def sample_chi2(self, r: np.ndarray) -> float:
+        """The samples' share of χ² of residuals ``r`` (the priors' rows left out)."""
+        samples = r[:r.size - self.prior_index.size]
+        return float(samples @ samples) + self.constant
+
+    def _predicted(self, rows: np.ndarray) -> np.ndarray:
+        params, times = self.layout.packed(rows)
+        if np.any(times < self.earliest):
+            raise IdentificationError("the model is not predicted at a contact instant before the part of the "
+                                      "record it is predicted on")
+        return predict(self.grid, params, times, in_turn=self.in_turn) / self.noise[None, :, None]
+
+    def model(self, x: np.ndarray) -> np.ndarray:
+        """Predicted channels over σ (2, n) at ``x`` (offsets excluded), on the samples after the head."""
+        key = x[:self.q].tobytes()
+        if self._last is None or self._last[0] != key:
+            self._last = (key, self._predicted(x[None, :self.q])[0])
+        return self._last[1]
+
+    def predicted(self, x: np.ndarray) -> np.ndarray:
+        """The recorded channels (2, every sample) [N], [m/s²] the model predicts at ``x``, offsets included."""
+        out = np.zeros(self.data.channels.shape)
+        out[:, self.head:] = self.model(x) * self.noise[:, None]
+        return out + (x[self.q:] * self.noise)[:, None]
+
+    def residuals(self, x: np.ndarray) -> np.ndarray | None:
+        """The residuals at ``x`` (those after the head, then the head's two rows); None where the model cannot be
+        integrated there."""
+        try:
+            tail = self.tail - x[self.q:, None] - self.model(x)
+        except IdentificationError:
+            return None
+        return np.r_[tail.ravel(), self.root * (self.mean - x[self.q:]),
+                     (x[self.prior_index] - self.prior_mean) / self.prior_sigma]
+
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """∂residuals/∂x (rows of :meth:`residuals`, q + 2)."""
+        base = self.model(x)
+        try:
+            steps = self.steps
+            moved = self._predicted(x[None, :self.q] + np.diag(steps))
+        except IdentificationError:
+            steps = -self.steps
+            moved = self._predicted(x[None, :self.q] + np.diag(steps))
+        n = self.tail.shape[1]
+        jac = np.zeros((2 * n + 2 + self.prior_index.size, self.q + 2))
+        jac[:2 * n, :self.q] = ((base[None] - moved).reshape(self.q, -1) / steps[:, None]).T
+        jac[:n, self.q] = jac[n:2 * n, self.q + 1] = -1.0
+        jac[2 * n, self.q] = jac[2 * n + 1, self.q + 1] = -self.root
+        jac[2 * n + 2 + np.arange(self.prior_index.size), self.prior_index] = 1.0 / self.prior_sigma
+        return jac
+
+
+class Quality:
+    """The χ² figures of a weighted least-squares fit with ``chi2``, ``residuals`` (their number) and
+    ``unknowns``."""
+
+    chi2: float
+    residuals: int
+
+    @property
+    def unknowns(self) -> int:  # pragma: no cover - every fit defines it
+        raise NotImplementedError
+
+    @property
+    def dof(self) -> int:
+        """Degrees of freedom of χ²."""
+        return self.residuals - self.unknowns
+
+    @property
+    def reduced_chi2(self) -> float:
+        """χ² per degree of freedom [-] (1 when the model explains the data down to their noise)."""
+        return self.chi2 / max(self.dof, 1)
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion χ² + k·ln(N) (−2·log-likelihood up to a constant shared by every law)."""
+        return self.chi2 + self.unknowns * math.log(self.residuals)
+
+
+@dataclass(frozen=True)
+class LawFit(Quality):
+    """The fit of one contact law.
+
+    ``x`` holds the layout's variables then the offsets in units of each channel's σ; ``cov`` is the inverse
+    Fisher information of all of them (unscaled by χ²); ``values`` the physical values [SI] of the layout's
+    unknowns and ``offsets`` the sensor offsets [N], [m/s²].
+    """
+
+    layout: Layout
+    x: np.ndarray
+    values: dict
+    offsets: np.ndarray
+    cov: np.ndarray
+    rank: int
+    chi2: float
+    residuals: int
+    evaluations: int
+    converged: bool
+    #: the span of the record after first contact the fit read [s] and why it ends there (the whole window
+    #: given, or the :func:`~.forward.horizon` of the whole record)
+    span: tuple[float, str] | None = None
+
+    @property
+    def law(self) -> str:
+        """The contact law."""
+        return self.layout.law
+
+    @property
+    def unknowns(self) -> int:
+        """Number of fitted unknowns (the layout's and the two offsets)."""
+        return self.x.size
+
+    def std(self, name: str) -> float:
+        """Standard error [SI] of a fitted unknown from the Fisher information (not scaled by χ²)."""
+        j = self.layout.names.index(name)
+        return abs(self.layout.derivative(name, float(self.x[j]))) * math.sqrt(self.cov[j, j])
+
+    def summary(self) -> dict:
+        """JSON-ready figures of the fit: χ², degrees of freedom, BIC and each unknown with its standard error."""
+        return {"chi2": self.chi2, "dof": self.dof, "reduced_chi2": self.reduced_chi2, "bic": self.bic,
+                "evaluations": self.evaluations, "converged": self.converged, "rank": self.rank,
+                "unknowns": self.unknowns,
+                **({} if self.span is None else {"fit_span_s": self.span[0], "fit_span": self.span[1]}),
+                "values": {name: self.values[name] for name in self.layout.names},
+                "std": {name: self.std(name) for name in self.layout.names},
+                "offsets": {"contact_force_N": float(self.offsets[0]),
+                            "piston_acceleration_m_s2": float(self.offsets[1])}}
+
+
+def law_fit(problem: Residuals, solution: Solution, *, information: bool = True,
+            converged: bool | None = None) -> LawFit:
+    """The :class:`LawFit` of ``solution`` on ``problem`` (its covariance from the solution's Jacobian with
+    ``information``, else NaN; ``converged`` overrides the solution's)."""
+    x, layout = solution.x, problem.layout
+    cov, rank = covariance(solution.jacobian) if information else (np.full((x.size, x.size), np.nan), 0)
+    return LawFit(layout=layout, x=x, values=layout.values(x[:problem.q]), offsets=x[problem.q:] * problem.noise,
+                  cov=cov, rank=rank, chi2=solution.chi2 + problem.constant, residuals=problem.size,
+                  evaluations=solution.evaluations,
+                  converged=solution.converged if converged is None else converged)
+
+
+def variables(layout: Layout, values: dict[str, float], offsets: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """The fit vector of physical ``values`` (name -> value [SI]) and ``offsets`` [N], [m/s²]."""
+    return np.r_[layout.variables(values), offsets / noise]
+
+
+def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, offsets: np.ndarray | None = None,
+            evaluations: int = MAX_EVALUATIONS, information: bool = True, jacobians: int | None = None,
+            in_turn: bool = False) -> LawFit:
+    """Weighted least-squares fit of ``layout`` to ``data`` from ``start`` (physical values of its unknowns) and
+    ``offsets`` [N], [m/s²] (default ``data.offsets``) by :func:`solve`; with ``information`` the covariance from
+    the Jacobian at the optimum (else NaN: a window whose answer only starts the next). ``jacobians``: an update
+    (see :func:`solve`; it claims convergence, with the covariance from the Jacobian its last step started from).
+
+    Raises
+    ------
+    IdentificationError
+        When the model cannot be integrated at the start.
+    """
+    problem = Residuals(data, layout, in_turn=in_turn)
+    x0 = variables(layout, start, data.offsets if offsets is None else offsets, data.noise)
+    try:
+        solution = solve(problem, x0, evaluations=evaluations, jacobians=jacobians,
+                         information=information and jacobians is None)
+    except IdentificationError as exc:
+        raise IdentificationError(f"the {layout.law} fit failed: {exc}") from None
+    if jacobians is not None:
+        return law_fit(problem, solution, converged=True)
+    return law_fit(problem, solution, information=information)
+
+
+def weighted_jacobian(data: Observed, layout: Layout, values: dict[str, float]) -> np.ndarray:
+    """The weighted Jacobian of ``layout`` on ``data`` at physical ``values`` (offsets zero: they enter linearly,
+    so the Jacobian does not depend on them); its JᵀJ is the Fisher information of every sample."""
+    return Residuals(data, layout).jacobian(variables(layout, values, np.zeros(2), np.ones(2)))
+
+
+def contact_laws(contact: str | None) -> tuple[str, ...]:
+    """The contact laws fitted: every law the project has for ``"auto"``/None, else the one named."""
+    if contact is None or contact == "auto":
+        return tuple(CONTACT_LAWS)
+    return (contact_law_name(contact),)
+
+
+def anti_alias_design(recording: Recording) -> str:
+    """The anti-alias design the recording's channels went through (metadata ``anti_alias``; none stated: plain
+    sampling)."""
+    design = recording.metadata.get("anti_alias", "none")
+    if design not in ("causal", "zero-phase", "none"):
+        raise IdentificationError(f"{recording.source}: metadata anti_alias = {shown(design)} names a filter the "
+                                  "model cannot reproduce; expected 'causal', 'zero-phase' or 'none'")
+    if isinstance(recording.metadata.get("cfc"), dict):
+        raise IdentificationError(f"{recording.source}: CFC-filtered channels; the model fit predicts the channels "
+                                  "through the recording's anti-alias filter only -- identify the unfiltered record")
+    return design
+
+
+def observe(recording: Recording, design: str, contact_time: float, min_duration: float = MIN_DURATION) -> Observed:
+    """The record as the fit reads it, with each channel's noise σ from the samples before ``contact_time``, and
+    at least ``min_duration`` [s] after it."""
+    data = np.vstack([np.asarray(recording.channel(name), dtype=float) for name in CHANNELS])
+    fs = recording.sample_rate
+    onset = int(math.floor((contact_time - recording.start_time) * fs))
+    after = (data.shape[1] - 1 - onset) / fs
+    if after < min_duration:
+        raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
+                                  f"the model fit needs at least {min_duration * 1e3:g} ms")
+    pre = onset - GUARD_SAMPLES
+    if pre < MIN_PRE_SAMPLES:
+        raise IdentificationError(f"{recording.source}: {max(pre, 0)} samples before first contact; the model fit "
+                                  f"needs at least {MIN_PRE_SAMPLES + GUARD_SAMPLES} (the noise of each channel is "
+                                  "measured there) -- record with a pre-trigger")
+    # the model of the pre-trigger is an offset plus white noise: the sample standard deviation is its most
+    # efficient σ (the median second difference of robust_noise_std scatters 2-3 times more: 10 % off on a record
+    # of 1000 pre-trigger samples)
+    noise = quiet_noise_std(data[:, :pre], axis=1, ddof=1)
+    floor = NOISE_FLOOR * np.max(np.abs(data - np.median(data[:, :pre], axis=1)[:, None]), axis=1)
+    noise = np.maximum(noise, np.maximum(floor, 1e-300))
+    grid = make_grid(recording.start_time, fs, data.shape[1], design)
+    return Observed(channels=data, noise=noise, grid=grid, offsets=np.median(data[:, :pre], axis=1))
+
+
+def check_length(recording: Recording, min_duration: float = MIN_DURATION) -> float:
+    """IdentificationError for a record without the pre-trigger or the length after first contact the fit needs;
+    else the crude instant of first contact [s].
+
+    The first ``MIN_PRE_SAMPLES`` + ``GUARD_SAMPLES`` samples of the force must be quiet (within 8 σ of their
+    median, σ by :func:`~impactometer.signals.noise.robust_noise_std`), and first contact, the first sample 10 σ
+    off, must leave ``min_duration`` [s] of record.
+    """
+    force = np.asarray(recording.channel("contact_force"), dtype=float)
+    need = MIN_PRE_SAMPLES + GUARD_SAMPLES
+    head = force[:need]
+    level = float(np.median(head))
+    sd = max(robust_noise_std(head), 1e-12 * float(np.max(np.abs(force))), 1e-300)
+    if force.size <= need or np.max(np.abs(head - level)) > 8.0 * sd:
+        raise IdentificationError(f"{recording.source}: the force is not quiet over the first {need} samples; the "
+                                  f"model fit needs at least {need} samples before first contact (the noise of "
+                                  "each channel is measured there) -- record with a pre-trigger")
+    above = np.flatnonzero(np.abs(force - level) > 10.0 * sd)
+    if not above.size:
+        raise IdentificationError(f"{recording.source}: no impact: the force never leaves its noise ({sd:.3g} N)")
+    after = (force.size - 1 - above[0]) / recording.sample_rate
+    if after < min_duration:
+        raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
+                                  f"the model fit needs at least {min_duration * 1e3:g} ms")
+    return recording.start_time + above[0] / recording.sample_rate
+
+
+def check_channels(recording: Recording) -> None:
+    """IdentificationError unless ``recording`` is a Recording with both channels the fit reads."""
+    if not isinstance(recording, Recording):
+        raise IdentificationError(f"recording must be a Recording, got {type(recording).__name__}")
+    missing = [name for name in CHANNELS if name not in recording.channels]
+    if missing:
+        raise IdentificationError(f"{recording.source}: channel(s) {missing} missing; the model fit needs "
+                                  f"{list(CHANNELS)}, found {sorted(recording.channels)}")
+
+
+def staged(stages: Sequence, fit_one, state):
+    """The staged-window fit of every caller (identification, stream, calibration, validation): ``fit_one(stage,
+    state)`` of each stage in turn, each from the state the last one left; returns the last state."""
+    for stage in stages:
+        state = fit_one(stage, state)
+    return state
