@@ -236,7 +236,7 @@ def _stream_model(file: Path, rec, durations: dict, texts: dict, chunk: int, rea
     wrote them (``cadence``, ``first``, ``rig``, ``pressure``)."""
     import numpy as np
 
-    from ..identify.model_fit import _check_length
+    from ..identify.model_fit.engine import check_length
     from ..identify.model_fit.streaming import ModelStream
     from .app import error_console
 
@@ -244,7 +244,7 @@ def _stream_model(file: Path, rec, durations: dict, texts: dict, chunk: int, rea
     with given(**texts):
         ident = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, rig=texts["rig"],
                             pressure=quantity(texts["pressure"], "pressure", "--pressure"), **given_times)
-    _check_length(rec)  # the final answer's record, before any estimate is printed
+    check_length(rec)  # the final answer's record, before any estimate is printed
 
     behind = False
 
