@@ -32,8 +32,9 @@ ORDER = ("stand_criteria", "bench_simulate", "bench_simulate_gpu", "accuracy_pea
          "accuracy_peak_to_peak_100ms", "accuracy_model", "accuracy_model_100ms",
          "accuracy_model_drop_stand_stiff", "independent_stand", "bench_identify", "bench_model", "bench_loop_latency",
          "bench_calibrate", "bench_response_map",
-         "study_map_size", "study_map_recordings", "study_all", "study_absorption", "study_absorption_latency0ms",
-         "study_absorption_latency3ms", "study_absorption_oracle4ms", "study_absorber_design",
+         "study_map_size", "study_map_recordings", "study_all", "study_absorption", "study_absorption_latency0ms_grid3",
+         "study_absorption_latency1ms_grid3", "study_absorption_latency3ms_grid3", "study_absorption_oracle4ms",
+         "study_absorber_design",
          "study_valve_design",
          "reliability_fuzz")
 HEADLINE_START = "<!-- headline figures: rendered by benchmarks/recorded.py from docs/results/*.json -->"

@@ -3,8 +3,8 @@
     python scripts/record_study.py all                        # impactometer study all, default sizes
     python scripts/record_study.py absorption --grid 5        # any option of `impactometer study` after the name
     python scripts/record_study.py absorption --grid 5 --record   # ... kept in docs/results/ and docs/benchmarks.md
-    python scripts/record_study.py absorption --grid 5 --set absorption.latency=3ms --as latency3ms --record
-                                                              # ... kept beside it as study_absorption_latency3ms
+    python scripts/record_study.py absorption --grid 3 --set absorption.latency=3ms --as latency3ms_grid3 --record
+                                                              # ... kept beside it as study_absorption_latency3ms_grid3
 
 The study runs in a temporary folder with ``impactometer study NAME --out FOLDER [OPTIONS]`` (its progress on
 standard error) and the tables printed are those of ``impactometer study report``.
