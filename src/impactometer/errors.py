@@ -51,6 +51,10 @@ class ParameterError(ImpactometerError, ValueError):
     """A parameter (stand, scenario, option) is missing, of the wrong type or out of range."""
 
 
+class ParameterTypeError(ParameterError, TypeError):
+    """A parameter is of the wrong type (a number where names are expected, a text where a function is)."""
+
+
 class UnitError(ParameterError):
     """A quantity with a unit suffix could not be parsed or has the wrong dimension."""
 

@@ -11,7 +11,7 @@ from typing import Any
 import tomli_w
 
 from ..errors import ParameterError
-from ..outputs import as_path, check_file, write_failed
+from ..outputs import as_path, check_file, write_atomically
 
 #: the table of a stand file that says where its numbers came from (read past by :func:`~impactometer.rig.from_dict`)
 PROVENANCE_KEY = "provenance"
@@ -49,8 +49,6 @@ def write_table(data: dict[str, Any], path: str | Path, *, overwrite: bool = Fal
     path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
     if provenance is not None:
         data = {**data, PROVENANCE_KEY: _plain(provenance)}
-    try:
-        path.write_text(tomli_w.dumps(data), encoding="utf-8")
-    except OSError as exc:
-        raise write_failed(path, exc) from None
-    return path
+    text = tomli_w.dumps(data)
+    return write_atomically(path, lambda temporary: temporary.write_text(text, encoding="utf-8"),
+                            overwrite=overwrite, flag="overwrite=True")
