@@ -206,8 +206,8 @@ def calibration_table(result: Calibration) -> Table:
 
 def drops_table(result: Calibration) -> Table:
     """Rich table of the drops of a calibration: truth, fitted V0, residuals and agreement with the others."""
-    table = Table(title=f"drops (named inconsistent beyond {result.drops[0].limit:.2f} sigma of light-gate pull or "
-                        "influence)")
+    table = Table(title=f"drops (named inconsistent beyond {result.drops[0].limit:.2f} sigma of light-gate pull, "
+                        "misfit or half the influence, and 3 times the set's median)")
     for column in ("drop", "M1 [kg]", "p0 [kPa]", "V0 gate [m/s]", "V0 fitted [m/s]", "gate pull [sigma]",
                    "chi2/dof", "misfit [sigma]", "force NRMSE", "influence [sigma]", "verdict"):
         table.add_column(escape(column))  # "[kg]" is no markup
