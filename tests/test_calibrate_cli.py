@@ -133,6 +133,8 @@ def test_targets_and_sets_refused_before_any_work(folders, tmp_path, capsys, mon
     truth["drop02.h5"]["pressure_gauge_Pa"] = stated
     kpa = write_set(tmp_path / "kpa", [dataclasses.replace(r, metadata={}) for r in recordings], truth=truth)
     _fails(capsys, ["calibrate", str(kpa), "--rig", base, "--out", str(out)], f"did you mean {stated:g}kPa")
+    _fails(capsys, ["calibrate", calibration, "--rig", base, "--out", str(out), "--exclude", "nothing.h5"],
+           "--exclude nothing.h5", "must name drops of the set")
     err = _fails(capsys, ["validate", str(folders["held"] / "drop01.h5"), str(folders["held"])], "stand TOML")
     assert "--rig" not in err
     assert not out.exists()

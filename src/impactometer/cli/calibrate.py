@@ -155,13 +155,13 @@ def calibrate_command(
     options: dict[str, Any] = {"rig": rig, "fit": fit, "contact": contact, "velocity_sigma": sigma, "duration": length,
                               "exclude": exclude or None, "drop_outliers": drop_outliers}
     with given(rig=rig, fit=fit, contact=contact, velocity_sigma=velocity_sigma, duration=duration,
-               exclude=exclude):
+               exclude=",".join(exclude) if exclude else None):
         check_inputs(recordings, **options)
     used = len(recordings) - len(set(exclude or ()))
     with _bar() as bar, announce_compilation("calibrating", spinner=False):
         task = bar.add_task(f"calibrating on {used} drops", total=None)
         with given(rig=rig, fit=fit, contact=contact, velocity_sigma=velocity_sigma, duration=duration,
-                   exclude=exclude):
+                   exclude=",".join(exclude) if exclude else None):
             result = calibrate(recordings, **options, progress=_progress(bar, task, f"calibrating on {used} drops"))
     result.to_toml(out, overwrite=overwrite)
     figures = result.plot(plot) if plot is not None else []
