@@ -328,6 +328,7 @@ def test_a_drop_inconsistent_with_the_others_is_named_and_left_out_when_asked():
         assert abs(kept.parameters[name] - truth) <= 3.0 * kept.std[name], name
     by_name = calibrate(recordings, rig=BASE_STAND, contact="hysteretic", exclude=[2])
     assert by_name.parameters == pytest.approx(kept.parameters, rel=1e-9)
+    assert by_name.excluded == ({"file": "memory", "reason": "left out by exclude"},)
 
 
 def test_the_stand_file_is_written_atomically(calibration, tmp_path, monkeypatch):

@@ -220,17 +220,19 @@ def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
     base, names, laws, drops = check_inputs(recordings, rig=rig, fit=fit, contact=contact,
                                             velocity_sigma=velocity_sigma, duration=duration, name=name,
                                             progress=progress, exclude=exclude, drop_outliers=drop_outliers)
+    asked = tuple({"file": str(recordings[i].source), "reason": "left out by exclude"}
+                  for i in _excluded(recordings, exclude))
     result = _calibrate(drops, base, names, laws, velocity_sigma=velocity_sigma, duration=duration, name=name,
                         progress=progress)
     named = [i for i, d in enumerate(result.drops) if d.inconsistent]
     if not drop_outliers or not named:
-        return result
+        return dataclasses.replace(result, excluded=asked)
     rest = [d for i, d in enumerate(drops) if i not in named]
     _check_count(rest, laws, names)
     again = _calibrate(rest, base, names, laws, velocity_sigma=velocity_sigma, duration=duration, name=name,
                        progress=progress)
     reasons = tuple({"file": d.source, "reason": d.verdict()} for d in result.drops if d.inconsistent)
-    return dataclasses.replace(again, excluded=reasons, warnings=(
+    return dataclasses.replace(again, excluded=(*asked, *reasons), warnings=(
         *again.warnings, *(f"{r['file']} left out (drop_outliers): {r['reason']}" for r in reasons)))
 
 
