@@ -312,7 +312,7 @@ def test_each_drop_reports_its_residuals(calibration):
         assert set(drop.to_dict()) >= {"velocity_pull_sigma", "influence_sigma", "misfit_sigma", "force_nrmse"}
 
 
-def test_a_drop_inconsistent_with_the_others_is_named_and_left_out_when_asked():
+def test_a_drop_inconsistent_with_the_others_is_named_and_left_out_when_asked(tmp_path):
     # five drops of the lab stand, the third stated 10 % heavier than it was: named, the stand flagged as not
     # fitting; fitted without it on request, the stand fits again and recovers the truth
     recordings = drops(CALIBRATION[:5], noise=0.01, seed=2)
@@ -321,6 +321,11 @@ def test_a_drop_inconsistent_with_the_others_is_named_and_left_out_when_asked():
     assert result.inconsistent == ("memory #3",) and not result.fits
     assert any(w.startswith("memory #3 is inconsistent") for w in result.warnings)
     assert result.excluded == ()
+    import tomllib  # the stand file says so too
+
+    provenance = tomllib.loads(result.to_toml(tmp_path / "flagged.toml").read_text())["provenance"]
+    assert provenance["fits"] is False and provenance["inconsistent"] == ["memory #3"]
+    assert any("inconsistent" in w for w in provenance["warnings"])
     kept = calibrate(recordings, rig=BASE_STAND, contact="hysteretic", drop_outliers=True)
     assert [e["file"] for e in kept.excluded] == ["memory #3"] and len(kept.drops) == 4
     assert kept.fits and kept.inconsistent == ()
