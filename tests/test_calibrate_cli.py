@@ -110,3 +110,44 @@ def test_bad_input_one_line_nothing_written(folders, tmp_path, capsys):
                     str(out)], "--manifest applies to a FOLDER")
     _fails(capsys, ["calibrate", files[0], str(folders["held"]), "--out", str(out)], "one FOLDER or recording files")
     assert not out.exists()
+
+
+def test_targets_and_sets_refused_before_any_work(folders, tmp_path, capsys, monkeypatch):
+    def no_fit(*args, **kwargs):
+        raise AssertionError("a fit started")
+    monkeypatch.setattr("impactometer.calibrate.fit_family", no_fit)
+    calibration, base = str(folders["calibration"]), str(folders["base"])
+    out = tmp_path / "cal.toml"
+    _fails(capsys, ["calibrate", calibration, "--rig", base, "--out", str(tmp_path / "cal.txt")], "must end in .toml")
+    _fails(capsys, ["calibrate", calibration, "--rig", base, "--out", base, "--overwrite"], "one of the inputs")
+    _fails(capsys, ["calibrate", calibration, "--rig", base, "--out", str(out), "--plot", str(out)], "--out file")
+    _fails(capsys, ["calibrate", calibration, "--rig", base, "--out", str(out), "--plot", calibration],
+           "folder of recordings")
+    files = [str(folders["calibration"] / f"drop0{i}.h5") for i in (1, 2, 3)]
+    _fails(capsys, ["calibrate", *files, files[0], "--rig", base, "--out", str(out)], "one drop twice",
+           "the same file")
+    # the truth in the manifest only, one pressure written in kPa under the column in Pa
+    recordings = drops(CALIBRATION[:3], noise=0.01, seed=4)
+    truth = {f"drop{i + 1:02d}.h5": {k: r.metadata[k] for k in COLUMNS[1:]} for i, r in enumerate(recordings)}
+    stated = truth["drop02.h5"]["pressure_gauge_Pa"] / 1e3
+    truth["drop02.h5"]["pressure_gauge_Pa"] = stated
+    kpa = write_set(tmp_path / "kpa", [dataclasses.replace(r, metadata={}) for r in recordings], truth=truth)
+    _fails(capsys, ["calibrate", str(kpa), "--rig", base, "--out", str(out)], f"did you mean {stated:g}kPa")
+    _fails(capsys, ["calibrate", calibration, "--rig", base, "--out", str(out), "--exclude", "nothing.h5"],
+           "--exclude nothing.h5", "must name drops of the set")
+    err = _fails(capsys, ["validate", str(folders["held"] / "drop01.h5"), str(folders["held"])], "stand TOML")
+    assert "--rig" not in err
+    assert not out.exists()
+
+
+def test_tables_state_units_verdicts_and_progress(folders, tmp_path, capsys):
+    out = tmp_path / "lab.toml"
+    main(["calibrate", str(folders["calibration"]), "--rig", str(folders["base"]), "--out", str(out), "--contact",
+          "hysteretic"])
+    captured = capsys.readouterr()
+    assert "cylinder.dead_volume_lower [cm³]" in captured.out and "gate pull [sigma]" in captured.out
+    assert "consistent" in captured.out and "stand written to" in captured.out
+    assert "stage 1 of" in captured.err  # off a terminal: one plain line per stage
+    main(["validate", str(out), str(folders["held"])])
+    text = capsys.readouterr().out
+    assert "2 of 2 drops reproduced" in text and "force NRMSE [% of range]" in text

@@ -136,11 +136,11 @@ def check_bare(number: str, value: float, dimension: str, field: str) -> None:
     (:data:`BARE_RANGES`): one line naming ``field``, the text, the units likely meant and how to keep the value."""
     if dimension not in BARE_RANGES or not value > 0:
         return
-    low, high, meant = BARE_RANGES[dimension]
+    low, high, _ = BARE_RANGES[dimension]
     if low <= value <= high:
         return
     units = UNITS[dimension]
-    likely = [f"{number}{unit}" for unit in meant if low <= value * units[unit] <= high]
+    likely = [f"{number}{unit}" for unit in likely_units(value, dimension)]
     if dimension == "fraction":
         reading, kept = f"a fraction ({number} = {value:.0%})", f"{value * 100:g}%"
     else:
@@ -148,6 +148,17 @@ def check_bare(number: str, value: float, dimension: str, field: str) -> None:
         reading, kept = f"SI ({si})", f"{number}{si}"
     guess = f"did you mean {' or '.join(likely)}?" if likely else f"an implausible {dimension}; give its unit"
     raise UnitError(f"{field} {number}: a bare number is {reading}; {guess} (write {kept} to mean it)")
+
+
+def likely_units(value: float, dimension: str) -> list[str]:
+    """The units of :data:`BARE_RANGES` most likely meant for ``value`` [SI] of ``dimension``, a number outside
+    the plausible range read as SI: those that bring it within (none for a plausible value)."""
+    if dimension not in BARE_RANGES or not value > 0:
+        return []
+    low, high, meant = BARE_RANGES[dimension]
+    if low <= value <= high:
+        return []
+    return [unit for unit in meant if low <= value * UNITS[dimension][unit] <= high]
 
 
 def _example(dimension: str) -> str:

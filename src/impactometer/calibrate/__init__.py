@@ -11,13 +11,15 @@ well.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable, Sequence
 from datetime import UTC, datetime
+from pathlib import Path
 
 import numpy as np
 
-from ..errors import IdentificationError, ParameterError, shown
+from ..errors import IdentificationError, ParameterError, ParameterTypeError, shown
 from ..identify.model_fit import MAX_REDUCED_CHI2, MIN_DURATION
 from ..identify.model_fit.engine import Residuals, contact_laws, window
 from ..identify.model_fit.forward import STAND_PARAMETERS, contact_parameters, free_parameters
@@ -25,11 +27,13 @@ from ..identify.model_fit.information import covariance
 from ..identify.model_fit.select import SCREEN_MARGIN
 from ..recording import Recording
 from ..rig import Rig, get_rig, parameter_names
+from ..validation import check_flag
 from .drops import ObservedDrop, read_drops
+from .influence import MISFIT_LIMIT, drop_figures, inconsistent, limit, set_misfit_sigma
 from .joint import NUISANCES, SCREEN_STAGE, Family, fit_family, stages_for
 from .result import Calibration, DropFit
 from .separation import CORRELATION_LIMIT, correlation, flagged, suggest
-from .validate import DropValidation, Validation, validate
+from .validate import DropValidation, Validation, force_nrmse, validate
 
 __all__ = ["calibrate", "validate", "Calibration", "DropFit", "Validation", "DropValidation", "DEFAULT_FIT",
            "VELOCITY_SIGMA", "FIT_DURATION", "MAX_REDUCED_CHI2"]
@@ -55,11 +59,14 @@ def check_fit(fit: Sequence[str] | str | None) -> tuple[str, ...]:
     one the fit cannot free, with the ones it can."""
     if fit is None:
         return DEFAULT_FIT
+    fittable = ["default", "contact", *STAND_PARAMETERS]
     if isinstance(fit, str):
         fit = [name.strip() for name in fit.split(",") if name.strip()]
+    if not isinstance(fit, (Sequence, set, frozenset)) or not all(isinstance(n, str) for n in fit):
+        raise ParameterTypeError(f"fit must be stand parameter names (a str or a sequence of str), got {shown(fit)}",
+                                 field="fit", expected=f"must be names of {fittable}")
     names: list[str] = []
-    fittable = ["default", "contact", *STAND_PARAMETERS]
-    for name in (str(n) for n in fit):
+    for name in fit:
         if name == "default":
             names += DEFAULT_FIT
         elif name in fittable:
@@ -74,6 +81,44 @@ def check_fit(fit: Sequence[str] | str | None) -> tuple[str, ...]:
         raise ParameterError(f"fit must name at least one stand parameter, got {shown(fit)}", field="fit",
                              expected="at least one stand parameter")
     return tuple(dict.fromkeys(names))
+
+
+def _check_types(contact: object, name: object, progress: object, drop_outliers: object) -> None:
+    """ParameterTypeError for an argument of :func:`calibrate` of the wrong type, before any work."""
+    if contact is not None and not isinstance(contact, str):
+        raise ParameterTypeError(f"contact must be 'auto' or a contact-law name (str), got {shown(contact)}",
+                                 field="contact", expected="must be 'auto' or a contact-law name")
+    if name is not None and not isinstance(name, str):
+        raise ParameterTypeError(f"name must be a str (the calibrated stand's name), got {shown(name)}",
+                                 field="name", expected="must be a str")
+    if progress is not None and not callable(progress):
+        raise ParameterTypeError(f"progress must be a function called with (stages done, stages in all), or None, "
+                                 f"got {shown(progress)}", field="progress", expected="must be a function or None")
+    check_flag("drop_outliers", drop_outliers, error=ParameterTypeError)
+
+
+def _excluded(recordings: Sequence[Recording], exclude: Sequence[str | int] | str | int | None) -> list[int]:
+    """Indices of the recordings ``exclude`` names (by index, file name or source); ParameterError naming one that
+    is not in the set, with the ones that are."""
+    if exclude is None:
+        return []
+    if isinstance(exclude, (str, int)) and not isinstance(exclude, bool):
+        exclude = [exclude]
+    if not isinstance(exclude, Sequence) or not all(isinstance(e, (str, int)) and not isinstance(e, bool)
+                                                    for e in exclude):
+        raise ParameterTypeError(f"exclude must be file names or indices of the drops, got {shown(exclude)}",
+                                 field="exclude", expected="must be file names or indices of the drops")
+    sources = [str(r.source) for r in recordings]
+    out = []
+    for item in exclude:
+        found = [i for i, source in enumerate(sources) if item in (source, Path(source).name)] \
+            if isinstance(item, str) else ([item] if -len(sources) <= item < len(sources) else [])
+        if not found:
+            raise ParameterError(f"exclude names {item!r}, not a drop of the set; its drops: "
+                                 f"{[Path(p).name for p in sources]}", field="exclude",
+                                 expected=f"must name drops of the set ({len(sources)} drops)")
+        out += [i % len(sources) for i in found]
+    return sorted(set(out))
 
 
 def _check_options(velocity_sigma: float, duration: float | None) -> None:
@@ -97,9 +142,12 @@ def _check_count(drops: Sequence[ObservedDrop], laws: Sequence[str], names: tupl
 
 def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
                  fit: Sequence[str] | str | None = None, contact: str | None = "auto",
-                 velocity_sigma: float = VELOCITY_SIGMA, duration: float | None = FIT_DURATION):
+                 velocity_sigma: float = VELOCITY_SIGMA, duration: float | None = FIT_DURATION,
+                 name: str | None = None, progress: Callable[[int, int], None] | None = None,
+                 exclude: Sequence[str | int] | str | int | None = None, drop_outliers: bool = False):
     """Check the input of :func:`calibrate` before any fit (the errors it raises are :func:`calibrate`'s); returns
-    the base stand, the parameters fitted, the laws and the drops."""
+    the base stand, the parameters fitted, the laws and the drops (those ``exclude`` names left out)."""
+    _check_types(contact, name, progress, drop_outliers)
     base = get_rig(rig)
     names = check_fit(fit)
     laws = contact_laws(contact)
@@ -110,7 +158,11 @@ def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = Non
                                  f"{list(contact_parameters(law))}", field="fit",
                                  expected=f"not a parameter of the {law} contact law")
     _check_options(velocity_sigma, duration)
-    drops = read_drops(recordings)
+    if not isinstance(recordings, Sequence) or isinstance(recordings, (str, bytes)):
+        raise ParameterTypeError(f"recordings must be a sequence of Recording, got {shown(recordings)}",
+                                 field="recordings", expected="must be a sequence of Recording")
+    left_out = _excluded(recordings, exclude)
+    drops = read_drops([r for i, r in enumerate(recordings) if i not in left_out])
     _check_count(drops, laws, names)
     return base, names, laws, drops
 
@@ -118,7 +170,8 @@ def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = Non
 def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
               fit: Sequence[str] | str | None = None, contact: str | None = "auto",
               velocity_sigma: float = VELOCITY_SIGMA, duration: float | None = FIT_DURATION,
-              name: str | None = None, progress: Callable[[int, int], None] | None = None) -> Calibration:
+              name: str | None = None, progress: Callable[[int, int], None] | None = None,
+              exclude: Sequence[str | int] | str | int | None = None, drop_outliers: bool = False) -> Calibration:
     """Calibrate a stand from drops of known M1, V0 (a light gate's) and p0.
 
     Parameters
@@ -143,6 +196,11 @@ def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
         Name of the calibrated stand (default the base's with ``-calibrated``).
     progress : callable, optional
         Called with (stages done, stages in all).
+    exclude : sequence of str or int, optional
+        Drops left out of the fit: file names (or sources) or indices into ``recordings``.
+    drop_outliers : bool
+        Fit the stand once more without the drops named inconsistent with the others
+        (:mod:`impactometer.calibrate.influence`), and return that fit (``excluded`` says which and why).
 
     Returns
     -------
@@ -151,14 +209,37 @@ def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
     Raises
     ------
     ParameterError
-        For an unknown or unfittable parameter, a base stand that does not load, another bad option.
+        For an unknown or unfittable parameter, a base stand that does not load, another bad option (a
+        ParameterTypeError, also a TypeError, for an argument of the wrong type).
     RecordingError
-        For a drop without its truth, drops of different stands, a recording the fit cannot use.
+        For a drop without its truth, a truth stated in another unit (a pressure in kPa, a mass in lb, a velocity
+        in km/h), one drop given twice, drops of different stands, a recording the fit cannot use.
     IdentificationError
         For fewer drops than the parameters need, or when every family's fit fails.
     """
     base, names, laws, drops = check_inputs(recordings, rig=rig, fit=fit, contact=contact,
-                                            velocity_sigma=velocity_sigma, duration=duration)
+                                            velocity_sigma=velocity_sigma, duration=duration, name=name,
+                                            progress=progress, exclude=exclude, drop_outliers=drop_outliers)
+    asked = tuple({"file": str(recordings[i].source), "reason": "left out by exclude"}
+                  for i in _excluded(recordings, exclude))
+    result = _calibrate(drops, base, names, laws, velocity_sigma=velocity_sigma, duration=duration, name=name,
+                        progress=progress)
+    named = [i for i, d in enumerate(result.drops) if d.inconsistent]
+    if not drop_outliers or not named:
+        return dataclasses.replace(result, excluded=asked)
+    rest = [d for i, d in enumerate(drops) if i not in named]
+    _check_count(rest, laws, names)
+    again = _calibrate(rest, base, names, laws, velocity_sigma=velocity_sigma, duration=duration, name=name,
+                       progress=progress)
+    reasons = tuple({"file": d.source, "reason": d.verdict()} for d in result.drops if d.inconsistent)
+    return dataclasses.replace(again, excluded=(*asked, *reasons), warnings=(
+        *again.warnings, *(f"{r['file']} left out (drop_outliers): {r['reason']}" for r in reasons)))
+
+
+def _calibrate(drops: Sequence[ObservedDrop], base: Rig, names: tuple[str, ...], laws: Sequence[str], *,
+               velocity_sigma: float, duration: float | None, name: str | None,
+               progress: Callable[[int, int], None] | None) -> Calibration:
+    """The calibration of checked drops (see :func:`calibrate`)."""
     stages = stages_for(duration)
     total, done = len(laws) * len(stages), 0
 
@@ -226,9 +307,14 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
     std = {n: abs(layout.derivative(n, float(best.x[j]))) * math.sqrt(cov[j, j]) * inflation
            for j, n in enumerate(best.free)}
     warnings = []
+    misfit = set_misfit_sigma(best, drops)
     if best.reduced_chi2 > MAX_REDUCED_CHI2:
         warnings.append(f"the best family ({best.law}) leaves chi2/dof = {best.reduced_chi2:.3g} > "
                         f"{MAX_REDUCED_CHI2:g}: the stand model does not describe these drops")
+    elif misfit > MISFIT_LIMIT:
+        warnings.append(f"the best family ({best.law}) leaves chi2/dof = {best.reduced_chi2:.4g}, {misfit:.3g} "
+                        f"sigma beyond what the noise explains (limit {MISFIT_LIMIT:g}): the stand model does not "
+                        "describe these drops")
     if not best.converged:
         warnings.append(f"the {best.law} fit stopped after {best.evaluations} evaluations before it converged")
     pairs, lost = flagged(best.free, cov[:s, :s])
@@ -238,6 +324,8 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
     indistinct = [{"parameters": [a, b], "correlation": c, "limit": CORRELATION_LIMIT, "suggestion": hint}
                   for a, b, c in pairs]
     indistinct += [{"parameters": [n], "undetermined": True, "suggestion": None} for n in lost]
+    figures = drop_figures(best, drops, velocity_sigma=velocity_sigma, duration=duration)
+    named = inconsistent(figures)
     fits = []
     for i, drop in enumerate(drops):
         data = drop.data if duration is None else window(drop.data, drop.contact_time + duration)
@@ -251,8 +339,12 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
                             contact_time=own["contact_time"], offsets=tuple(local[-2:] * data.noise),
                             reduced_chi2=best.drop_reduced_chi2(i), time=data.grid.start_time + np.arange(
                                 data.grid.size) / data.grid.sample_rate, measured=data.channels,
-                            simulated=simulated))
-        if fits[-1].reduced_chi2 > MAX_REDUCED_CHI2:
+                            simulated=simulated, force_nrmse=force_nrmse(data, simulated, own["contact_time"])[0],
+                            **figures[i], inconsistent=i in named, limit=limit(len(drops))))
+        if fits[-1].inconsistent:
+            warnings.append(f"{drop.source} is inconsistent with the other drops: {fits[-1].verdict()}; check its "
+                            "mass, velocity, pressure and stand (drop_outliers / --drop-outliers fits without it)")
+        elif fits[-1].reduced_chi2 > MAX_REDUCED_CHI2:
             warnings.append(f"{drop.source}: chi2/dof = {fits[-1].reduced_chi2:.3g} > {MAX_REDUCED_CHI2:g}: the "
                             "calibrated stand does not reproduce this drop")
     stand = base if base.contact.law == best.law else base.with_contact(best.law)
@@ -265,5 +357,5 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
                        drops=tuple(fits), indistinct=tuple(indistinct), warnings=tuple(warnings),
                        velocity_sigma=velocity_sigma, duration=duration,
                        created=datetime.now(UTC).replace(microsecond=0).isoformat(),
-                       max_reduced_chi2=MAX_REDUCED_CHI2)
+                       max_reduced_chi2=MAX_REDUCED_CHI2, misfit_sigma=misfit, misfit_limit=MISFIT_LIMIT)
 

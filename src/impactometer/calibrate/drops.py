@@ -5,22 +5,32 @@ model of the samples)."""
 
 from __future__ import annotations
 
+import hashlib
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
-from ..errors import RecordingError, shown
+import numpy as np
+
+from ..errors import ImpactometerError, RecordingError, shown
 from ..identify.model_fit import TRIGGER_LEAD
 from ..identify.model_fit.engine import Observed, anti_alias_design, check_channels, check_length, observe
 from ..recording import Recording
 from ..rig import MASS_RANGE, STAND_KEY, VELOCITY_RANGE
 from ..sensors import anti_alias_delay
+from ..units import UNITS, likely_units
 
 #: metadata that names the stand a recording was made on: drops that state different values were made on
 #: different stands and are not calibrated together
 STAND_METADATA = ("rig", STAND_KEY, "contact_law")
 #: truth a drop must state (manifest or file metadata) -> its unit
 TRUTH = {"mass_kg": "kg", "velocity_m_s": "m/s", "pressure_gauge_Pa": "Pa gauge"}
+#: relative distance between a stated M1 or V0 and the record's own answer beyond which the stated value is taken
+#: as contradicted (and examined for another unit): far beyond the peak-to-peak answer's error on a foreign stand
+#: (a few %) and far below the factors of a unit slip (lb 2.2, km/h 3.6)
+UNIT_SLIP_TOLERANCE = 0.15
 
 
 @dataclass(frozen=True)
@@ -56,6 +66,12 @@ def _truth(recording: Recording) -> dict[str, float]:
         if not math.isfinite(number) or number < 0 or (number == 0 and key != "pressure_gauge_Pa"):
             raise RecordingError(f"{recording.source}: {key} must be a number > 0 [{unit}], got {shown(value)}")
         out[key] = number
+    pressure = out["pressure_gauge_Pa"]
+    meant = likely_units(pressure, "pressure")
+    if meant:  # a charge pressure below 1 kPa gauge: written in kPa (or bar) under a column in Pa
+        raise RecordingError(f"{recording.source}: pressure_gauge_Pa = {pressure:g} Pa gauge, below any charge "
+                             f"pressure; did you mean {' or '.join(f'{pressure:g}{u}' for u in meant)}? (the "
+                             "manifest column is in Pa)")
     low, high = MASS_RANGE
     if not low <= out["mass_kg"] <= high:
         raise RecordingError(f"{recording.source}: mass_kg must be within [{low:g}, {high:g}] kg, got "
@@ -64,6 +80,60 @@ def _truth(recording: Recording) -> dict[str, float]:
         raise RecordingError(f"{recording.source}: velocity_m_s must be <= {VELOCITY_RANGE[1]:.3g} m/s, got "
                              f"{out['velocity_m_s']:g}")
     return out
+
+
+def _stated_in_other_units(recording: Recording, truth: dict[str, float]) -> None:
+    """RecordingError when the stated M1 or V0 of ``recording`` contradicts the record and reads as it in another
+    unit (a mass in lb, a velocity in km/h).
+
+    The record's own M1 and V0 come from the peak-to-peak identification (the force and the piston acceleration
+    only, no stand model: :func:`impactometer.identify.peak_to_peak.identify`). A stated value counts as
+    contradicted when it lies more than :data:`UNIT_SLIP_TOLERANCE` (relative) and 5 of that answer's σ away, and as
+    in another unit when, converted from one of :data:`impactometer.units.UNITS`' other units of its dimension, it
+    lies within both. Where the record gives no answer, nothing is said here (the joint fit judges the drop).
+    """
+    from ..identify.peak_to_peak import identify
+
+    try:
+        with warnings.catch_warnings():  # the record's answer is only a cross-check here: its own cautions aside
+            warnings.simplefilter("ignore")
+            answer = identify(recording)
+    except ImpactometerError:
+        return
+    for key, dimension, found, std in (("mass_kg", "mass", answer.mass, answer.mass_std),
+                                       ("velocity_m_s", "velocity", answer.velocity, answer.velocity_std)):
+        if not (math.isfinite(found) and found > 0):
+            continue
+        band = max(UNIT_SLIP_TOLERANCE * found, 5.0 * std) if math.isfinite(std) else UNIT_SLIP_TOLERANCE * found
+        stated = truth[key]
+        if abs(stated - found) <= band:
+            continue
+        meant = [unit for unit, factor in UNITS[dimension].items() if factor != 1.0
+                 and abs(stated * factor - found) <= band]
+        if meant:
+            si = TRUTH[key]
+            raise RecordingError(f"{recording.source}: {key} = {stated:g} {si}, but the record itself says "
+                                 f"{found:.3g} {si} (peak-to-peak identification); did you mean "
+                                 f"{' or '.join(f'{stated:g}{u}' for u in meant)}? (the manifest column is in {si})")
+
+
+def check_distinct(recordings: Sequence[Recording]) -> None:
+    """RecordingError naming both when two recordings are one file (by resolved path) or hold the same samples
+    (a hash of the sample rate, start time and channels): a drop given twice would count twice."""
+    seen: dict[str, str] = {}
+    for recording in recordings:
+        path = Path(str(recording.source))
+        keys = [("the same file", str(path.resolve()))] if path.is_file() else []
+        digest = hashlib.sha256(np.array([recording.sample_rate, recording.start_time], dtype=float).tobytes())
+        for name in sorted(recording.channels):
+            digest.update(name.encode())
+            digest.update(np.ascontiguousarray(recording.channels[name], dtype=float).tobytes())
+        keys.append(("the same samples", digest.hexdigest()))
+        for what, key in keys:
+            if key in seen:
+                raise RecordingError(f"the calibration set holds one drop twice: {seen[key]} and "
+                                     f"{recording.source} are {what}; expected distinct drops")
+            seen[key] = str(recording.source)
 
 
 def check_one_stand(recordings: Sequence[Recording]) -> None:
@@ -79,19 +149,27 @@ def check_one_stand(recordings: Sequence[Recording]) -> None:
 
 def read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
     """The :class:`ObservedDrop` of each recording, checked: the channels the fit needs, the truth, a pre-trigger
-    and the length after contact, one stand."""
+    and the length after contact, one stand, no drop twice. Each drop's ``source`` is its recording's, numbered
+    (``memory #3``) where recordings share one."""
     if not isinstance(recordings, Sequence) or isinstance(recordings, (str, bytes)):
         raise RecordingError(f"recordings must be a sequence of Recording, got {type(recordings).__name__}")
     for recording in recordings:
+        if not isinstance(recording, Recording):
+            raise RecordingError(f"recordings must hold Recording objects, got {type(recording).__name__}")
         check_channels(recording)
+    check_distinct(recordings)
     check_one_stand(recordings)
+    truths = [_truth(recording) for recording in recordings]
+    for recording, truth in zip(recordings, truths, strict=True):
+        _stated_in_other_units(recording, truth)
+    sources = [str(r.source) for r in recordings]
+    labels = [s if sources.count(s) == 1 else f"{s} #{i + 1}" for i, s in enumerate(sources)]
     drops = []
-    for recording in recordings:
-        truth = _truth(recording)
+    for recording, truth, label in zip(recordings, truths, labels, strict=True):
         design = anti_alias_design(recording)
         trigger = check_length(recording)
         data = observe(recording, design, trigger)
         start = trigger - anti_alias_delay(design, recording.sample_rate) - TRIGGER_LEAD / recording.sample_rate
-        drops.append(ObservedDrop(source=str(recording.source), mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
+        drops.append(ObservedDrop(source=label, mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
                           pressure=truth["pressure_gauge_Pa"], data=data, contact_time=start))
     return drops

@@ -12,6 +12,21 @@ import numpy as np
 
 from ..rig import Rig, save_toml
 
+#: stand parameter -> (unit shown, factor from SI) in tables and figures; the contact law's where they differ
+DISPLAY_UNITS: dict[str, tuple[str, float]] = {
+    "contact.stiffness": ("N/m", 1.0), "contact.damping": ("N·s/m", 1.0), "contact.restitution": ("-", 1.0),
+    "friction.force": ("N", 1.0), "friction.velocity_scale": ("m/s", 1.0), "cylinder.piston_mass": ("kg", 1.0),
+    "cylinder.dead_volume_lower": ("cm³", 1e6), "cylinder.dead_volume_upper": ("cm³", 1e6),
+    "stops.stiffness": ("N/m", 1.0)}
+#: contact law -> its parameters' units where they are not those of :data:`DISPLAY_UNITS`
+LAW_UNITS: dict[str, dict[str, tuple[str, float]]] = {
+    "hunt-crossley": {"contact.stiffness": ("N/m^1.5", 1.0), "contact.damping": ("s/m", 1.0)}}
+
+
+def display_unit(name: str, law: str) -> tuple[str, float]:
+    """(unit shown, factor from SI) of the stand parameter ``name`` of a stand with the contact ``law``."""
+    return LAW_UNITS.get(law, {}).get(name) or DISPLAY_UNITS.get(name, ("SI", 1.0))
+
 
 def _finite(value: float) -> float | None:
     """A JSON-ready number (None for NaN or infinity)."""
@@ -48,12 +63,33 @@ class DropFit(Drop):
     velocity_std: float
     contact_time: float
     offsets: tuple[float, float]
+    #: RMS(measured − simulated force) / (max − min of the measured) over the length fitted [-]
+    force_nrmse: float
+    #: (ln V0 fitted − ln V0 of the light gate) / the gate's relative σ [σ]
+    velocity_pull: float
+    #: the drop's χ²/dof beyond what the noise explains [σ]
+    misfit_sigma: float
+    #: linearised leave-one-out: how far the drop pulls the stand from what the other drops say [σ]
+    influence_sigma: float
+    #: whether the drop is named inconsistent with the others, and the limit in σ that names one
+    inconsistent: bool
+    limit: float
+
+    def verdict(self) -> str:
+        """The drop's figures in words (light-gate pull, influence and misfit in σ)."""
+        text = (f"light gate {self.velocity_pull:+.1f} sigma (V0 {self.velocity:.4g} m/s against the gate's "
+                f"{self.velocity_gate:.4g}), influence on the stand {self.influence_sigma:.1f} sigma, misfit "
+                f"{self.misfit_sigma:.1f} sigma")
+        return text + (f" (limit {self.limit:.2f} sigma)" if self.inconsistent else "")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (without the arrays)."""
         return {**super().to_dict(), "velocity_gate_m_s": self.velocity_gate,
                 "velocity_std_m_s": _finite(self.velocity_std), "contact_time_s": self.contact_time,
-                "offset_contact_force_N": self.offsets[0], "offset_piston_acceleration_m_s2": self.offsets[1]}
+                "offset_contact_force_N": self.offsets[0], "offset_piston_acceleration_m_s2": self.offsets[1],
+                "force_nrmse": self.force_nrmse, "velocity_pull_sigma": _finite(self.velocity_pull),
+                "misfit_sigma": _finite(self.misfit_sigma), "influence_sigma": _finite(self.influence_sigma),
+                "inconsistent": self.inconsistent, "limit_sigma": self.limit}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,6 +130,11 @@ class Calibration:
         When the calibration was made (ISO 8601, UTC).
     max_reduced_chi2 : float
         χ²/dof above which the stand is said not to describe the drops [-].
+    misfit_sigma, misfit_limit : float
+        The χ² of every drop's samples beyond what the noise explains, and the limit above which the stand is said
+        not to describe the drops [σ] (:func:`impactometer.calibrate.influence.set_misfit_sigma`).
+    excluded : tuple of dict
+        Drops left out by ``drop_outliers`` (file and why).
     """
 
     rig: Rig
@@ -116,17 +157,28 @@ class Calibration:
     duration: float | None
     created: str
     max_reduced_chi2: float
+    misfit_sigma: float
+    misfit_limit: float
+    excluded: tuple[dict, ...] = ()
 
     @property
     def fits(self) -> bool:
-        """Whether the chosen family describes the drops (χ²/dof within ``max_reduced_chi2``)."""
-        return self.reduced_chi2 <= self.max_reduced_chi2
+        """Whether the chosen family describes the drops: χ²/dof within ``max_reduced_chi2`` and no more than
+        ``misfit_limit`` σ beyond what the noise explains."""
+        return self.reduced_chi2 <= self.max_reduced_chi2 and self.misfit_sigma <= self.misfit_limit
+
+    @property
+    def inconsistent(self) -> tuple[str, ...]:
+        """The drops named inconsistent with the others (their files)."""
+        return tuple(d.source for d in self.drops if d.inconsistent)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping of everything but the arrays of the drops."""
         names = list(self.parameters)
         return {"stand": self.rig.name, "base": self.base, "contact_law": self.law, "criterion": self.criterion,
-                "fits": self.fits, "reduced_chi2": self.reduced_chi2, "chi2": self.chi2, "dof": self.dof,
+                "fits": self.fits, "misfit_sigma": self.misfit_sigma, "misfit_limit_sigma": self.misfit_limit,
+                "inconsistent": list(self.inconsistent), "excluded": list(self.excluded),
+                "reduced_chi2": self.reduced_chi2, "chi2": self.chi2, "dof": self.dof,
                 "bic": self.bic, "inflation": self.inflation,
                 "parameters": {name: {"value": self.parameters[name], "std": _finite(self.std[name])}
                                for name in names},
@@ -142,7 +194,9 @@ class Calibration:
 
         return {"created": self.created, "tool": f"impactometer {__version__}", "method": "calibrate",
                 "base": self.base, "contact_law": self.law, "criterion": self.criterion,
-                "reduced_chi2": self.reduced_chi2, "fits": self.fits, "velocity_sigma": self.velocity_sigma,
+                "reduced_chi2": self.reduced_chi2, "fits": self.fits, "misfit_sigma": self.misfit_sigma,
+                "misfit_limit_sigma": self.misfit_limit, "inconsistent": list(self.inconsistent),
+                "excluded": list(self.excluded), "velocity_sigma": self.velocity_sigma,
                 "duration_s": self.duration,
                 "families": {law: {k: v for k, v in fam.items() if k in ("reduced_chi2", "bic", "dropped", "error")}
                              for law, fam in self.families.items()},
@@ -150,11 +204,14 @@ class Calibration:
                                for name in self.parameters},
                 "drops": [{"file": d.source, "mass_kg": d.mass, "velocity_gate_m_s": d.velocity_gate,
                            "pressure_gauge_Pa": d.pressure, "velocity_m_s": d.velocity,
-                           "reduced_chi2": d.reduced_chi2} for d in self.drops],
+                           "reduced_chi2": d.reduced_chi2, "force_nrmse": d.force_nrmse,
+                           "velocity_pull_sigma": d.velocity_pull, "influence_sigma": d.influence_sigma,
+                           "misfit_sigma": d.misfit_sigma, "inconsistent": d.inconsistent} for d in self.drops],
                 "warnings": list(self.warnings)}
 
     def to_toml(self, path: str | Path, *, overwrite: bool = False) -> Path:
-        """Write the calibrated stand with its provenance (loadable by :func:`~impactometer.rig.get_rig`)."""
+        """Write the calibrated stand with its provenance (loadable by :func:`~impactometer.rig.get_rig`), under a
+        temporary name moved into place: a failed or interrupted write leaves any previous file as it was."""
         return save_toml(self.rig, path, overwrite=overwrite, provenance=self.provenance())
 
     def plot(self, folder: str | Path) -> list[Path]:

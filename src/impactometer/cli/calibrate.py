@@ -4,10 +4,12 @@ drops)."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from ..errors import ParameterError
@@ -52,6 +54,38 @@ def read_drops(sources: list[Path], manifest: Path | None):
     return [read_recording(path) for path in sources]
 
 
+def _inputs(sources: list[Path], manifest: Path | None, rig: str | None) -> list[Path]:
+    """Every file a command reads: the recordings (a folder's files), the manifest and a stand file."""
+    files = []
+    for source in sources:
+        files += [p for p in source.iterdir() if p.is_file()] if source.is_dir() else [source]
+    files += [p for p in (manifest, Path(rig) if rig else None) if p is not None]
+    return files
+
+
+def check_targets(out: Path | None, plot: Path | None, sources: list[Path], manifest: Path | None,
+                  rig: str | None) -> None:
+    """Refuse, before any work, an ``--out`` that is not a ``.toml`` file or is one of the inputs, and a ``--plot``
+    folder that is the ``--out`` file or a folder of recordings."""
+    def same(a: Path, b: Path) -> bool:
+        return a.resolve() == b.resolve()
+
+    if out is not None:
+        if out.suffix.lower() != ".toml":
+            raise ParameterError(f"--out {out}: the stand file must end in .toml, got "
+                                 f"{repr(out.suffix) if out.suffix else 'no extension'}")
+        clash = next((p for p in _inputs(sources, manifest, rig) if same(out, p)), None)
+        if clash is not None:
+            raise ParameterError(f"--out {out}: it is one of the inputs ({clash}); write the stand to another file")
+    if plot is not None:
+        if out is not None and same(plot, out):
+            raise ParameterError(f"--plot {plot}: it is the --out file; give a folder for the figures")
+        clash = next((p for p in sources if p.is_dir() and same(plot, p)), None)
+        if clash is not None:
+            raise ParameterError(f"--plot {plot}: it is the folder of recordings; give another folder for the "
+                                 "figures")
+
+
 def plot_folder(folder: Path | None, overwrite: bool) -> None:
     """Refuse a ``--plot`` folder that is a file, or that holds files already, unless ``--overwrite``."""
     if folder is None:
@@ -66,6 +100,17 @@ def plot_folder(folder: Path | None, overwrite: bool) -> None:
 def _bar():
     return QuietProgress(console=error_console, transient=True, disable=not error_console.is_terminal,
                          redirect_stdout=False)
+
+
+def _progress(bar, task, what: str):
+    """The progress callback: the bar on a terminal; elsewhere (a log, a pipe) one plain line per stage on
+    standard error."""
+    def progress(done: int, total: int) -> None:
+        if error_console.is_terminal:
+            bar.update(task, completed=done, total=total)
+        else:
+            print(f"{what}: stage {done} of {total} done", file=sys.stderr, flush=True)
+    return progress
 
 
 @app.command("calibrate")
@@ -88,6 +133,12 @@ def calibrate_command(
                                                                              "records).")] = "60ms",
     manifest: ManifestOpt = None,
     plot: PlotOpt = None,
+    exclude: Annotated[list[str] | None, typer.Option("--exclude", metavar="FILE", help="Leave this drop out of "
+                                                                                         "the fit (repeatable).")]
+    = None,
+    drop_outliers: Annotated[bool, typer.Option("--drop-outliers", help="Fit the stand once more without the drops "
+                                                                         "named inconsistent with the others.")]
+    = False,
     as_json: JsonOpt = False,
     overwrite: Annotated[bool, typer.Option(*OVERWRITE, help="Overwrite the --out file and --plot figures.")]
     = False,
@@ -96,33 +147,42 @@ def calibrate_command(
     from ..calibrate import calibrate, check_inputs
 
     output_path(out, overwrite)
+    check_targets(out, plot, sources, manifest, rig)
     plot_folder(plot, overwrite)
     sigma = quantity(velocity_sigma, "fraction", "--velocity-sigma")
     length = None if duration.strip().lower() == "all" else quantity(duration, "time", "--duration")
     recordings = read_drops(sources, manifest)
-    with given(rig=rig, fit=fit, contact=contact, velocity_sigma=velocity_sigma, duration=duration):
-        check_inputs(recordings, rig=rig, fit=fit, contact=contact, velocity_sigma=sigma, duration=length)
+    options: dict[str, Any] = {"rig": rig, "fit": fit, "contact": contact, "velocity_sigma": sigma, "duration": length,
+                              "exclude": exclude or None, "drop_outliers": drop_outliers}
+    with given(rig=rig, fit=fit, contact=contact, velocity_sigma=velocity_sigma, duration=duration,
+               exclude=",".join(exclude) if exclude else None):
+        check_inputs(recordings, **options)
+    used = len(recordings) - len(set(exclude or ()))
     with _bar() as bar, announce_compilation("calibrating", spinner=False):
-        task = bar.add_task(f"calibrating on {len(recordings)} drops", total=None)
-        with given(rig=rig, fit=fit, contact=contact, velocity_sigma=velocity_sigma, duration=duration):
-            result = calibrate(recordings, rig=rig, fit=fit, contact=contact, velocity_sigma=sigma, duration=length,
-                               progress=lambda done, total: bar.update(task, completed=done, total=total))
+        task = bar.add_task(f"calibrating on {used} drops", total=None)
+        with given(rig=rig, fit=fit, contact=contact, velocity_sigma=velocity_sigma, duration=duration,
+                   exclude=",".join(exclude) if exclude else None):
+            result = calibrate(recordings, **options, progress=_progress(bar, task, f"calibrating on {used} drops"))
     result.to_toml(out, overwrite=overwrite)
     figures = result.plot(plot) if plot is not None else []
     if as_json:
         typer.echo(json.dumps({**result.to_dict(), "out": str(out), "figures": [str(p) for p in figures]}))
         return
     console.print(calibration_table(result))
+    console.print(drops_table(result))
     for line in result.warnings:
         console.print(f"warning: {line}", markup=False, highlight=False)
-    console.print(f"stand written to {out}" + (f"; {len(figures)} figures in {plot}" if figures else ""),
+    state = "" if result.fits else " (flagged: the stand does not fit its drops)"
+    console.print(f"stand written to {out}{state}" + (f"; {len(figures)} figures in {plot}" if figures else ""),
                   markup=False, highlight=False)
 
 
 def calibration_table(result: Calibration) -> Table:
-    """Rich table of a calibration: families, parameters, drops, what the drops do not tell apart."""
-    table = Table(title=f"{result.rig.name}: {result.law} contact, chi2/dof = {result.reduced_chi2:.4g}"
-                        + ("" if result.fits else " (does not fit)"))
+    """Rich table of a calibration: families, parameters (with their units), what the drops do not tell apart."""
+    from ..calibrate.result import display_unit
+
+    table = Table(title=f"{result.rig.name}: {result.law} contact, chi2/dof = {result.reduced_chi2:.4g}, misfit "
+                        f"{result.misfit_sigma:.3g} sigma" + ("" if result.fits else " (does not fit)"))
     table.add_column("item")
     table.add_column("value")
     for law, fam in result.families.items():
@@ -130,11 +190,8 @@ def calibration_table(result: Calibration) -> Table:
                 fam.get("dropped") or fam.get("error", ""))
         table.add_row(f"family {law}" + (" (chosen)" if law == result.law else ""), text)
     for name, value in result.parameters.items():
-        table.add_row(name, with_uncertainty(value, result.std[name]))
-    for drop in result.drops:
-        table.add_row(f"drop {Path(drop.source).name}", f"M1 {drop.mass:g} kg, V0 "
-                      f"{with_uncertainty(drop.velocity, drop.velocity_std, 'm/s')} (gate {drop.velocity_gate:g}), "
-                      f"chi2/dof {drop.reduced_chi2:.4g}")
+        unit, factor = display_unit(name, result.law)
+        table.add_row(escape(f"{name} [{unit}]"), with_uncertainty(value * factor, result.std[name] * factor))
     for item in result.indistinct:
         names = " and ".join(item["parameters"])
         hint = item.get("suggestion")
@@ -144,6 +201,23 @@ def calibration_table(result: Calibration) -> Table:
                                       f"{hint['largest_correlation_after']:.3f})")
         what = "undetermined" if item.get("undetermined") else f"correlation {item['correlation']:+.3f}"
         table.add_row(f"not told apart: {names}", what + advice)
+    return table
+
+
+def drops_table(result: Calibration) -> Table:
+    """Rich table of the drops of a calibration: truth, fitted V0, residuals and agreement with the others."""
+    table = Table(title=f"drops (named inconsistent beyond {result.drops[0].limit:.2f} sigma of light-gate pull, "
+                        "misfit or half the influence, and 3 times the set's median)")
+    for column in ("drop", "M1 [kg]", "p0 [kPa]", "V0 gate [m/s]", "V0 fitted [m/s]", "gate pull [sigma]",
+                   "chi2/dof", "misfit [sigma]", "force NRMSE", "influence [sigma]", "verdict"):
+        table.add_column(escape(column))  # "[kg]" is no markup
+    for d in result.drops:
+        table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.pressure / 1e3:g}", f"{d.velocity_gate:.4g}",
+                      with_uncertainty(d.velocity, d.velocity_std), f"{d.velocity_pull:+.1f}",
+                      f"{d.reduced_chi2:.4g}", f"{d.misfit_sigma:.1f}", f"{d.force_nrmse:.2%}",
+                      f"{d.influence_sigma:.1f}", "inconsistent" if d.inconsistent else "consistent")
+    for item in result.excluded:
+        table.add_row(Path(item["file"]).name, *[""] * 9, "left out")
     return table
 
 
@@ -159,11 +233,14 @@ def validate_command(
 ) -> None:
     """Reproduce held-back drops of known mass, velocity and pressure with a stand and report how well."""
     from ..calibrate import validate
-    from ..rig import get_rig
+    from ..rig import PRESETS, get_rig
 
+    check_targets(None, plot, sources, manifest, None)
     plot_folder(plot, overwrite)
-    with given(rig=stand):
-        rig = get_rig(stand)
+    if stand not in PRESETS and Path(stand).suffix.lower() != ".toml":
+        raise ParameterError(f"STAND {stand}: the stand must be a stand TOML file (e.g. one calibrate wrote) or a "
+                             f"preset name ({', '.join(sorted(PRESETS))}); the drops follow it")
+    rig = get_rig(stand)
     recordings = read_drops(sources, manifest)
     with announce_compilation("validating"):
         result = validate(rig, recordings)
@@ -178,17 +255,20 @@ def validate_command(
 
 def validation_table(result: Validation) -> Table:
     """Rich table of a validation, one row per drop."""
+    limit = result.drops[0].model_error_limit
     table = Table(title=f"{result.stand} ({result.contact_law}): median force NRMSE "
-                        f"{result.median_force_nrmse:.2%}")
-    for column in ("drop", "M1 [kg]", "V0 [m/s]", "p0 [kPa]", "force NRMSE", "noise alone", "peak force",
-                   "first pulse [ms]", "stage B [ms]"):
-        table.add_column(column)
+                        f"{result.median_force_nrmse:.2%}; {result.reproduced} of {len(result.drops)} drops "
+                        f"reproduced (force error beyond the noise <= {limit:.0%} of the force range)")
+    for column in ("drop", "M1 [kg]", "V0 [m/s]", "p0 [kPa]", "force NRMSE [% of range]", "noise alone [%]",
+                   "beyond noise [%]", "peak force [%]", "first pulse [ms]", "stage B [ms]", "verdict"):
+        table.add_column(escape(column))  # "[kg]" is no markup
 
     def ms(value):
         return "-" if value is None else f"{value * 1e3:+.3f}"
 
     for d in result.drops:
         table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.velocity:g}", f"{d.pressure / 1e3:g}",
-                      f"{d.force_nrmse:.2%}", f"{d.noise_nrmse:.2%}", f"{d.peak_force_error:+.2%}",
-                      ms(d.first_pulse_error), ms(d.stage_b_error))
+                      f"{d.force_nrmse:.2%}", f"{d.noise_nrmse:.2%}", f"{d.model_error:.2%}",
+                      f"{d.peak_force_error:+.2%}", ms(d.first_pulse_error), ms(d.stage_b_error),
+                      "reproduced" if d.reproduced else "not reproduced")
     return table

@@ -29,13 +29,14 @@ def plot_drop(drop, ax=None):
         fig = axes[0].figure
     t = np.asarray(drop.time) * 1e3
     for row, (k, label, scale) in enumerate(((0, "contact force [kN]", 1e-3), (1, ACCELERATION_LABEL, 1.0))):
+        unit = label[label.index("["):]
         top, bottom = axes[2 * row], axes[2 * row + 1]
         top.plot(t, drop.measured[k] * scale, color="0.55", lw=0.7, label="measured")
         top.plot(t, drop.simulated[k] * scale, color="C3", lw=1.0, label="simulated")
         top.set_ylabel(label)
         bottom.plot(t, (drop.measured[k] - drop.simulated[k]) * scale, color="C0", lw=0.6)
         bottom.axhline(0.0, color="k", lw=0.5)
-        bottom.set_ylabel("residual")
+        bottom.set_ylabel(f"residual {unit}")
     axes[-1].set_xlabel("time [ms]")
     legend_outside(axes[0])
     quality = getattr(drop, "force_nrmse", None)
@@ -63,6 +64,8 @@ def plot_drops(drops: Sequence, folder: str | Path, *, prefix: str) -> list[Path
 def plot_parameters(calibration, ax=None):
     """Summary of a :class:`~impactometer.calibrate.Calibration`: each parameter's relative standard error [%],
     their correlation matrix, and each drop's χ²/dof; returns the figure."""
+    from ..calibrate.result import display_unit
+
     plt = _pyplot()
     if ax is None:
         fig, axes = plt.subplots(1, 3, figsize=(14, 4.5), constrained_layout=True)
@@ -76,16 +79,18 @@ def plot_parameters(calibration, ax=None):
     axes[0].set_xscale("log")
     axes[0].set_xlabel("standard error [% of the value]")
     for y, n in enumerate(names):
-        axes[0].annotate(f"{calibration.parameters[n]:.4g}", (relative[y], y), fontsize=8, va="center",
-                         xytext=(3, 0), textcoords="offset points")
+        unit, factor = display_unit(n, calibration.law)
+        axes[0].annotate(f"{calibration.parameters[n] * factor:.4g} {unit}", (relative[y], y), fontsize=8,
+                         va="center", xytext=(3, 0), textcoords="offset points")
     image = axes[1].imshow(calibration.correlation, vmin=-1.0, vmax=1.0, cmap="RdBu_r")
     axes[1].set_xticks(range(len(names)), [n.split(".")[-1] for n in names], rotation=45, ha="right")
     axes[1].set_yticks(range(len(names)), [n.split(".")[-1] for n in names])
     fig.colorbar(image, ax=axes[1], label="correlation [-]")
     chi2 = [d.reduced_chi2 for d in calibration.drops]
-    axes[2].bar(range(1, len(chi2) + 1), chi2, color="C2")
+    colours = ["C3" if d.inconsistent else "C2" for d in calibration.drops]
+    axes[2].bar(range(1, len(chi2) + 1), chi2, color=colours)
     axes[2].axhline(1.0, color="k", lw=0.8)
-    axes[2].set_xlabel("drop")
+    axes[2].set_xlabel("drop [-] (red: inconsistent with the others)")
     axes[2].set_ylabel("chi2/dof [-]")
     fig.suptitle(f"{calibration.rig.name}: {calibration.law} contact, chi2/dof = {calibration.reduced_chi2:.3g}")
     return fig

@@ -12,7 +12,7 @@ import tomli_w
 
 from ..errors import ParameterError
 from ..jsonable import plain
-from ..outputs import as_path, check_file, write_failed
+from ..outputs import as_path, check_file, write_atomically
 
 #: the table of a stand file that says where its numbers came from (read past by :func:`~impactometer.rig.from_dict`)
 PROVENANCE_KEY = "provenance"
@@ -60,8 +60,5 @@ def write_table(data: dict[str, Any], path: str | Path, *, overwrite: bool = Fal
     ``overwrite``."""
     path = check_file(path, "rig file", overwrite=overwrite, flag="overwrite=True")
     text = table_text(data, provenance)
-    try:
-        path.write_text(text, encoding="utf-8")
-    except OSError as exc:
-        raise write_failed(path, exc) from None
-    return path
+    return write_atomically(path, lambda temporary: temporary.write_text(text, encoding="utf-8"),
+                            overwrite=overwrite, flag="overwrite=True")
