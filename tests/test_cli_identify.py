@@ -253,6 +253,10 @@ def test_the_model_fit_falls_back_naming_the_stand_the_file_states_and_keeps_the
     main(["identify", str(path), "--json"])
     plain = json.loads(capsys.readouterr().out)
     main(["identify", str(path), "--method", "model", "--json"])
+    freed = json.loads(capsys.readouterr().out)
+    # with the stated pressure's prior the fit moves the pressure to soak up the stiffer stand: the answer names --rig
+    assert any("--rig" in warning for warning in freed["warnings"])
+    main(["identify", str(path), "--method", "model", "--pressure-std", "0", "--json"])
     model = json.loads(capsys.readouterr().out)
     assert model["path"] == "fallback"  # the built-in stand does not describe a record of the stiff one
     assert any("--rig='drop-stand-stiff'" in warning for warning in model["warnings"])

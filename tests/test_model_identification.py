@@ -198,3 +198,71 @@ def test_cli_identify_method_model(tmp_path, capsys):
         main(["identify", str(path), "--method", "model", "--pressure", "250kPa"])
     assert exc.value.code == 2
     assert "contradicts" in capsys.readouterr().err
+
+
+#: records of the pad stand whose charge pressure a gauge misreads: (M1 [kg], V0 [m/s], p0 [Pa gauge], noise, seed)
+GAUGE_CASES = [(30.0, 2.0, 100e3, 0.05, 21), (15.0, 1.5, 200e3, 0.03, 22), (45.0, 2.5, 300e3, 0.02, 23)]
+#: relative errors of the stated pressure: within and beyond the default gauge σ of 2 % [-]
+GAUGE_ERRORS = (-0.03, -0.015, 0.015, 0.03)
+#: an answer on a misread pressure lies within this many of its stated σ of the truth, or warns [-]
+GAUGE_Z = 3.0
+
+
+@pytest.mark.parametrize(("mass", "velocity", "pressure", "noise", "seed"), GAUGE_CASES)
+def test_a_misread_pressure_gauge_is_covered_by_its_prior(mass, velocity, pressure, noise, seed):
+    rec = _record(mass, velocity, pressure, seed, noise=noise)
+    rec.metadata.pop("pressure_gauge_Pa")  # the gauge's reading is the only statement
+    for error in GAUGE_ERRORS:
+        answer = identify(rec, pressure=pressure * (1.0 + error))
+        assert answer.details["path"] == "ml"
+        inside = (abs(answer.mass - mass) <= GAUGE_Z * answer.mass_std
+                  and abs(answer.velocity - velocity) <= GAUGE_Z * answer.velocity_std)
+        assert inside or any("pressure" in warning for warning in answer.warnings), error
+    # on the true pressure nothing is lost: the answer within Z σ, its σ that of the bound with the prior, which
+    # lies between the bounds of the pressure held exactly and of the pressure unknown
+    on = identify(rec, pressure=pressure)
+    assert abs(on.mass - mass) <= Z * on.mass_std and abs(on.velocity - velocity) <= Z * on.velocity_std
+    held, prior, unknown = (cramer_rao(rec, pressure=pressure, pressure_std=0.0), cramer_rao(rec, pressure=pressure),
+                            cramer_rao(rec, pressure=pressure, pressure_unknown=True))
+    assert held.mass_std < prior.mass_std < unknown.mass_std
+    assert CRB_FACTOR[0] <= on.mass_std / prior.mass_std <= CRB_FACTOR[1]
+    assert CRB_FACTOR[0] <= on.velocity_std / prior.velocity_std <= CRB_FACTOR[1]
+    # the bound of the answer's details carries the prior: it exceeds the one of the pressure held exactly
+    exact = identify(rec, pressure=pressure, pressure_std=0.0)
+    assert on.details["crb"]["mass_std_kg"] > exact.details["crb"]["mass_std_kg"]
+    assert "pressure_gauge" in on.details["parameters"] and "pressure_gauge" not in exact.details["parameters"]
+
+
+def test_a_given_pressure_and_the_metadata_are_combined_or_refused():
+    from impactometer.identify.model_fit import GAUGE_FLOOR_STD, _pressure, gauge_std
+
+    rec = _record(30.0, 2.0, 100e3, 81)
+    rig = get_rig(None)
+    assert gauge_std(100e3) == pytest.approx(2e3) and gauge_std(10e3) == GAUGE_FLOOR_STD
+    assert _pressure(rec, None, rig) == (100e3, pytest.approx(2e3))
+    # 3 % apart, 2.9 kPa combined σ: both used, their inverse-variance mean
+    mean, std = _pressure(rec, 103e3, rig)
+    sigma = np.array([2.06e3, 2e3])
+    assert mean == pytest.approx(np.sum(np.array([103e3, 100e3]) / sigma ** 2) / np.sum(sigma ** -2.0))
+    assert std == pytest.approx(np.sum(sigma ** -2.0) ** -0.5)
+    assert _pressure(rec, 101e3, rig, pressure_std=0.0) == (101e3, 0.0)  # held exactly where stated so
+    with pytest.raises(ParameterError, match="more than 3 times their combined") as refused:
+        _pressure(rec, 110e3, rig)
+    assert refused.value.field == "pressure"
+    with pytest.raises(ParameterError, match="pressure_std must be a finite number >= 0"):
+        _pressure(rec, 100e3, rig, pressure_std=-1.0)
+
+
+def test_cli_pressure_std(tmp_path, capsys):
+    path = tmp_path / "drop.h5"
+    write_recording(_record(30.0, 2.0, 100e3, 91), path)
+    main(["identify", str(path), "--method", "model", "--pressure", "101kPa", "--pressure-std", "1%", "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert abs(data["mass_kg"] - 30.0) <= Z * data["mass_std_kg"]
+    for options, message in ((["--pressure", "130kPa", "--pressure-std", "4kPa"], "--pressure 130kPa"),
+                             (["--pressure-std", "-3kPa"], "--pressure-std"),
+                             (["--method", "peak-to-peak", "--pressure-std", "1kPa"], "--pressure-std")):
+        with pytest.raises(SystemExit) as exc:
+            main(["identify", str(path), "--method", "model", *options])
+        assert exc.value.code == 2
+        assert message in capsys.readouterr().err

@@ -13,6 +13,7 @@ from rich.table import Table
 
 from ..errors import IdentificationError, ParameterError
 from ..outputs import save_figure
+from ..units import parse_quantity
 from .app import OVERWRITE, announce_compilation, app, console, given, output_path, quantity, with_uncertainty
 from .reading import DEFAULT_READER, ReaderOptions, reader_options
 
@@ -88,6 +89,10 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
                  "--pressure", metavar="PRESSURE",
                  help="response-map, model: charge pressure p0, gauge (e.g. 200kPa); else the file's statement "
                       "(model: else fitted).")] = None,
+             pressure_std: Annotated[str | None, typer.Option(
+                 "--pressure-std", metavar="SIGMA",
+                 help="model: σ of the stated charge pressure (e.g. 4kPa, or 2% of it); default 2% of the reading, "
+                      "at least 1kPa (0: held exactly).")] = None,
              as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
              plot: Annotated[Path | None, typer.Option("--plot", metavar="FILE",
                                                        help="Save a figure of the instants used.")] = None,
@@ -102,6 +107,8 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         raise ParameterError("--pressure is an option of --method response-map and --method model")
     if rig is not None and method != "model":
         raise ParameterError("--rig is an option of --method model")
+    if pressure_std is not None and method != "model":
+        raise ParameterError("--pressure-std is an option of --method model")
     pressure_gauge = quantity(pressure, "pressure", "--pressure")
     output_path(plot, overwrite, field="--plot", kind="figure")
     rec = reader.read(file)
@@ -118,9 +125,10 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     elif method == "model":
         from ..identify.model_fit import identify as identify_model
 
-        with given(rig=rig, pressure=pressure), \
+        gauge_std = _pressure_std(pressure_std, pressure_gauge, rec.metadata.get("pressure_gauge_Pa"))
+        with given(rig=rig, pressure=pressure, pressure_std=pressure_std), \
                 announce_compilation("fitting the stand model to the record", compile_time="about 10-40 s"):
-            result = identify_model(rec, rig=rig, pressure=pressure_gauge)
+            result = identify_model(rec, rig=rig, pressure=pressure_gauge, pressure_std=gauge_std)
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 
@@ -129,7 +137,8 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
     from .app import speak_text
 
     data = result.to_dict()
-    data["warnings"] = [speak_text(warning, {"rig": rig, "pressure": pressure}) for warning in data["warnings"]]
+    data["warnings"] = [speak_text(warning, {"rig": rig, "pressure": pressure,
+                                                         "pressure_std": pressure_std}) for warning in data["warnings"]]
     if as_json:
         typer.echo(json.dumps(data))
     else:
@@ -331,3 +340,17 @@ def _print_estimate(est, stage: str, as_json: bool) -> None:
                   highlight=False, markup=False, soft_wrap=True)
     for warning in est.warnings:
         console.print(f"{'':15s}warning: {warning}", highlight=False, markup=False, soft_wrap=True)
+
+
+def _pressure_std(text: str | None, pressure: float | None, stated: object) -> float | None:
+    """``--pressure-std`` in Pa: a pressure (``4kPa``, bare Pa) or a percentage of the stated pressure (``2%``:
+    of ``--pressure``, else of the file's ``pressure_gauge_Pa``); None passes through."""
+    if text is None or not text.strip().endswith("%"):
+        return None if text is None else parse_quantity(text, "pressure", field="--pressure-std")
+    fraction = parse_quantity(text, "fraction", field="--pressure-std")
+    try:
+        base = float(pressure if pressure is not None else stated)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ParameterError(f"--pressure-std {text}: a percentage needs a stated pressure (--pressure, or the "
+                             "file's pressure_gauge_Pa); give it in Pa or kPa") from None
+    return fraction * abs(base)

@@ -46,8 +46,16 @@ __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURAT
 MAX_REDUCED_CHI2 = 1.5
 #: χ²/dof above which an answer of the model carries a warning (model error beyond the noise)
 WARN_REDUCED_CHI2 = 1.1
-#: a pressure given and one in the metadata contradict each other beyond this fraction (or 1 kPa) [-]
-PRESSURE_TOLERANCE = 0.02
+#: a stated charge pressure's default σ: this fraction of the reading [-] ...
+GAUGE_RELATIVE_STD = 0.02
+#: ... and at least this [Pa] (:func:`gauge_std`)
+GAUGE_FLOOR_STD = 1e3
+#: a pressure given and one in the metadata contradict each other beyond this many of their combined σ [-]
+PRESSURE_CONTRADICTION = 3.0
+#: a fitted pressure this many of its prior's σ from the stated one is named in a warning [-]: a right gauge and
+#: stand put it there in 4.6 % of records; a misread gauge or another stand (whose difference the pressure soaks
+#: up) more often
+PRESSURE_PULL = 2.0
 #: samples the contact instant starts before the crude trigger when the robust answer fails
 TRIGGER_LEAD = 2
 #: the points a Cramér-Rao bound is evaluated at (:func:`cramer_rao`'s ``at``)
@@ -56,8 +64,21 @@ BOUND_POINTS = ("truth", "estimate")
 DEFAULT_PRESSURE_START = 200e3
 
 
-def _pressure(recording: Recording, pressure: float | None, rig: Rig) -> float | None:
-    """The charge pressure [Pa gauge]: the one given, else the metadata's, else None (fitted)."""
+def gauge_std(pressure: float) -> float:
+    """The default σ [Pa] of a charge pressure [Pa gauge] as a gauge states it: :data:`GAUGE_RELATIVE_STD` (2 %) of
+    the reading, at least :data:`GAUGE_FLOOR_STD` (1 kPa). A pressure gauge of a drop stand is typically good to 1-4 %
+    of its reading (class 1-2.5 dial gauges on half their span, or a transducer's drift); 2 % is the middle of that
+    range, and the floor is a dial's resolution near zero."""
+    return max(GAUGE_RELATIVE_STD * abs(pressure), GAUGE_FLOOR_STD)
+
+
+def _pressure(recording: Recording, pressure: float | None, rig: Rig,
+              pressure_std: float | None = None) -> tuple[float | None, float]:
+    """The charge pressure [Pa gauge] and its σ [Pa]: the one given, the metadata's, or both combined (their
+    inverse-variance mean) where both are stated; (None, 0) when neither states it (fitted). ``pressure_std`` is
+    the σ of the pressure given (else of the metadata's); default :func:`gauge_std` of each. A σ of 0 holds the
+    pressure exactly. A pressure given and the metadata's more than :data:`PRESSURE_CONTRADICTION` combined σ apart
+    are refused."""
     stated = recording.metadata.get("pressure_gauge_Pa")
     if stated is not None:
         try:
@@ -65,20 +86,32 @@ def _pressure(recording: Recording, pressure: float | None, rig: Rig) -> float |
         except (TypeError, ValueError):
             raise RecordingError(f"{recording.source}: metadata pressure_gauge_Pa must be a number [Pa gauge], got "
                                  f"{shown(stated)}") from None
+    if pressure_std is not None:
+        pressure_std = check_real("pressure_std", pressure_std, low=0.0, unit=" [Pa]", state_range=True)
     if pressure is None:
-        return stated
+        if stated is None:
+            return None, 0.0
+        return stated, gauge_std(stated) if pressure_std is None else pressure_std
     pressure = check_real("pressure", pressure, low=0.0, high=rig.cylinder.rated_pressure_gauge,
                           unit=f" [Pa gauge] (the rating of {rig.name!r})", state_range=True)
-    if stated is not None and abs(pressure - stated) > max(1e3, PRESSURE_TOLERANCE * abs(stated)):
+    given_std = gauge_std(pressure) if pressure_std is None else pressure_std
+    if stated is None:
+        return float(pressure), given_std
+    stated_std = gauge_std(stated)
+    combined = math.hypot(given_std, stated_std)
+    if abs(pressure - stated) > PRESSURE_CONTRADICTION * combined:
         raise ParameterError(f"pressure {pressure:g} Pa gauge contradicts the recording's metadata "
-                             f"pressure_gauge_Pa = {stated:g} Pa; expected agreement within "
-                             f"{PRESSURE_TOLERANCE:.0%} or 1 kPa (leave pressure out to use the metadata's)")
-    return float(pressure)
-
-
-
-
-
+                             f"pressure_gauge_Pa = {stated:g} Pa: they differ by {abs(pressure - stated):.4g} Pa, "
+                             f"more than {PRESSURE_CONTRADICTION:g} times their combined σ {combined:.4g} Pa "
+                             "(leave pressure out to use the metadata's, or state its pressure_std)",
+                             field="pressure", expected=f"contradicts the recording's metadata pressure_gauge_Pa = "
+                             f"{stated:g} Pa by more than {PRESSURE_CONTRADICTION:g} times their combined σ "
+                             f"{combined:.4g} Pa (leave it out to use the metadata's, or state its pressure_std)")
+    if given_std == 0.0:
+        return float(pressure), 0.0
+    weights = 1.0 / given_std ** 2, 1.0 / stated_std ** 2
+    return (float((weights[0] * pressure + weights[1] * stated) / sum(weights)),
+            float(1.0 / math.sqrt(sum(weights))))
 
 
 def _stand_warning(recording: Recording, rig: Rig) -> tuple[str, ...]:
@@ -96,7 +129,7 @@ def _stand_warning(recording: Recording, rig: Rig) -> tuple[str, ...]:
 
 
 def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: float | None = None,
-             uncertain: Sequence[str] | None = None, contact: str | None = "auto",
+             pressure_std: float | None = None, uncertain: Sequence[str] | None = None, contact: str | None = "auto",
              max_reduced_chi2: float = MAX_REDUCED_CHI2) -> Identification:
     """Identify M1 and V0 by the maximum-likelihood fit of the whole record (method ``model``).
 
@@ -108,7 +141,13 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     rig : Rig or str, optional
         The stand (a preset name or a TOML file; default ``drop-stand``).
     pressure : float, optional
-        Charge pressure p0 [Pa gauge]; default the metadata's ``pressure_gauge_Pa``, else fitted.
+        Charge pressure p0 [Pa gauge] as a gauge reads it; default the metadata's ``pressure_gauge_Pa``, else
+        fitted freely. Where both are stated they are combined (their inverse-variance mean), and refused when they
+        differ by more than :data:`PRESSURE_CONTRADICTION` times their combined σ.
+    pressure_std : float, optional
+        σ of the stated pressure [Pa] (of ``pressure``, else of the metadata's); default :func:`gauge_std` (2 % of
+        the reading, at least 1 kPa). The pressure is fitted with the Gaussian prior stated ± σ, so the σ of M1 and
+        V0 (and the Cramér-Rao bound of the details) include the gauge's error; 0 holds it exactly.
     uncertain : sequence of str, optional
         Stand parameters fitted with M1 and V0 (dotted names, ``"contact"`` for the law's parameters); default the
         contact law's parameters and ``friction.force``.
@@ -140,7 +179,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     laws = contact_laws(contact)
     free_names = check_uncertain(uncertain, laws)
     max_reduced_chi2 = check_real("max_reduced_chi2", max_reduced_chi2, low=1.0, unit=" [-]", state_range=True)
-    p0 = _pressure(recording, pressure, rig)
+    p0, p0_std = _pressure(recording, pressure, rig, pressure_std)
     design = anti_alias_design(recording)
     trigger = check_length(recording)
     pressure_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_START
@@ -153,10 +192,11 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     if robust is not None:
         data = observe(recording, design, robust.t00)
         start = Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay, pressure=p0,
-                      pressure_start=pressure_start)
+                      pressure_start=pressure_start, pressure_std=p0_std)
     else:  # a few samples before the crude trigger: the first window's fit finds the instant
         data = observe(recording, design, trigger)
-        start = grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0, pressure_start)
+        start = replace(grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0,
+                                   pressure_start), pressure_std=p0_std)
     fits, selection = fit_laws(data, rig, laws, free_names, start)
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,
@@ -185,20 +225,31 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                        warnings=(*_stand_warning(recording, rig), *robust.warnings, reason),
                        details=replace(common, path="fallback", reason=reason,
                                        contact_law=None if best is None else best.law, fallback=robust.details))
-    return _answer(recording, rig, best, common)
+    return _answer(recording, rig, best, common, (p0, p0_std))
 
 
-def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails) -> Identification:
-    """The :class:`Identification` of the chosen fit (its details ``common``'s, with the fit's)."""
+def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
+            stated: tuple[float | None, float]) -> Identification:
+    """The :class:`Identification` of the chosen fit (its details ``common``'s, with the fit's); ``stated`` the
+    stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     crb = bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
     found = list(_stand_warning(recording, rig))
     found += check_answer(mass, velocity)
     rated = rig.cylinder.rated_pressure_gauge
-    if best.values.get("pressure_gauge", 0.0) > rated:
+    if "pressure_gauge" in best.values and (
+            best.values["pressure_gauge"] - PRESSURE_CONTRADICTION * best.std("pressure_gauge") * inflation > rated):
         found.append(f"the fitted charge pressure {best.values['pressure_gauge']:.4g} Pa exceeds the rated "
-                     f"{rated:g} Pa of {rig.name!r}")
+                     f"{rated:g} Pa of {rig.name!r} beyond {PRESSURE_CONTRADICTION:g} of its σ: "
+                     "pass pressure as the gauge reads it, with its pressure_std")
+    pressure, pressure_std = stated
+    if pressure is not None and pressure_std > 0.0 and (
+            abs(best.values["pressure_gauge"] - pressure) > PRESSURE_PULL * pressure_std):
+        found.append(f"the fit moves the charge pressure to {best.values['pressure_gauge']:.5g} Pa, "
+                     f"{abs(best.values['pressure_gauge'] - pressure) / pressure_std:.3g} σ from the stated "
+                     f"{pressure:.5g} ± {pressure_std:.3g} Pa: the stated pressure or the stand is off (pass pressure "
+                     "as the gauge reads it with its pressure_std, or pass rig the stand the record was made on)")
     if not best.converged:
         found.append(f"the {best.law} fit stopped after {best.evaluations} evaluations before it converged")
     if best.rank < best.unknowns:
@@ -226,8 +277,8 @@ def _unknowns(names: Sequence[str]) -> tuple[str, ...]:
 
 def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: float | None = None,
                contact_time: float = 0.0, rig: Rig | str | None = None, pressure: float | None = None,
-               uncertain: Sequence[str] | None = None, pressure_unknown: bool = False,
-               at: str = "truth") -> CramerRao:
+               pressure_std: float | None = None, uncertain: Sequence[str] | None = None,
+               pressure_unknown: bool = False, at: str = "truth") -> CramerRao:
     """Cramér-Rao bound of M1 and V0 for ``recording`` under the stand model, at a given impact.
 
     Every unknown of the fit is estimated alongside (the contact instant, the stand parameters marked uncertain,
@@ -245,8 +296,9 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
         First contact on the recording's clock [s] (0 for a simulated record).
     rig : Rig or str, optional
         The stand, with the contact law and the values of its parameters (default ``drop-stand``).
-    pressure, uncertain
-        As in :func:`identify`; the pressure is where the bound is evaluated [Pa gauge] (default the metadata's).
+    pressure, pressure_std, uncertain
+        As in :func:`identify`; the pressure is where the bound is evaluated [Pa gauge] (default the metadata's), and
+        its prior (the stated pressure ± ``pressure_std``, as :func:`identify` fits it) is part of the information.
     pressure_unknown : bool
         Count the pre-charge among the unknowns (as :func:`identify` does when neither ``pressure`` nor the
         metadata gives it).
@@ -270,14 +322,14 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
         values[name] = check_real(name, value, low=0.0, low_open=True,
                                   unit=f" [{'kg' if name == 'mass' else 'm/s'}] (or stated in the recording's "
                                   "metadata)", state_range=True)
-    p0 = _pressure(recording, pressure, rig)
+    p0, p0_std = _pressure(recording, pressure, rig, pressure_std)
     if p0 is None:
         raise ParameterError("pressure must be given [Pa gauge] (the recording's metadata states none): the bound "
                              "is evaluated at a known impact on a known stand")
     design = anti_alias_design(recording)
     data = observe(recording, design, contact_time + anti_alias_delay(design, recording.sample_rate))
     layout = make_layout(rig, law, free, pressure=None if pressure_unknown else p0, contact_time=contact_time,
-                         sample_rate=recording.sample_rate)
+                         sample_rate=recording.sample_rate, pressure_std=p0_std)
     point = {**values, "contact_time": contact_time, **stand_values(rig, law, free), "pressure_gauge": p0}
     cov, _ = covariance(weighted_jacobian(data, layout, point))
     return bound_of(cov, values["mass"], values["velocity"], law=law, at=at, unknowns=_unknowns(layout.names))

@@ -206,9 +206,11 @@ class Layout:
 
 
 def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | None, contact_time: float,
-                sample_rate: float, mass: float | None = None, velocity: float | None = None) -> Layout:
+                sample_rate: float, mass: float | None = None, velocity: float | None = None,
+                pressure_std: float = 0.0) -> Layout:
     """The :class:`Layout` of a fit on ``rig`` with contact ``law`` freeing the stand parameters ``free``, the
-    charge pressure known (``pressure`` [Pa gauge]) or fitted (None; the variable is ln of the absolute pressure),
+    charge pressure known (``pressure`` [Pa gauge]; held where ``pressure_std`` [Pa] is 0, else fitted with the
+    Gaussian prior ``pressure`` ± ``pressure_std``) or fitted (None; the variable is ln of the absolute pressure),
     counting the contact instant from ``contact_time`` [s]; M1 held at ``mass`` [kg] and V0 at ``velocity`` [m/s]
     when they are given."""
     stand = rig if rig.contact.law == law else rig.with_contact(law)
@@ -224,11 +226,14 @@ def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | 
         del core["velocity"]
     names = [*core, *free]
     specs = [*core.values(), *(STAND_PARAMETERS[name] for name in free)]
-    if pressure is None:
+    if pressure is None or pressure_std > 0.0:
         names.append("pressure_gauge")
         specs.append((d.PRESSURE_GAUGE, "log", rig.gas.atmospheric_pressure))
-    return Layout(names=tuple(names), specs=tuple(specs), base=base, law=law, origin=float(contact_time),
-                  sample_rate=float(sample_rate))
+    layout = Layout(names=tuple(names), specs=tuple(specs), base=base, law=law, origin=float(contact_time),
+                    sample_rate=float(sample_rate))
+    if pressure is not None and pressure_std > 0.0:
+        layout = layout.with_prior("pressure_gauge", pressure, pressure_std)
+    return layout
 
 
 #: stand parameters that may be zero -> the value a fit starts from where the stand's is zero [SI] (a start at zero

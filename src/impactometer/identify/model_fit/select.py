@@ -58,13 +58,15 @@ SCREEN_EVALUATIONS = 8
 @dataclass(frozen=True)
 class Start:
     """Where every law's fit starts: M1 [kg], V0 [m/s], the contact instant [s] and the pre-charge [Pa gauge]
-    (None: fitted, starting from ``pressure_start``)."""
+    (None: fitted, starting from ``pressure_start``; else held where ``pressure_std`` [Pa] is 0, or fitted with
+    the prior ``pressure`` ± ``pressure_std``)."""
 
     mass: float
     velocity: float
     contact_time: float
     pressure: float | None
     pressure_start: float
+    pressure_std: float = 0.0
 
 
 def screen(fits: dict[str, LawFit], span: float, margin: float, *, within: float | None = None) -> dict[str, str]:
@@ -90,6 +92,8 @@ def start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: Star
               **stand_values(rig, law, free)}
     if start.pressure is None:
         values["pressure_gauge"] = start.pressure_start
+    elif start.pressure_std > 0.0:
+        values["pressure_gauge"] = start.pressure
     return Layouts(rig, law, free, start, sample_rate), values
 
 
@@ -153,7 +157,8 @@ class Layouts:
 
     def _make(self, free: tuple[str, ...], mass: float | None = None):
         return make_layout(self.rig, self.law, free, pressure=self.start.pressure,
-                           contact_time=self.start.contact_time, sample_rate=self.sample_rate, mass=mass)
+                           contact_time=self.start.contact_time, sample_rate=self.sample_rate, mass=mass,
+                           pressure_std=self.start.pressure_std)
 
     def __call__(self, kind: str, values: dict):
         return self._make(self.free, values["mass"]) if kind == "stand" else self.fixed[kind]

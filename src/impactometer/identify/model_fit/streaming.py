@@ -115,7 +115,7 @@ class ModelStream:
         Time of the first sample pushed [s].
     metadata : dict, optional
         The recording's metadata (``anti_alias``, ``pressure_gauge_Pa``), as :func:`.identify` reads it.
-    rig, pressure, uncertain, contact
+    rig, pressure, pressure_std, uncertain, contact
         As in :func:`.identify`.
     cadence : float
         Record between updates [s].
@@ -141,7 +141,8 @@ class ModelStream:
     """
 
     def __init__(self, sample_rate: float, *, start_time: float = 0.0, metadata: dict | None = None,
-                 rig: Rig | str | None = None, pressure: float | None = None, uncertain: Sequence[str] | None = None,
+                 rig: Rig | str | None = None, pressure: float | None = None, pressure_std: float | None = None,
+                 uncertain: Sequence[str] | None = None,
                  contact: str | None = "auto", cadence: float = CADENCE, window: float = WINDOW,
                  first: float = STAGES[0][0], robust_starts: bool = True):
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
@@ -160,7 +161,8 @@ class ModelStream:
         self._stand_notes = batch._stand_warning(probe, self.rig)
         self._update_metadata = {k: v for k, v in self.metadata.items() if k != STAND_KEY}
         self.design = anti_alias_design(probe)
-        self.pressure = batch._pressure(probe, pressure, self.rig)
+        self.pressure, self.pressure_std = batch._pressure(probe, pressure, self.rig, pressure_std)
+        self._given_pressure = pressure, pressure_std  # the final batch fit combines them with the metadata itself
         self.delay = anti_alias_delay(self.design, sample_rate)
         self._grid_model = make_grid(self.start_time, sample_rate, 1, self.design)
         self._chunk = max(int(self.cadence * sample_rate), 1)
@@ -288,7 +290,7 @@ class ModelStream:
         if self.robust.estimates:
             robust = self.robust.estimates[-1]
             starts = [Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
-                            pressure=self.pressure, pressure_start=pressure_start)]
+                            pressure=self.pressure, pressure_start=pressure_start, pressure_std=self.pressure_std)]
         else:
             part = window(data, impact.contact_time + STAGES[0][0])  # the window the grid is ranked on
             predicted = self._grid.get((impact.trigger - impact.first, part.grid.size))
@@ -301,8 +303,9 @@ class ModelStream:
                     part.grid, start_time=part.grid.start_time + (cut - 1e-6) / self.sample_rate,  # period early:
                     size=part.grid.size - cut))  # the window's floor keeps its last sample)
                 predicted = predicted[..., cut:]
-            starts = grid_starts(part, self.rig, impact.contact_time, self.pressure, pressure_start,
-                                 count=GRID_STARTS, predicted=predicted)
+            starts = [replace(start, pressure_std=self.pressure_std) for start in grid_starts(
+                part, self.rig, impact.contact_time, self.pressure, pressure_start, count=GRID_STARTS,
+                predicted=predicted)]
         return first_fit(impact.fit, data, span, starts)
 
     def _emit(self, fit: LawFit, recording: Recording, *, stage: str, clock: float, span: float,
@@ -330,7 +333,7 @@ class ModelStream:
                 recording.contact_force.size - 1) / self.sample_rate, details=replace(
                 common, path="fallback", reason=reason, contact_law=fit.law, fallback=robust.details))
         else:
-            answer = batch._answer(recording, self.rig, fit, common)
+            answer = batch._answer(recording, self.rig, fit, common, (self.pressure, self.pressure_std))
             answer = replace(answer, warnings=(*self._stand_notes, *answer.warnings))
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
@@ -349,7 +352,8 @@ class ModelStream:
         try:
             recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
             self.last_record = recording
-            final = batch.identify(recording, rig=self.rig, pressure=self.pressure, uncertain=self.uncertain,
+            final = batch.identify(recording, rig=self.rig, pressure=self._given_pressure[0],
+                                   pressure_std=self._given_pressure[1], uncertain=self.uncertain,
                                    contact=self.contact)
         except IdentificationError as exc:
             self.outcomes.append(exc)
