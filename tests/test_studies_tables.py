@@ -37,7 +37,8 @@ TINY = {
     "peak-force": ({}, {"simulated_peak_force", "recorded_peak_force", "closed_form_peak_force"}, None),
 }
 EXPECTED_METHODS = {"method": {"paper", "robust-early", "robust"}, "search": {"brute", "fast"},
-                    "strategy": {"closed", "predictive", "predictive (oracle)", "achievable reference"}}
+                    "strategy": {"closed", "predictive", "predictive (oracle)",
+                                 "predictive (oracle from the control start)", "achievable reference"}}
 #: studies whose compared methods include the model fit (by default)
 MODEL_STUDIES = {"noise", "sampling"}
 
