@@ -179,7 +179,7 @@ def calibrate_command(
 
 def calibration_table(result: Calibration) -> Table:
     """Rich table of a calibration: families, parameters (with their units), what the drops do not tell apart."""
-    from ..calibrate.result import display_unit
+    from ..rig.display import display_unit
 
     table = Table(title=f"{result.rig.name}: {result.law} contact, chi2/dof = {result.reduced_chi2:.4g}, misfit "
                         f"{result.misfit_sigma:.3g} sigma" + ("" if result.fits else " (does not fit)"))
@@ -208,16 +208,18 @@ def drops_table(result: Calibration) -> Table:
     """Rich table of the drops of a calibration: truth, fitted V0, residuals and agreement with the others."""
     table = Table(title=f"drops (named inconsistent beyond {result.drops[0].limit:.2f} sigma of light-gate pull, "
                         "misfit or half the influence, and 3 times the set's median)")
-    for column in ("drop", "M1 [kg]", "p0 [kPa]", "V0 gate [m/s]", "V0 fitted [m/s]", "gate pull [sigma]",
-                   "chi2/dof", "misfit [sigma]", "force NRMSE", "influence [sigma]", "verdict"):
-        table.add_column(escape(column))  # "[kg]" is no markup
+    for column in ("drop", "M1 [kg]", "p0 [kPa]", "V0 gate / fitted [m/s]", "gate pull [sigma]", "chi2/dof",
+                   "misfit [sigma]", "NRMSE", "infl. [sigma]", "verdict"):
+        # "[kg]" is no markup; the names and the velocities are not broken over lines
+        table.add_column(escape(column), no_wrap=column in ("drop", "V0 gate / fitted [m/s]", "verdict"))
     for d in result.drops:
-        table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.pressure / 1e3:g}", f"{d.velocity_gate:.4g}",
-                      with_uncertainty(d.velocity, d.velocity_std), f"{d.velocity_pull:+.1f}",
-                      f"{d.reduced_chi2:.4g}", f"{d.misfit_sigma:.1f}", f"{d.force_nrmse:.2%}",
-                      f"{d.influence_sigma:.1f}", "inconsistent" if d.inconsistent else "consistent")
+        table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.pressure / 1e3:g}",
+                      f"{d.velocity_gate:.4g} / {with_uncertainty(d.velocity, d.velocity_std)}",
+                      f"{d.velocity_pull:+.1f}", f"{d.reduced_chi2:.4g}", f"{d.misfit_sigma:.1f}",
+                      f"{d.force_nrmse:.2%}", f"{d.influence_sigma:.1f}",
+                      "inconsistent" if d.inconsistent else "consistent")
     for item in result.excluded:
-        table.add_row(Path(item["file"]).name, *[""] * 9, "left out")
+        table.add_row(Path(item["file"]).name, *[""] * 8, "left out")
     return table
 
 

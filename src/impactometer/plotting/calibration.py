@@ -64,7 +64,7 @@ def plot_drops(drops: Sequence, folder: str | Path, *, prefix: str) -> list[Path
 def plot_parameters(calibration, ax=None):
     """Summary of a :class:`~impactometer.calibrate.Calibration`: each parameter's relative standard error [%],
     their correlation matrix, and each drop's χ²/dof; returns the figure."""
-    from ..calibrate.result import display_unit
+    from ..rig.display import display_unit
 
     plt = _pyplot()
     if ax is None:
