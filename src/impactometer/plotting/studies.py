@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from typing import Any
 
@@ -253,7 +254,9 @@ def plot_absorption_study(rows: Sequence[Row], *, values: dict[str, dict[str, np
         data = [on_common_set(name, column) for name in strategies]
         data = [d[np.isfinite(d)] for d in data]
         ax.boxplot([d if d.size else np.array([np.nan]) for d in data])
-        ax.set_xticks(range(1, len(strategies) + 1), strategies, rotation=20, fontsize=8)
+        # long names (an oracle's "from the control start") on two lines, so neighbours do not overlap
+        ax.set_xticks(range(1, len(strategies) + 1), [textwrap.fill(name, 14) for name in strategies],
+                      rotation=20, fontsize=8)
         ax.axhline(1.0, color="k", lw=0.8)
         ax.set(ylabel=label, yscale="log")
         ax.grid(alpha=0.3, which="both")
