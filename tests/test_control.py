@@ -10,9 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from impactometer.constants import STANDARD_GRAVITY
-from impactometer.control import ControlSettings
+from impactometer.control import ControlSettings, plant
 from impactometer.control import controller as ctl
-from impactometer.control import simulate as loop
 from impactometer.control.bound import closed_curve, efficiency_bound
 from impactometer.control.event import common_window
 from impactometer.control.metrics import absorption_metrics
@@ -32,7 +31,7 @@ def _control(strategy, **kw):
     p = pack(get_rig(), SCENARIO)
     y0 = initial_state(p)
     base = dict(strategy=strategy, start=0.02, mass=SCENARIO.mass, velocity=SCENARIO.velocity,
-                usable_stroke=0.19, charge_pressure=float(y0[d.P_LOWER]), refine_mass=False)
+                usable_stroke=0.19, pressure_lower_start=float(y0[d.P_LOWER]), refine_mass=False)
     return ControlSettings(**{**base, **kw})
 
 
@@ -80,7 +79,7 @@ def test_one_step_follows_the_dormand_prince_tableau():
 
 def test_closed_loop_with_closed_valve_reproduces_the_reference_simulation():
     ref = simulate(SCENARIO, duration=0.06, sample_rate=20e3, integrator="reference")
-    got, _ = loop.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, rtol=1e-10)
+    got, _ = plant.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, rtol=1e-10)
     # tolerance: 1e-6 of the stroke scale and of the peak force (rtol 1e-10 on both sides)
     assert np.max(np.abs(got.u1 - ref.u1)) < 1e-6 * 0.2
     assert np.max(np.abs(got.contact_force - ref.contact_force)) < 1e-4 * ref.contact_force.max()
@@ -90,24 +89,24 @@ def test_closed_loop_with_closed_valve_reproduces_the_reference_simulation():
 def test_an_opening_program_replaces_the_controller():
     """A program of zeros is the closed valve, sample for sample, whatever the controller would do; a constant
     program is the constant strategy's opening without its controller (no supervisor, no closing at the stop)."""
-    closed, _ = loop.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3)
+    closed, _ = plant.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3)
     n = closed.time.size
-    held, history = loop.simulate_controlled(SCENARIO, control=_control("predictive", start=0.0), duration=0.06,
+    held, history = plant.simulate_controlled(SCENARIO, control=_control("predictive", start=0.0), duration=0.06,
                                              sample_rate=20e3, program=np.zeros(n))
     assert np.array_equal(held.u1, closed.u1) and np.array_equal(held.contact_force, closed.contact_force)
     assert np.all(history["valve_opening"] == 0.0)
-    opened, history = loop.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, program=np.full(n, 0.5))
+    opened, history = plant.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, program=np.full(n, 0.5))
     # after the dead time the opening follows the first-order lag towards the command
     drive = ValveDrive()
     t = opened.time - drive.dead_time
     expected = np.where(t > 0.0, 0.5 * (1.0 - np.exp(-np.clip(t, 0.0, None) / drive.time_constant)), 0.0)
     assert np.max(np.abs(history["valve_opening"] - expected)) < 0.5 * 20e3 ** -1 / drive.time_constant
     with pytest.raises(ParameterError, match="program must hold"):
-        loop.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, program=np.full(n, 1.5))
+        plant.simulate_controlled(SCENARIO, duration=0.06, sample_rate=20e3, program=np.full(n, 1.5))
 
 
 def test_flow_between_chambers_conserves_gas_mass_and_energy():
-    result, history = loop.simulate_controlled(SCENARIO, control=_control("constant", opening=0.6),
+    result, history = plant.simulate_controlled(SCENARIO, control=_control("constant", opening=0.6),
                                                duration=0.08, sample_rate=20e3)
     assert history["valve_opening"].max() > 0.2  # the valve did open
     total = result.gas_mass_lower + result.gas_mass_upper
@@ -118,7 +117,7 @@ def test_flow_between_chambers_conserves_gas_mass_and_energy():
 
 def test_venting_to_atmosphere_removes_gas_from_the_lower_chamber_only():
     drive = ValveDrive(route="atmosphere")
-    result, _ = loop.simulate_controlled(SCENARIO, control=_control("constant", opening=0.6), drive=drive,
+    result, _ = plant.simulate_controlled(SCENARIO, control=_control("constant", opening=0.6), drive=drive,
                                          duration=0.06, sample_rate=20e3)
     assert result.gas_mass_lower[-1] < 0.9 * result.gas_mass_lower[0]
     assert np.allclose(result.gas_mass_upper, result.gas_mass_upper[0], rtol=1e-12)
@@ -169,7 +168,7 @@ def test_iso6358_flow_matches_the_standard_and_the_equivalent_orifice():
 def test_actuator_dead_time_lag_and_rate_limit():
     tau, dead, fs, start = 2e-3, 0.73e-3, 50e3, 0.01
     control = _control("constant", opening=0.8, start=start, close_on_stop=False, supervise=False)
-    _, history = loop.simulate_controlled(SCENARIO, control=control, drive=ValveDrive(time_constant=tau,
+    _, history = plant.simulate_controlled(SCENARIO, control=control, drive=ValveDrive(time_constant=tau,
                                                                                       dead_time=dead),
                                           duration=0.025, sample_rate=fs)
     t = np.arange(history["valve_opening"].size) / fs
@@ -179,7 +178,7 @@ def test_actuator_dead_time_lag_and_rate_limit():
     assert np.max(np.abs(history["valve_opening"] - expected)) < 1e-4
     assert np.all(history["valve_opening"][t <= sent + dead] == 0.0)
     rate = 1.0 / 5e-3  # the full stroke in 5 ms
-    _, limited = loop.simulate_controlled(SCENARIO, control=control, duration=0.025, sample_rate=fs,
+    _, limited = plant.simulate_controlled(SCENARIO, control=control, duration=0.025, sample_rate=fs,
                                           drive=ValveDrive(time_constant=1e-5, max_rate=rate, dead_time=0.0))
     slope = np.diff(limited["valve_opening"]) * fs
     assert slope.max() <= rate * (1 + 1e-6)
@@ -454,9 +453,9 @@ def test_controller_keeps_enough_gas_to_stop_a_heavy_fast_impact_at_low_pressure
     scenario = Scenario(mass=50.0, velocity=3.0, pressure_gauge=20e3)
     p = pack(get_rig(rig), scenario)
     control = ControlSettings(strategy=strategy, start=0.02, mass=50.0, mass_std=0.0, velocity=3.0,
-                              usable_stroke=0.19, charge_pressure=float(initial_state(p)[d.P_LOWER]),
+                              usable_stroke=0.19, pressure_lower_start=float(initial_state(p)[d.P_LOWER]),
                               refine_mass=False, tau_control=5e-3)
-    result, _ = loop.simulate_controlled(scenario, rig, control=control, duration=0.4, sample_rate=50e3)
+    result, _ = plant.simulate_controlled(scenario, rig, control=control, duration=0.4, sample_rate=50e3)
     assert result.bottom_stop_force.max() == 0.0 and "ended_at_bottom" not in result.extra
     # the piston stays within the usable stroke (the mass goes deeper by the contact's compression)
     assert result.u2.max() < 0.19 + 0.002

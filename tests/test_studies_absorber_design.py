@@ -17,7 +17,7 @@ def pads():
     """One impact (30 kg at 2 m/s, 200 kPa) on a soft and on the built-in pad."""
     study = get_study("absorber-design")
     options = options_for(study, StudyOptions(rig_is_default=True))
-    cases = [{"case": i, "impact": 0, "mass": 30.0, "velocity": 2.0, "pressure_kpa": 200.0, "stiffness": k,
+    cases = [{"case": i, "impact": 0, "mass": 30.0, "velocity": 2.0, "pressure_gauge": 200e3, "stiffness": k,
               "effective_area_mm2": 100.0, "response_time_ms": 3.0, "piston_mass": 4.0}
              for i, k in enumerate((1e5, 7e5))]
     return study.evaluate(cases, options)

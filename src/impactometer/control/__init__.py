@@ -6,8 +6,8 @@ identify → control.
 """
 
 from .loop import AbsorptionResult, absorb
+from .plant import simulate_controlled
 from .settings import ControlSettings
-from .simulate import simulate_controlled
 from .strategies import STRATEGIES, get_strategy
 from .valve import Absorber, ValveDrive, valve_mass_flow
 

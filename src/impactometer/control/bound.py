@@ -28,8 +28,8 @@ import numpy as np
 from ..errors import ControlError
 from ..model.forces import pneumatic_force
 from ..signals.pulses import contact_pulses
+from .plant import simulate_controlled
 from .settings import ControlSettings
-from .simulate import simulate_controlled
 
 
 @dataclass(frozen=True, kw_only=True)

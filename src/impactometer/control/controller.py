@@ -1,6 +1,6 @@
 """The digital controller of valve Z: the force target, the valve laws and the stroke supervisor.
 
-Compiled functions called by the closed loop of :mod:`impactometer.control.simulate` at every sample, after the
+Compiled functions called by the closed loop of :mod:`impactometer.control.plant` at every sample, after the
 estimator (:mod:`impactometer.control.estimator`) has read the sensors. Openings are fractions of the fully open
 valve [-]. The actuator (dead time, first-order lag, rate limit, route) is described to the controller by the
 drive vector (:func:`.state.pack_drive`), as its data sheet describes it to a designer.
@@ -81,8 +81,8 @@ def force_target(p, ctrl, mass, velocity, displacement):
 @njit(cache=True, inline="always", error_model="numpy")
 def lower_temperature(ctrl, p_lower, gamma):
     """Lower-chamber gas temperature [K] from the isentropic relation (exact for a chamber that only loses gas)."""
-    ratio = p_lower / ctrl[Settings.CHARGE_PRESSURE]
-    return ctrl[Settings.CHARGE_TEMPERATURE] * ratio ** ((gamma - 1.0) / gamma)
+    ratio = p_lower / ctrl[Settings.PRESSURE_LOWER_START]
+    return ctrl[Settings.TEMPERATURE_LOWER_START] * ratio ** ((gamma - 1.0) / gamma)
 
 
 @njit(cache=True, error_model="numpy")

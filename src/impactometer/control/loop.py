@@ -24,7 +24,7 @@ from ..identify.result import Identification
 from ..rig import ABSORPTION_RIG, Rig, Scenario, get_rig
 from ..signals.pulses import contact_pulses
 from ..validation import check_flag, check_integer, check_real, finite_or_none
-from . import simulate as plant
+from . import plant
 from .bound import EfficiencyBound, efficiency_bound, first_collision_peak
 from .event import BODY_CFC, STOPPED_FRACTION, CommonWindow, body_load, common_window, impact_force
 from .identified import (
@@ -147,7 +147,7 @@ def default_duration(scenario: Scenario, usable_stroke: float) -> float:
 
 
 def sensor_sigma(closed_result, noise: float) -> np.ndarray:
-    """Standard deviation of each of the controller's sensors (in the order of ``simulate.SENSOR_CHANNELS``):
+    """Standard deviation of each of the controller's sensors (in the order of ``plant.SENSOR_CHANNELS``):
     ``noise`` × each channel's RMS over the closed-valve record's first ``IDENTIFICATION_WINDOW``."""
     window = closed_result.time <= IDENTIFICATION_WINDOW
     return np.array([noise * float(np.sqrt(np.mean(getattr(closed_result, name)[window] ** 2)))
@@ -321,8 +321,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              mass_std=found.mass_std if math.isfinite(trusted_mass)
                              and not math.isnan(found.mass_std) else math.inf,
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
-                             sample_rate=sample_rate, charge_pressure=float(closed.pressure_lower[0]),
-                             charge_temperature=rig.gas.temperature, force_noise=float(sigma[0]),
+                             sample_rate=sample_rate, pressure_lower_start=float(closed.pressure_lower[0]),
+                             temperature_lower_start=rig.gas.temperature, force_noise=float(sigma[0]),
                              acceleration_noise=float(sigma[1]))
     simulated = {name: _strategy_run(name, context, found, closed, scenario, absorber, sigma=sigma, seed=seed)
                  for name in names}
@@ -340,7 +340,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     achievable = None
     if reference:
         achievable = achievable_reference(scenario, rig, absorber, start, window=window,
-                                          charge_pressure=float(closed.pressure_lower[0]), duration=duration,
+                                          pressure_lower_start=float(closed.pressure_lower[0]), duration=duration,
                                           sample_rate=sample_rate, evaluations=reference_evaluations)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,
                             over_capacity=bool(over or bound.over_capacity), control_start=start,

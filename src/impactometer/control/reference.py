@@ -38,8 +38,8 @@ from scipy.optimize import minimize
 from ..model.simulate import sample_times
 from ..rig import Rig, Scenario
 from .event import CommonWindow, body_load, impact_force, window_peak
+from .plant import simulate_controlled
 from .settings import ControlSettings
-from .simulate import simulate_controlled
 from .strategies import predictive_tau_control
 from .valve import Absorber
 
@@ -163,19 +163,20 @@ def _golden_levels(cost, levels: list[float]) -> None:
 
 
 def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, control_start: float, *,
-                         window: CommonWindow, charge_pressure: float, duration: float,
+                         window: CommonWindow, pressure_lower_start: float, duration: float,
                          sample_rate: float = 50e3, evaluations: int = EVALUATIONS) -> AchievableReference:
     """Search the program families (module notes) for the impact ``scenario`` on ``rig``; families 2 and 3 start
     at first contact and at ``control_start`` [s] (``inf``: first contact only), ``window`` is the impact's common
-    window (F_ref centres the level scan), ``charge_pressure`` [Pa] the lower chamber's pressure at first contact,
-    ``evaluations`` the budget of plant simulations of the piecewise-constant search (0: family 1 is skipped)."""
+    window (F_ref centres the level scan), ``pressure_lower_start`` [Pa absolute] the lower chamber's pressure at
+    first contact, ``evaluations`` the budget of plant simulations of the piecewise-constant search (0: family 1 is
+    skipped)."""
     nothing = AchievableReference(force_ratio=math.nan, whole_event_peak_ratio=math.nan, stroke_used=math.nan,
                                   family="", level=math.nan, openings=(), runs=0)
     if not math.isfinite(window.start):
         return nothing
     base = ControlSettings(strategy="level", start=0.0, mass=scenario.mass, mass_std=0.0,
                            velocity=scenario.velocity, usable_stroke=absorber.usable_stroke(rig),
-                           charge_pressure=charge_pressure, charge_temperature=rig.gas.temperature,
+                           pressure_lower_start=pressure_lower_start, temperature_lower_start=rig.gas.temperature,
                            force_level=window.reference_force, refine_mass=False, supervise=False,
                            tau_control=predictive_tau_control(absorber.drive))
     candidates: dict[tuple[str, str, float], _Outcome] = {}  # (family, from when, level) -> its best run

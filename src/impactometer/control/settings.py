@@ -37,7 +37,8 @@ class ControlSettings:
     usable_stroke : Largest displacement of the mass the absorber may use [m].
     tau_control : Time constant of the gas-force loop [s].
     tau_filter : Time constant of the pressure filters [s].
-    charge_pressure, charge_temperature : Lower-chamber pressure [Pa] and gas temperature [K] at first contact.
+    pressure_lower_start, temperature_lower_start : Lower-chamber pressure [Pa absolute] and gas temperature [K] at
+        first contact (not the charge pressure ``pressure_gauge``, which is gauge and with the piston at the top stop).
     close_on_stop : The ``constant`` strategy closes the valve for good once the mass stops.
     max_force : Largest target force [N].
     bounce_gate, bounce_threshold : The ``realtime`` law acts only while the bodies approach faster than the
@@ -60,8 +61,8 @@ class ControlSettings:
     usable_stroke: float = 0.0
     tau_control: float = 2e-3
     tau_filter: float = 5e-4
-    charge_pressure: float = 1e5
-    charge_temperature: float = 293.15
+    pressure_lower_start: float = 1e5
+    temperature_lower_start: float = 293.15
     close_on_stop: bool = True
     max_force: float = math.inf
     bounce_gate: bool = False
@@ -84,10 +85,10 @@ class ControlSettings:
                 check_flag(f"control.{f.name}", value)
             elif not is_real(value):
                 raise ParameterError(f"control.{f.name} must be a number, got {shown(value)}")
-        for name in ("start", "usable_stroke", "tau_control", "tau_filter", "charge_pressure", "charge_temperature",
-                     "force_noise", "observer_bandwidth", "acceleration_noise"):
+        for name in ("start", "usable_stroke", "tau_control", "tau_filter", "pressure_lower_start",
+                     "temperature_lower_start", "force_noise", "observer_bandwidth", "acceleration_noise"):
             check_real(f"control.{name}", getattr(self, name), low=0.0, finite=name != "start", state_range=True,
-                       low_open=name in ("tau_control", "tau_filter", "charge_pressure", "charge_temperature",
+                       low_open=name in ("tau_control", "tau_filter", "pressure_lower_start", "temperature_lower_start",
                                          "observer_bandwidth"))
         if not 0.0 <= self.opening <= 1.0:
             raise ParameterError(f"control.opening must be a fraction within [0, 1], got {self.opening!r}")

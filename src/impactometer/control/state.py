@@ -1,6 +1,6 @@
 """Every layout of the compiled control loop's vectors, named: one layout per vector, packed at one boundary.
 
-The compiled kernels (:mod:`.estimator`, :mod:`.windows`, :mod:`.controller`, :mod:`.simulate`) keep their state in
+The compiled kernels (:mod:`.estimator`, :mod:`.windows`, :mod:`.controller`, :mod:`.plant`) keep their state in
 flat float vectors, which numba handles fastest; the slots of each are written here as the members of an
 ``IntEnum`` and kept as a named tuple of plain ints (:func:`slots`), which every numba version reads as integer
 constants (numba 0.60-0.62 cannot index an array with an ``IntEnum`` member). A vector is filled from the Python
@@ -59,8 +59,8 @@ class Settings(IntEnum):
     USABLE_STROKE = 6
     TAU_CONTROL = 7
     TAU_FILTER = 8
-    CHARGE_PRESSURE = 9
-    CHARGE_TEMPERATURE = 10
+    PRESSURE_LOWER_START = 9
+    TEMPERATURE_LOWER_START = 10
     CLOSE_ON_STOP = 11
     MAX_FORCE = 12
     BOUNCE_GATE = 13

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..rig import Rig, Scenario
-from . import simulate as loop
+from . import plant
 from .settings import ControlSettings
 from .valve import Absorber
 
@@ -50,7 +50,8 @@ class ControlContext:
     pressure_gauge : Charge pressure p0 [Pa gauge] (known: the stand was charged to it).
     start : Time the control starts [s] (the identification's ``available_at``).
     duration, sample_rate : Simulated time [s] and controller rate [Hz].
-    charge_pressure, charge_temperature : Lower chamber pressure [Pa] and gas temperature [K] at first contact.
+    pressure_lower_start, temperature_lower_start : Lower-chamber pressure [Pa absolute] and gas temperature [K] at
+        first contact.
     force_noise, acceleration_noise : Standard deviations of the force sensor's [N] and the accelerometer's
         [m/s²] noise.
     """
@@ -63,8 +64,8 @@ class ControlContext:
     start: float
     duration: float
     sample_rate: float
-    charge_pressure: float
-    charge_temperature: float
+    pressure_lower_start: float
+    temperature_lower_start: float
     mass_std: float = math.inf
     force_noise: float = 0.0
     acceleration_noise: float = 0.0
@@ -74,7 +75,8 @@ class ControlContext:
         oracle = self.mass_std == 0.0
         return ControlSettings(strategy=strategy, start=self.start, mass=self.mass, mass_std=self.mass_std,
                                velocity=self.velocity, usable_stroke=self.absorber.usable_stroke(self.rig),
-                               charge_pressure=self.charge_pressure, charge_temperature=self.charge_temperature,
+                               pressure_lower_start=self.pressure_lower_start,
+                               temperature_lower_start=self.temperature_lower_start,
                                force_noise=self.force_noise, acceleration_noise=self.acceleration_noise,
                                refine_mass=not oracle, **extra)
 
@@ -125,7 +127,7 @@ def constant_outcome(context: ControlContext, opening: float) -> tuple[float, fl
     a constant ``opening`` [-] with the identified M1 and V0 (noise-free sensors)."""
     scenario = Scenario(mass=context.mass, velocity=context.velocity, pressure_gauge=context.pressure_gauge)
     control = dataclasses.replace(context.base("constant", opening=opening), mass_std=0.0, refine_mass=False)
-    result, _ = loop.simulate_controlled(scenario, context.rig, control=control, drive=context.absorber.drive,
+    result, _ = plant.simulate_controlled(scenario, context.rig, control=control, drive=context.absorber.drive,
                                          duration=context.duration, sample_rate=PLANNING_RATE)
     after = result.time >= context.start  # none when the control starts after the simulated span: nothing to act on
     peak = float(result.contact_force[after].max()) if after.any() else 0.0

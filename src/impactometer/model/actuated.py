@@ -5,7 +5,7 @@ held in the input vector ``u`` through a first-order lag with an optional rate l
 (:func:`.dynamics.valve_mass_flow`, orifice or ISO 6358) at the area ``opening · max_area``. The valve discharges the
 lower chamber into the upper one (the stand of the reference paper) or to atmosphere. With the valve closed the
 right-hand side is exactly :func:`.dynamics.rhs` with a zero opening. A dead time of the actuator is a delay of the
-command; the controlled loop applies it (``control.simulate``).
+command; the controlled loop applies it (``control.plant``).
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ accuracy everywhere. Two systems share it (``system`` argument):
   command is held in the input vector ``u`` (a zero-order hold between controller samples).
 
 :func:`plain.integrate_one <.fast.integrate_one>` samples a whole record through the method's continuous extension;
-the controlled loop (``control.simulate``) integrates from one controller sample to the next.
+the controlled loop (``control.plant``) integrates from one controller sample to the next.
 """
 
 from __future__ import annotations

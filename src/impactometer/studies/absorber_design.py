@@ -52,10 +52,12 @@ def _setting(options: StudyOptions, key: str):
     return options.param(NAME, key, DEFAULTS[key])
 
 
-def design_label(pressure_kpa: float, stiffness: float, area_mm2: float, response_ms: float,
+def design_label(pressure_gauge: float, stiffness: float, area_mm2: float, response_ms: float,
                  piston_mass: float) -> str:
-    """One design as a label: ``"200 kPa, 7e+05 N/m, 100 mm², 3 ms, 4 kg"``."""
-    return (f"{float(pressure_kpa):g} kPa, {float(stiffness):.3g} N/m, {float(area_mm2):g} mm², "
+    """One design as a label: ``"200 kPa, 7e+05 N/m, 100 mm², 3 ms, 4 kg"`` for a charge pressure
+    ``pressure_gauge`` [Pa gauge] (shown in kPa), pad stiffness [N/m], effective area [mm²], response time [ms] and
+    piston mass [kg]."""
+    return (f"{float(pressure_gauge) / 1e3:g} kPa, {float(stiffness):.3g} N/m, {float(area_mm2):g} mm², "
             f"{float(response_ms):g} ms, {float(piston_mass):g} kg")
 
 
@@ -63,7 +65,7 @@ def _cases(options: StudyOptions) -> list[Row]:
     n = grid_size(options, GRID)
     impacts = [(float(m), float(v)) for m in np.linspace(*PAPER_RANGES["mass"], n)
                for v in np.linspace(*PAPER_RANGES["velocity"], n)]
-    return [{"impact": i, "mass": m, "velocity": v, "pressure_kpa": float(p), "stiffness": float(k),
+    return [{"impact": i, "mass": m, "velocity": v, "pressure_gauge": float(p) * 1e3, "stiffness": float(k),
              "effective_area_mm2": float(a), "response_time_ms": float(r), "piston_mass": float(mp)}
             for p in _setting(options, "pressures_kpa") for k in _setting(options, "stiffnesses")
             for a in _setting(options, "areas_mm2") for r in _setting(options, "response_times_ms")
@@ -81,7 +83,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
         lag = case["response_time_ms"] * 1e-3 / math.log(9.0)  # 10-90 % of a first-order lag: τ·ln 9
         absorber = Absorber(drive=ValveDrive(dead_time=dead, time_constant=lag))
         seed = int(case_seed(options, NAME, case["impact"]).generate_state(1)[0])
-        scenario = Scenario(mass=case["mass"], velocity=case["velocity"], pressure_gauge=case["pressure_kpa"] * 1e3)
+        scenario = Scenario(mass=case["mass"], velocity=case["velocity"], pressure_gauge=case["pressure_gauge"])
         result = absorb(scenario, rig, strategy=["closed", "predictive"], noise=noise, seed=seed, absorber=absorber,
                         sample_rate=options.sample_rate)
         m, closed = result.metrics["predictive"], result.metrics["closed"]
@@ -89,7 +91,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
                      "velocity_m_s": scenario.velocity, "pressure_gauge_Pa": scenario.pressure_gauge,
                      "pad_stiffness_N_m": case["stiffness"], "effective_area_mm2": case["effective_area_mm2"],
                      "response_time_ms": case["response_time_ms"], "piston_mass_kg": case["piston_mass"],
-                     "design": design_label(case["pressure_kpa"], case["stiffness"], case["effective_area_mm2"],
+                     "design": design_label(case["pressure_gauge"], case["stiffness"], case["effective_area_mm2"],
                                             case["response_time_ms"], case["piston_mass"]),
                      "identified_available_at_s": finite_or_none(result.identified.available_at),
                      "identified_mass_kg": finite_or_none(result.identified.mass),
