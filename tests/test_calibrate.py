@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from calibration_drops import BASE_STAND, CALIBRATION, HELD_BACK, TRUE_STAND, TRUTH, drops
-from impactometer.calibrate import DEFAULT_FIT, calibrate, check_fit, validate
-from impactometer.calibrate.separation import CORRELATION_LIMIT, flagged
+from impactometer.calibrate import DEFAULT_FIT, _check_fit, calibrate, validate
+from impactometer.calibrate.separation import CORRELATION_LIMIT, _flagged
 from impactometer.errors import IdentificationError, ParameterError, RecordingError
 from impactometer.identify.model_fit import identify
 from impactometer.rig import PRESETS, fingerprint, get_rig
@@ -121,18 +121,18 @@ def test_base_stand_does_not_reproduce_the_drops(held_back):
 
 def test_separation_flags_correlated_pairs():
     cov = np.array([[1.0, 0.99, 0.0], [0.99, 1.0, 0.0], [0.0, 0.0, np.inf]])
-    pairs, lost = flagged(["a", "b", "c"], cov)
+    pairs, lost = _flagged(["a", "b", "c"], cov)
     assert [(a, b) for a, b, _ in pairs] == [("a", "b")] and pairs[0][2] > CORRELATION_LIMIT
     assert lost == ["c"]
 
 
 def test_check_fit():
-    assert check_fit(None) == DEFAULT_FIT
-    assert check_fit("default,cylinder.piston_mass") == (*DEFAULT_FIT, "cylinder.piston_mass")
+    assert _check_fit(None) == DEFAULT_FIT
+    assert _check_fit("default,cylinder.piston_mass") == (*DEFAULT_FIT, "cylinder.piston_mass")
     with pytest.raises(ParameterError, match="unknown stand parameter 'contact.colour'"):
-        check_fit(["contact.colour"])
+        _check_fit(["contact.colour"])
     with pytest.raises(ParameterError, match="cannot fit"):
-        check_fit(["cylinder.bore"])
+        _check_fit(["cylinder.bore"])
 
 
 def test_bad_input_is_refused(calibration_set):
@@ -271,7 +271,7 @@ def test_python_argument_types_are_refused_first(calibration_set, monkeypatch):
 
     def no_read(*args, **kwargs):
         raise AssertionError("the drops were read")
-    monkeypatch.setattr("impactometer.calibrate.read_drops", no_read)
+    monkeypatch.setattr("impactometer.calibrate._read_drops", no_read)
     for options, field in (({"fit": 5}, "fit"), ({"progress": "x"}, "progress"), ({"contact": 5}, "contact"),
                            ({"name": 3}, "name"), ({"drop_outliers": 1}, "drop_outliers"),
                            ({"exclude": [1.5]}, "exclude")):

@@ -234,11 +234,11 @@ def test_a_misread_pressure_gauge_is_covered_by_its_prior(mass, velocity, pressu
 
 
 def test_a_given_pressure_and_the_metadata_are_combined_or_refused():
-    from impactometer.identify.model_fit import GAUGE_FLOOR_STD, _pressure, gauge_std
+    from impactometer.identify.model_fit import GAUGE_FLOOR_STD, _gauge_std, _pressure
 
     rec = _record(30.0, 2.0, 100e3, 81)
     rig = get_rig(None)
-    assert gauge_std(100e3) == pytest.approx(2e3) and gauge_std(10e3) == GAUGE_FLOOR_STD
+    assert _gauge_std(100e3) == pytest.approx(2e3) and _gauge_std(10e3) == GAUGE_FLOOR_STD
     assert _pressure(rec, None, rig) == (100e3, pytest.approx(2e3))
     # 3 % apart, 2.9 kPa combined σ: both used, their inverse-variance mean
     mean, std = _pressure(rec, 103e3, rig)

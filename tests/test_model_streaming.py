@@ -218,7 +218,7 @@ def _first_window(mass, velocity, pressure, seed):
     """A record's first 4 ms as the stream's first fit reads it, and the core layout started 20 % off in M1 and
     5 % in V0 (first contact at t = 0 on the record's clock)."""
     from impactometer.identify.model_fit import engine
-    from impactometer.identify.model_fit.select import Start, start_law
+    from impactometer.identify.model_fit.select import Start, _start_law
 
     rec = _record(mass, velocity, pressure, seed)
     design = engine.anti_alias_design(rec)
@@ -226,7 +226,7 @@ def _first_window(mass, velocity, pressure, seed):
     data = engine.window(engine.observe(rec, design, contact, min_duration=0.0), contact + STAGES[0][0])
     start = Start(mass=1.2 * mass, velocity=0.95 * velocity, contact_time=contact, pressure=pressure,
                   pressure_start=pressure)
-    layouts, values = start_law(get_rig(), get_rig().contact.law, None, start, rec.sample_rate)
+    layouts, values = _start_law(get_rig(), get_rig().contact.law, None, start, rec.sample_rate)
     return data, layouts("core", values), values
 
 

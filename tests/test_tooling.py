@@ -79,6 +79,64 @@ def test_import_graph_reports_plotting_below_the_command_line(tmp_path):
                         "impactometer.table -> impactometer.plotting.figures (line 1)"]
 
 
+#: public functions and classes of the fitting engine still used only inside their package (each one takes a leading
+#: underscore or moves where it is used; a name fixed leaves this list, and a new inner name fails the test)
+INNER_ENGINE_NAMES = {
+    "identify.model_fit.engine": ["adapt", "damped_step", "law_fit", "stops", "variables"],
+    "identify.model_fit.first_window": ["Timing", "Window", "fit_window", "takes", "warm"],
+    "identify.model_fit.forward": ["check_uncertain", "from_variable", "horizon", "make_grid", "outside_ranges",
+                                   "predict", "predict_row", "sensed"],
+    "identify.model_fit.growing": ["Growing", "explains", "first_fit", "update"],
+    "identify.model_fit.select": ["Start", "grid_predictions", "grid_starts"],
+    "identify.model_fit.streaming": ["stream_model_arrays"],
+    "calibrate.drops": ["ObservedDrop"],
+    "calibrate.joint": ["Family", "fit_family", "fit_stage", "local", "make_layouts", "stages_for", "start_vector"],
+}
+
+
+def _inner(done: subprocess.CompletedProcess) -> list[str]:
+    prefix = "public name used only inside its package: "
+    return sorted(line[len(prefix):].split(" (line")[0] for line in done.stdout.splitlines()
+                  if line.startswith(prefix))
+
+
+def test_inner_names_of_a_package_are_the_ones_nothing_outside_reads(tmp_path):
+    """A public function or class that no module outside its subpackage imports or reads as a module's attribute
+    is listed; a re-export by the package, an ``__all__``, a type a used name hands out (a base, a field, an
+    argument or a return), and a use from a tests folder or a constant do not make one."""
+    package = tmp_path / "impactometer"
+    sources = {
+        "__init__.py": "",
+        "fit/__init__.py": "from .core import solve\n__all__ = ['solve', 'Answer']\n",
+        "fit/core.py": ("from .parts import Part, helper\nclass Answer:\n    pass\n"
+                        "def solve(x: Part) -> 'Answer':\n    return helper(x)\nSTEP = 1\n"),
+        "fit/parts.py": ("class Base:\n    pass\nclass Part(Base):\n    pass\ndef helper(x):\n    return x\n"
+                         "def inner():\n    pass\ndef read():\n    pass\ndef attribute():\n    pass\n"),
+        "fit/examples.py": "__all__ = ['example']\ndef example():\n    pass\ndef unused():\n    pass\n",
+        "cli.py": "from .fit import solve\nfrom .fit.parts import read\nfrom .fit import parts\nparts.attribute()\n",
+    }
+    for name, text in sources.items():
+        (package / name).parent.mkdir(parents=True, exist_ok=True)
+        (package / name).write_text(text, encoding="utf-8")
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "tests" / "test_fit.py").write_text("from impactometer.fit.parts import inner\n", encoding="utf-8")
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "import_graph.py"), "--root", str(package),
+                           "--inner", "fit"], cwd=ROOT, capture_output=True, text=True)
+    assert done.returncode == 1, done.stdout + done.stderr
+    assert _inner(done) == ["impactometer.fit.examples.unused", "impactometer.fit.parts.helper",
+                            "impactometer.fit.parts.inner"]
+
+
+def test_the_fitting_engine_has_no_public_name_used_only_inside_its_package():
+    """identify/model_fit and calibrate offer the rest of the package only what it reads (scripts/import_graph.py
+    --inner says what counts); :data:`INNER_ENGINE_NAMES` lists the ones left."""
+    done = subprocess.run([sys.executable, str(ROOT / "scripts" / "import_graph.py"), "--inner", "identify.model_fit",
+                           "calibrate"], cwd=ROOT, capture_output=True, text=True)
+    expected = sorted(f"impactometer.{module}.{name}" for module, names in INNER_ENGINE_NAMES.items()
+                      for name in names)
+    assert _inner(done) == expected, done.stdout + done.stderr
+
+
 def test_measured_figures_are_rendered_from_the_recorded_results():
     """docs/benchmarks.md and the README's headline table are what benchmarks/recorded.py renders from
     docs/results/ (the output the measuring scripts kept): edited by hand, they would drift from the measurements."""

@@ -28,12 +28,12 @@ from ..identify.model_fit.select import SCREEN_MARGIN
 from ..recording import Recording
 from ..rig import Rig, get_rig, parameter_names
 from ..validation import check_flag
-from .drops import ObservedDrop, read_drops
-from .influence import MISFIT_LIMIT, drop_figures, inconsistent, limit, set_misfit_sigma
+from .drops import ObservedDrop, _read_drops
+from .influence import MISFIT_LIMIT, _drop_figures, _inconsistent, _limit, _set_misfit_sigma
 from .joint import NUISANCES, SCREEN_STAGE, Family, fit_family, stages_for
 from .result import Calibration, DropFit
-from .separation import CORRELATION_LIMIT, correlation, flagged, suggest
-from .validate import DropValidation, Validation, force_nrmse, validate
+from .separation import CORRELATION_LIMIT, _correlation, _flagged, _suggest
+from .validate import DropValidation, Validation, _force_nrmse, validate
 
 __all__ = ["calibrate", "validate", "Calibration", "DropFit", "Validation", "DropValidation", "DEFAULT_FIT",
            "VELOCITY_SIGMA", "FIT_DURATION", "MAX_REDUCED_CHI2"]
@@ -53,7 +53,7 @@ MIN_DROPS = 3
 PARAMETERS_PER_DROP = 2
 
 
-def check_fit(fit: Sequence[str] | str | None) -> tuple[str, ...]:
+def _check_fit(fit: Sequence[str] | str | None) -> tuple[str, ...]:
     """The stand parameters to fit, checked: dotted names of :data:`STAND_PARAMETERS`, ``"contact"`` (every
     parameter of the law) and ``"default"`` (:data:`DEFAULT_FIT`). ParameterError names an unknown parameter or
     one the fit cannot free, with the ones it can."""
@@ -149,7 +149,7 @@ def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = Non
     the base stand, the parameters fitted, the laws and the drops (those ``exclude`` names left out)."""
     _check_types(contact, name, progress, drop_outliers)
     base = get_rig(rig)
-    names = check_fit(fit)
+    names = _check_fit(fit)
     laws = contact_laws(contact)
     for law in laws:  # a contact parameter named must belong to a law fitted
         unknown = [n for n in names if n.startswith("contact.") and n not in contact_parameters(law)]
@@ -162,7 +162,7 @@ def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = Non
         raise ParameterTypeError(f"recordings must be a sequence of Recording, got {shown(recordings)}",
                                  field="recordings", expected="must be a sequence of Recording")
     left_out = _excluded(recordings, exclude)
-    drops = read_drops([r for i, r in enumerate(recordings) if i not in left_out])
+    drops = _read_drops([r for i, r in enumerate(recordings) if i not in left_out])
     _check_count(drops, laws, names)
     return base, names, laws, drops
 
@@ -184,7 +184,7 @@ def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
         The base stand: its geometry, piston mass and gas are taken as known, its values of the fitted parameters
         start the fit (a preset name or a TOML file; default ``drop-stand``).
     fit : sequence of str or str, optional
-        Stand parameters fitted (:func:`check_fit`; default :data:`DEFAULT_FIT`), e.g.
+        Stand parameters fitted (:func:`_check_fit`; default :data:`DEFAULT_FIT`), e.g.
         ``["default", "cylinder.piston_mass"]``.
     contact : str, optional
         ``"auto"`` (every contact-law family, the smallest BIC kept) or one law.
@@ -307,7 +307,7 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
     std = {n: abs(layout.derivative(n, float(best.x[j]))) * math.sqrt(cov[j, j]) * inflation
            for j, n in enumerate(best.free)}
     warnings = []
-    misfit = set_misfit_sigma(best, drops)
+    misfit = _set_misfit_sigma(best, drops)
     if best.reduced_chi2 > MAX_REDUCED_CHI2:
         warnings.append(f"the best family ({best.law}) leaves chi2/dof = {best.reduced_chi2:.3g} > "
                         f"{MAX_REDUCED_CHI2:g}: the stand model does not describe these drops")
@@ -317,15 +317,15 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
                         "describe these drops")
     if not best.converged:
         warnings.append(f"the {best.law} fit stopped after {best.evaluations} evaluations before it converged")
-    pairs, lost = flagged(best.free, cov[:s, :s])
+    pairs, lost = _flagged(best.free, cov[:s, :s])
     if rank < best.unknowns:
         warnings.append(f"the drops determine {rank} of the {best.unknowns} unknowns only")
-    hint = suggest(best, drops, base, pairs, velocity_sigma=velocity_sigma, end=duration)
+    hint = _suggest(best, drops, base, pairs, velocity_sigma=velocity_sigma, end=duration)
     indistinct = [{"parameters": [a, b], "correlation": c, "limit": CORRELATION_LIMIT, "suggestion": hint}
                   for a, b, c in pairs]
     indistinct += [{"parameters": [n], "undetermined": True, "suggestion": None} for n in lost]
-    figures = drop_figures(best, drops, velocity_sigma=velocity_sigma, duration=duration)
-    named = inconsistent(figures)
+    figures = _drop_figures(best, drops, velocity_sigma=velocity_sigma, duration=duration)
+    named = _inconsistent(figures)
     fits = []
     for i, drop in enumerate(drops):
         data = drop.data if duration is None else window(drop.data, drop.contact_time + duration)
@@ -339,8 +339,8 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
                             contact_time=own["contact_time"], offsets=tuple(local[-2:] * data.noise),
                             reduced_chi2=best.drop_reduced_chi2(i), time=data.grid.start_time + np.arange(
                                 data.grid.size) / data.grid.sample_rate, measured=data.channels,
-                            simulated=simulated, force_nrmse=force_nrmse(data, simulated, own["contact_time"])[0],
-                            **figures[i], inconsistent=i in named, limit=limit(len(drops))))
+                            simulated=simulated, force_nrmse=_force_nrmse(data, simulated, own["contact_time"])[0],
+                            **figures[i], inconsistent=i in named, limit=_limit(len(drops))))
         if fits[-1].inconsistent:
             warnings.append(f"{drop.source} is inconsistent with the other drops: {fits[-1].verdict()}; check its "
                             "mass, velocity, pressure and stand (drop_outliers / --drop-outliers fits without it)")
@@ -352,7 +352,7 @@ def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict
     criterion = (f"BIC = chi2 + k ln N over every drop; families more than {SCREEN_MARGIN:g} above the best on "
                  "the screening window dropped")
     return Calibration(rig=stand, base=base.name, law=best.law, parameters=parameters, std=std,
-                       correlation=correlation(cov[:s, :s]), reduced_chi2=best.reduced_chi2, chi2=best.chi2,
+                       correlation=_correlation(cov[:s, :s]), reduced_chi2=best.reduced_chi2, chi2=best.chi2,
                        dof=best.dof, bic=best.bic, inflation=inflation, families=report, criterion=criterion,
                        drops=tuple(fits), indistinct=tuple(indistinct), warnings=tuple(warnings),
                        velocity_sigma=velocity_sigma, duration=duration,

@@ -117,7 +117,7 @@ def _stated_in_other_units(recording: Recording, truth: dict[str, float]) -> Non
                                  f"{' or '.join(f'{stated:g}{u}' for u in meant)}? (the manifest column is in {si})")
 
 
-def check_distinct(recordings: Sequence[Recording]) -> None:
+def _check_distinct(recordings: Sequence[Recording]) -> None:
     """RecordingError naming both when two recordings are one file (by resolved path) or hold the same samples
     (a hash of the sample rate, start time and channels): a drop given twice would count twice."""
     seen: dict[str, str] = {}
@@ -136,7 +136,7 @@ def check_distinct(recordings: Sequence[Recording]) -> None:
             seen[key] = str(recording.source)
 
 
-def check_one_stand(recordings: Sequence[Recording]) -> None:
+def _check_one_stand(recordings: Sequence[Recording]) -> None:
     """RecordingError when the recordings state different stands (:data:`STAND_METADATA`); sample rates, channel
     sets and files of other formats are fine."""
     for key in STAND_METADATA:
@@ -147,7 +147,7 @@ def check_one_stand(recordings: Sequence[Recording]) -> None:
                                  f"{key} = {b!r}; expected one stand in a calibration set")
 
 
-def read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
+def _read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
     """The :class:`ObservedDrop` of each recording, checked: the channels the fit needs, the truth, a pre-trigger
     and the length after contact, one stand, no drop twice. Each drop's ``source`` is its recording's, numbered
     (``memory #3``) where recordings share one."""
@@ -157,8 +157,8 @@ def read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
         if not isinstance(recording, Recording):
             raise RecordingError(f"recordings must hold Recording objects, got {type(recording).__name__}")
         check_channels(recording)
-    check_distinct(recordings)
-    check_one_stand(recordings)
+    _check_distinct(recordings)
+    _check_one_stand(recordings)
     truths = [_truth(recording) for recording in recordings]
     for recording, truth in zip(recordings, truths, strict=True):
         _stated_in_other_units(recording, truth)

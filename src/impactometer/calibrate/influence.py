@@ -16,7 +16,7 @@
   measures: how far the others alone would take the stand, in its own σ.
 
 A drop is named **inconsistent with the others** when the largest of its three figures (the influence divided by
-:data:`INFLUENCE_MARGIN`) exceeds :func:`limit` (a Gaussian false alarm of 1 % over the set) and :data:`STANDOUT`
+:data:`INFLUENCE_MARGIN`) exceeds :func:`_limit` (a Gaussian false alarm of 1 % over the set) and :data:`STANDOUT`
 times the set's median: a misfit every drop shares
 (a pad outside every family) is the model's, not one drop's, and is reported as such. Each figure sees another
 fault: a drop of another stand moves its V0 off its gate; a drop stated 10 % too heavy kept its V0 at the gate
@@ -49,13 +49,13 @@ INFLUENCE_MARGIN = 2.0
 MISFIT_LIMIT = 4.0
 
 
-def limit(drops: int) -> float:
+def _limit(drops: int) -> float:
     """|σ| beyond which a drop's pull or influence names it: the two-sided Gaussian quantile of a false alarm
     :data:`FALSE_ALARM` over ``drops`` drops (Bonferroni) [σ]."""
     return float(norm.isf(FALSE_ALARM / (2 * max(drops, 1))))
 
 
-def chi2_sigma(value: float, dof: int) -> float:
+def _chi2_sigma(value: float, dof: int) -> float:
     """A χ² of ``dof`` degrees of freedom as the Gaussian σ of the same upper tail (Wilson-Hilferty) [σ]."""
     if dof <= 0 or not math.isfinite(value):
         return math.inf if value > 0 else 0.0
@@ -63,30 +63,30 @@ def chi2_sigma(value: float, dof: int) -> float:
     return float(((max(value, 0.0) / dof) ** (1.0 / 3.0) - (1.0 - c)) / math.sqrt(c))
 
 
-def misfit_sigma(chi2: float, dof: int, pre_samples: float) -> float:
+def _misfit_sigma(chi2: float, dof: int, pre_samples: float) -> float:
     """χ² of ``dof`` residuals weighted by σ measured on ``pre_samples`` samples, as σ of its scatter under a
     right model (see the module notes) [σ]."""
     spread = math.sqrt(2.0 / max(dof, 1) + 1.0 / max(pre_samples - 1.0, 1.0))
     return (chi2 / max(dof, 1) - 1.0) / spread
 
 
-def set_misfit_sigma(family: Family, drops: Sequence[ObservedDrop]) -> float:
+def _set_misfit_sigma(family: Family, drops: Sequence[ObservedDrop]) -> float:
     """The misfit of every drop's samples together [σ]: their χ² over its scatter under a right model, each drop's
     noise estimate weighted by its share of the degrees of freedom (see the module notes)."""
     dofs = np.array([n - len(NUISANCES) for n in family.drop_residuals], dtype=float)
     dof = max(float(dofs.sum()) - len(family.free), 1.0)
-    pre = np.array([pre_samples(drop) for drop in drops])
+    pre = np.array([_pre_samples(drop) for drop in drops])
     spread = math.sqrt(2.0 / dof + float(np.sum((dofs / dofs.sum()) ** 2 / np.maximum(pre - 1.0, 1.0))))
     return (float(sum(family.drop_chi2)) / dof - 1.0) / spread
 
 
-def pre_samples(drop: ObservedDrop) -> float:
+def _pre_samples(drop: ObservedDrop) -> float:
     """Number of samples before the drop's first contact (where each channel's σ was measured) [-]."""
     return max((drop.contact_time - drop.data.grid.start_time) * drop.data.grid.sample_rate, 2.0)
 
 
-def drop_figures(family: Family, drops: Sequence[ObservedDrop], *, velocity_sigma: float,
-                 duration: float | None) -> list[dict[str, float]]:
+def _drop_figures(family: Family, drops: Sequence[ObservedDrop], *, velocity_sigma: float,
+                  duration: float | None) -> list[dict[str, float]]:
     """Each drop's light-gate pull, misfit and influence [σ] (see the module notes) at the fit ``family``."""
     s, k = len(family.free), family.unknowns
     information = family.root.T @ family.root
@@ -109,9 +109,9 @@ def drop_figures(family: Family, drops: Sequence[ObservedDrop], *, velocity_sigm
         statistic, dof = _quadratic(shift, others[:s, :s] - everything[:s, :s])
         pull = float((family.x[own[0]] - math.log(drop.velocity)) / velocity_sigma)
         out.append({"velocity_pull": pull,
-                    "misfit_sigma": misfit_sigma(family.drop_chi2[i], family.drop_residuals[i] - len(NUISANCES),
-                                                 pre_samples(drop)),
-                    "influence_sigma": chi2_sigma(statistic, dof)})
+                    "misfit_sigma": _misfit_sigma(family.drop_chi2[i], family.drop_residuals[i] - len(NUISANCES),
+                                                  _pre_samples(drop)),
+                    "influence_sigma": _chi2_sigma(statistic, dof)})
     return out
 
 
@@ -123,11 +123,11 @@ def _quadratic(shift: np.ndarray, cov: np.ndarray) -> tuple[float, int]:
     return float(np.sum(projected ** 2 / values[keep])), int(np.count_nonzero(keep))
 
 
-def inconsistent(figures: Sequence[dict[str, float]]) -> list[int]:
+def _inconsistent(figures: Sequence[dict[str, float]]) -> list[int]:
     """Indices of the drops inconsistent with the others (see the module notes)."""
     scores = np.array([max(abs(f["velocity_pull"]), f["influence_sigma"] / INFLUENCE_MARGIN, f["misfit_sigma"])
                        for f in figures])
     if scores.size < 2:
         return []
-    bar = max(limit(scores.size), STANDOUT * float(np.median(scores)))
+    bar = max(_limit(scores.size), STANDOUT * float(np.median(scores)))
     return [int(i) for i in np.flatnonzero(scores > bar)]

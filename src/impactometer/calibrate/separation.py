@@ -39,7 +39,7 @@ VELOCITY_STEP = 1.3
 PRESSURE_FRACTIONS = (0.9, 0.15)
 
 
-def correlation(cov: np.ndarray) -> np.ndarray:
+def _correlation(cov: np.ndarray) -> np.ndarray:
     """Correlation matrix of a covariance; NaN where a variance is infinite or zero."""
     with np.errstate(invalid="ignore", divide="ignore"):
         std = np.sqrt(np.diag(cov))
@@ -49,17 +49,17 @@ def correlation(cov: np.ndarray) -> np.ndarray:
     return out
 
 
-def flagged(names: Sequence[str], cov: np.ndarray) -> tuple[list[tuple[str, str, float]], list[str]]:
+def _flagged(names: Sequence[str], cov: np.ndarray) -> tuple[list[tuple[str, str, float]], list[str]]:
     """The pairs of parameters whose |correlation| exceeds :data:`CORRELATION_LIMIT` (with it) and the parameters
     the drops leave undetermined (infinite variance)."""
-    corr = correlation(cov)
+    corr = _correlation(cov)
     pairs = [(names[a], names[b], float(corr[a, b])) for a in range(len(names)) for b in range(a + 1, len(names))
              if np.isfinite(corr[a, b]) and abs(corr[a, b]) > CORRELATION_LIMIT]
     lost = [name for j, name in enumerate(names) if not np.isfinite(cov[j, j])]
     return pairs, lost
 
 
-def candidates(drops: Sequence[ObservedDrop], rig: Rig) -> dict[str, tuple[float, float, float]]:
+def _candidates(drops: Sequence[ObservedDrop], rig: Rig) -> dict[str, tuple[float, float, float]]:
     """The extra drops tried (see the module notes): kind -> (M1 [kg], V0 [m/s], p0 [Pa gauge])."""
     masses = np.array([drop.mass for drop in drops])
     velocities = np.array([drop.velocity for drop in drops])
@@ -98,8 +98,8 @@ def _with_drop(family: Family, drops: Sequence[ObservedDrop], rig: Rig, scenario
     return cov[:s, :s]
 
 
-def suggest(family: Family, drops: Sequence[ObservedDrop], rig: Rig, pairs: Sequence[tuple[str, str, float]], *,
-            velocity_sigma: float, end: float | None) -> dict | None:
+def _suggest(family: Family, drops: Sequence[ObservedDrop], rig: Rig, pairs: Sequence[tuple[str, str, float]], *,
+             velocity_sigma: float, end: float | None) -> dict | None:
     """The extra drop that best separates ``pairs`` (see the module notes), or None when no pair is flagged or no
     candidate can be predicted: kind, M1, V0, p0 and the largest |correlation| of the pairs before and after."""
     if not pairs:
@@ -107,9 +107,9 @@ def suggest(family: Family, drops: Sequence[ObservedDrop], rig: Rig, pairs: Sequ
     index = {name: j for j, name in enumerate(family.free)}
     before = max(abs(c) for _, _, c in pairs)
     best: dict | None = None
-    for kind, scenario in candidates(drops, rig).items():
+    for kind, scenario in _candidates(drops, rig).items():
         try:
-            corr = correlation(_with_drop(family, drops, rig, scenario, velocity_sigma, end))
+            corr = _correlation(_with_drop(family, drops, rig, scenario, velocity_sigma, end))
         except IdentificationError:
             continue
         after = max(abs(float(corr[index[a], index[b]])) for a, b, _ in pairs)

@@ -13,6 +13,9 @@ from ..recording import Recording
 from ..rig import STAND_KEY, Contact, Cylinder, Friction, Rig, Scenario, fingerprint, get_rig
 from ..sensors import apply_sensors, internal_layout
 
+__all__ = ["EXAMPLE_BASE", "EXAMPLE_DROPS", "EXAMPLE_HELD_BACK", "EXAMPLE_STAND", "EXAMPLE_TRUTH", "example_set",
+           "reference_drop"]
+
 #: relative tolerance of the reference integrations (the model error it leaves is far below any sensor noise)
 REFERENCE_RTOL = 1e-9
 #: a lab's stand unlike every preset: other bore, rod, stroke, piston mass, pad stiffness and restitution, friction

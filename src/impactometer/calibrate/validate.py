@@ -27,7 +27,7 @@ from ..recording import Recording
 from ..rig import Rig, get_rig
 from ..signals.pulses import detect_pulses
 from ..signals.stage_b import sustained_start
-from .drops import ObservedDrop, read_drops
+from .drops import ObservedDrop, _read_drops
 from .result import Drop
 
 #: window after the start contact instant fitted first [s] (the contact instant is found on the first pulse)
@@ -51,7 +51,7 @@ class DropValidation(Drop):
     @property
     def model_error(self) -> float:
         """The share of the force NRMSE the noise does not explain (in quadrature) [-]."""
-        return model_error(self.force_nrmse, self.noise_nrmse)
+        return _model_error(self.force_nrmse, self.noise_nrmse)
 
     @property
     def reproduced(self) -> bool:
@@ -116,7 +116,7 @@ def _timing(measured: np.ndarray, simulated: np.ndarray, noise: float, rate: flo
     return first, stage_b
 
 
-def force_nrmse(data: Observed, simulated: np.ndarray, contact_time: float) -> tuple[float, float]:
+def _force_nrmse(data: Observed, simulated: np.ndarray, contact_time: float) -> tuple[float, float]:
     """The force NRMSE of a drop, RMS(measured − simulated contact force) / (max − min of the measured force)
     from ``contact_time`` [s] to the end of ``data`` [-], and the share of it the noise alone gives (the
     pre-trigger σ over the same range) [-]; ``simulated`` (2, n) as ``data.channels``."""
@@ -127,12 +127,12 @@ def force_nrmse(data: Observed, simulated: np.ndarray, contact_time: float) -> t
     return float(np.sqrt(np.mean((force - simulated[0, onset:]) ** 2)) / span), float(data.noise[0] / span)
 
 
-def model_error(nrmse: float, noise: float) -> float:
+def _model_error(nrmse: float, noise: float) -> float:
     """The share of a force NRMSE the noise does not explain, the two added in quadrature [-]."""
     return math.sqrt(max(nrmse ** 2 - noise ** 2, 0.0))
 
 
-def validate_drop(drop: ObservedDrop, rig: Rig) -> DropValidation:
+def _validate_drop(drop: ObservedDrop, rig: Rig) -> DropValidation:
     """One drop reproduced by ``rig`` (its own contact law), V0 held at the light gate's."""
     layout = make_layout(rig, rig.contact.law, (), pressure=drop.pressure, contact_time=drop.contact_time,
                          sample_rate=drop.data.grid.sample_rate, mass=drop.mass, velocity=drop.velocity)
@@ -150,7 +150,7 @@ def validate_drop(drop: ObservedDrop, rig: Rig) -> DropValidation:
     onset = max(0, int(math.floor((fit.values["contact_time"] - data.grid.start_time) * rate)))
     force = data.channels[0, onset:] - fit.offsets[0]
     model = simulated[0, onset:] - fit.offsets[0]
-    nrmse, noise = force_nrmse(data, simulated, fit.values["contact_time"])
+    nrmse, noise = _force_nrmse(data, simulated, fit.values["contact_time"])
     first_pulse, stage_b = _timing(force, model, float(data.noise[0]), rate)
     return DropValidation(source=drop.source, mass=drop.mass, velocity=drop.velocity, pressure=drop.pressure,
                           force_nrmse=nrmse, noise_nrmse=noise, model_error_limit=REPRODUCED_LIMIT,
@@ -184,6 +184,6 @@ def validate(rig: Rig | str | Path, recordings: Sequence[Recording]) -> Validati
     if not recordings:
         raise RecordingError("recordings must hold at least one drop to validate the stand on, got none",
                              field="recordings", expected="must hold at least one drop")
-    drops = read_drops(recordings)
+    drops = _read_drops(recordings)
     return Validation(stand=stand.name, contact_law=stand.contact.law,
-                      drops=tuple(validate_drop(drop, stand) for drop in drops))
+                      drops=tuple(_validate_drop(drop, stand) for drop in drops))

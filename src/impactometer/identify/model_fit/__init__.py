@@ -37,8 +37,8 @@ from .engine import (
     weighted_jacobian,
 )
 from .forward import check_uncertain, free_parameters, make_layout, stand_values
-from .information import CramerRao, bound_of, covariance
-from .select import CRITERION, Start, fit_laws, grid_start
+from .information import CramerRao, _bound_of, covariance
+from .select import CRITERION, Start, _fit_laws, _grid_start
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
 
@@ -48,7 +48,7 @@ MAX_REDUCED_CHI2 = 1.5
 WARN_REDUCED_CHI2 = 1.1
 #: a stated charge pressure's default σ: this fraction of the reading [-] ...
 GAUGE_RELATIVE_STD = 0.02
-#: ... and at least this [Pa] (:func:`gauge_std`)
+#: ... and at least this [Pa] (:func:`_gauge_std`)
 GAUGE_FLOOR_STD = 1e3
 #: a pressure given and one in the metadata contradict each other beyond this many of their combined σ [-]
 PRESSURE_CONTRADICTION = 3.0
@@ -64,7 +64,7 @@ BOUND_POINTS = ("truth", "estimate")
 DEFAULT_PRESSURE_START = 200e3
 
 
-def gauge_std(pressure: float) -> float:
+def _gauge_std(pressure: float) -> float:
     """The default σ [Pa] of a charge pressure [Pa gauge] as a gauge states it: :data:`GAUGE_RELATIVE_STD` (2 %) of
     the reading, at least :data:`GAUGE_FLOOR_STD` (1 kPa). A pressure gauge of a drop stand is typically good to 1-4 %
     of its reading (class 1-2.5 dial gauges on half their span, or a transducer's drift); 2 % is the middle of that
@@ -76,7 +76,7 @@ def _pressure(recording: Recording, pressure: float | None, rig: Rig,
               pressure_std: float | None = None) -> tuple[float | None, float]:
     """The charge pressure [Pa gauge] and its σ [Pa]: the one given, the metadata's, or both combined (their
     inverse-variance mean) where both are stated; (None, 0) when neither states it (fitted). ``pressure_std`` is
-    the σ of the pressure given (else of the metadata's); default :func:`gauge_std` of each. A σ of 0 holds the
+    the σ of the pressure given (else of the metadata's); default :func:`_gauge_std` of each. A σ of 0 holds the
     pressure exactly. A pressure given and the metadata's more than :data:`PRESSURE_CONTRADICTION` combined σ apart
     are refused."""
     stated = recording.metadata.get("pressure_gauge_Pa")
@@ -91,13 +91,13 @@ def _pressure(recording: Recording, pressure: float | None, rig: Rig,
     if pressure is None:
         if stated is None:
             return None, 0.0
-        return stated, gauge_std(stated) if pressure_std is None else pressure_std
+        return stated, _gauge_std(stated) if pressure_std is None else pressure_std
     pressure = check_real("pressure", pressure, low=0.0, high=rig.cylinder.rated_pressure_gauge,
                           unit=f" [Pa gauge] (the rating of {rig.name!r})", state_range=True)
-    given_std = gauge_std(pressure) if pressure_std is None else pressure_std
+    given_std = _gauge_std(pressure) if pressure_std is None else pressure_std
     if stated is None:
         return float(pressure), given_std
-    stated_std = gauge_std(stated)
+    stated_std = _gauge_std(stated)
     combined = math.hypot(given_std, stated_std)
     if abs(pressure - stated) > PRESSURE_CONTRADICTION * combined:
         raise ParameterError(f"pressure {pressure:g} Pa gauge contradicts the recording's metadata "
@@ -145,7 +145,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         fitted freely. Where both are stated they are combined (their inverse-variance mean), and refused when they
         differ by more than :data:`PRESSURE_CONTRADICTION` times their combined σ.
     pressure_std : float, optional
-        σ of the stated pressure [Pa] (of ``pressure``, else of the metadata's); default :func:`gauge_std` (2 % of
+        σ of the stated pressure [Pa] (of ``pressure``, else of the metadata's); default :func:`_gauge_std` (2 % of
         the reading, at least 1 kPa). The pressure is fitted with the Gaussian prior stated ± σ, so the σ of M1 and
         V0 (and the Cramér-Rao bound of the details) include the gauge's error; 0 holds it exactly.
     uncertain : sequence of str, optional
@@ -195,9 +195,9 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                       pressure_start=pressure_start, pressure_std=p0_std)
     else:  # a few samples before the crude trigger: the first window's fit finds the instant
         data = observe(recording, design, trigger)
-        start = replace(grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0,
-                                   pressure_start), pressure_std=p0_std)
-    fits, selection = fit_laws(data, rig, laws, free_names, start)
+        start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0,
+                                    pressure_start), pressure_std=p0_std)
+    fits, selection = _fit_laws(data, rig, laws, free_names, start)
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,
         start={"mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time,
@@ -234,7 +234,7 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
     stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
-    crb = bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
+    crb = _bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
     found = list(_stand_warning(recording, rig))
     found += check_answer(mass, velocity)
     rated = rig.cylinder.rated_pressure_gauge
@@ -332,4 +332,4 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
                          sample_rate=recording.sample_rate, pressure_std=p0_std)
     point = {**values, "contact_time": contact_time, **stand_values(rig, law, free), "pressure_gauge": p0}
     cov, _ = covariance(weighted_jacobian(data, layout, point))
-    return bound_of(cov, values["mass"], values["velocity"], law=law, at=at, unknowns=_unknowns(layout.names))
+    return _bound_of(cov, values["mass"], values["velocity"], law=law, at=at, unknowns=_unknowns(layout.names))

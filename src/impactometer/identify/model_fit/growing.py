@@ -24,10 +24,10 @@ from .select import (
     SCREEN_MARGIN,
     SCREEN_WINDOW,
     STAGES,
-    Layouts,
     Start,
-    screen,
-    start_law,
+    _Layouts,
+    _screen,
+    _start_law,
 )
 
 #: Levenberg-Marquardt steps of one update, and the residual evaluations each may take (the dampings it tries
@@ -48,24 +48,24 @@ EXPLAINED_SPREAD = 3.0
 
 
 @dataclass
-class LawState:
+class _LawState:
     """One contact law followed by the updates: its layouts, last values [SI], offsets [N], [m/s²] and fit."""
 
-    layouts: Layouts
+    layouts: _Layouts
     values: dict
     offsets: np.ndarray
     fit: LawFit
 
 
 @dataclass
-class Pending:
+class _Pending:
     """The first window's screen still to do: the window, its length [s] after contact, the laws still to fit on
     it and the fits made of the others."""
 
     data: Observed | None = None
     span: float = 0.0
     laws: tuple[str, ...] = ()
-    fitted: dict[str, LawState] = field(default_factory=dict)
+    fitted: dict[str, _LawState] = field(default_factory=dict)
 
 
 @dataclass
@@ -78,9 +78,9 @@ class Growing:
     rig: Rig
     laws: tuple[str, ...]
     uncertain: tuple[str, ...] | None
-    states: dict[str, LawState] = field(default_factory=dict)
+    states: dict[str, _LawState] = field(default_factory=dict)
     start: Start | None = None
-    pending: Pending = field(default_factory=Pending)
+    pending: _Pending = field(default_factory=_Pending)
     chosen: str | None = None
     choice: str = ""
     notes: list[str] = field(default_factory=list)
@@ -101,24 +101,24 @@ def explains(fit: LawFit, data: Observed) -> bool:
 
 
 def _fit_core(growing: Growing, law: str, data: Observed, core: dict | None, evaluations: int,
-              information: bool) -> LawState:
+              information: bool) -> _LawState:
     """``law`` fitted on ``data`` with the stand held, from the growing fit's start or the ``core`` values (M1,
     V0, the contact instant) of another law's fit."""
     assert growing.start is not None  # set before any fit
-    layouts, values = start_law(growing.rig, law, growing.uncertain, growing.start, data.grid.sample_rate)
+    layouts, values = _start_law(growing.rig, law, growing.uncertain, growing.start, data.grid.sample_rate)
     if core is not None:
         values.update({name: core[name] for name in ("mass", "velocity", "contact_time")})
     fit = fit_window(data, layouts("core", values), values, evaluations=evaluations, information=information)
-    return LawState(layouts, {**values, **fit.values}, fit.offsets, fit)
+    return _LawState(layouts, {**values, **fit.values}, fit.offsets, fit)
 
 
 def first_fit(growing: Growing, data: Observed, span: float, starts: list[Start]) -> LawFit | None:
     """The first answer on the first window (``span`` [s] after contact): the stand's own law (the first of
     ``laws`` otherwise) fitted to convergence with the stand held, from each start in turn until a fit explains the
-    window (:func:`explains`); the fit of smallest χ². The other laws wait for :func:`screen_pending` (one at each
+    window (:func:`explains`); the fit of smallest χ². The other laws wait for :func:`_screen_pending` (one at each
     update) unless no fit explains the window; then they are screened at once."""
     own = growing.rig.contact.law if growing.rig.contact.law in growing.laws else growing.laws[0]
-    found: tuple[LawState, Start] | None = None
+    found: tuple[_LawState, Start] | None = None
     for start in starts:
         growing.start = start
         try:
@@ -133,16 +133,16 @@ def first_fit(growing: Growing, data: Observed, span: float, starts: list[Start]
     if found is None:
         return None
     growing.states, growing.start = {own: found[0]}, found[1]
-    growing.pending = Pending(data, span, tuple(law for law in growing.laws if law != own))
+    growing.pending = _Pending(data, span, tuple(law for law in growing.laws if law != own))
     if growing.pending.laws:
         growing.choice = (f"{own} (the stand's law) for the first answer; the other laws are screened on the first "
                           f"{span * 1e3:.3g} ms at the next update")
         if not explains(found[0].fit, data):
-            screen_pending(growing, every=True)
+            _screen_pending(growing, every=True)
     return growing.best()
 
 
-def screen_pending(growing: Growing, *, every: bool = False) -> None:
+def _screen_pending(growing: Growing, *, every: bool = False) -> None:
     """One law still to screen (``every``: all of them) fitted on the first window from the first law's answer, in
     ``STREAM_SCREEN_EVALUATIONS``; once none is left, the laws screened as the batch fit screens them on that
     window, and the law chosen where one is left."""
@@ -156,7 +156,7 @@ def screen_pending(growing: Growing, *, every: bool = False) -> None:
         except IdentificationError as exc:
             growing.notes.append(f"{law} on the first {span * 1e3:.3g} ms: {exc}")
     rest = () if every else others[1:]
-    growing.pending = Pending(data if rest else None, span, rest, fitted)
+    growing.pending = _Pending(data if rest else None, span, rest, fitted)
     if rest:
         return
     better = min(fitted.values(), key=lambda state: state.fit.chi2, default=None)
@@ -167,8 +167,8 @@ def screen_pending(growing: Growing, *, every: bool = False) -> None:
             growing.notes.append(f"{better.fit.law} on the first {span * 1e3:.3g} ms: {exc}")
             del fitted[better.fit.law]
     growing.states.update(fitted)
-    dropped = screen({law: state.fit for law, state in growing.states.items()}, span, EARLY_MARGIN,
-                     within=EARLY_REDUCED_CHI2)
+    dropped = _screen({law: state.fit for law, state in growing.states.items()}, span, EARLY_MARGIN,
+                      within=EARLY_REDUCED_CHI2)
     _keep(growing, dropped, "the only law left", span, only=len(growing.states) - len(dropped) == 1)
 
 
@@ -195,7 +195,7 @@ def update(growing: Growing, data: Observed, span: float) -> LawFit | None:
     refined from its last values (:func:`_refine`), the stand held before ``STAGES[SCREEN_WINDOW]`` and every
     unknown free from it on, where the smallest BIC chooses among the laws left (and the choice is kept)."""
     if growing.pending.laws:
-        screen_pending(growing)
+        _screen_pending(growing)
     kind = "core" if span < STAGES[SCREEN_WINDOW][0] else "all"
     for law, state in list(growing.states.items()):
         try:
@@ -208,8 +208,8 @@ def update(growing: Growing, data: Observed, span: float) -> LawFit | None:
             if len(growing.states) > 1:
                 del growing.states[law]
             continue
-        growing.states[law] = LawState(state.layouts, {**state.values, **fit.values}, fit.offsets, fit)
+        growing.states[law] = _LawState(state.layouts, {**state.values, **fit.values}, fit.offsets, fit)
     if growing.chosen is None and kind == "all" and growing.states:
         fits = {law: state.fit for law, state in growing.states.items()}
-        _keep(growing, screen(fits, span, SCREEN_MARGIN), "the smallest BIC", span, only=True)
+        _keep(growing, _screen(fits, span, SCREEN_MARGIN), "the smallest BIC", span, only=True)
     return growing.best()

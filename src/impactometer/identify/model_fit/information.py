@@ -81,8 +81,8 @@ class CramerRao:
                 "contact_law": self.contact_law, "at": self.at, "unknowns": list(self.unknowns)}
 
 
-def bound_of(cov: np.ndarray, mass: float, velocity: float, *, law: str, at: str,
-             unknowns: tuple[str, ...]) -> CramerRao:
+def _bound_of(cov: np.ndarray, mass: float, velocity: float, *, law: str, at: str,
+              unknowns: tuple[str, ...]) -> CramerRao:
     """The :class:`CramerRao` of a covariance of the fit variables whose first two are ln M1 and ln V0."""
     return CramerRao(mass_std=float(mass * np.sqrt(cov[0, 0])), velocity_std=float(velocity * np.sqrt(cov[1, 1])),
                      mass=float(mass), velocity=float(velocity), contact_law=law, at=at, unknowns=unknowns)

@@ -69,7 +69,7 @@ class Start:
     pressure_std: float = 0.0
 
 
-def screen(fits: dict[str, LawFit], span: float, margin: float, *, within: float | None = None) -> dict[str, str]:
+def _screen(fits: dict[str, LawFit], span: float, margin: float, *, within: float | None = None) -> dict[str, str]:
     """The laws of ``fits`` (law -> its fit on the window of ``span`` [s] after contact) to drop, each with why:
     those whose BIC exceeds the best law's by more than ``margin``; with ``within``, only where the best law
     leaves χ²/dof <= ``within`` (it explains the window down to the noise, so a law far above it cannot catch up
@@ -84,27 +84,27 @@ def screen(fits: dict[str, LawFit], span: float, margin: float, *, within: float
             for law, fit in fits.items() if fit.bic > best.bic + margin}
 
 
-def start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: Start,
-              sample_rate: float) -> tuple[Layouts, dict]:
+def _start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: Start,
+               sample_rate: float) -> tuple[_Layouts, dict]:
     """The layouts of ``law``'s windows and the physical values its fit starts from."""
     free = free_parameters(law, uncertain)
     values = {"mass": start.mass, "velocity": start.velocity, "contact_time": start.contact_time,
-              **stand_values(rig, law, free)}
+               **stand_values(rig, law, free)}
     if start.pressure is None:
         values["pressure_gauge"] = start.pressure_start
     elif start.pressure_std > 0.0:
         values["pressure_gauge"] = start.pressure
-    return Layouts(rig, law, free, start, sample_rate), values
+    return _Layouts(rig, law, free, start, sample_rate), values
 
 
-def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[str, ...] | None,
-             start: Start) -> tuple[dict[str, LawFit], dict[str, dict]]:
+def _fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[str, ...] | None,
+              start: Start) -> tuple[dict[str, LawFit], dict[str, dict]]:
     """Fit every law of ``laws`` (screened on the windows ``STAGES[EARLY_WINDOW]`` and ``STAGES[SCREEN_WINDOW]``);
     returns the whole-record fits of the laws kept and, for every law, what became of it (a summary of its fit,
     the screening window's BIC, or why it failed or was dropped)."""
     fits: dict[str, LawFit] = {}
     report: dict[str, dict] = {}
-    running: dict[str, tuple[LawFit, dict, Layouts, np.ndarray]] = {}
+    running: dict[str, tuple[LawFit, dict, _Layouts, np.ndarray]] = {}
     done = 0
     for stop, margin, within in ((EARLY_WINDOW + 1, EARLY_MARGIN, EARLY_REDUCED_CHI2),
                                  (SCREEN_WINDOW + 1, SCREEN_MARGIN, None)):
@@ -112,27 +112,27 @@ def fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[s
             if done:
                 _, values, layouts, offsets = running[law]
             else:
-                layouts, values = start_law(rig, law, uncertain, start, data.grid.sample_rate)
+                layouts, values = _start_law(rig, law, uncertain, start, data.grid.sample_rate)
                 offsets = data.offsets
             try:
-                fit, values, offsets = fit_stages(data, layouts, values, offsets, STAGES[done:stop], start,
-                                                  evaluations=SCREEN_EVALUATIONS)
+                fit, values, offsets = _fit_stages(data, layouts, values, offsets, STAGES[done:stop], start,
+                                                   evaluations=SCREEN_EVALUATIONS)
             except IdentificationError as exc:
                 report[law] = {"error": str(exc)}
                 running.pop(law, None)
                 continue
             running[law] = (fit, values, layouts, offsets)
         span = STAGES[stop - 1][0]
-        for law, why in screen({law: item[0] for law, item in running.items()}, span, margin,
-                               within=within).items():
+        for law, why in _screen({law: item[0] for law, item in running.items()}, span, margin,
+                                within=within).items():
             fit = running.pop(law)[0]
             report[law] = {**_screened(fit, span), "dropped": why}
         done = stop
     for law, (fit, values, layouts, offsets) in running.items():
         screened = _screened(fit, STAGES[SCREEN_WINDOW][0])
         try:
-            fits[law], _, _ = fit_stages(data, layouts, values, offsets, (*STAGES[SCREEN_WINDOW + 1:], (None, "all")),
-                                         start)
+            fits[law], _, _ = _fit_stages(data, layouts, values, offsets, (*STAGES[SCREEN_WINDOW + 1:], (None, "all")),
+                                          start)
         except IdentificationError as exc:
             report[law] = {**screened, "error": str(exc)}
             continue
@@ -147,7 +147,7 @@ def _screened(fit: LawFit, span: float) -> dict:
     return {"screen_window_ms": span * 1e3, "screen_bic": fit.bic, "screen_reduced_chi2": fit.reduced_chi2}
 
 
-class Layouts:
+class _Layouts:
     """The layouts of one law's windows: ``core`` (M1, V0, contact instant; the stand held), ``stand`` (V0, the
     contact instant and the stand parameters; M1 held at its last value) and ``all``."""
 
@@ -172,14 +172,14 @@ def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
     values = {name: value for name, value in fit.values.items() if name not in ("mass", "velocity", "contact_time")}
     values.update(mass=start.mass, velocity=start.velocity, contact_time=start.contact_time)
     try:
-        other, _, _ = fit_stages(data, layouts, values, data.offsets, (*FINE_STAGES, (None, "all")), start)
+        other, _, _ = _fit_stages(data, layouts, values, data.offsets, (*FINE_STAGES, (None, "all")), start)
     except IdentificationError:
         return None
     return other if other.reduced_chi2 < fit.reduced_chi2 else None
 
 
-def fit_stages(data: Observed, layouts: Layouts, values: dict, offsets, stages, start: Start, *,
-               evaluations: int = MAX_EVALUATIONS):
+def _fit_stages(data: Observed, layouts: _Layouts, values: dict, offsets, stages, start: Start, *,
+                evaluations: int = MAX_EVALUATIONS):
     """Fit the windows of ``stages`` in turn (:func:`.engine.staged`; None: the record up to its
     :func:`~.forward.horizon` at the last window's answer), each from the last one's answer; returns the last fit
     (its covariance only for the last window), its values and its offsets."""
@@ -207,9 +207,9 @@ START_MASSES = np.geomspace(2.0, 200.0, 9)
 START_VELOCITIES = np.geomspace(0.3, 8.0, 9)
 
 
-def grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | None,
-               pressure_start: float) -> Start:
-    """A start for :func:`fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
+def _grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | None,
+                pressure_start: float) -> Start:
+    """A start for :func:`_fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
     :data:`START_VELOCITIES` whose prediction of the first window (``STAGES[0]``) with the stand's own law and
     parameters fits best (offsets from the pre-trigger), first contact at ``contact_time`` [s]."""
     return grid_starts(data, rig, contact_time, pressure, pressure_start)[0]
@@ -217,7 +217,7 @@ def grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | 
 
 def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_start: float,
                 count: int = 1, predicted: np.ndarray | None = None) -> list[Start]:
-    """The ``count`` best starts of :func:`grid_start`, best first, none next to (one grid step from) a better
+    """The ``count`` best starts of :func:`_grid_start`, best first, none next to (one grid step from) a better
     one: the first window of a light, fast impact can hold more than one minimum. ``predicted`` (from
     :func:`grid_predictions` on the same window) spares the integrations. The window is ``data`` up to
     ``STAGES[0]`` after ``contact_time``, or all of it where it is shorter."""
