@@ -225,7 +225,7 @@ def _first_window(mass, velocity, pressure, seed):
     contact = 0.0
     data = engine.window(engine.observe(rec, design, contact, min_duration=0.0), contact + STAGES[0][0])
     start = Start(mass=1.2 * mass, velocity=0.95 * velocity, contact_time=contact, pressure=pressure,
-                  pressure_start=pressure)
+                  pressure_gauge_start=pressure)
     layouts, values = _start_law(get_rig(), get_rig().contact.law, None, start, rec.sample_rate)
     return data, layouts("core", values), values
 

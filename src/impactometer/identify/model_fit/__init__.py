@@ -61,7 +61,7 @@ TRIGGER_LEAD = 2
 #: the points a Cramér-Rao bound is evaluated at (:func:`cramer_rao`'s ``at``)
 BOUND_POINTS = ("truth", "estimate")
 #: where a fitted pre-charge starts when the recording states none [Pa gauge]
-DEFAULT_PRESSURE_START = 200e3
+DEFAULT_PRESSURE_GAUGE_START = 200e3
 
 
 def _gauge_std(pressure: float) -> float:
@@ -182,7 +182,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     p0, p0_std = _pressure(recording, pressure, rig, pressure_std)
     design = anti_alias_design(recording)
     trigger = check_length(recording)
-    pressure_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_START
+    pressure_gauge_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_GAUGE_START
     delay = anti_alias_delay(design, recording.sample_rate)
     try:
         robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
@@ -192,11 +192,11 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     if robust is not None:
         data = observe(recording, design, robust.t00)
         start = Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay, pressure=p0,
-                      pressure_start=pressure_start, pressure_std=p0_std)
+                      pressure_gauge_start=pressure_gauge_start, pressure_std=p0_std)
     else:  # a few samples before the crude trigger: the first window's fit finds the instant
         data = observe(recording, design, trigger)
         start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0,
-                                    pressure_start), pressure_std=p0_std)
+                                    pressure_gauge_start), pressure_std=p0_std)
     fits, selection = _fit_laws(data, rig, laws, free_names, start)
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,

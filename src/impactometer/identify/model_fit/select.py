@@ -58,14 +58,14 @@ SCREEN_EVALUATIONS = 8
 @dataclass(frozen=True)
 class Start:
     """Where every law's fit starts: M1 [kg], V0 [m/s], the contact instant [s] and the pre-charge [Pa gauge]
-    (None: fitted, starting from ``pressure_start``; else held where ``pressure_std`` [Pa] is 0, or fitted with
+    (None: fitted, starting from ``pressure_gauge_start``; else held where ``pressure_std`` [Pa] is 0, or fitted with
     the prior ``pressure`` ± ``pressure_std``)."""
 
     mass: float
     velocity: float
     contact_time: float
     pressure: float | None
-    pressure_start: float
+    pressure_gauge_start: float
     pressure_std: float = 0.0
 
 
@@ -91,7 +91,7 @@ def _start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: Sta
     values = {"mass": start.mass, "velocity": start.velocity, "contact_time": start.contact_time,
                **stand_values(rig, law, free)}
     if start.pressure is None:
-        values["pressure_gauge"] = start.pressure_start
+        values["pressure_gauge"] = start.pressure_gauge_start
     elif start.pressure_std > 0.0:
         values["pressure_gauge"] = start.pressure
     return _Layouts(rig, law, free, start, sample_rate), values
@@ -208,14 +208,14 @@ START_VELOCITIES = np.geomspace(0.3, 8.0, 9)
 
 
 def _grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | None,
-                pressure_start: float) -> Start:
+                pressure_gauge_start: float) -> Start:
     """A start for :func:`_fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
     :data:`START_VELOCITIES` whose prediction of the first window (``STAGES[0]``) with the stand's own law and
     parameters fits best (offsets from the pre-trigger), first contact at ``contact_time`` [s]."""
-    return grid_starts(data, rig, contact_time, pressure, pressure_start)[0]
+    return grid_starts(data, rig, contact_time, pressure, pressure_gauge_start)[0]
 
 
-def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_start: float,
+def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_gauge_start: float,
                 count: int = 1, predicted: np.ndarray | None = None) -> list[Start]:
     """The ``count`` best starts of :func:`_grid_start`, best first, none next to (one grid step from) a better
     one: the first window of a light, fast impact can hold more than one minimum. ``predicted`` (from
@@ -223,7 +223,7 @@ def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float |
     ``STAGES[0]`` after ``contact_time``, or all of it where it is shorter."""
     part = window(data, contact_time + STAGES[0][0])
     if predicted is None or predicted.shape[-1] != part.grid.size:
-        predicted = grid_predictions(part.grid, rig, contact_time, pressure, pressure_start)
+        predicted = grid_predictions(part.grid, rig, contact_time, pressure, pressure_gauge_start)
     chi2 = np.sum(np.square((part.channels - part.offsets[:, None]) / part.noise[:, None]
                             - predicted / part.noise[None, :, None]), axis=(1, 2))
     chi2 = np.where(np.isfinite(chi2), chi2, np.inf).reshape(START_MASSES.size, START_VELOCITIES.size)
@@ -237,14 +237,14 @@ def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float |
             continue
         taken.append((i, j))
         starts.append(Start(mass=float(START_MASSES[i]), velocity=float(START_VELOCITIES[j]),
-                            contact_time=contact_time, pressure=pressure, pressure_start=pressure_start))
+                            contact_time=contact_time, pressure=pressure, pressure_gauge_start=pressure_gauge_start))
     if not starts:
         raise IdentificationError("no impact of the start grid can be integrated on this stand")
     return starts
 
 
 def grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure: float | None,
-                     pressure_start: float) -> np.ndarray:
+                     pressure_gauge_start: float) -> np.ndarray:
     """The recorded channels (offsets zero) of every impact of :data:`START_MASSES` × :data:`START_VELOCITIES`,
     shape (masses × velocities, 2, samples), on ``grid`` with the stand's own law and parameters, first contact at
     ``contact_time`` [s]; NaN for an impact the model cannot carry. They depend on the stand and the samples'
@@ -255,7 +255,7 @@ def grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure: float 
     rows = np.zeros((masses.size, len(layout.names)))
     rows[:, 0], rows[:, 1] = np.log(masses.ravel()), np.log(velocities.ravel())  # ln M1, ln V0; contact at 0
     if pressure is None:
-        rows[:, -1] = np.log(pressure_start + rig.gas.atmospheric_pressure)
+        rows[:, -1] = np.log(pressure_gauge_start + rig.gas.atmospheric_pressure)
     params, times = layout.packed(rows)
     try:
         return predict(grid, params, times)

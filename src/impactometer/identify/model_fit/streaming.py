@@ -11,7 +11,7 @@ algorithms, this class the schedule):
   predictions are made before the impact). It is given where it explains the samples after contact down to
   their noise.
 - **Contact law**: the other laws are fitted on that first window, one at each update, and screened as the batch
-  fit screens them (:func:`.select.screen`: dropped where their BIC exceeds a best law that explains the window by
+  fit screens them (:func:`.select._screen`: dropped where their BIC exceeds a best law that explains the window by
   more than 1000); where the stand's law does not explain the first window, at once. Where more than one law is
   left, each is updated up to ``STAGES[SCREEN_WINDOW]`` (15 ms), where the smallest BIC chooses. The choice is
   kept; the final answer revisits it (the batch fit compares every law again).
@@ -185,10 +185,10 @@ class ModelStream:
         pre = int(PRE_TRIGGER * self.sample_rate)
         contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
         size = int(math.floor((contact + min(self.first, STAGES[0][0])) * self.sample_rate + 1e-9)) + 1
-        pressure_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_START
+        pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         try:
             return {(pre, size): grid_predictions(make_grid(0.0, self.sample_rate, size, self.design), self.rig,
-                                                  contact, self.pressure, pressure_start)}
+                                                  contact, self.pressure, pressure_gauge_start)}
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
 
@@ -286,11 +286,12 @@ class ModelStream:
     def _first(self, impact: _Impact, data: Observed, span: float) -> LawFit | None:
         """The first answer, from the robust answer where the stream has one by then, else from the grid's best
         starts (:func:`.growing.first_fit`)."""
-        pressure_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_START
+        pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         if self.robust.estimates:
             robust = self.robust.estimates[-1]
             starts = [Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
-                            pressure=self.pressure, pressure_start=pressure_start, pressure_std=self.pressure_std)]
+                            pressure=self.pressure, pressure_gauge_start=pressure_gauge_start,
+                            pressure_std=self.pressure_std)]
         else:
             part = window(data, impact.contact_time + STAGES[0][0])  # the window the grid is ranked on
             predicted = self._grid.get((impact.trigger - impact.first, part.grid.size))
@@ -304,7 +305,7 @@ class ModelStream:
                     size=part.grid.size - cut))  # the window's floor keeps its last sample)
                 predicted = predicted[..., cut:]
             starts = [replace(start, pressure_std=self.pressure_std) for start in grid_starts(
-                part, self.rig, impact.contact_time, self.pressure, pressure_start, count=GRID_STARTS,
+                part, self.rig, impact.contact_time, self.pressure, pressure_gauge_start, count=GRID_STARTS,
                 predicted=predicted)]
         return first_fit(impact.fit, data, span, starts)
 
