@@ -278,6 +278,30 @@ def test_the_engines_paths_agree(mass, velocity, pressure, seed):
         assert abs(compiled.values[name] - reference.values[name]) <= 0.05 * reference.std(name)
 
 
+def test_the_compiled_fit_takes_every_layout_with_the_python_solvers_answer():
+    """The stream's compiled fit answers the one solver's requests for any layout (the stand freed, the charge
+    pressure with its prior): the same optimum as the solver in Python on the same residuals, within the stopping
+    rule's reach (χ² to its tolerance, the values to a small fraction of their σ)."""
+    from impactometer.identify.model_fit.engine import TOLERANCE, fit_law
+    from impactometer.identify.model_fit.first_window import fit_window, takes
+    from impactometer.identify.model_fit.select import Start, start_law
+
+    data, _, _ = _first_window(30.0, 2.0, 100e3, 21)
+    start = Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure=100e3, pressure_start=100e3,
+                  pressure_std=10e3)
+    layouts, values = start_law(get_rig(), get_rig().contact.law, None, start, data.grid.sample_rate)
+    for kind in ("core", "all"):
+        layout = layouts(kind, values)
+        assert takes(data, layout) and layout.priors and "pressure_gauge" in layout.names
+        python = fit_law(data, layout, values, in_turn=True)
+        compiled = fit_window(data, layout, values)
+        assert compiled.residuals == python.residuals
+        assert compiled.chi2 == pytest.approx(python.chi2, rel=10 * TOLERANCE)
+        for name in ("mass", "velocity"):
+            assert abs(compiled.values[name] - python.values[name]) <= 0.1 * python.std(name)
+            assert compiled.std(name) == pytest.approx(python.std(name), rel=0.1)
+
+
 def test_a_prior_is_one_more_residual_row():
     """A Gaussian prior on a named unknown of the table: one residual row (variable − its mean)/σ'; a loose one
     leaves the answer, a tight one holds the unknown at its mean."""
