@@ -112,6 +112,8 @@ DONE, TRIAL, ACCEPT, ACCEPT_JACOBIAN = 0, 1, 2, 3
 #: the solver's memory (:func:`begin`): χ², damping, its growth factor, χ² the last step predicted, residual
 #: evaluations, Jacobians made, converged
 _CHI2, _DAMPING, _GROWTH, _LOWER, _COUNT, _MADE, _CONVERGED = range(7)
+#: the ``new`` of :func:`advance` after a Jacobian (a χ² is never negative)
+NO_TRIAL = -1.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -123,17 +125,19 @@ def begin(chi2):
 @njit(cache=True, error_model="numpy")
 def advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, tolerance):
     """The Levenberg-Marquardt loop of every fit, one request at a time (reverse communication): after the
-    Jacobian at ``x`` (its normal equations ``normal``, ``gradient``; ``new`` NaN) or the χ² ``new`` of the last
-    trial point (inf where the model cannot be evaluated there), returns what the caller does next (:data:`TRIAL`:
-    evaluate at ``trial``; :data:`ACCEPT`, :data:`ACCEPT_JACOBIAN`: ``x`` moved to the trial point, keep its
-    residuals, and make the Jacobian there; :data:`DONE`). ``memo`` (:func:`begin`) holds the rest.
+    Jacobian at ``x`` (its normal equations ``normal``, ``gradient``; ``new`` :data:`NO_TRIAL`) or the χ² ``new``
+    of the last trial point (inf or NaN where the model cannot be evaluated there), returns what the caller does
+    next (:data:`TRIAL`: evaluate at ``trial``; :data:`ACCEPT`, :data:`ACCEPT_JACOBIAN`: ``x`` moved to the trial
+    point, keep its residuals, and make the Jacobian there; :data:`DONE`). ``memo`` (:func:`begin`) holds the rest.
 
     Damped steps (:func:`damped_step`), the damping lowered after a step that lowers χ² and raised after one that
     does not (:func:`adapt`), until :func:`stops` (converged), ``evaluations`` residual evaluations are spent, or
     ``jacobians`` Jacobians are made (> 0; an update of a fit whose window grew a little: one Jacobian and one or
     a few residual evaluations). With ``information`` the Jacobian of a converged answer is made at it.
     """
-    if not np.isnan(new):
+    if new != NO_TRIAL:
+        if not new < np.inf:  # NaN: not evaluated
+            new = np.inf
         chi2 = memo[_CHI2]
         memo[_COUNT] += 1.0
         memo[_DAMPING], memo[_GROWTH] = adapt(memo[_DAMPING], memo[_GROWTH], (chi2 - new) / max(chi2 - memo[_LOWER],
@@ -209,7 +213,7 @@ def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS
     if r is None:
         raise IdentificationError("the model cannot be integrated at the fit's start")
     r_trial: np.ndarray | None = r
-    memo, trial, new = begin(float(r @ r)), np.empty_like(x), np.nan
+    memo, trial, new = begin(float(r @ r)), np.empty_like(x), NO_TRIAL
     jac = problem.jacobian(x)
     normal, gradient = problem.normal(jac, r)
     while (request := advance(memo, x, trial, normal, gradient, new, evaluations, jacobians or 0, information,
@@ -219,7 +223,7 @@ def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS
             new = np.inf if r_trial is None else float(r_trial @ r_trial)
             continue
         assert r_trial is not None  # the trial point taken lowered χ²
-        r, new = r_trial, np.nan
+        r, new = r_trial, NO_TRIAL
         if request == ACCEPT:
             break
         jac = problem.jacobian(x)

@@ -31,6 +31,7 @@ from .engine import (
     ACCEPT,
     DONE,
     MAX_EVALUATIONS,
+    NO_TRIAL,
     TOLERANCE,
     TRIAL,
     LawFit,
@@ -183,7 +184,7 @@ def _solve(w, evaluations, jacobians, information, jac):
         return NO_START, x, np.inf, 1
     if not _jacobian(w, x, model, internal, y0, p, moved, jac):
         return NO_JACOBIAN, x, chi2, 1
-    memo, trial, new = begin(chi2), np.empty_like(x), np.nan
+    memo, trial, new = begin(chi2), np.empty_like(x), NO_TRIAL
     normal, gradient = normal_equations(jac, r)
     while True:
         request = advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, TOLERANCE)
@@ -192,7 +193,7 @@ def _solve(w, evaluations, jacobians, information, jac):
         if request == TRIAL:
             new = _chi2(w, trial, trial_model, r_trial, internal, y0, p)
             continue
-        model[:], r[:], new = trial_model, r_trial, np.nan
+        model[:], r[:], new = trial_model, r_trial, NO_TRIAL
         if request == ACCEPT:
             break
         if not _jacobian(w, x, model, internal, y0, p, moved, jac):
