@@ -128,6 +128,54 @@ def test_the_forward_model_reproduces_the_sensor_model():
             assert np.max(np.abs(row - recorded)) <= 1e-5 * np.max(np.abs(recorded)), (design, name)
 
 
+def test_freeing_and_holding_a_parameter_is_a_table_edit():
+    """The layout of a fit is a table of named parameters: freeing, holding or adding a prior edits it, and gives
+    the layout make_layout makes for the same unknowns (the same variables, packing and prior rows)."""
+    rig = get_rig()
+    common = dict(contact_time=0.01, sample_rate=50e3)
+    held = fw.make_layout(rig, "hysteretic", ("contact.stiffness",), pressure=200e3, **common)
+    freed = fw.make_layout(rig, "hysteretic", ("contact.stiffness", "friction.force"), pressure=200e3,
+                           pressure_std=20e3, **common)
+    edited = held.with_free("friction.force").with_free("pressure_gauge").with_prior("pressure_gauge", 200e3, 20e3)
+    assert edited.names == freed.names and edited.specs == freed.specs and edited.priors == freed.priors
+    values = {"mass": 30.0, "velocity": 2.0, "contact_time": 0.0101, "contact.stiffness": 2e6,
+              "friction.force": 150.0, "pressure_gauge": 210e3}
+    x = freed.variables(values)
+    for a, b in zip(edited.packed(x), freed.packed(x), strict=True):
+        assert np.array_equal(a, b)
+    # held again: back to the first layout, its prior gone; the held value is the table's
+    back = edited.with_held("pressure_gauge", 200e3).with_held("friction.force", rig.friction.force)
+    assert back.names == held.names and back.priors == () and np.array_equal(back.base, held.base)
+    rows = {row.name: row for row in edited.table(x)}
+    assert rows["friction.force"].free and rows["friction.force"].value == pytest.approx(150.0)
+    assert not rows["cylinder.piston_mass"].free
+    assert rows["cylinder.piston_mass"].value == pytest.approx(rig.cylinder.piston_mass)
+    mean, sigma = rows["pressure_gauge"].prior
+    assert mean == pytest.approx(200e3) and sigma == pytest.approx(20e3)
+    assert rows["contact.stiffness"].bounds == fw.TRIAL_RANGES[fw.STAND_PARAMETERS["contact.stiffness"][0]]
+    with pytest.raises(ParameterError, match="no fit parameter"):
+        held.with_free("contact.stifness")
+    with pytest.raises(ParameterError, match="contact instant"):
+        held.with_held("contact_time", 0.0)
+
+
+def test_the_bounds_of_the_table_are_the_solvers_one_range_check():
+    """A trial point outside a parameter's bounds is refused by the one range check of every prediction (the
+    solver steps back), and a fit started inside them stays inside."""
+    rig = get_rig()
+    layout = fw.make_layout(rig, "hysteretic", ("contact.stiffness",), pressure=200e3, contact_time=0.0,
+                            sample_rate=50e3)
+    low, high = {row.name: row for row in layout.table()}["contact.stiffness"].bounds
+    grid = fw.make_grid(0.0, 50e3, 64, "causal")
+    for stiffness in (0.5 * low, 2.0 * high):
+        x = layout.variables({"mass": 30.0, "velocity": 2.0, "contact_time": 0.0, "contact.stiffness": stiffness})
+        params, times = layout.packed(x[None, :])
+        assert fw.outside_ranges(params[0]) == fw.STAND_PARAMETERS["contact.stiffness"][0]
+        for in_turn in (True, False):
+            with pytest.raises(IdentificationError, match="outside"):
+                fw.predict(grid, params, times, in_turn=in_turn)
+
+
 def test_zero_phase_record_and_fitted_pressure():
     rec = _record(30.0, 2.0, 100e3, 41, anti_alias="zero-phase")
     rec.metadata.pop("pressure_gauge_Pa")

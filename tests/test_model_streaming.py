@@ -278,6 +278,64 @@ def test_the_engines_paths_agree(mass, velocity, pressure, seed):
         assert abs(compiled.values[name] - reference.values[name]) <= 0.05 * reference.std(name)
 
 
+def test_the_compiled_fit_takes_every_layout_with_the_python_solvers_answer():
+    """The stream's compiled fit answers the one solver's requests for any layout (the stand freed, the charge
+    pressure with its prior): the same optimum as the solver in Python on the same residuals, within the stopping
+    rule's reach (χ² to its tolerance, the values to a small fraction of their σ)."""
+    from impactometer.identify.model_fit.engine import TOLERANCE, fit_law
+    from impactometer.identify.model_fit.first_window import fit_window, takes
+    from impactometer.identify.model_fit.select import Start, start_law
+
+    data, _, _ = _first_window(30.0, 2.0, 100e3, 21)
+    start = Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure=100e3, pressure_start=100e3,
+                  pressure_std=10e3)
+    layouts, values = start_law(get_rig(), get_rig().contact.law, None, start, data.grid.sample_rate)
+    for kind in ("core", "all"):
+        layout = layouts(kind, values)
+        assert takes(data, layout) and layout.priors and "pressure_gauge" in layout.names
+        python = fit_law(data, layout, values, in_turn=True)
+        compiled = fit_window(data, layout, values)
+        assert compiled.residuals == python.residuals
+        assert compiled.chi2 == pytest.approx(python.chi2, rel=10 * TOLERANCE)
+        for name in ("mass", "velocity"):
+            assert abs(compiled.values[name] - python.values[name]) <= 0.1 * python.std(name)
+            assert compiled.std(name) == pytest.approx(python.std(name), rel=0.1)
+
+
+def test_the_one_solver_on_a_problem_with_a_known_answer():
+    """The engine's solver on a linear problem reaches its least-squares answer (to the stopping rule's reach), reads
+    the Jacobian through the normal equations only, and ends where the residuals cannot be evaluated (NaN or None)
+    away from the start instead of looping."""
+    from impactometer.identify.model_fit.engine import TOLERANCE, normal_equations, solve
+
+    rng = np.random.default_rng(5)
+    a, b = rng.normal(size=(200, 4)), rng.normal(size=200)
+
+    class Linear:
+        def __init__(self, bad=None):
+            self.bad = bad
+
+        def residuals(self, x):
+            if self.bad is not None and np.linalg.norm(x) > 1e-9:
+                return None if self.bad == "none" else np.full(b.size, np.nan)
+            return a @ x - b
+
+        def jacobian(self, x):
+            return a
+
+        def normal(self, jac, r):
+            return normal_equations(jac, r)
+
+    exact = np.linalg.lstsq(a, b, rcond=None)[0]
+    answer = solve(Linear(), np.zeros(4))
+    best = float(np.sum(np.square(a @ exact - b)))
+    assert answer.converged and answer.chi2 <= best * (1.0 + 10 * TOLERANCE)
+    assert np.sqrt((answer.x - exact) @ (a.T @ a) @ (answer.x - exact)) <= np.sqrt(10 * TOLERANCE * best)
+    for bad in ("nan", "none"):
+        stuck = solve(Linear(bad), np.zeros(4))
+        assert stuck.converged and np.array_equal(stuck.x, np.zeros(4)) and stuck.evaluations < 40
+
+
 def test_a_prior_is_one_more_residual_row():
     """A Gaussian prior on a named unknown of the table: one residual row (variable − its mean)/σ'; a loose one
     leaves the answer, a tight one holds the unknown at its mean."""

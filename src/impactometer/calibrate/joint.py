@@ -5,8 +5,9 @@ dead volumes). Per-drop nuisances: V0 (with the light gate's reading as a Gaussi
 ``velocity_sigma``), the contact instant and both sensor offsets; M1 and p0 are known. Each drop is predicted and
 differentiated by the model-based identification's engine (:class:`impactometer.identify.model_fit.engine.Residuals`:
 the compiled integrator through the recording's sensor model, one batch of integrations per drop and Jacobian),
-so the joint Jacobian is assembled block by block: a drop's rows depend only on the shared unknowns and its own
-nuisances; the engine's solver (:func:`~impactometer.identify.model_fit.engine.solve`) fits it. The fit continues
+so the joint Jacobian is kept block by block: a drop's rows depend only on the shared unknowns and its own
+nuisances, and the normal equations the solver reads are summed drop by drop (linear in the number of drops); the
+engine's solver (:func:`~impactometer.identify.model_fit.engine.solve`) fits it. The fit continues
 over growing windows after each drop's contact (:data:`STAGES`, :func:`~impactometer.identify.model_fit.engine.staged`)
 as :mod:`impactometer.identify.model_fit.select` does for one record: the first holds the stand and finds each
 drop's V0 and contact instant, the later free everything.
@@ -21,7 +22,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import IdentificationError
-from ..identify.model_fit.engine import TOLERANCE, Quality, Residuals, Solution, solve, staged, window
+from ..identify.model_fit.engine import (
+    TOLERANCE,
+    Quality,
+    Residuals,
+    Solution,
+    normal_equations,
+    solve,
+    staged,
+    window,
+)
 from ..identify.model_fit.forward import Layout, make_layout, stand_values, to_variable
 from ..rig import Rig
 from .drops import ObservedDrop
@@ -134,16 +144,36 @@ class _Joint:
         parts = self.parts(self.full(xa))
         return None if parts is None else np.concatenate(parts)
 
-    def jacobian(self, xa: np.ndarray) -> np.ndarray:
-        """The joint Jacobian, assembled from each drop's block (its rows touch the shared columns and its own)."""
+    def jacobian(self, xa: np.ndarray) -> list[np.ndarray]:
+        """The joint Jacobian as each drop's block (its rows touch the shared columns and its own only:
+        ``columns``)."""
         x = self.full(xa)
-        blocks = [model.jacobian(local(x, i, self.shared)) for i, model in enumerate(self.models)]
-        jac = np.zeros((sum(block.shape[0] for block in blocks), x.size))
+        return [model.jacobian(local(x, i, self.shared)) for i, model in enumerate(self.models)]
+
+    def normal(self, blocks: list[np.ndarray], r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The normal equations JᵀJ, Jᵀr of the active variables, summed drop by drop from each block's
+        (:func:`~impactometer.identify.model_fit.engine.normal_equations`): linear in the number of drops, where
+        those of the assembled Jacobian grow with its square."""
+        size = self.x0.size
+        normal, gradient = np.zeros((size, size)), np.zeros(size)
         row = 0
-        for i, block in enumerate(blocks):
-            jac[row:row + block.shape[0], self.columns[i]] = block
+        for columns, block in zip(self.columns, blocks, strict=True):
+            a, b = normal_equations(block, r[row:row + block.shape[0]])
+            normal[np.ix_(columns, columns)] += a
+            gradient[columns] += b
             row += block.shape[0]
-        return jac[:, self.active]
+        return normal[np.ix_(self.active, self.active)], gradient[self.active]
+
+    def root(self, blocks: list[np.ndarray]) -> np.ndarray:
+        """The triangle R of the QR decomposition of the Jacobian of the active variables (RᵀR = JᵀJ), from each
+        drop's block reduced to its own triangle first (linear in the number of drops)."""
+        size = self.x0.size
+        rows = []
+        for columns, block in zip(self.columns, blocks, strict=True):
+            wide = np.zeros((min(block.shape), size))
+            wide[:, columns] = np.linalg.qr(block, mode="r")
+            rows.append(wide[:, self.active])
+        return np.asarray(np.linalg.qr(np.vstack(rows), mode="r"))
 
     def drop_chi2(self, x: np.ndarray) -> tuple[float, ...]:
         """Each drop's χ² of its samples at the joint vector ``x``."""
@@ -216,11 +246,10 @@ def fit_family(drops: Sequence[ObservedDrop], rig: Rig, law: str, free: tuple[st
     answer, joint, evaluations = staged(tuple(enumerate(stages)), fit_one, None)
     x = answer.x
     if joint.active.all():
-        jac = answer.jacobian
+        root = joint.root(answer.jacobian)
     else:  # the Fisher information of every unknown, the held ones too
-        every = np.ones(x.size, dtype=bool)
-        jac = _Joint(drops, layouts, len(free), stages[-1][0], x, every).jacobian(x)
-    root = np.asarray(np.linalg.qr(jac, mode="r"))
+        every = _Joint(drops, layouts, len(free), stages[-1][0], x, np.ones(x.size, dtype=bool))
+        root = every.root(every.jacobian(x))
     drop_chi2 = joint.drop_chi2(x)
     family = Family(law=law, free=free, layouts=layouts, x=x, root=root, chi2=answer.chi2 + joint.constant,
                     residuals=joint.size, drop_chi2=drop_chi2, drop_residuals=tuple(joint.sizes),

@@ -7,8 +7,9 @@ of a layout on it (:class:`Residuals`), one Levenberg-Marquardt solver (:func:`s
 
     Layout (named unknowns)  ->  Residuals (data − offset − model)/σ, Jacobian  ->  solve  ->  Solution  ->  LawFit
 
-The compiled first-window fit of the stream (:mod:`.first_window`) runs the same step and stopping rule inside
-its own compiled loop.
+The solver's loop is :func:`advance`, which asks its caller for residuals and Jacobians one request at a time:
+:func:`solve` answers it in Python for any :class:`Problem`, the stream's compiled fits (:mod:`.first_window`)
+with compiled residuals.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numba import njit
@@ -60,17 +61,31 @@ LEAD_SAMPLES = 64
 
 
 @njit(cache=True, error_model="numpy")
-def damped_step(jac, r, damping):
-    """The Levenberg-Marquardt step −(JᵀJ + λ·diag JᵀJ)⁻¹Jᵀr of residuals ``r`` with Jacobian ``jac`` and damping
-    λ, solved in column-scaled variables (the one damping step of every fit)."""
-    scale = np.sqrt(np.sum(jac * jac, axis=0))
+def normal_equations(jac, r):
+    """The normal equations JᵀJ, Jᵀr of residuals ``r`` with Jacobian ``jac``: all the solver reads of a Jacobian
+    (formed once per Jacobian; a rejected step only solves them again with another damping)."""
+    return jac.T @ jac, jac.T @ r
+
+
+@njit(cache=True, error_model="numpy")
+def damped_step(normal, gradient, damping):
+    """The Levenberg-Marquardt step −(JᵀJ + λ·diag JᵀJ)⁻¹Jᵀr of the normal equations ``normal`` = JᵀJ and
+    ``gradient`` = Jᵀr with damping λ, solved in column-scaled variables (a Cholesky factor; least squares where
+    the damped matrix is not positive definite), and the reduction of χ² the linearised model predicts for it (the
+    one damping step of every fit)."""
+    scale = np.sqrt(np.diag(normal))
     for k in range(scale.size):
         if scale[k] == 0.0:
             scale[k] = 1.0
-    scaled = jac / scale
-    normal = scaled.T @ scaled
-    lifted = normal + damping * np.diag(np.diag(normal))
-    return -np.linalg.lstsq(lifted, scaled.T @ r)[0] / scale
+    scaled = normal / np.outer(scale, scale)
+    g = gradient / scale
+    lifted = scaled + damping * np.diag(np.diag(scaled))
+    try:
+        factor = np.linalg.cholesky(lifted)
+        step = -np.linalg.solve(factor.T, np.linalg.solve(factor, g))
+    except Exception:  # noqa: BLE001 - numba raises LinAlgError as Exception
+        step = -np.linalg.lstsq(lifted, g)[0]
+    return step / scale, -(2.0 * (step @ g) + step @ (scaled @ step))
 
 
 @njit(cache=True, error_model="numpy")
@@ -91,76 +106,130 @@ def stops(chi2, lower, damping, tolerance):
     return 0.0 <= chi2 - lower <= tolerance * chi2 or damping > MOST_DAMPING
 
 
+#: what the solver asks of its caller next (:func:`advance`): nothing (the fit is done), the χ² at the trial point,
+#: to take the trial point and stop, to take it and make the Jacobian there
+DONE, TRIAL, ACCEPT, ACCEPT_JACOBIAN = 0, 1, 2, 3
+#: the solver's memory (:func:`begin`): χ², damping, its growth factor, χ² the last step predicted, residual
+#: evaluations, Jacobians made, converged
+_CHI2, _DAMPING, _GROWTH, _LOWER, _COUNT, _MADE, _CONVERGED = range(7)
+#: the ``new`` of :func:`advance` after a Jacobian (a χ² is never negative)
+NO_TRIAL = -1.0
+
+
+@njit(cache=True, error_model="numpy")
+def begin(chi2):
+    """The solver's memory at the start point of χ² ``chi2`` (its residuals and Jacobian made)."""
+    return np.array([chi2, FIRST_DAMPING, 2.0, chi2, 1.0, 1.0, 0.0])
+
+
+@njit(cache=True, error_model="numpy")
+def advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, tolerance):
+    """The Levenberg-Marquardt loop of every fit, one request at a time (reverse communication): after the
+    Jacobian at ``x`` (its normal equations ``normal``, ``gradient``; ``new`` :data:`NO_TRIAL`) or the χ² ``new``
+    of the last trial point (inf or NaN where the model cannot be evaluated there), returns what the caller does
+    next (:data:`TRIAL`: evaluate at ``trial``; :data:`ACCEPT`, :data:`ACCEPT_JACOBIAN`: ``x`` moved to the trial
+    point, keep its residuals, and make the Jacobian there; :data:`DONE`). ``memo`` (:func:`begin`) holds the rest.
+
+    Damped steps (:func:`damped_step`), the damping lowered after a step that lowers χ² and raised after one that
+    does not (:func:`adapt`), until :func:`stops` (converged), ``evaluations`` residual evaluations are spent, or
+    ``jacobians`` Jacobians are made (> 0; an update of a fit whose window grew a little: one Jacobian and one or
+    a few residual evaluations). With ``information`` the Jacobian of a converged answer is made at it.
+    """
+    if new != NO_TRIAL:
+        if not new < np.inf:  # NaN: not evaluated
+            new = np.inf
+        chi2 = memo[_CHI2]
+        memo[_COUNT] += 1.0
+        memo[_DAMPING], memo[_GROWTH] = adapt(memo[_DAMPING], memo[_GROWTH], (chi2 - new) / max(chi2 - memo[_LOWER],
+                                                                                              1e-300))
+        converged = stops(chi2, new, memo[_DAMPING], tolerance)
+        if new < chi2:
+            x[:] = trial
+            memo[_CHI2], memo[_CONVERGED] = new, converged
+            if (jacobians > 0 and memo[_MADE] >= jacobians) or (converged and not information):
+                return ACCEPT
+            memo[_MADE] += 1.0
+            return ACCEPT_JACOBIAN
+        if converged:  # no damping lowers χ²: at the minimum to the model precision
+            memo[_CONVERGED] = 1.0
+            return DONE
+    elif memo[_CONVERGED]:  # the Jacobian of the answer made
+        return DONE
+    if memo[_COUNT] >= evaluations:
+        return DONE
+    step, reduction = damped_step(normal, gradient, memo[_DAMPING])
+    memo[_LOWER] = memo[_CHI2] - reduction
+    if stops(memo[_CHI2], memo[_LOWER], memo[_DAMPING], tolerance):
+        memo[_CONVERGED] = 1.0
+        return DONE
+    trial[:] = x + step
+    return TRIAL
+
+
+@njit(cache=True, error_model="numpy")
+def outcome(memo):
+    """χ², residual evaluations and whether it converged, of the solver's memory ``memo``."""
+    return memo[_CHI2], int(memo[_COUNT]), memo[_CONVERGED] > 0.0
+
+
 class Problem(Protocol):
-    """A weighted least-squares problem: ``residuals(x)`` (None where the model cannot be evaluated at ``x``)
-    and ``jacobian(x)``."""
+    """A weighted least-squares problem: ``residuals(x)`` (None where the model cannot be evaluated at ``x``),
+    ``jacobian(x)`` and the normal equations ``normal(jacobian, r)`` (JᵀJ, Jᵀr) the solver reads of it."""
 
     def residuals(self, x: np.ndarray) -> np.ndarray | None: ...
 
-    def jacobian(self, x: np.ndarray) -> np.ndarray: ...
+    def jacobian(self, x: np.ndarray): ...
+
+    def normal(self, jacobian, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...
 
 
 @dataclass(frozen=True)
 class Solution:
     """What :func:`solve` found: the variables ``x``, the residuals there and their sum of squares ``chi2``, the
-    last Jacobian made (at ``x`` unless the Jacobians ran out), the residual evaluations and whether the stopping
-    rule ended the fit."""
+    last Jacobian made (at ``x`` unless the Jacobians ran out; in the problem's form: an array, or the
+    calibration's blocks), the residual evaluations and whether the stopping rule ended the fit."""
 
     x: np.ndarray
     residuals: np.ndarray
     chi2: float
-    jacobian: np.ndarray
+    jacobian: Any
     evaluations: int
     converged: bool
 
 
 def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS, tolerance: float = TOLERANCE,
           jacobians: int | None = None, information: bool = True) -> Solution:
-    """Levenberg-Marquardt on ``problem`` from ``x``: damped steps (:func:`damped_step`), the damping lowered after
-    a step that lowers χ² and raised after one that does not (:func:`adapt`), until :func:`stops` (converged),
-    ``evaluations`` residual evaluations are spent, or ``jacobians`` Jacobians are made (an update of a fit whose
-    window grew a little: one Jacobian and one or a few residual evaluations). With ``information`` the Jacobian of the
-    answer is made at it (else the last one made, where the fit stops).
+    """Levenberg-Marquardt on ``problem`` from ``x`` (:func:`advance`, which see for ``evaluations``,
+    ``jacobians`` and ``information``; without ``information`` the Jacobian is the last one made, where the fit
+    stops).
 
     Raises
     ------
     IdentificationError
         When the problem cannot be evaluated at ``x``.
     """
-    x = np.asarray(x, dtype=float)
+    x = np.array(x, dtype=float)
     r = problem.residuals(x)
     if r is None:
         raise IdentificationError("the model cannot be integrated at the fit's start")
-    chi2, count, made, damping, growth, converged = float(r @ r), 1, 1, FIRST_DAMPING, 2.0, False
+    r_trial: np.ndarray | None = r
+    memo, trial, new = begin(float(r @ r)), np.empty_like(x), NO_TRIAL
     jac = problem.jacobian(x)
-    while count < evaluations:
-        step = damped_step(jac, r, damping)
-        predicted = r + jac @ step
-        lower = float(predicted @ predicted)
-        if stops(chi2, lower, damping, tolerance):
-            converged = True
-            break
-        trial = x + step
-        r_trial = problem.residuals(trial)
-        count += 1
-        new = np.inf if r_trial is None else float(r_trial @ r_trial)
-        damping, growth = adapt(damping, growth, (chi2 - new) / max(chi2 - lower, 1e-300))
-        if not new < chi2:
-            if stops(chi2, new, damping, tolerance):  # no damping lowers χ²: at the minimum to the model precision
-                converged = True
-                break
+    normal, gradient = problem.normal(jac, r)
+    while (request := advance(memo, x, trial, normal, gradient, new, evaluations, jacobians or 0, information,
+                              tolerance)) != DONE:
+        if request == TRIAL:
+            r_trial = problem.residuals(trial)
+            new = np.inf if r_trial is None else float(r_trial @ r_trial)
             continue
-        assert r_trial is not None  # a lower χ²
-        converged = stops(chi2, new, damping, tolerance)
-        x, r, chi2 = trial, r_trial, new
-        if jacobians is not None and made >= jacobians:
+        assert r_trial is not None  # the trial point taken lowered χ²
+        r, new = r_trial, NO_TRIAL
+        if request == ACCEPT:
             break
-        if not converged or information:
-            jac = problem.jacobian(x)
-            made += 1
-        if converged:
-            break
-    return Solution(x=x, residuals=r, chi2=chi2, jacobian=jac, evaluations=count, converged=converged)
+        jac = problem.jacobian(x)
+        normal, gradient = problem.normal(jac, r)
+    chi2, count, converged = outcome(memo)
+    return Solution(x=x, residuals=r, chi2=float(chi2), jacobian=jac, evaluations=count, converged=bool(converged))
 
 
 @dataclass(frozen=True)
@@ -256,6 +325,10 @@ class Residuals:
             return None
         return np.r_[tail.ravel(), self.root * (self.mean - x[self.q:]),
                      (x[self.prior_index] - self.prior_mean) / self.prior_sigma]
+
+    def normal(self, jac: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The normal equations of Jacobian ``jac`` and residuals ``r`` (:func:`normal_equations`)."""
+        return normal_equations(jac, r)
 
     def jacobian(self, x: np.ndarray) -> np.ndarray:
         """∂residuals/∂x (rows of :meth:`residuals`, q + 2)."""

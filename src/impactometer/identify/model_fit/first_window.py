@@ -1,13 +1,13 @@
-"""The stream's fits of its growing record, with the compiled first-window fit: M1, V0 and the contact instant with
-the stand held, Levenberg-Marquardt in one call on the calling thread, for a causal sensor model (the loop's
-records).
+"""The stream's fits of its growing record, compiled for a causal sensor model (the loop's records): the first
+window (M1, V0 and the contact instant with the stand held) and each update, Levenberg-Marquardt in one call on
+the calling thread.
 
-The compiled fit is :func:`.engine.fit_law` of that layout (the same residuals with the pre-trigger through its
-sums, the same Jacobian by forward differences, the same damping step :func:`.engine.damped_step` and stopping
-rule :func:`.engine.stops`) without the ~0.1 ms of Python around each prediction and step, which was two thirds of
-a first answer's time. Its predictions equal :func:`.forward.predict`'s but for the last bit of M1 and V0 (``exp``
-of the compiled code). Every other layout is fitted by :func:`.engine.fit_law` with the predictions on the
-calling thread.
+The compiled fit is :func:`.engine.fit_law` of any layout with a fitted contact instant (the same residuals with
+the pre-trigger through its sums and a row per prior, the same Jacobian by forward differences, the same packing
+of the variables :func:`.forward.pack_row`, and the same solver: the requests of :func:`.engine.advance` answered
+by compiled residuals and Jacobians) without the ~0.1 ms of Python around each prediction and step, which was two
+thirds of a first answer's time. Its predictions equal :func:`.forward.predict`'s. Every other record is fitted by
+:func:`.engine.fit_law` with the predictions on the calling thread.
 
 The integration tolerance stays :data:`.forward.FIT_RTOL`: a looser one saves little on a 4 ms window (54 steps at
 1e-9, 25 at 1e-7; the output instants of the anti-alias filter cost as much) and its error, though far below the
@@ -28,24 +28,35 @@ from ...model import dynamics as d
 from ...model import fast
 from ...model.simulate import MAX_STEP, absolute_tolerance
 from .engine import (
-    FIRST_DAMPING,
+    ACCEPT,
+    DONE,
     MAX_EVALUATIONS,
+    NO_TRIAL,
     TOLERANCE,
+    TRIAL,
     LawFit,
     Observed,
     Residuals,
     Solution,
-    adapt,
-    damped_step,
+    advance,
+    begin,
     fit_law,
     law_fit,
-    stops,
+    normal_equations,
+    outcome,
     variables,
 )
-from .forward import CHANNEL_INDEX, FIT_RTOL, MAX_FIT_STEPS, Layout, _fir_decimate, outside_ranges, predict_row
+from .forward import (
+    CHANNEL_INDEX,
+    FIT_RTOL,
+    MAX_FIT_STEPS,
+    Layout,
+    _fir_decimate,
+    outside_ranges,
+    pack_row,
+    predict_row,
+)
 
-#: the layout this fit takes: its names and transforms (:data:`.forward.CORE_PARAMETERS`)
-CORE = (("mass", "log", 0.0), ("velocity", "log", 0.0), ("contact_time", "linear", 1.0))
 #: what the compiled fit reports: converged, stopped at its evaluations or Jacobians, not integrable at the start
 #: or at a Jacobian
 CONVERGED, STOPPED, NO_START, NO_JACOBIAN = 0, 1, 2, 3
@@ -65,12 +76,20 @@ class Timing(NamedTuple):
 
 
 class Window(NamedTuple):
-    """Everything the compiled fit reads of one window: the packed stand, the start vector, the
-    finite-difference steps, the :class:`Timing`, the internal instants, the reversed FIR taps, the noise σ (2,),
-    rtol then the absolute tolerances, the samples after the head over σ (2, n), and the head (root of its size,
-    its means)."""
+    """Everything the compiled fit reads of one window: the layout (its packed held values, its
+    :attr:`.forward.Layout.codes` as ``slots``, ``code`` and ``param``, whether the law is hysteretic, its priors:
+    index, mean and σ of each), the start vector, the finite-difference steps, the :class:`Timing`, the internal
+    instants, the reversed FIR taps, the noise σ (2,), rtol then the absolute tolerances, the samples after the
+    head over σ (2, n), and the head (root of its size, its means)."""
 
-    stand: np.ndarray
+    base: np.ndarray
+    slots: np.ndarray
+    code: np.ndarray
+    param: np.ndarray
+    hysteretic: bool
+    prior_index: np.ndarray
+    prior_mean: np.ndarray
+    prior_sigma: np.ndarray
     x: np.ndarray
     steps: np.ndarray
     timing: Timing
@@ -83,20 +102,17 @@ class Window(NamedTuple):
 
 
 def takes(data: Observed, layout: Layout) -> bool:
-    """Whether the compiled fit takes ``layout`` on ``data``: the core layout, a causal sensor model."""
-    return data.grid.design == "causal" and tuple(
-        (name, kind, param) for name, (_, kind, param) in zip(layout.names, layout.specs, strict=True)) == CORE
+    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model and a fitted contact instant."""
+    return data.grid.design == "causal" and "contact_time" in layout.names
 
 
 @njit(cache=True, error_model="numpy")
-def _channels(w, x, out, internal, y0):
-    """``out`` (2, n) := the channels over σ predicted at core variables ``x``; False where the model is not
-    integrated there (:func:`.forward.predict_row`'s refusals, a contact before the earliest)."""
+def _channels(w, x, out, internal, y0, p):
+    """``out`` (2, n) := the channels over σ predicted at the layout's variables ``x``; False where the model is
+    not integrated there (:func:`.forward.predict_row`'s refusals, a contact before the earliest)."""
     timing = w.timing
-    p = w.stand.copy()
-    p[d.MASS] = np.exp(min(max(x[0], -700.0), 700.0))
-    p[d.VELOCITY] = np.exp(min(max(x[1], -700.0), 700.0))
-    contact = timing.origin + x[2] / timing.sample_rate
+    shift = pack_row(w.base, x, w.slots, w.code, w.param, w.hysteretic, p)
+    contact = timing.origin + shift / timing.sample_rate
     if not (np.isfinite(contact) and contact >= timing.earliest):
         return False
     if predict_row(p, y0, w.offsets, contact - timing.start_time, CHANNEL_INDEX, w.tolerances[0],
@@ -109,76 +125,83 @@ def _channels(w, x, out, internal, y0):
 
 
 @njit(cache=True, error_model="numpy")
-def _chi2(w, x, model, r, internal, y0):
-    """χ² less the head's constant at ``x`` (``model`` and ``r`` filled: the residuals after the head, then the
-    head's two rows); inf where the model is not integrated there."""
-    if not _channels(w, x, model, internal, y0):
+def _chi2(w, x, model, r, internal, y0, p):
+    """χ² less the head's constant at ``x`` (``model`` and ``r`` filled: the residuals after the head, the head's
+    two rows, then one row per prior: :meth:`.engine.Residuals.residuals`); inf where the model is not integrated
+    there."""
+    q = w.slots.size
+    if not _channels(w, x, model, internal, y0, p):
         return np.inf
     n = w.tail.shape[1]
     for c in range(2):
-        r[c * n:(c + 1) * n] = w.tail[c] - x[3 + c] - model[c]
-        r[2 * n + c] = w.head[0] * (w.head[1 + c] - x[3 + c])
+        r[c * n:(c + 1) * n] = w.tail[c] - x[q + c] - model[c]
+        r[2 * n + c] = w.head[0] * (w.head[1 + c] - x[q + c])
+    for k in range(w.prior_index.size):
+        r[2 * n + 2 + k] = (x[w.prior_index[k]] - w.prior_mean[k]) / w.prior_sigma[k]
     return float(r @ r)
 
 
 @njit(cache=True, error_model="numpy")
-def _jacobian(w, x, model, internal, y0, moved, jac):
-    n = model.shape[1]
+def _jacobian(w, x, model, internal, y0, p, moved, jac):
+    """``jac`` := ∂residuals/∂x as :meth:`.engine.Residuals.jacobian` makes it (backward differences where a
+    forward step leaves the range the model is integrated in); False where neither is integrated."""
+    q, n = w.slots.size, model.shape[1]
     jac[:] = 0.0
-    for j in range(3):
-        shifted = x.copy()
-        shifted[j] += w.steps[j]
-        if not _channels(w, shifted, moved, internal, y0):
-            return False
-        for c in range(2):
-            jac[c * n:(c + 1) * n, j] = (model[c] - moved[c]) / w.steps[j]
-    jac[:n, 3] = -1.0
-    jac[n:2 * n, 4] = -1.0
-    jac[2 * n, 3] = jac[2 * n + 1, 4] = -w.head[0]
+    for sign in (1.0, -1.0):
+        done = True
+        for j in range(q):
+            shifted = x.copy()
+            shifted[j] += sign * w.steps[j]
+            if not _channels(w, shifted, moved, internal, y0, p):
+                done = False
+                break
+            for c in range(2):
+                jac[c * n:(c + 1) * n, j] = (model[c] - moved[c]) / (sign * w.steps[j])
+        if done:
+            break
+    if not done:
+        return False
+    jac[:n, q] = -1.0
+    jac[n:2 * n, q + 1] = -1.0
+    jac[2 * n, q] = jac[2 * n + 1, q + 1] = -w.head[0]
+    for k in range(w.prior_index.size):
+        jac[2 * n + 2 + k, w.prior_index[k]] = 1.0 / w.prior_sigma[k]
     return True
 
 
 @njit(cache=True, error_model="numpy")
 def _solve(w, evaluations, jacobians, information, jac):
-    """:func:`.engine.solve` compiled from ``w.x`` (``jacobians`` <= 0: no limit); returns (report, x, χ² less the
+    """:func:`.engine.solve` compiled from ``w.x`` (``jacobians`` <= 0: no limit): the same requests of
+    :func:`.engine.advance` answered by the compiled residuals and Jacobian; returns (report, x, χ² less the
     head's constant, residual evaluations); ``jac`` holds the last Jacobian made."""
-    n = w.tail.shape[1]
-    internal, y0 = np.empty((2, w.offsets.size)), np.empty(d.N_STATE)
+    n, rows = w.tail.shape[1], jac.shape[0]
+    internal, y0, p = np.empty((2, w.offsets.size)), np.empty(d.N_STATE), np.empty(w.base.size)
     model, trial_model, moved = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
-    r, r_trial = np.empty(2 * n + 2), np.empty(2 * n + 2)
-    x = w.x
-    chi2 = _chi2(w, x, model, r, internal, y0)
+    r, r_trial = np.empty(rows), np.empty(rows)
+    x = w.x.copy()
+    chi2 = _chi2(w, x, model, r, internal, y0, p)
     if chi2 == np.inf:
         return NO_START, x, np.inf, 1
-    count, made, damping, growth = 1, 1, FIRST_DAMPING, 2.0
-    if not _jacobian(w, x, model, internal, y0, moved, jac):
-        return NO_JACOBIAN, x, chi2, count
-    while count < evaluations:
-        step = damped_step(jac, r, damping)
-        predicted = r + jac @ step
-        lower = float(predicted @ predicted)
-        if stops(chi2, lower, damping, TOLERANCE):
-            return CONVERGED, x, chi2, count
-        trial = x + step
-        count += 1
-        new = _chi2(w, trial, trial_model, r_trial, internal, y0)
-        damping, growth = adapt(damping, growth, (chi2 - new) / max(chi2 - lower, 1e-300))
-        if not new < chi2:
-            if stops(chi2, new, damping, TOLERANCE):  # no damping lowers χ²: at the minimum to the model precision
-                return CONVERGED, x, chi2, count
+    if not _jacobian(w, x, model, internal, y0, p, moved, jac):
+        return NO_JACOBIAN, x, chi2, 1
+    memo, trial, new = begin(chi2), np.empty_like(x), NO_TRIAL
+    normal, gradient = normal_equations(jac, r)
+    while True:
+        request = advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, TOLERANCE)
+        if request == DONE:
+            break
+        if request == TRIAL:
+            new = _chi2(w, trial, trial_model, r_trial, internal, y0, p)
             continue
-        converged = stops(chi2, new, damping, TOLERANCE)
-        x, chi2 = trial, new
-        model[:], r[:] = trial_model, r_trial
-        if jacobians > 0 and made >= jacobians:
-            return CONVERGED if converged else STOPPED, x, chi2, count
-        if not converged or information:
-            if not _jacobian(w, x, model, internal, y0, moved, jac):
-                return NO_JACOBIAN, x, chi2, count
-            made += 1
-        if converged:
-            return CONVERGED, x, chi2, count
-    return STOPPED, x, chi2, count
+        model[:], r[:], new = trial_model, r_trial, NO_TRIAL
+        if request == ACCEPT:
+            break
+        if not _jacobian(w, x, model, internal, y0, p, moved, jac):
+            chi2, count, _ = outcome(memo)
+            return NO_JACOBIAN, x, chi2, count
+        normal, gradient = normal_equations(jac, r)
+    chi2, count, converged = outcome(memo)
+    return CONVERGED if converged else STOPPED, x, chi2, count
 
 
 def _window(data: Observed, layout: Layout, start: dict[str, float], offsets: np.ndarray) -> tuple[
@@ -188,13 +211,15 @@ def _window(data: Observed, layout: Layout, start: dict[str, float], offsets: np
     problem = Residuals(data, layout)
     grid = problem.grid
     x = variables(layout, start, offsets, data.noise)
-    stand = layout.packed(x[None, :3])[0][0]
-    if outside_ranges(stand) >= 0:
+    if outside_ranges(layout.packed(x[None, :problem.q])[0][0]) >= 0:
         return None, problem
     timing = Timing(origin=float(layout.origin), sample_rate=float(layout.sample_rate), start_time=grid.start_time,
                     earliest=problem.earliest, factor=int(grid.factor), pad=int(grid.pad))
-    return Window(stand=stand, x=x, steps=problem.steps.astype(float), timing=timing, offsets=grid.offsets,
-                  fir=grid.taps, noise=data.noise, tolerances=np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)],
+    index, code, param = layout.codes
+    return Window(base=layout.base, slots=index, code=code, param=param, hysteretic=layout.law == "hysteretic",
+                  prior_index=problem.prior_index, prior_mean=problem.prior_mean, prior_sigma=problem.prior_sigma,
+                  x=x, steps=problem.steps.astype(float), timing=timing, offsets=grid.offsets, fir=grid.taps,
+                  noise=data.noise, tolerances=np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)],
                   tail=np.ascontiguousarray(problem.tail), head=np.r_[problem.root, problem.mean]), problem
 
 
@@ -214,7 +239,7 @@ def fit_window(data: Observed, layout: Layout, start: dict[str, float], offsets:
                        jacobians=jacobians, in_turn=True)
     w, problem = _window(data, layout, start, offsets)
     if w is not None:
-        jac = np.empty((w.tail.size + 2, 5))
+        jac = np.empty((w.tail.size + 2 + w.prior_index.size, problem.q + 2))
         update = jacobians is not None
         report, x, chi2, count = _solve(w, int(evaluations), int(jacobians or 0), information and not update, jac)
         if report not in (NO_START, NO_JACOBIAN):
@@ -237,10 +262,12 @@ def warm() -> None:
     from .forward import _predict_in_turn
 
     timing = Timing(origin=0.0, sample_rate=1.0, start_time=0.0, earliest=0.0, factor=1, pad=0)
-    w = Window(stand=np.zeros(d.N_PARAM), x=np.full(5, -1e3), steps=np.ones(3), timing=timing, offsets=np.zeros(4),
-               fir=np.ones(1), noise=np.ones(2), tolerances=np.ones(1 + d.N_STATE), tail=np.zeros((2, 1)),
-               head=np.ones(3))
-    _solve(w, 1, 0, True, np.zeros((4, 5)))
+    index, code, param = (np.array([d.MASS, d.VELOCITY, -1]), np.array([0, 0, 2]), np.array([0.0, 0.0, 1.0]))
+    w = Window(base=np.zeros(d.N_PARAM), slots=index, code=code, param=param, hysteretic=True,
+               prior_index=np.zeros(1, dtype=np.int64), prior_mean=np.zeros(1), prior_sigma=np.ones(1),
+               x=np.full(5, -1e3), steps=np.ones(3), timing=timing, offsets=np.zeros(4), fir=np.ones(1),
+               noise=np.ones(2), tolerances=np.ones(1 + d.N_STATE), tail=np.zeros((2, 1)), head=np.ones(3))
+    _solve(w, 1, 0, True, np.zeros((5, 5)))
     _predict_in_turn(np.zeros((1, d.N_PARAM)), np.zeros(4), np.zeros(1), CHANNEL_INDEX, FIT_RTOL,
                      absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS, np.zeros((1, 2, 4)),
                      np.zeros(1, dtype=np.int64))

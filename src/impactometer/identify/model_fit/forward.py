@@ -10,8 +10,10 @@ are handled by the fit (:mod:`.engine`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 from numba import njit, prange
@@ -23,6 +25,7 @@ from ...model.setup import contact_state, initial_states, pack
 from ...model.simulate import MAX_STEP, absolute_tolerance
 from ...rig import CONTACT_LAWS, Rig, Scenario
 from ...sensors import ANTI_ALIAS, causal_taps, internal_layout
+from ...validation import check_real
 
 #: relative tolerance of the integrations of the fit (the model error it leaves is ~1e-9 of each channel, far
 #: below any sensor noise)
@@ -74,13 +77,50 @@ def to_variable(value, kind: str, param: float):
     return value / param
 
 
-def from_variable(x, kind: str, param: float):
-    """Physical value of a fit variable (inverse of :func:`to_variable`)."""
-    if kind == "log":  # a trial point far off: a huge or tiny value, no overflow
-        return np.exp(np.clip(x, -700.0, 700.0)) - param
-    if kind == "logit":  # e within [1e-13, 1 - 1e-13]: k1/e² stays finite
-        return 1.0 / (1.0 + np.exp(-np.clip(x, -30.0, 30.0)))
+#: the transforms of the fit variables (see :data:`STAND_PARAMETERS`), by the code the compiled kernels read
+KINDS = ("log", "logit", "linear")
+
+
+@njit(cache=True, error_model="numpy")
+def variable_value(x, code, param):
+    """Physical value of the fit variable ``x`` of transform ``KINDS[code]`` (inverse of :func:`to_variable`)."""
+    if code == 0:  # a trial point far off: a huge or tiny value, no overflow
+        return np.exp(min(max(x, -700.0), 700.0)) - param
+    if code == 1:  # e within [1e-13, 1 - 1e-13]: k1/e² stays finite
+        return 1.0 / (1.0 + np.exp(-min(max(x, -30.0), 30.0)))
     return x * param
+
+
+@njit(cache=True, error_model="numpy")
+def _variable_values(x, code, param, out):
+    for i in range(x.size):
+        out[i] = variable_value(x[i], code, param)
+
+
+def from_variable(x, kind: str, param: float):
+    """Physical value of a fit variable or an array of them (:func:`variable_value`)."""
+    values = np.asarray(x, dtype=float)
+    out = np.empty(values.size)
+    _variable_values(np.ascontiguousarray(values).reshape(-1), KINDS.index(kind), float(param), out)
+    return out.reshape(values.shape) if values.ndim else float(out[0])
+
+
+@njit(cache=True, error_model="numpy")
+def pack_row(base, x, index, code, param, hysteretic, out):
+    """``out`` := the packed parameters of fit variables ``x`` (a :class:`Layout`'s :attr:`~Layout.codes`, ``base``
+    its held values); returns the ``contact_time`` variable's value (sample periods from the layout's origin; 0
+    where it is not fitted). The hysteretic law's unloading stiffness k2 = k1/e² follows k1 and e (packed as e)."""
+    out[:] = base
+    contact = 0.0
+    for j in range(index.size):
+        value = variable_value(x[j], code[j], param[j])
+        if index[j] < 0:
+            contact = value
+        else:
+            out[index[j]] = value
+    if hysteretic:
+        out[d.CONTACT_C] = out[d.CONTACT_K] / out[d.CONTACT_C] ** 2
+    return contact
 
 
 def contact_parameters(law: str) -> tuple[str, ...]:
@@ -127,6 +167,33 @@ def free_parameters(law: str, uncertain: tuple[str, ...] | None) -> tuple[str, .
     return tuple(dict.fromkeys(out))
 
 
+#: every parameter a fit can free, by name: the core unknowns, the stand parameters and the charge pressure
+PARAMETERS = (*CORE_PARAMETERS, *STAND_PARAMETERS, "pressure_gauge")
+
+
+def parameter_spec(name: str, base: np.ndarray) -> tuple[int, str, float]:
+    """(packed index, transform, parameter) of the fit variable of parameter ``name`` on the packed stand
+    ``base`` (the charge pressure's variable is ln of the absolute pressure)."""
+    if name == "pressure_gauge":
+        return d.PRESSURE_GAUGE, "log", float(base[d.ATMOSPHERE])
+    spec = CORE_PARAMETERS.get(name) or STAND_PARAMETERS.get(name)
+    if spec is None:
+        raise ParameterError(f"no fit parameter is named {name!r}; expected any of {list(PARAMETERS)}")
+    return spec
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One row of a layout's parameter table (:meth:`Layout.table`): the value [SI], the range the model is
+    integrated in [SI], whether it is fitted, and its Gaussian prior (mean, σ) [SI] or None."""
+
+    name: str
+    value: float
+    bounds: tuple[float, float]
+    free: bool
+    prior: tuple[float, float] | None
+
+
 @dataclass(frozen=True)
 class Layout:
     """Which unknowns a fit has and how its variables map onto the packed stand parameters.
@@ -157,6 +224,60 @@ class Layout:
         spread = sigma / abs(self.derivative(name, mean_variable))
         return replace(self, priors=(*self.priors, (j, mean_variable, float(spread))))
 
+    def with_free(self, name: str) -> Layout:
+        """This layout with the held parameter ``name`` (any of :data:`PARAMETERS`) an unknown, from its held
+        value: a table edit (the stand parameters go before ``pressure_gauge``, which stays last)."""
+        if name in self.names:
+            return self
+        spec = parameter_spec(name, self.base)
+        at = self.names.index("pressure_gauge") if "pressure_gauge" in self.names else len(self.names)
+        return replace(self, names=(*self.names[:at], name, *self.names[at:]),
+                       specs=(*self.specs[:at], spec, *self.specs[at:]),
+                       priors=tuple((j + (j >= at), mean, spread) for j, mean, spread in self.priors))
+
+    def with_held(self, name: str, value: float) -> Layout:
+        """This layout with the unknown ``name`` held at ``value`` [SI] (its prior dropped): a table edit. The
+        contact instant is always fitted."""
+        index, _, _ = parameter_spec(name, self.base)
+        if index < 0:
+            raise ParameterError(f"the contact instant cannot be held; hold any of "
+                                 f"{[n for n in PARAMETERS if n != 'contact_time']}")
+        value = check_real(name, value, error=ParameterError)
+        base = self.base.copy()
+        base[index] = value
+        if name not in self.names:
+            return replace(self, base=base)
+        j = self.names.index(name)
+        return replace(self, names=self.names[:j] + self.names[j + 1:], specs=self.specs[:j] + self.specs[j + 1:],
+                       base=base, priors=tuple((k - (k > j), mean, spread) for k, mean, spread in self.priors
+                                               if k != j))
+
+    def table(self, x: np.ndarray | None = None) -> tuple[Parameter, ...]:
+        """Every parameter the fit can free, by name: its value (an unknown's at the fit variables ``x``, else at
+        none: NaN; a held one's), the range the solver's one range check keeps it in (:func:`outside_ranges`),
+        whether it is free, and its prior."""
+        values = {} if x is None else self.values(np.asarray(x, dtype=float)[:len(self.names)])
+        priors = {self.names[j]: (mean, spread) for j, mean, spread in self.priors}
+        rows = []
+        for name in PARAMETERS:
+            index, kind, param = parameter_spec(name, self.base)
+            free = name in self.names
+            if free:
+                value = values.get(name, math.nan)
+            elif index < 0:
+                continue
+            else:
+                value = float(self.base[index])
+            low, high = (-math.inf, math.inf) if index < 0 else (0.0, 1.0) if kind == "logit" else \
+                TRIAL_RANGES[index]
+            prior = None
+            if name in priors:
+                mean, spread = priors[name]
+                middle = float(self.values(np.r_[np.zeros(self.names.index(name)), mean])[name])
+                prior = (middle, spread * abs(self.derivative(name, mean)))
+            rows.append(Parameter(name=name, value=value, bounds=(low, high), free=free, prior=prior))
+        return tuple(rows)
+
     def variables(self, values: dict[str, float]) -> np.ndarray:
         """Fit variables of physical values (name -> value [SI])."""
         out = np.empty(len(self.names))
@@ -185,23 +306,24 @@ class Layout:
             return e * (1.0 - e)
         return param / self.sample_rate if name == "contact_time" else param
 
+    @cached_property
+    def codes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The packed index (-1: the contact instant), transform code (:data:`KINDS`) and parameter of each
+        unknown, as the compiled kernels read them (:func:`pack_row`)."""
+        return (np.array([index for index, _, _ in self.specs], dtype=np.int64),
+                np.array([KINDS.index(kind) for _, kind, _ in self.specs], dtype=np.int64),
+                np.array([param for _, _, param in self.specs], dtype=float))
+
     def packed(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Packed parameter rows (m, N_PARAM) and contact instants (m,) [s] of fit variable rows (m, q)."""
-        rows = np.atleast_2d(rows)
-        params = np.repeat(self.base[None, :], rows.shape[0], axis=0)
-        times = np.zeros(rows.shape[0])
-        restitution = None
-        for j, (name, (index, kind, param)) in enumerate(zip(self.names, self.specs, strict=True)):
-            value = from_variable(rows[:, j], kind, param)
-            if name == "contact_time":
-                times = self.origin + value / self.sample_rate
-            elif name == "contact.restitution":
-                restitution = value
-            else:
-                params[:, index] = value
-        if self.law == "hysteretic":  # the unloading stiffness k2 = k1/e² follows k1 and e
-            e = restitution if restitution is not None else self.base[d.CONTACT_C]
-            params[:, d.CONTACT_C] = params[:, d.CONTACT_K] / np.square(e)
+        rows = np.atleast_2d(np.asarray(rows, dtype=float))
+        params = np.empty((rows.shape[0], self.base.size))
+        shifts = np.empty(rows.shape[0])
+        index, code, param = self.codes
+        for s in range(rows.shape[0]):
+            shifts[s] = pack_row(self.base, np.ascontiguousarray(rows[s]), index, code, param,
+                                 self.law == "hysteretic", params[s])
+        times = self.origin + shifts / self.sample_rate if "contact_time" in self.names else np.zeros(rows.shape[0])
         return params, times
 
 
@@ -226,11 +348,10 @@ def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | 
         del core["velocity"]
     names = [*core, *free]
     specs = [*core.values(), *(STAND_PARAMETERS[name] for name in free)]
-    if pressure is None or pressure_std > 0.0:
-        names.append("pressure_gauge")
-        specs.append((d.PRESSURE_GAUGE, "log", rig.gas.atmospheric_pressure))
     layout = Layout(names=tuple(names), specs=tuple(specs), base=base, law=law, origin=float(contact_time),
                     sample_rate=float(sample_rate))
+    if pressure is None or pressure_std > 0.0:
+        layout = layout.with_free("pressure_gauge")
     if pressure is not None and pressure_std > 0.0:
         layout = layout.with_prior("pressure_gauge", pressure, pressure_std)
     return layout
