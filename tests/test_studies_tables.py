@@ -31,7 +31,7 @@ TINY = {
     "valve-design": ({"valve-design.areas_mm2": [100], "valve-design.response_times_ms": [3]},
                      {"effective_area_mm2", "response_time_ms", "stage_b_ratio", "whole_event_peak_ratio",
                       "bottomed_out"}, None),
-    "absorber-design": ({"absorber-design.pressures_kpa": [200], "absorber-design.stiffnesses": [7e5]},
+    "absorber-design": ({"absorber-design.pressures": [200e3], "absorber-design.stiffnesses": [7e5]},
                         {"design", "pad_stiffness_N_m", "stage_b_ratio", "whole_event_peak_ratio",
                          "identified_available_at_s", "bottomed_out"}, None),
     "peak-force": ({}, {"simulated_peak_force", "recorded_peak_force", "closed_form_peak_force"}, None),

@@ -342,52 +342,60 @@ def annotated_map(ax, grid: np.ndarray, xticks: Sequence[str], yticks: Sequence[
 
 
 def plot_absorber_design(rows: Sequence[Row], *, designs: Sequence[Row], early: float, targets: dict[str, float]):
-    """The absorber designs: every design on the plane whole-event p90 peak / F0 × p90 R_B (colour: the share of
-    early identification answers; the Pareto front joined, the target box shaded), and maps over pre-charge × pad
-    stiffness of the whole-event p90 peak / F0, the p90 R_B and the early answers, each cell the best over the
-    sweep's other axes (valve, piston mass) for that quantity.
+    """The absorber designs: every design on the plane whole-event p90 peak / F0 × p90 R_B (marker: fixed charge or
+    charge per impact class; colour: piston mass; the Pareto front joined, the target box shaded), the front's
+    designs against their p90 first pulse / F0 (the bound their pad and piston set), and a map over pad ×
+    pre-charge of the lowest whole-event p90 of the fixed-charge designs (the best of the other axes per cell).
 
     ``designs``: one row per design (``studies.absorber_design.designs``); ``early``: what counts as an early
     answer [s]; ``targets``: ``whole_event_p90`` and ``stage_b_p90``."""
     plt = _pyplot()
     table = list(designs)
-    fig, axes = plt.subplots(1, 4, figsize=(21, 4.8), constrained_layout=True)
-    x = np.array([d["p90 peak / F0"] for d in table])
-    y = np.array([d["p90 R_B"] for d in table])
-    shares = np.array([d["early answers"] for d in table])
-    sc = axes[0].scatter(x, y, c=shares, cmap="viridis", vmin=0.0, vmax=1.0, s=30, edgecolors="k", linewidths=0.4)
+    fig, axes = plt.subplots(1, 3, figsize=(19, 5.2), constrained_layout=True)
+    pistons = np.array([d["piston [kg]"] for d in table], float)
+    norm = plt.Normalize(vmin=float(np.nanmin(pistons)), vmax=max(float(np.nanmax(pistons)),
+                                                                  float(np.nanmin(pistons)) + 1e-9))
+    for charge, marker, text in (("fixed", "o", "fixed charge"), ("per class", "^", "charge per impact class")):
+        chosen = [d for d in table if str(d.get("charge", "fixed")).startswith(charge)]
+        if chosen:
+            axes[0].scatter([d["p90 peak / F0"] for d in chosen], [d["p90 R_B"] for d in chosen],
+                                 c=[d["piston [kg]"] for d in chosen], cmap="viridis", norm=norm, marker=marker,
+                                 s=30, edgecolors="k", linewidths=0.4, label=text)
     front = sorted((d for d in table if d["Pareto"]), key=lambda d: d["p90 peak / F0"])
     axes[0].plot([d["p90 peak / F0"] for d in front], [d["p90 R_B"] for d in front], "k--", lw=0.8,
                  label="Pareto front (no run bottomed out)")
     axes[0].fill_between([0.9, targets["whole_event_p90"]], 0.9, targets["stage_b_p90"], color="tab:green",
-                         alpha=0.12, label="targets: p90 peak / F0 <= 3 and p90 R_B <= 1.5")
-    for d in front:
-        axes[0].annotate(d["design"], (d["p90 peak / F0"], d["p90 R_B"]), fontsize=6, xytext=(3, 3),
-                         textcoords="offset points")
-    axes[0].set(xlabel="whole-event p90 of the CFC 60 peak / F0 [-]", ylabel="p90 R_B [-]", xscale="log")
+                         alpha=0.12, label=f"targets: p90 peak / F0 <= {targets['whole_event_p90']:g} and "
+                                           f"p90 R_B <= {targets['stage_b_p90']:g}")
+    axes[0].set(xlabel="whole-event p90 of the CFC 60 peak / F0 [-]", ylabel="p90 R_B [-]", xscale="log",
+                title="designs with a common window for every impact")
     axes[0].set_xticks([1.0, 2.0, 3.0, 5.0, 10.0], ["1", "2", "3", "5", "10"])
     axes[0].xaxis.set_minor_formatter("")
     axes[0].grid(alpha=0.3, which="both")
-    fig.colorbar(sc, ax=axes[0], label=f"share of answers within {early * 1e3:g} ms")
-    pressures = sorted({d["p0 [kPa]"] for d in table})
-    pads = sorted({d["pad [N/m]"] for d in table})
-    for ax, key, title, best in ((axes[1], "p90 peak / F0", "whole-event p90 peak / F0 (lowest)", np.nanmin),
-                                 (axes[2], "p90 R_B", "p90 R_B (lowest; blank: an impact without a window)",
-                                  np.nanmin),
-                                 (axes[3], "early answers", f"share of answers within {early * 1e3:g} ms (highest)",
-                                  np.nanmax)):
-        grid = np.full((len(pressures), len(pads)), np.nan)
-        for i, p in enumerate(pressures):
-            for j, k in enumerate(pads):
-                values = np.array([d[key] for d in table if (d["p0 [kPa]"], d["pad [N/m]"]) == (p, k)], float)
-                if np.isfinite(values).any():
-                    grid[i, j] = best(values)
-        annotated_map(ax, grid, [f"{k:.2g}" for k in pads], [f"{p:g}" for p in pressures],
-                      cmap="viridis" if key == "early answers" else "viridis_r")
-        ax.set(xlabel="pad stiffness [N/m]", ylabel="pre-charge p0 [kPa]", title=title)
+    fig.colorbar(plt.cm.ScalarMappable(norm=norm, cmap="viridis"), ax=axes[0], label="piston mass [kg]")
+    positions = np.arange(len(front))
+    axes[1].barh(positions, [d["p90 peak / F0"] for d in front], color="tab:blue", alpha=0.6,
+                 label="whole-event p90 peak / F0")
+    axes[1].plot([d["p90 first pulse / F0"] for d in front], positions, "k|", ms=12,
+                 label="p90 first pulse / F0 (unfiltered)")
+    axes[1].axvline(targets["whole_event_p90"], color="tab:green", lw=1.0)
+    axes[1].set_yticks(positions, [f"{d['design']}\nR_B {d['p90 R_B']:.2f}, {d['early answers'] * 100:.0f} % "
+                                   f"within {early * 1e3:g} ms" for d in front], fontsize=6)
+    axes[1].invert_yaxis()
+    axes[1].set(xlabel="p90 / F0 [-]", title="the front: whole event and its first collision")
+    pads = list(dict.fromkeys(f"{d['pad']} {d['pad [N/m]']:.2g}" for d in table if d.get("charge") == "fixed"))
+    pressures = sorted({d["p0 [kPa]"] for d in table if d.get("charge") == "fixed"})
+    grid = np.full((len(pressures), len(pads)), np.nan)
+    for d in table:
+        if d.get("charge") == "fixed" and np.isfinite(d["p90 peak / F0"]):
+            i, j = pressures.index(d["p0 [kPa]"]), pads.index(f"{d['pad']} {d['pad [N/m]']:.2g}")
+            grid[i, j] = np.fmin(grid[i, j], d["p90 peak / F0"])
+    annotated_map(axes[2], grid, pads, [f"{p:g}" for p in pressures], cmap="viridis_r")
+    axes[2].set(xlabel="pad (law, stiffness at 10 mm [N/m])", ylabel="pre-charge p0 [kPa]",
+                title="whole-event p90 peak / F0 (lowest over valve and piston)")
+    axes[2].tick_params(axis="x", labelrotation=60, labelsize=7)
     figure_legend(fig)
-    fig.suptitle(f"Absorber design: {len(table)} designs, {len({r['impact'] for r in rows})} impacts each, "
-                 "identification in the loop (maps: the best of the other axes of the sweep per cell)")
+    fig.suptitle(f"Absorber design: {len(table)} designs, {len({r['impact'] for r in rows})} impacts each")
     return fig
 
 
