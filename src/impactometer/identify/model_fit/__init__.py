@@ -7,9 +7,11 @@ robust peak-to-peak answer (from a grid of impacts where that fails). Unknowns: 
 (between samples), both sensor offsets, the stand parameters marked uncertain (default: the contact law's parameters
 and the seal friction) and the charge pressure unless it is known. Each contact-law family of the project is fitted
 (:mod:`.select`); the smallest BIC chooses. Standard errors come from the Fisher information at the optimum
-(:mod:`.information`), inflated by sqrt(χ²/dof) where that exceeds 1. When even the best law leaves χ²/dof above
-:data:`MAX_REDUCED_CHI2` (the model does not describe the record) the answer is the robust one, and its details say
-so and why.
+(:mod:`.information`), inflated by sqrt(χ²/dof) where that exceeds 1, where the model explains the record down to
+its noise; :mod:`.adequacy` judges that, gives the fit of the first span the model explains or a sandwich σ where it
+does not, and checks the answer against the robust answer. When the best law leaves χ²/dof above
+:data:`MAX_REDUCED_CHI2` and explains no shorter span, or its answer disagrees with the robust one, the answer is
+the robust one; its details say which path was taken and why (``adequacy``).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from ...validation import check_real
 from ..details import Adequacy, ModelDetails
 from ..plausibility import check_answer
 from ..result import Identification
-from .adequacy import Z_JOINT, assess, disagreement, shortened
+from .adequacy import Z_JOINT, Z_JOINT_ADEQUATE, assess, disagreement, shortened
 from .engine import (
     MIN_DURATION,
     LawFit,
@@ -238,8 +240,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     z = disagreement((answer.mass, answer.mass_std, answer.velocity, answer.velocity_std),
                      (robust.mass, robust.mass_std, robust.velocity, robust.velocity_std))
     adequacy = replace(adequacy, robust_z=z)
-    if z <= Z_JOINT and (adequacy.verdict == "adequate" or (
-            answer.mass_std <= robust.mass_std and answer.velocity_std <= robust.velocity_std)):
+    if adequacy.verdict == "adequate" and z <= Z_JOINT_ADEQUATE or z <= Z_JOINT and (
+            answer.mass_std <= robust.mass_std and answer.velocity_std <= robust.velocity_std):
         return _with_adequacy(answer, adequacy)
     mismatch = (f"differ by {z:.3g} of their joint σ: the record is not of the stand the model takes (pass rig the "
                 "stand it was made on), or its charge pressure is not the one stated (pass pressure as the gauge reads "
@@ -257,7 +259,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         verdict = replace(adequacy, verdict="widened", reason=reason,
                           widening=(widened.mass_std / answer.mass_std, widened.velocity_std / answer.velocity_std))
         return _with_adequacy(widened, verdict)
-    if z <= Z_JOINT:  # the answers agree, and the model's, over what it explains, is the less precise
+    if z <= Z_JOINT and adequacy.verdict != "adequate":  # they agree; the model's answer is the less precise
         reason = (f"{adequacy.reason}; its answer (M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 "
                   f"{answer.velocity:.5g} ± {answer.velocity_std:.2g} m/s) agrees with the robust answer (within "
                   f"{z:.2g} of their joint σ) and is the less precise, so the robust answer is given")
