@@ -19,7 +19,7 @@ from foreign_stand import foreign_case
 from impactometer.cli import main
 from impactometer.identify.details import Adequacy
 from impactometer.identify.model_fit import identify
-from impactometer.identify.model_fit.adequacy import VERDICTS, Z_ADEQUATE, Residual, statistics
+from impactometer.identify.model_fit.adequacy import VERDICTS, Z_ADEQUATE, Residual, bandwidth, sandwich, statistics
 from impactometer.io import write_recording
 from impactometer.rig import Scenario
 from impactometer.sensors import record
@@ -84,3 +84,36 @@ def test_the_json_answer_says_which_path_was_taken_and_why(tmp_path, capsys):
     adequacy = data["adequacy"]
     assert adequacy["verdict"] in VERDICTS and adequacy["reason"]
     assert {"chi2_dof", "chi2_z", "autocorrelation", "autocorrelation_z"} <= set(adequacy)
+
+
+class _Problem:
+    """A linear fit of one mean per channel: the Jacobian of the residuals is −1 on that channel's rows."""
+
+    def __init__(self, n: int):
+        self.tail = np.zeros((2, n))
+        self.jac = np.zeros((2 * n, 2))
+        self.jac[:n, 0] = self.jac[n:, 1] = -1.0
+
+    def jacobian(self, x):
+        return self.jac
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.8])
+def test_the_sandwich_sigma_of_a_mean_counts_the_residuals_correlation(rho):
+    """For the mean of n AR(1) samples of correlation ρ the variance is (1 + ρ)/(1 − ρ) times the white-noise one;
+    the sandwich with the bandwidth from the residuals finds it (Bartlett's kernel falls short by its bias, about
+    2ρ/((1 − ρ)²·L) of it, and by its scatter, sqrt(4L/3n))."""
+    n = 20000
+    rng = np.random.default_rng(7)
+    e = rng.normal(size=(2, n))
+    r = np.empty_like(e)
+    r[:, 0] = e[:, 0]
+    for i in range(1, n):
+        r[:, i] = rho * r[:, i - 1] + np.sqrt(1 - rho ** 2) * e[:, i]
+    problem = _Problem(n)
+    fit = type("Fit", (), {"x": np.zeros(2), "cov": np.eye(2) / n})()
+    res = Residual(after=r, before=rng.normal(size=(2, 1000)), problem=problem, vector=r.ravel(), onset=0)
+    lags = bandwidth(r)
+    ratio = np.diag(sandwich(res, fit, lags)) / np.diag(fit.cov)  # type: ignore[arg-type]
+    expected = (1 + rho) / (1 - rho)
+    assert np.all(np.abs(ratio / expected - 1) < 0.35)
