@@ -10,6 +10,11 @@ towards the previous maximum point) and ``power-set`` (power-law loading, plasti
 
     python scripts/foreign_pads.py                                   # 15 masing + 15 peak-oriented records
     python scripts/foreign_pads.py --kinds power-set --per-kind 6
+    python scripts/foreign_pads.py --mismatch                        # the stand or the pressure misstated
+
+``--mismatch`` measures instead records of impactometer's own simulator with the stand or the pressure misstated:
+6 records of ``drop-stand-stiff`` (no stand named in the file) identified on the default stand, and 6 of the
+default stand identified with the pressure given 1.5 % and 3 % low and high (none in the file, no σ given).
 
 The table: per pad kind, mean and max |relative error| of mass and velocity [%] of the model answer and of the
 robust answer on the same records, ±2σ coverage of each (mass / velocity), and how many answers took each path of
@@ -83,6 +88,60 @@ def summarise(kind: str, rows: list[dict]) -> str:
     return f"| {kind} | {len(ok)} | " + " | ".join(cells) + f" | {paths} | {refused} |"
 
 
+MISMATCH_CASES = ((12.0, 1.2, 150e3), (25.0, 2.2, 250e3), (40.0, 3.0, 350e3), (18.0, 2.8, 100e3), (50.0, 1.5, 300e3),
+                  (30.0, 2.0, 200e3))
+
+
+def mismatch_job(task: tuple) -> dict:
+    """One record of impactometer's simulator identified with its stand (``stiff``) or its pressure misstated."""
+    from dataclasses import replace
+
+    import numba
+
+    from impactometer.identify.model_fit import identify
+    from impactometer.rig import STAND_KEY, Scenario
+    from impactometer.sensors import record
+
+    numba.set_num_threads(1)
+    case, index, factor = task
+    mass, velocity, pressure = MISMATCH_CASES[index]
+    stand = "drop-stand-stiff" if case == "stiff" else None
+    rec = record(Scenario(mass=mass, velocity=velocity, pressure_gauge=pressure), stand, sample_rate=50e3,
+                 duration=0.05, noise=0.05, seed=(100 if case == "stiff" else 200) + index, pre_trigger=0.02)
+    dropped = ("rig", STAND_KEY) if case == "stiff" else ("pressure_gauge_Pa",)
+    rec = replace(rec, metadata={k: v for k, v in rec.metadata.items() if k not in dropped})
+    answer = identify(rec, pressure=None if case == "stiff" else pressure * factor)
+    adequacy = answer.details.get("adequacy") or {}
+    named = "pass rig" if case == "stiff" else "pass pressure"
+    return {"case": case, "factor": factor, "index": index, "z": [(answer.mass - mass) / answer.mass_std,
+                                                                  (answer.velocity - velocity) / answer.velocity_std],
+            "verdict": adequacy.get("verdict", answer.details["path"]), "robust_z": adequacy.get("robust_z"),
+            "named": any(named in w for w in answer.warnings)}
+
+
+def mismatch(args) -> None:
+    tasks = [("stiff", i, 1.0) for i in range(len(MISMATCH_CASES))] + [
+        ("pressure", i, f) for f in (0.97, 0.985, 1.015, 1.03) for i in range(len(MISMATCH_CASES))]
+    print("records of impactometer's simulator (5 % RMS noise, 50 ms + 20 ms pre-trigger), M1 / V0 / p0: "
+          + ", ".join(f"{m:g} kg / {v:g} m/s / {p / 1e3:g} kPa" for m, v, p in MISMATCH_CASES)
+          + "; z = (answer − truth)/σ; named = a warning names --rig (another stand) or --pressure\n")
+    with Pool(max(args.jobs, 1)) as pool:
+        rows = pool.map(mismatch_job, tasks, chunksize=1)
+    print("| case | n | within ±2σ M1 / V0 | within 3σ or named | max abs z M1 / V0 | paths | named |")
+    print("|---|---|---|---|---|---|---|")
+    for case, factor in [("stiff", 1.0), ("pressure", 0.97), ("pressure", 0.985), ("pressure", 1.015),
+                         ("pressure", 1.03)]:
+        sel = [r for r in rows if r["case"] == case and r["factor"] == factor]
+        z = np.abs(np.array([r["z"] for r in sel]))
+        label = ("drop-stand-stiff record, default stand" if case == "stiff" else
+                 f"pressure given {100 * (factor - 1):+.1f} %")
+        paths = ", ".join(f"{sum(r['verdict'] == p for r in sel)} {p}" for p in PATHS if any(
+            r["verdict"] == p for r in sel))
+        ok = sum(bool(np.all(zi <= 3) or r["named"]) for zi, r in zip(z, sel, strict=True))
+        print(f"| {label} | {len(sel)} | {np.mean(z[:, 0] <= 2):.0%} / {np.mean(z[:, 1] <= 2):.0%} | {ok} of "
+              f"{len(sel)} | {z[:, 0].max():.2f} / {z[:, 1].max():.2f} | {paths} | {sum(r['named'] for r in sel)} |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--kinds", nargs="+", default=["masing", "peak-oriented"],
@@ -95,8 +154,14 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0, help="seed of the first record of each kind")
     ap.add_argument("--jobs", type=int, default=1, help="processes")
     ap.add_argument("--rows", help="write every record's row to this JSON file")
+    ap.add_argument("--mismatch", action="store_true", help="measure a stand or a pressure misstated instead")
     ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
+    if args.mismatch:
+        with recorded("stand_mismatch", "A stand or a charge pressure misstated: the model answer's σ and warnings",
+                      args.record):
+            mismatch(args)
+        return
     with recorded("foreign_pads", "Pads outside the model's contact families: model against robust answer",
                   args.record) as rec:
         measure(args, rec)
