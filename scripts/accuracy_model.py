@@ -9,7 +9,8 @@ seeded as the studies do (the records of ``scripts/accuracy_peak_to_peak.py``). 
 velocity of the model's answer and of the robust peak-to-peak answer it started from, the ±2σ coverage (truth
 within two stated standard errors, mass / velocity), the efficiency (mean |error| / mean Cramér-Rao σ at the truth;
 an efficient unbiased estimate gives sqrt(2/π) = 0.80), the mean Cramér-Rao σ, how often the law of the record
-was chosen, the fall-backs to the robust answer, refusals, and the median wall time of one identification (one
+was chosen, the paths of the model-adequacy test (adequate, shortened, widened), the fall-backs to the robust
+answer, refusals, and the median wall time of one identification (one
 process, one compiled thread; the robust answer's time included).
 
     python scripts/accuracy_model.py --subset 12 --seeds 1            # a quick look
@@ -42,8 +43,8 @@ from recorded import recorded
 
 def evaluate(stand: str, law: str, noise: float, seed: int, grid, duration: float, pre_trigger: float,
              fit_pressure: bool = False) -> list:
-    """Rows (dM, dV, robust dM, robust dV, in 2σ M, in 2σ V, CRB σM/M, CRB σV/V, law chosen, path, seconds) of one
-    stand, law, noise level and seed over the cases; a refusal gives None."""
+    """Rows (dM, dV, robust dM, robust dV, in 2σ M, in 2σ V, CRB σM/M, CRB σV/V, law chosen, path, seconds,
+    adequacy verdict) of one stand, law, noise level and seed over the cases; a refusal gives None."""
     rig = get_rig(stand, contact=law)
     options = StudyOptions(rig=rig, sample_rate=50e3, duration=duration, pre_trigger=pre_trigger)
     levels = {"contact_force": noise, "piston_acceleration": noise}
@@ -69,7 +70,8 @@ def evaluate(stand: str, law: str, noise: float, seed: int, grid, duration: floa
                      robust.get("mass_kg", np.nan) / mass - 1, robust.get("velocity_m_s", np.nan) / velocity - 1,
                      abs(answer.mass - mass) <= 2 * answer.mass_std,
                      abs(answer.velocity - velocity) <= 2 * answer.velocity_std, bound.mass_relative,
-                     bound.velocity_relative, answer.details.get("contact_law"), answer.details["path"], seconds))
+                     bound.velocity_relative, answer.details.get("contact_law"), answer.details["path"], seconds,
+                     (answer.details.get("adequacy") or {}).get("verdict", "")))
     return rows
 
 
@@ -77,17 +79,18 @@ def summarise(stand: str, law: str, noise: float, rows: list) -> str:
     ok = [r for r in rows if r is not None]
     refused = len(rows) - len(ok)
     if not ok:
-        return f"| {stand} | {law} | {noise:.0%} | 0 | - | - | - | - | - | - | - | - | - | - | - | {refused} | - |"
+        return f"| {stand} | {law} | {noise:.0%} | 0 | - | - | - | - | - | - | - | - | - | - | - | - | {refused} | - |"
     a = np.array([r[:8] for r in ok], dtype=float)
     dm, dv, rm, rv = (np.abs(a[:, k]) * 100 for k in range(4))
     crb_m, crb_v = a[:, 6] * 100, a[:, 7] * 100
     chosen = sum(r[8] == law for r in ok)
     fallbacks = sum(r[9] == "fallback" for r in ok)
+    verdicts = " / ".join(str(sum(r[11] == v for r in ok)) for v in ("adequate", "shortened", "widened"))
     return (f"| {stand} | {law} | {noise:.0%} | {len(ok)} | {dm.mean():.3f} | {dm.max():.2f} | {dv.mean():.3f} | "
             f"{dv.max():.3f} | {np.nanmean(rm):.2f} / {np.nanmean(rv):.3f} | "
             f"{a[:, 4].mean():.0%} / {a[:, 5].mean():.0%} | "
             f"{dm.mean() / crb_m.mean():.2f} / {dv.mean() / crb_v.mean():.2f} | {crb_m.mean():.3f} / "
-            f"{crb_v.mean():.3f} | {chosen} | {fallbacks} | {refused} | "
+            f"{crb_v.mean():.3f} | {chosen} | {verdicts} | {fallbacks} | {refused} | "
             f"{np.median([r[10] for r in ok]) * 1e3:.0f} |")
 
 
@@ -117,8 +120,9 @@ def measure(args, rec) -> None:
           "chosen by BIC; time = median wall time of one identification (one core)\n")
     start = time.perf_counter()
     print("| stand | contact | noise | n | mean dM | max dM | mean dV | max dV | robust mean dM / dV | ±2σ coverage | "
-          "efficiency | mean CRB σM / σV | chosen | fall-backs | refused | time [ms] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "efficiency | mean CRB σM / σV | chosen | adequate / shortened / widened | fall-backs | refused | "
+          "time [ms] |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for stand in args.stands:
         for law in args.laws:
             for noise in args.noise:

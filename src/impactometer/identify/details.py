@@ -238,6 +238,44 @@ class StreamStage(Details):
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
+class Adequacy(Details):
+    """Whether the stand model explains the record down to its noise, and the path the answer took
+    (:mod:`~impactometer.identify.model_fit.adequacy`): ``adequate`` (the Fisher σ), ``widened`` (the sandwich σ
+    of a model that leaves correlated residuals) or ``fell back`` (the robust answer, the model's answer
+    disagreeing with it), and why."""
+
+    verdict: str
+    reason: str
+    #: χ²/dof of the fit and the largest z of the channels' misfit (mean squared residual after contact against the
+    #: pre-trigger's noise) [-]
+    reduced_chi2: float | None = None
+    chi2_z: float | None = None
+    #: mean squared weighted residual after contact of the force and the acceleration [-]
+    misfit: tuple[float, float] | None = None
+    #: the larger lag-1 autocorrelation of the channels' weighted residuals after contact and its z against the
+    #: pre-trigger's [-]
+    autocorrelation: float | None = None
+    autocorrelation_z: float | None = None
+    #: samples per channel after contact and of the pre-trigger
+    samples: int | None = None
+    pre_trigger_samples: int | None = None
+    #: the sandwich's bandwidth [samples] and its σ over the Fisher σ of M1 and V0 (``widened``)
+    bandwidth: int | None = None
+    widening: tuple[float, float] | None = None
+    #: the larger difference of M1 or V0 to the robust answer over their joint σ [-]
+    robust_z: float | None = None
+
+    def named(self) -> dict[str, Any]:
+        return _present({"verdict": self.verdict, "reason": self.reason, "chi2_dof": self.reduced_chi2,
+                         "chi2_z": self.chi2_z, "misfit": None if self.misfit is None else list(self.misfit),
+                         "autocorrelation": self.autocorrelation, "autocorrelation_z": self.autocorrelation_z,
+                         "samples": self.samples, "pre_trigger_samples": self.pre_trigger_samples,
+                         "bandwidth_samples": self.bandwidth,
+                         "widening": None if self.widening is None else list(self.widening),
+                         "robust_z": self.robust_z})
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
 class ModelDetails(Details):
     """What a model answer used: the fit's path (``ml``: the fit's answer; ``fallback``: the robust answer, the
     model not describing the record) and why, the contact law chosen and every law's fit, where the fit started,
@@ -274,6 +312,8 @@ class ModelDetails(Details):
     fallback: Mapping[str, Any] | None = None
     #: in a stream, where the answer was given
     stream: StreamStage | None = None
+    #: the model-adequacy test and the path the answer took
+    adequacy: Adequacy | None = None
 
     def named(self) -> dict[str, Any]:
         base = {} if self.fallback is None else (
@@ -283,6 +323,6 @@ class ModelDetails(Details):
                "noise_acceleration_m_s2": self.noise_acceleration, "anti_alias": self.anti_alias,
                "path": self.path, "reason": self.reason, "t00": self.t00, "reduced_chi2": self.reduced_chi2,
                "chi2": self.chi2, "dof": self.dof, "crb": self.crb, "fit_span_s": self.fit_span,
-               "fit_span": self.fit_span_reason, "parameters": self.parameters}
+               "fit_span": self.fit_span_reason, "parameters": self.parameters, "adequacy": self.adequacy}
         return {**base, **_present(own), "contact_law": self.contact_law,
                 **({} if self.stream is None else self.stream.named())}

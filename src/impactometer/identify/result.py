@@ -28,7 +28,8 @@ REPORTED_DETAILS = {"t00": "t00_s", "t01": "t01_s", "t11": "t11_s", "onsets": "o
                     "feature_set": "feature_set", "pressure_gauge": "pressure_gauge_Pa",
                     "extrapolated": "extrapolated", "path": "path", "reason": "reason", "contact_law": "contact_law",
                     "criterion": "criterion", "model_selection": "model_selection", "reduced_chi2": "reduced_chi2",
-                    "parameters": "parameters", "crb": "crb", "robust": "robust", "start": "start"}
+                    "parameters": "parameters", "crb": "crb", "robust": "robust", "start": "start",
+                    "adequacy": "adequacy"}
 #: JSON key of the part of the method's name after its family: the peak-to-peak variant, the map's search
 VARIANT_KEYS = {"peak-to-peak": "variant", "response-map": "search", "model": "variant"}
 

@@ -7,9 +7,11 @@ robust peak-to-peak answer (from a grid of impacts where that fails). Unknowns: 
 (between samples), both sensor offsets, the stand parameters marked uncertain (default: the contact law's parameters
 and the seal friction) and the charge pressure unless it is known. Each contact-law family of the project is fitted
 (:mod:`.select`); the smallest BIC chooses. Standard errors come from the Fisher information at the optimum
-(:mod:`.information`), inflated by sqrt(χ²/dof) where that exceeds 1. When even the best law leaves χ²/dof above
-:data:`MAX_REDUCED_CHI2` (the model does not describe the record) the answer is the robust one, and its details say
-so and why.
+(:mod:`.information`), inflated by sqrt(χ²/dof) where that exceeds 1, where the model explains the record down to
+its noise; :mod:`.adequacy` judges that, gives the fit of the first span the model explains or a sandwich σ where it
+does not, and checks the answer against the robust answer. When the best law leaves χ²/dof above
+:data:`MAX_REDUCED_CHI2` and explains no shorter span, or its answer disagrees with the robust one, the answer is
+the robust one; its details say which path was taken and why (``adequacy``).
 """
 
 from __future__ import annotations
@@ -23,9 +25,10 @@ from ...recording import Recording
 from ...rig import PRESETS, STAND_KEY, Rig, fingerprint, get_rig
 from ...sensors import anti_alias_delay
 from ...validation import check_real
-from ..details import ModelDetails
+from ..details import Adequacy, ModelDetails
 from ..plausibility import check_answer
 from ..result import Identification
+from .adequacy import Z_JOINT, Z_JOINT_ADEQUATE, assess, disagreement, shortened
 from .engine import (
     MIN_DURATION,
     LawFit,
@@ -212,26 +215,96 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                                   "model fit, started from a grid, " + (
                                       "failed for every contact law" if best is None else
                                       f"leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g}"))
-    if best is None or best.reduced_chi2 > max_reduced_chi2:
+    if best is None:
         assert robust is not None  # without a robust answer the case was refused above
-        # the answer is the robust one, with its early answer (the start above did without it)
-        robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
-                                 recording.start_time)
-        reason = ("every contact law's fit failed: " + "; ".join(f"{k}: {v.get('error')}" for k, v in selection.items())
-                  if best is None else
-                  f"the best model ({best.law}) leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g}: "
-                  "it does not describe this record, so the robust answer is given")
-        return replace(robust, method="model/fallback",
-                       warnings=(*_stand_warning(recording, rig), *robust.warnings, reason),
-                       details=replace(common, path="fallback", reason=reason,
-                                       contact_law=None if best is None else best.law, fallback=robust.details))
-    return _answer(recording, rig, best, common, (p0, p0_std))
+        reason = "every contact law's fit failed: " + "; ".join(f"{k}: {v.get('error')}" for k, v in selection.items())
+        return _fallback(recording, rig, common, best, Adequacy(verdict="fell back", reason=reason))
+    quiet = robust.t00 if robust is not None else trigger  # the noise σ was measured before it (observe)
+    adequacy, mass_std, velocity_std = assess(data, best, quiet)
+    if adequacy.verdict != "adequate" and (short := shortened(data, best, quiet)) is not None:
+        whole = adequacy.reason
+        best, adequacy, mass_std, velocity_std = short
+        assert best.span is not None  # a shortened fit states its span
+        adequacy = replace(adequacy, verdict="shortened", reason=f"the {best.law} model explains the first "
+                           f"{best.span[0] * 1e3:g} ms after contact down to the noise ({adequacy.reason}), not the "
+                           f"whole record, so the answer is the fit of that span; over the whole record {whole}")
+    if adequacy.verdict == "widened" and best.reduced_chi2 > max_reduced_chi2:
+        assert robust is not None  # without a robust answer the case was refused above
+        reason = (f"the best model ({best.law}) leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g} and "
+                  "explains no shorter span down to the noise: it does not describe this record, so the robust answer "
+                  "is given")
+        return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
+    answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (p0, p0_std), mass_std, velocity_std)
+    if robust is None:
+        return answer
+    z = disagreement((answer.mass, answer.mass_std, answer.velocity, answer.velocity_std),
+                     (robust.mass, robust.mass_std, robust.velocity, robust.velocity_std))
+    adequacy = replace(adequacy, robust_z=z)
+    if adequacy.verdict == "adequate" and z <= Z_JOINT_ADEQUATE or z <= Z_JOINT and (
+            answer.mass_std <= robust.mass_std and answer.velocity_std <= robust.velocity_std):
+        return _with_adequacy(answer, adequacy)
+    mismatch = (f"differ by {z:.3g} of their joint σ: the record is not of the stand the model takes (pass rig the "
+                "stand it was made on), or its charge pressure is not the one stated (pass pressure as the gauge reads "
+                "it, with its pressure_std), or its pad is outside the contact laws")
+    if adequacy.verdict == "adequate":
+        # the model explains the record down to its noise: its answer stands, with a σ that reaches the robust one
+        # (the robust answer's own σ can be short; a stand or pressure the fit absorbs leaves no misfit)
+        reason = (f"the model's answer (M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 {answer.velocity:.5g} ± "
+                  f"{answer.velocity_std:.2g} m/s) explains the record down to its noise, and it and the robust answer "
+                  f"(M1 {robust.mass:.5g} ± {robust.mass_std:.2g} kg, V0 {robust.velocity:.5g} ± "
+                  f"{robust.velocity_std:.2g} m/s) {mismatch}; the model's σ is widened to reach the robust answer")
+        widened = replace(answer, mass_std=math.hypot(answer.mass_std, answer.mass - robust.mass),
+                          velocity_std=math.hypot(answer.velocity_std, answer.velocity - robust.velocity),
+                          warnings=(*answer.warnings, reason))
+        verdict = replace(adequacy, verdict="widened", reason=reason,
+                          widening=(widened.mass_std / answer.mass_std, widened.velocity_std / answer.velocity_std))
+        return _with_adequacy(widened, verdict)
+    if z <= Z_JOINT and adequacy.verdict != "adequate":  # they agree; the model's answer is the less precise
+        reason = (f"{adequacy.reason}; its answer (M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 "
+                  f"{answer.velocity:.5g} ± {answer.velocity_std:.2g} m/s) agrees with the robust answer (within "
+                  f"{z:.2g} of their joint σ) and is the less precise, so the robust answer is given")
+        return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
+    reason = (f"the model's answer (M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 {answer.velocity:.5g} ± "
+              f"{answer.velocity_std:.2g} m/s, {adequacy.verdict}: the model does not explain the whole record) and "
+              f"the "
+              f"robust answer (M1 {robust.mass:.5g} ± {robust.mass_std:.2g} kg, V0 {robust.velocity:.5g} ± "
+              f"{robust.velocity_std:.2g} m/s) {mismatch}; the robust answer is given, its σ widened to reach the "
+              "model's answer")
+    return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason),
+                     model=answer)
+
+
+def _with_adequacy(answer: Identification, adequacy: Adequacy) -> Identification:
+    """``answer`` (of :func:`_answer`) with its details' adequacy replaced."""
+    assert isinstance(answer.details, ModelDetails)
+    return replace(answer, details=replace(answer.details, adequacy=adequacy))
+
+
+def _fallback(recording: Recording, rig: Rig, common: ModelDetails, best: LawFit | None, adequacy: Adequacy,
+              model: Identification | None = None) -> Identification:
+    """The robust answer (with its early answer) in place of the model's; with the ``model``'s answer, each σ
+    widened to sqrt(σ² + Δ²), Δ the difference to the model's answer: the two disagree beyond their joint σ and the
+    record does not say which is off."""
+    from ..peak_to_peak import identify_arrays as identify_robust
+
+    robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
+                             recording.start_time)
+    reason = adequacy.reason
+    if model is not None:
+        robust = replace(robust, mass_std=math.hypot(robust.mass_std, model.mass - robust.mass),
+                         velocity_std=math.hypot(robust.velocity_std, model.velocity - robust.velocity))
+    return replace(robust, method="model/fallback",
+                   warnings=(*_stand_warning(recording, rig), *robust.warnings, reason),
+                   details=replace(common, path="fallback", reason=reason, fallback=robust.details, adequacy=adequacy,
+                                   contact_law=None if best is None else best.law))
 
 
 def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
-            stated: tuple[float | None, float]) -> Identification:
+            stated: tuple[float | None, float], log_mass_std: float | None = None,
+            log_velocity_std: float | None = None) -> Identification:
     """The :class:`Identification` of the chosen fit (its details ``common``'s, with the fit's); ``stated`` the
-    stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely)."""
+    stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely); the σ of ln M1 and ln V0 from
+    :func:`.adequacy.assess` (default: the Fisher information's, inflated by sqrt(χ²/dof) where that exceeds 1)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     crb = _bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
@@ -254,7 +327,10 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
         found.append(f"the {best.law} fit stopped after {best.evaluations} evaluations before it converged")
     if best.rank < best.unknowns:
         found.append(f"the record determines {best.rank} of the {best.unknowns} unknowns only")
-    if best.reduced_chi2 > WARN_REDUCED_CHI2:
+    adequacy = common.adequacy
+    if adequacy is not None and adequacy.verdict != "adequate":
+        found.append(adequacy.reason)
+    elif best.reduced_chi2 > WARN_REDUCED_CHI2:
         found.append(f"the {best.law} model leaves chi2/dof = {best.reduced_chi2:.3g}: model error beyond the noise; "
                      f"the standard errors are inflated by {inflation:.3g}")
     end = recording.start_time + (recording.contact_force.size - 1) / recording.sample_rate
@@ -266,9 +342,10 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
         fit_span_reason=None if best.span is None else best.span[1],
         parameters={name: {"value": best.values[name], "std": best.std(name) * inflation}
                     for name in best.layout.names[3:]})
-    return Identification(mass=mass, velocity=velocity, mass_std=crb.mass_std * inflation,
-                          velocity_std=crb.velocity_std * inflation, available_at=end, method="model/ml",
-                          warnings=tuple(found), details=details)
+    mass_std = crb.mass_std * inflation if log_mass_std is None else mass * log_mass_std
+    velocity_std = crb.velocity_std * inflation if log_velocity_std is None else velocity * log_velocity_std
+    return Identification(mass=mass, velocity=velocity, mass_std=mass_std, velocity_std=velocity_std,
+                          available_at=end, method="model/ml", warnings=tuple(found), details=details)
 
 
 def _unknowns(names: Sequence[str]) -> tuple[str, ...]:

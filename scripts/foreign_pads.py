@@ -1,0 +1,202 @@
+"""Identification of records whose pad is outside every contact family of the model: the model answer against the
+robust answer on the same records, and the model-adequacy path each record took.
+
+The records come from the independent stand simulator of ``tests/foreign_stand.py`` (written without impactometer's
+model code): the built-in pad stand (``drop-stand-pad``) with another pad, ``--per-kind`` records per pad kind,
+M1 8-60 kg, V0 0.8-3.5 m/s, p0 100-380 kPa gauge (stated in the metadata), 50 kHz, ``--duration`` after first contact
+and 20 ms before, white noise of ``--noise`` × each channel's RMS. Pads: ``masing`` (power-law backbone, Masing
+unloading and reloading of exponent ``--reload-exponent``), ``peak-oriented`` (reloading along a straight line
+towards the previous maximum point) and ``power-set`` (power-law loading, plastic set, power-law unloading).
+
+    python scripts/foreign_pads.py                                   # 15 masing + 15 peak-oriented records
+    python scripts/foreign_pads.py --kinds power-set --per-kind 6
+    python scripts/foreign_pads.py --mismatch                        # the stand or the pressure misstated
+
+``--mismatch`` measures instead records of impactometer's own simulator with the stand or the pressure misstated:
+6 records of ``drop-stand-stiff`` (no stand named in the file) identified on the default stand, and 6 of the
+default stand identified with the pressure given 1.5 % and 3 % low and high (none in the file, no σ given).
+
+The table: per pad kind, mean and max |relative error| of mass and velocity [%] of the model answer and of the
+robust answer on the same records, ±2σ coverage of each (mass / velocity), and how many answers took each path of
+the adequacy test (adequate / shortened / widened / fell back to the robust answer).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from multiprocessing import Pool
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))  # benchmarks/recorded.py
+sys.path.insert(0, str(ROOT / "tests"))  # tests/foreign_stand.py
+
+import numpy as np  # noqa: E402
+
+from foreign_stand import foreign_case  # noqa: E402
+from recorded import recorded  # noqa: E402
+
+PATHS = ("adequate", "shortened", "widened", "fell back")
+
+
+def job(task: tuple) -> dict:
+    """One record: its truth, the model answer and the robust answer (or the refusal)."""
+    import numba
+
+    from impactometer.errors import IdentificationError
+    from impactometer.identify.model_fit import identify
+
+    numba.set_num_threads(1)
+    kind, seed, exponent, noise, duration = task
+    rec, drop, _ = foreign_case(kind, seed, reload_exponent=exponent, noise=noise, duration=duration)
+    row = {"kind": kind, "seed": seed, "mass": drop.mass, "velocity": drop.velocity,
+           "pressure_gauge": drop.pressure_gauge}
+    try:
+        answer = identify(rec)
+    except IdentificationError as exc:
+        return {**row, "refused": str(exc)}
+    details = answer.details
+    adequacy = details.get("adequacy") or {}
+    robust = details["robust"]
+    fitted = {law: fit for law, fit in (details.get("model_selection") or {}).items() if "values" in fit}
+    whole = min(fitted.values(), key=lambda fit: fit["bic"]) if fitted else None
+    return {**row, "model": [answer.mass, answer.mass_std, answer.velocity, answer.velocity_std],
+            "robust": [robust.get("mass_kg", np.nan), robust.get("mass_std_kg", np.nan),
+                       robust.get("velocity_m_s", np.nan), robust.get("velocity_std_m_s", np.nan)],
+            "path": adequacy.get("verdict", details["path"]), "law": details.get("contact_law"),
+            "adequacy": adequacy, "warnings": list(answer.warnings),
+            "whole": None if whole is None else [whole["values"]["mass"], whole["values"]["velocity"]]}
+
+
+def summarise(kind: str, rows: list[dict]) -> str:
+    ok = [r for r in rows if "refused" not in r]
+    refused = len(rows) - len(ok)
+    if not ok:
+        return f"| {kind} | 0 | - | - | - | - | - | - | - | {refused} |"
+    truth = np.array([[r["mass"], r["velocity"]] for r in ok])
+    cells = []
+    for side in ("model", "robust"):
+        a = np.array([r[side] for r in ok], dtype=float)
+        dm, dv = np.abs(a[:, 0] / truth[:, 0] - 1) * 100, np.abs(a[:, 2] / truth[:, 1] - 1) * 100
+        zm, zv = np.abs(a[:, 0] - truth[:, 0]) / a[:, 1], np.abs(a[:, 2] - truth[:, 1]) / a[:, 3]
+        cells.append(f"{np.nanmean(dm):.2f} / {np.nanmax(dm):.2f}")
+        cells.append(f"{np.nanmean(dv):.2f} / {np.nanmax(dv):.2f}")
+        cells.append(f"{np.mean(zm <= 2):.0%} / {np.mean(zv <= 2):.0%}")
+    paths = " / ".join(str(sum(r["path"] == p for r in ok)) for p in PATHS)
+    return f"| {kind} | {len(ok)} | " + " | ".join(cells) + f" | {paths} | {refused} |"
+
+
+MISMATCH_CASES = ((12.0, 1.2, 150e3), (25.0, 2.2, 250e3), (40.0, 3.0, 350e3), (18.0, 2.8, 100e3), (50.0, 1.5, 300e3),
+                  (30.0, 2.0, 200e3))
+
+
+def mismatch_job(task: tuple) -> dict:
+    """One record of impactometer's simulator identified with its stand (``stiff``) or its pressure misstated."""
+    from dataclasses import replace
+
+    import numba
+
+    from impactometer.identify.model_fit import identify
+    from impactometer.rig import STAND_KEY, Scenario
+    from impactometer.sensors import record
+
+    numba.set_num_threads(1)
+    case, index, factor = task
+    mass, velocity, pressure = MISMATCH_CASES[index]
+    stand = "drop-stand-stiff" if case == "stiff" else None
+    rec = record(Scenario(mass=mass, velocity=velocity, pressure_gauge=pressure), stand, sample_rate=50e3,
+                 duration=0.05, noise=0.05, seed=(100 if case == "stiff" else 200) + index, pre_trigger=0.02)
+    dropped = ("rig", STAND_KEY) if case == "stiff" else ("pressure_gauge_Pa",)
+    rec = replace(rec, metadata={k: v for k, v in rec.metadata.items() if k not in dropped})
+    answer = identify(rec, pressure=None if case == "stiff" else pressure * factor)
+    adequacy = answer.details.get("adequacy") or {}
+    named = "pass rig" if case == "stiff" else "pass pressure"
+    return {"case": case, "factor": factor, "index": index, "z": [(answer.mass - mass) / answer.mass_std,
+                                                                  (answer.velocity - velocity) / answer.velocity_std],
+            "verdict": adequacy.get("verdict", answer.details["path"]), "robust_z": adequacy.get("robust_z"),
+            "named": any(named in w for w in answer.warnings)}
+
+
+def mismatch(args) -> None:
+    tasks = [("stiff", i, 1.0) for i in range(len(MISMATCH_CASES))] + [
+        ("pressure", i, f) for f in (0.97, 0.985, 1.015, 1.03) for i in range(len(MISMATCH_CASES))]
+    print("records of impactometer's simulator (5 % RMS noise, 50 ms + 20 ms pre-trigger), M1 / V0 / p0: "
+          + ", ".join(f"{m:g} kg / {v:g} m/s / {p / 1e3:g} kPa" for m, v, p in MISMATCH_CASES)
+          + "; z = (answer − truth)/σ; named = a warning names --rig (another stand) or --pressure\n")
+    with Pool(max(args.jobs, 1)) as pool:
+        rows = pool.map(mismatch_job, tasks, chunksize=1)
+    print("| case | n | within ±2σ M1 / V0 | within 3σ or named | max abs z M1 / V0 | paths | named |")
+    print("|---|---|---|---|---|---|---|")
+    for case, factor in [("stiff", 1.0), ("pressure", 0.97), ("pressure", 0.985), ("pressure", 1.015),
+                         ("pressure", 1.03)]:
+        sel = [r for r in rows if r["case"] == case and r["factor"] == factor]
+        z = np.abs(np.array([r["z"] for r in sel]))
+        label = ("drop-stand-stiff record, default stand" if case == "stiff" else
+                 f"pressure given {100 * (factor - 1):+.1f} %")
+        paths = ", ".join(f"{sum(r['verdict'] == p for r in sel)} {p}" for p in PATHS if any(
+            r["verdict"] == p for r in sel))
+        ok = sum(bool(np.all(zi <= 3) or r["named"]) for zi, r in zip(z, sel, strict=True))
+        print(f"| {label} | {len(sel)} | {np.mean(z[:, 0] <= 2):.0%} / {np.mean(z[:, 1] <= 2):.0%} | {ok} of "
+              f"{len(sel)} | {z[:, 0].max():.2f} / {z[:, 1].max():.2f} | {paths} | {sum(r['named'] for r in sel)} |")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--kinds", nargs="+", default=["masing", "peak-oriented"],
+                    choices=["masing", "peak-oriented", "power-set"], help="pad kinds")
+    ap.add_argument("--per-kind", type=int, default=15, help="records per pad kind")
+    ap.add_argument("--reload-exponent", type=float, default=1.0, help="exponent of the Masing pad's unloading and "
+                    "reloading curves")
+    ap.add_argument("--noise", type=float, default=0.05, help="noise, fraction of each channel's RMS after contact")
+    ap.add_argument("--duration", type=float, default=0.05, help="record length after first contact [s]")
+    ap.add_argument("--first-seed", type=int, default=0, help="seed of the first record of each kind")
+    ap.add_argument("--jobs", type=int, default=1, help="processes")
+    ap.add_argument("--rows", help="write every record's row to this JSON file")
+    ap.add_argument("--mismatch", action="store_true", help="measure a stand or a pressure misstated instead")
+    ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
+    args = ap.parse_args()
+    if args.mismatch:
+        with recorded("stand_mismatch", "A stand or a charge pressure misstated: the model answer's σ and warnings",
+                      args.record):
+            mismatch(args)
+        return
+    with recorded("foreign_pads", "Pads outside the model's contact families: model against robust answer",
+                  args.record) as rec:
+        measure(args, rec)
+
+
+def measure(args, rec) -> None:
+    tasks = [(kind, args.first_seed + i, args.reload_exponent, args.noise, args.duration) for kind in args.kinds
+             for i in range(args.per_kind)]
+    print(f"{args.per_kind} records per pad kind (Masing reload exponent {args.reload_exponent:g}), "
+          f"{args.noise:.0%} RMS noise, {args.duration * 1e3:.0f} ms + 20 ms pre-trigger, 50 kHz, seeds "
+          f"{args.first_seed}-{args.first_seed + args.per_kind - 1}; errors in % (mean / max), coverage = truth within "
+          "±2σ (mass / velocity); paths of the model answer: adequate / shortened / widened / fell back\n")
+    with Pool(max(args.jobs, 1)) as pool:
+        rows = pool.map(job, tasks, chunksize=1)
+    print("| pad | n | model dM | model dV | model coverage | robust dM | robust dV | robust coverage | paths | "
+          "refused |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for kind in args.kinds:
+        print(summarise(kind, [r for r in rows if r["kind"] == kind]))
+    print("\nper record: kind, seed, |dM| model / robust [%], z of the model's M1 and V0, path, χ²/dof, its z, "
+          "lag-1 autocorrelation excess z")
+    for r in rows:
+        if "refused" in r:
+            print(f"  {r['kind']} {r['seed']}: refused: {r['refused']}")
+            continue
+        m, b = r["model"], r["robust"]
+        a = r["adequacy"]
+        print(f"  {r['kind']} {r['seed']:2d}: {abs(m[0] / r['mass'] - 1) * 100:5.2f} / "
+              f"{abs(b[0] / r['mass'] - 1) * 100:5.2f}, z {(m[0] - r['mass']) / m[1]:+6.2f} "
+              f"{(m[2] - r['velocity']) / m[3]:+6.2f}, {r['path']}, "
+              f"{a.get('chi2_dof', float('nan')):.3f}, {a.get('chi2_z', float('nan')):.3g}, "
+              f"{a.get('autocorrelation_z', float('nan')):.3g}")
+    if args.rows:
+        Path(args.rows).write_text(json.dumps(rows, indent=1, default=float))
+
+
+if __name__ == "__main__":
+    main()
