@@ -284,12 +284,12 @@ def test_the_compiled_fit_takes_every_layout_with_the_python_solvers_answer():
     rule's reach (χ² to its tolerance, the values to a small fraction of their σ)."""
     from impactometer.identify.model_fit.engine import TOLERANCE, fit_law
     from impactometer.identify.model_fit.first_window import fit_window, takes
-    from impactometer.identify.model_fit.select import Start, start_law
+    from impactometer.identify.model_fit.select import Start, _start_law
 
     data, _, _ = _first_window(30.0, 2.0, 100e3, 21)
-    start = Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure=100e3, pressure_start=100e3,
+    start = Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure=100e3, pressure_gauge_start=100e3,
                   pressure_std=10e3)
-    layouts, values = start_law(get_rig(), get_rig().contact.law, None, start, data.grid.sample_rate)
+    layouts, values = _start_law(get_rig(), get_rig().contact.law, None, start, data.grid.sample_rate)
     for kind in ("core", "all"):
         layout = layouts(kind, values)
         assert takes(data, layout) and layout.priors and "pressure_gauge" in layout.names
