@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from calibration_drops import BASE_STAND, CALIBRATION, HELD_BACK, TRUE_STAND, TRUTH, drops
-from impactometer.calibrate import DEFAULT_FIT, calibrate, check_fit, validate
+from impactometer.calibrate import DEFAULT_FIT, calibrate, check_fit, check_inputs, validate
 from impactometer.calibrate.separation import CORRELATION_LIMIT, flagged
 from impactometer.errors import IdentificationError, ParameterError, RecordingError
 from impactometer.identify.model_fit import identify
@@ -133,6 +133,15 @@ def test_check_fit():
         check_fit(["contact.colour"])
     with pytest.raises(ParameterError, match="cannot fit"):
         check_fit(["cylinder.bore"])
+
+
+def test_a_family_with_more_parameters_than_the_drops_tell_is_left_out(calibration_set):
+    """Three drops tell five stand parameters (two per drop), not the power law's seven: that family is left out
+    of an automatic choice, the others are fitted."""
+    _, _, laws, _ = check_inputs(calibration_set[:3], rig=BASE_STAND)
+    assert laws == ("hysteretic", "kelvin-voigt", "hunt-crossley")
+    _, _, laws, _ = check_inputs(calibration_set[:4], rig=BASE_STAND)
+    assert laws == tuple(CONTACT_LAWS)
 
 
 def test_bad_input_is_refused(calibration_set):
