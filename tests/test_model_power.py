@@ -11,16 +11,28 @@ from scipy.integrate import solve_ivp
 
 from impactometer.errors import ParameterError
 from impactometer.model import simulate
-from impactometer.model.forces import POWER, contact_energy, contact_force, contact_loss, contact_set_rate
+from impactometer.model.forces import (
+    POWER,
+    REFERENCE_COMPRESSION,
+    contact_energy,
+    contact_force,
+    contact_loss,
+    contact_set_rate,
+)
 from impactometer.model.simulate import compare_integrators
 from impactometer.rig import Contact, Scenario
 
-#: k [N/m^n], n, m, φ of the checks on the law alone
-K, N, M, PHI = 8e6, 1.5, 3.5, 0.4
+#: k [N/m at 1 cm], n, m, φ of the checks on the law alone
+K, N, M, PHI = 8e5, 1.5, 3.5, 0.4
 
 
 def force(delta, rate, turning):
     return contact_force(delta, rate, turning, POWER, K, PHI, N, M)
+
+
+def loading(delta, stiffness=K, exponent=N):
+    """The loading curve k·δr·(δ/δr)^n [N]."""
+    return stiffness * REFERENCE_COMPRESSION * (delta / REFERENCE_COMPRESSION) ** exponent
 
 
 @pytest.fixture(scope="module")
@@ -33,9 +45,10 @@ def test_force_law_branches_and_continuity():
     """Loading k·δ^n beyond the turning point, the unloading curve through (δmax, F_max) and (φ·δmax, 0) below it:
     continuous at both ends, zero below the plastic set and when apart."""
     turning = 4e-3
-    peak = K * turning**N
+    peak = loading(turning)
     assert force(-1e-4, 1.0, 0.0) == 0.0
-    assert force(5e-3, 1.0, turning) == pytest.approx(K * 5e-3**N)
+    assert force(5e-3, 1.0, turning) == pytest.approx(loading(5e-3))
+    assert force(REFERENCE_COMPRESSION, 1.0, 0.0) == pytest.approx(K * REFERENCE_COMPRESSION)  # secant stiffness
     assert force(turning, -1.0, turning) == pytest.approx(peak)
     assert force(turning * (1 - 1e-12), -1.0, turning) == pytest.approx(peak, rel=1e-10)
     middle = 0.5 * (1 + PHI) * turning  # halfway between the set and the turning point
@@ -78,7 +91,7 @@ def test_contact_energy_balance_along_a_prescribed_cycle():
     np.testing.assert_allclose(work, stored + loss, rtol=1e-6, atol=1e-9)
     e2 = (N + 1) * (1 - PHI) / (M + 1)
     assert turning[0] == pytest.approx(1e-3, rel=1e-6) and turning[2] == pytest.approx(1.5e-3, rel=1e-6)
-    assert loss[0] == pytest.approx((1 - e2) * K * 1e-3 ** (N + 1) / (N + 1), rel=1e-6)  # first loading
+    assert loss[0] == pytest.approx((1 - e2) * loading(1e-3) * 1e-3 / (N + 1), rel=1e-6)  # first loading
     assert loss[1] == pytest.approx(loss[0], rel=1e-9)  # unloading: no loss
     assert stored[1] == 0.0  # below the set
     assert loss[4] == pytest.approx(loss[3], rel=1e-9)  # minor cycles below the turning point: no loss
@@ -96,7 +109,7 @@ def test_isolated_collision_keeps_e_squared_of_the_relative_kinetic_energy(free_
     peak, n = 3e-3, exponent  # δmax of the loading curve [m]: the stiffness that stops the bodies there
     rig = free_pad.replace(**{"contact.exponent": exponent, "contact.unloading_exponent": unloading_exponent,
                               "contact.set_fraction": set_fraction,
-                              "contact.stiffness": 0.5 * mu * velocity**2 * (n + 1) / peak ** (n + 1)})
+                              "contact.stiffness": 0.5 * mu * velocity**2 * (n + 1) / (peak * loading(peak, 1.0, n))})
     e = math.sqrt(rig.contact.restitution_squared)
     duration = 12.0 * peak / velocity  # loading and unloading take a few δmax/V0
     r = simulate(Scenario(mass=mass, velocity=velocity, pressure_gauge=0.0), rig, duration=duration,

@@ -23,6 +23,9 @@ VALVE_LAWS = {"orifice": ORIFICE, "iso6358": ISO6358}
 #: ISO 6358-1 reference conditions of the sonic conductance: density [kg/m³] and temperature [K] of air
 ISO_REFERENCE_DENSITY = 1.185
 ISO_REFERENCE_TEMPERATURE = 293.15
+#: compression at which the power law's stiffness is its secant stiffness [m]: F = k·δr·(δ/δr)^n, so that k [N/m]
+#: means the same for every exponent n and a fit tells it apart from n (pads are compressed by millimetres)
+REFERENCE_COMPRESSION = 0.01
 #: |x| from which math.tanh(x) is exactly ±1 in double precision (true from 19.06 on)
 TANH_SATURATION = 20.0
 
@@ -34,21 +37,23 @@ def contact_force(delta, delta_rate, contact_set, law, stiffness, damping, expon
     Kelvin-Voigt: k·δ + c·δ'; Hunt-Crossley: k·δ^1.5·(1 + 1.5·α·δ') with ``damping`` = α [s/m];
     hysteretic (Walton-Braun): min(k1·δ, k2·(δ − s)) with ``stiffness`` = k1, ``damping`` = k2 [N/m] and the
     contact's memory ``contact_set`` = s [m] (see :func:`contact_set_rate`); power (Masing-type, plastic set):
-    k·δ^n while δ >= δmax, else F_max·((δ − s)/(δmax − s))^m with F_max = k·δmax^n and s = φ·δmax, where
-    ``stiffness`` = k [N/m^n], ``damping`` = φ [-], ``exponent`` = n, ``unloading_exponent`` = m and the memory
-    ``contact_set`` = δmax [m], the turning point; the other laws ignore the memory and the exponents.
+    k·δr·(δ/δr)^n while δ >= δmax, else F_max·((δ − s)/(δmax − s))^m with F_max the loading force at δmax and
+    s = φ·δmax, where ``stiffness`` = k [N/m] (the secant stiffness at δr = ``REFERENCE_COMPRESSION``),
+    ``damping`` = φ [-], ``exponent`` = n, ``unloading_exponent`` = m and the memory ``contact_set`` = δmax [m],
+    the turning point; the other laws ignore the memory and the exponents.
     Zero when the bodies are apart (δ <= 0, or δ <= s) and never negative (no adhesion).
     """
     if delta <= 0.0:
         return 0.0
     if law == POWER:
+        scale = stiffness * REFERENCE_COMPRESSION
         if delta >= contact_set:
-            return stiffness * delta**exponent
+            return scale * (delta / REFERENCE_COMPRESSION) ** exponent
         plastic_set = damping * contact_set
         if delta <= plastic_set:
             return 0.0
-        return stiffness * contact_set**exponent * ((delta - plastic_set) / (contact_set - plastic_set)) \
-            ** unloading_exponent
+        return scale * (contact_set / REFERENCE_COMPRESSION) ** exponent \
+            * ((delta - plastic_set) / (contact_set - plastic_set)) ** unloading_exponent
     if law == HYSTERETIC:
         force = min(stiffness * delta, damping * (delta - contact_set))
     elif law == HUNT_CROSSLEY:
@@ -97,7 +102,7 @@ def contact_loss(delta, delta_rate, contact_set, set_rate, force, law, stiffness
     """Power dissipated in the contact [W] (force times rate, minus the rate of its stored energy,
     :func:`contact_energy`).
 
-    Power law on its loading curve (δ >= δmax): the stored energy F·(δ − φ·δmax)/(m + 1) with F = k·δ^n grows at
+    Power law on its loading curve (δ >= δmax): the stored energy F·(δ − φ·δmax)/(m + 1) with F ∝ δ^n grows at
     less than F·δ' (a fraction (n + 1)·(1 − φ)/(m + 1) of it while δmax = δ); below the turning point the
     unloading-reloading curve stores exactly the work done on it (no loss).
     """

@@ -11,8 +11,7 @@ DISPLAY_UNITS: dict[str, tuple[str, float]] = {
     "contact.set_fraction": ("-", 1.0)}
 #: contact law -> its parameters' units where they are not those of :data:`DISPLAY_UNITS`
 LAW_UNITS: dict[str, dict[str, tuple[str, float]]] = {
-    "hunt-crossley": {"contact.stiffness": ("N/m^1.5", 1.0), "contact.damping": ("s/m", 1.0)},
-    "power": {"contact.stiffness": ("N/m^n", 1.0)}}
+    "hunt-crossley": {"contact.stiffness": ("N/m^1.5", 1.0), "contact.damping": ("s/m", 1.0)}}
 
 
 def display_unit(name: str, law: str) -> tuple[str, float]:

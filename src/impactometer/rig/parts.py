@@ -126,7 +126,7 @@ CONTACT_LAWS: dict[str, dict[str, float]] = {
     "hysteretic": {"stiffness": 7e5, "restitution": 0.4},
     "kelvin-voigt": {"stiffness": 2e6, "damping": 150.0},
     "hunt-crossley": {"stiffness": 4e8, "damping": 0.2},
-    "power": {"stiffness": 8e6, "exponent": 1.5, "unloading_exponent": 3.5, "set_fraction": 0.4},
+    "power": {"stiffness": 8e5, "exponent": 1.5, "unloading_exponent": 3.5, "set_fraction": 0.4},
 }
 CONTACT_ALIASES = {"kv": "kelvin-voigt", "kelvin": "kelvin-voigt", "hunt": "hunt-crossley", "hc": "hunt-crossley",
                    "hys": "hysteretic", "walton-braun": "hysteretic", "masing": "power", "power-set": "power"}
@@ -154,14 +154,14 @@ class Contact:
     exactly at maximum compression and a collision keeps e² of its relative kinetic energy (the default);
     ``kelvin-voigt``: F = k·δ + c·δ' [stiffness N/m, damping N·s/m];
     ``hunt-crossley``: F = k·δ^1.5·(1 + 1.5·α·δ') [stiffness N/m^1.5, damping = α s/m];
-    ``power`` (Masing-type with a plastic set; aliases ``masing``, ``power-set``): loading F = k·δ^n [stiffness
-    = k N/m^n, exponent = n, 0.5-5]; from the turning point (δmax, F_max) the pad unloads, and reloads back to it,
-    along F = F_max·((δ − s)/(δmax − s))^m [unloading_exponent = m, 0.5-20] with the plastic set s = φ·δmax
-    [set_fraction = φ, within [0, 1)], which stays for the rest of the record; loaded beyond δmax it follows the
-    loading curve again. A load cycle to δmax returns e² = (n + 1)·(1 − φ)/(m + 1) of the work done on the pad
-    (:attr:`restitution_squared`; at most 1: a pad gives back no more than it took). The defaults, n = 1.5,
-    m = 3.5, φ = 0.4 (e = 0.58) and k = 8e6 N/m^1.5 (about the built-in pad's 13 mm and 9 kN under 60 J),
-    describe an elastomer pad that stiffens as it is compressed and unloads along a steeper curve.
+    ``power`` (Masing-type with a plastic set; aliases ``masing``, ``power-set``): loading F = k·δr·(δ/δr)^n
+    [stiffness = k N/m, the secant stiffness at δr = 1 cm; exponent = n, 0.5-5]; from the turning point (δmax,
+    F_max) the pad unloads, and reloads back to it, along F = F_max·((δ − s)/(δmax − s))^m [unloading_exponent = m,
+    0.5-20] with the plastic set s = φ·δmax [set_fraction = φ, within [0, 1)], which stays for the rest of the
+    record; loaded beyond δmax it follows the loading curve again. A load cycle to δmax returns e² = (n + 1)·(1 −
+    φ)/(m + 1) of the work done on the pad (:attr:`restitution_squared`; at most 1: a pad gives back no more than it
+    took). The defaults, n = 1.5, m = 3.5, φ = 0.4 (e = 0.58) and k = 8e5 N/m (about the built-in pad's 13 mm and 9
+    kN under 60 J), describe an elastomer pad that stiffens as it is compressed and unloads along a steeper curve.
     The force is zero while δ <= 0 and never pulls. Parameters left out take the law's defaults
     (``CONTACT_LAWS``); a parameter of another law is an error.
     """
