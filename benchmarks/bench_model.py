@@ -15,7 +15,8 @@ update): the robust :class:`StreamingIdentifier` (the time of each push that gav
 :class:`ModelStream` at ``--cadence`` (the wall time of each update against the cadence; the first answer's time,
 when its data ended after first contact, its errors, and the share of answers whose ±2σ holds the truth).
 
-    python benchmarks/bench_model.py [--records 20] [--cadence 0.005] [--first 0.003] [--stream-only] [--record]
+    python benchmarks/bench_model.py [--records 20] [--cadence 0.005] [--first 0.003] [--stream-only | --batch-only]
+        [--record]
 """
 
 from __future__ import annotations
@@ -57,6 +58,7 @@ def main() -> None:
     ap.add_argument("--cadence", type=float, default=CADENCE, help="model stream: record between updates [s]")
     ap.add_argument("--first", type=float, default=STAGES[0][0], help="model stream: the first answer's window [s]")
     ap.add_argument("--stream-only", action="store_true", help="the streams only (no batch fits)")
+    ap.add_argument("--batch-only", action="store_true", help="the batch fits only (no streams)")
     ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
     with recorded("bench_model", "Model-based identification: time per record beside the robust method",
@@ -73,7 +75,8 @@ def measure(args, rec) -> None:
                               pre_trigger=0.02, noise=0.05, seed=2024)
     if not args.stream_only:
         batch(recordings, args.repeat, rec)
-    stream(recordings, args.cadence, args.first, args.repeat, rec)
+    if not args.batch_only:
+        stream(recordings, args.cadence, args.first, args.repeat, rec)
 
 
 def batch(recordings, repeat: int, rec) -> None:

@@ -57,7 +57,7 @@ def test_round_trip_on_the_pad_stand(mass, velocity, pressure, seed):
     assert set(data["model_selection"]) == set(CONTACT_LAWS)
 
 
-@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley"])
+@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley", "power"])
 def test_the_contact_law_of_the_record_is_chosen(law):
     rig = get_rig(contact=law)
     rec = _record(25.0, 1.8, 150e3, 21, rig)
