@@ -359,3 +359,25 @@ def test_the_stand_file_is_written_atomically(calibration, tmp_path, monkeypatch
     with pytest.raises(OSError, match="No space left"):
         calibration.to_toml(path, overwrite=True)
     assert path.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["lab.toml"]
+
+
+@pytest.mark.parametrize("exponent", [1.0, 1.5, 2.0])
+def test_the_contact_instant_starts_from_the_back_extrapolated_force_rise(exponent):
+    """A noisy force rising as a·(t − t0)^n is extrapolated back to its onset t0 within ONSET_LEAD samples (the
+    noise at the foot of the rise biases it a few samples early); a half-sine pulse of that power (the rise bends
+    over towards its peak) to within half the delay of a trigger a millisecond late."""
+    from impactometer.calibrate.drops import ONSET_LEAD, rise_onset
+    from impactometer.recording import Recording
+
+    rate, onset, trigger = 50e3, 0.37e-3, 1.37e-3
+    time = -0.02 + np.arange(int(0.05 * rate)) / rate
+    rise = np.clip(time - onset, 0.0, None)
+    noise = np.random.default_rng(3).normal(0.0, 20.0, time.size)
+    for pulse, tolerance in ((4e3 * (rise / 0.006) ** exponent * (rise < 0.006), ONSET_LEAD / rate),
+                             (4e3 * (np.sin(np.pi * rise / 0.012) * (rise < 0.012)) ** exponent,
+                              0.5 * (trigger - onset))):
+        rec = Recording(sample_rate=rate, channels={"contact_force": pulse + noise,
+                                                    "piston_acceleration": np.zeros(time.size)},
+                        start_time=float(time[0]), metadata={})
+        estimate = rise_onset(rec, trigger)
+        assert estimate is not None and abs(estimate - onset) < tolerance
