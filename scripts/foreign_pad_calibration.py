@@ -125,7 +125,7 @@ def measure(args, rec) -> None:
     print(f"\nheld-back force NRMSE over the pads: median of the medians {np.median(nrmse_medians):.2%}, "
           f"largest {max(nrmse_max):.2%}")
     rec.headline("power-set pad of another simulator, 6 drops calibrated: held-back median force NRMSE; model "
-                 "mean |dM| and ±2σ coverage of M1 / V0 with the calibrated stand",
+                 "mean abs dM and ±2σ coverage of M1 / V0 with the calibrated stand",
                  f"{np.median(nrmse_medians):.1%}; {model[:, 0].mean():.2%}; {model[:, 2].mean():.0%} / "
                  f"{model[:, 3].mean():.0%}", target="5 %; 1 %; 85 %")
 
