@@ -18,7 +18,7 @@ from impactometer.model import gpu, simulate_batch
 from impactometer.model.simulate import compare_devices, simulate_blocks
 from impactometer.rig import get_rig
 
-LAWS = ("kelvin-voigt", "hunt-crossley", "hysteretic")
+LAWS = ("kelvin-voigt", "hunt-crossley", "hysteretic", "power")
 #: the paper's 125-case grid (M1 × V0 × p0)
 GRID = np.meshgrid([10.0, 20.0, 30.0, 40.0, 50.0], [1.0, 1.5, 2.0, 2.5, 3.0], [20e3, 115e3, 210e3, 305e3, 400e3],
                    indexing="ij")
@@ -43,7 +43,7 @@ _SIMULATED = textwrap.dedent("""
     report = {}
     # 20 ms at 100 kHz: the first two contacts and the start of stage B, 7-9 pulses per law (the simulator interprets
     # the kernels in Python: 50 ms at 200 kHz took about 8 minutes; the real-GPU test below runs those on 125 cases)
-    for law in ("kelvin-voigt", "hunt-crossley", "hysteretic"):
+    for law in ("kelvin-voigt", "hunt-crossley", "hysteretic", "power"):
         a = compare_devices(mass, velocity, pressure, get_rig(contact=law), duration=0.02, sample_rate=100e3)
         report[law] = {"peak_force": a.peak_force, "impulse": a.impulse, "peak_time": a.peak_time,
                        "mismatches": a.pulse_count_mismatches, "pulses": a.pulses}

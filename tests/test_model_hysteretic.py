@@ -74,16 +74,16 @@ def test_contact_energy_balance_along_a_prescribed_cycle():
     def rhs(t, y):
         delta, rate = history(t)
         s = y[0]
-        force = contact_force(delta, rate, s, HYSTERETIC, k1, k2)
+        force = contact_force(delta, rate, s, HYSTERETIC, k1, k2, 1.0, 1.0)
         s_rate = contact_set_rate(delta, rate, s, HYSTERETIC, k1, k2)
-        return [s_rate, force * rate, contact_loss(delta, rate, s, s_rate, force, HYSTERETIC, k1)]
+        return [s_rate, force * rate, contact_loss(delta, rate, s, s_rate, force, HYSTERETIC, k1, k2, 1.0, 1.0)]
 
     cycles = 5
     ends = [(0.25 + n) / 200.0 for n in range(cycles + 1)]  # the same δ = 1 mm at every end
     sol = solve_ivp(rhs, (0.0, ends[-1]), [0.0, 0.0, 0.0], t_eval=ends, rtol=1e-10, atol=1e-14, max_step=2e-5)
     s, work, loss = sol.y
-    stored = np.array([contact_energy(history(t)[0], contact_force(*history(t), si, HYSTERETIC, k1, k2),
-                                      HYSTERETIC, k1, k2) for t, si in zip(ends, s, strict=True)])
+    stored = np.array([contact_energy(history(t)[0], contact_force(*history(t), si, HYSTERETIC, k1, k2, 1.0, 1.0),
+                                      si, HYSTERETIC, k1, k2, 1.0) for t, si in zip(ends, s, strict=True)])
     np.testing.assert_allclose(work, stored + loss, rtol=1e-6, atol=1e-9)
     per_cycle = np.diff(loss)
     assert np.all(per_cycle > 1e-3 * loss[0])  # every minor cycle dissipates
@@ -97,7 +97,7 @@ def test_contact_energy_balance_along_a_prescribed_cycle():
     (0.5e-3, -1.0, 0.8e-3, 0.0),  # below the set: no force, no pull
 ])
 def test_force_law_branches(delta, rate, s, expected):
-    assert contact_force(delta, rate, s, HYSTERETIC, 2e6, 8e6) == pytest.approx(expected)
+    assert contact_force(delta, rate, s, HYSTERETIC, 2e6, 8e6, 1.0, 1.0) == pytest.approx(expected)
 
 
 def test_the_set_follows_a_receding_body_and_a_fresh_pulse_starts_from_it():

@@ -21,7 +21,7 @@ from impactometer.identify.model_fit import cramer_rao, identify
 from impactometer.identify.model_fit import forward as fw
 from impactometer.identify.peak_to_peak import identify as identify_robust
 from impactometer.io import write_recording
-from impactometer.rig import Scenario, get_rig
+from impactometer.rig import CONTACT_LAWS, Scenario, get_rig
 from impactometer.sensors import record
 
 Z = 4.0
@@ -54,10 +54,10 @@ def test_round_trip_on_the_pad_stand(mass, velocity, pressure, seed):
     data = answer.to_dict()
     assert data["method"] == "model" and data["variant"] == "ml"
     assert data["crb"]["mass_std_kg"] == pytest.approx(answer.mass_std / max(1.0, data["reduced_chi2"]) ** 0.5)
-    assert set(data["model_selection"]) == {"hysteretic", "kelvin-voigt", "hunt-crossley"}
+    assert set(data["model_selection"]) == set(CONTACT_LAWS)
 
 
-@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley"])
+@pytest.mark.parametrize("law", ["kelvin-voigt", "hunt-crossley", "power"])
 def test_the_contact_law_of_the_record_is_chosen(law):
     rig = get_rig(contact=law)
     rec = _record(25.0, 1.8, 150e3, 21, rig)

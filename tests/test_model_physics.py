@@ -29,7 +29,7 @@ def cumulative_impulse(time, force, delta):
     return np.concatenate(([0.0], np.cumsum(pieces)))
 
 
-@pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley"])
+@pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley", "power"])
 @pytest.mark.parametrize("mass, velocity, pressure", [(30.0, 2.0, 200e3), (10.0, 3.0, 20e3)])
 def test_momentum_of_the_mass(stand, law, mass, velocity, pressure):
     """M1·v1 = M1·V0 + M1·g·t − ∫Fc dt at every sample, to 1e-6 of M1·V0 (eq. 1 integrated in time)."""
@@ -43,7 +43,7 @@ def test_momentum_of_the_mass(stand, law, mass, velocity, pressure):
 
 
 @pytest.mark.parametrize("integrator, rtol", [("fast", 1e-9), ("reference", 1e-11)])
-@pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley"])
+@pytest.mark.parametrize("law", ["hysteretic", "kelvin-voigt", "hunt-crossley", "power"])
 @pytest.mark.parametrize("pressure", [20e3, 400e3])
 def test_total_energy_is_conserved(stand, integrator, rtol, law, pressure):
     """Kinetic + potential + gas + elastic + dissipated energy stays constant to the integration error.

@@ -189,6 +189,19 @@ def test_toml_round_trip(tmp_path):
     assert from_dict(to_dict(rig)) == rig
 
 
+def test_power_law_contact_round_trips_through_toml(tmp_path):
+    """The power law's exponents and plastic set are written, read back exactly, and only they are written."""
+    rig = get_rig().replace(**{"contact.law": "masing", "contact.stiffness": 3.3e7, "contact.exponent": 1.8,
+                               "contact.unloading_exponent": 4.25, "contact.set_fraction": 0.35})
+    path = save_toml(rig, tmp_path / "stand.toml")
+    assert load_toml(path) == rig
+    assert to_dict(rig)["contact"] == {"law": "power", "stiffness": 3.3e7, "exponent": 1.8,
+                                       "unloading_exponent": 4.25, "set_fraction": 0.35}
+    partial = tmp_path / "partial.toml"
+    partial.write_text('[contact]\nlaw = "power"\nexponent = 2.0\n', encoding="utf-8")
+    assert load_toml(partial).contact == Contact(law="power", exponent=2.0)
+
+
 def test_toml_refuses_to_overwrite(tmp_path):
     path = get_rig().to_toml(tmp_path / "stand.toml")
     with pytest.raises(ParameterError, match="exists; pass overwrite=True"):

@@ -131,13 +131,19 @@ def _check_options(velocity_sigma: float, duration: float | None) -> None:
                              f"{shown(duration)}", field="duration", expected=f"must be >= {MIN_DURATION:g} s")
 
 
-def _check_count(drops: Sequence[ObservedDrop], laws: Sequence[str], names: tuple[str, ...]) -> None:
-    most = max(len(free_parameters(law, names)) for law in laws)
-    need = max(MIN_DROPS, math.ceil(most / PARAMETERS_PER_DROP))
-    if len(drops) < need:
-        raise IdentificationError(f"the calibration set holds {len(drops)} drop(s); fitting {most} stand "
+def _check_count(drops: Sequence[ObservedDrop], laws: Sequence[str], names: tuple[str, ...]) -> tuple[str, ...]:
+    """The laws of ``laws`` whose families the drops have enough of to fit (at least MIN_DROPS, and one drop per
+    PARAMETERS_PER_DROP parameters); IdentificationError when there is none."""
+    counts = {law: len(free_parameters(law, names)) for law in laws}
+    kept = tuple(law for law, count in counts.items()
+                 if len(drops) >= max(MIN_DROPS, math.ceil(count / PARAMETERS_PER_DROP)))
+    if not kept:
+        fewest = min(counts.values())
+        need = max(MIN_DROPS, math.ceil(fewest / PARAMETERS_PER_DROP))
+        raise IdentificationError(f"the calibration set holds {len(drops)} drop(s); fitting {fewest} stand "
                                   f"parameters needs at least {need} (at least {MIN_DROPS}, and one drop per "
                                   f"{PARAMETERS_PER_DROP} parameters)")
+    return kept
 
 
 def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
@@ -163,8 +169,7 @@ def check_inputs(recordings: Sequence[Recording], *, rig: Rig | str | None = Non
                                  field="recordings", expected="must be a sequence of Recording")
     left_out = _excluded(recordings, exclude)
     drops = _read_drops([r for i, r in enumerate(recordings) if i not in left_out])
-    _check_count(drops, laws, names)
-    return base, names, laws, drops
+    return base, names, _check_count(drops, laws, names), drops
 
 
 def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
@@ -228,9 +233,8 @@ def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
     if not drop_outliers or not named:
         return dataclasses.replace(result, excluded=asked)
     rest = [d for i, d in enumerate(drops) if i not in named]
-    _check_count(rest, laws, names)
-    again = _calibrate(rest, base, names, laws, velocity_sigma=velocity_sigma, duration=duration, name=name,
-                       progress=progress)
+    again = _calibrate(rest, base, names, _check_count(rest, laws, names), velocity_sigma=velocity_sigma,
+                       duration=duration, name=name, progress=progress)
     reasons = tuple({"file": d.source, "reason": d.verdict()} for d in result.drops if d.inconsistent)
     return dataclasses.replace(again, excluded=(*asked, *reasons), warnings=(
         *again.warnings, *(f"{r['file']} left out (drop_outliers): {r['reason']}" for r in reasons)))

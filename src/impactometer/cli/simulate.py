@@ -21,8 +21,8 @@ VelocityOpt = Annotated[str | None, typer.Option("--velocity", metavar="VELOCITY
 PressureOpt = Annotated[str, typer.Option("--pressure", metavar="PRESSURE",
                                           help="Charge pressure p0, gauge (e.g. 200kPa).")]
 ContactOpt = Annotated[str | None, typer.Option(
-    "--contact", metavar="LAW", help="Contact law: hysteretic, kelvin-voigt (kv) or hunt-crossley (hunt) (default: "
-                                     "the stand's own, hysteretic on drop-stand).")]
+    "--contact", metavar="LAW", help="Contact law: hysteretic, kelvin-voigt (kv), hunt-crossley (hunt) or power "
+                                     "(masing) (default: the stand's own, hysteretic on drop-stand).")]
 RigOpt = Annotated[str | None, typer.Option("--rig", metavar="STAND",
                                             help="Stand: a preset name or a TOML file (default: drop-stand).")]
 DurationOpt = Annotated[str, typer.Option("--duration", metavar="TIME", help="Simulated time after first contact.")]

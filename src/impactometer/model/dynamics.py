@@ -2,7 +2,8 @@
 
 State vector (indices ``U1 .. CONTACT_SET``): mass and piston displacement and velocity (axis down, both measured
 from the piston's top-stop position), the pressures and gas masses of the lower and upper chambers, the energy
-dissipated so far and the memory of the hysteretic contact (its set, see :func:`.forces.contact_set_rate`).
+dissipated so far and the memory of the contact (the hysteretic law's set, the power law's turning point; see
+:func:`.forces.contact_set_rate`).
 Chamber pressures follow the energy balance of an adiabatic chamber, dp/dt = γ·(R·T_in·ṁ_in − R·T·ṁ_out − p·V')/V,
 which reduces to dp/dt = −γ·p·V'/V for the closed cylinder.
 """
@@ -32,8 +33,8 @@ N_STATE = 10
 (MASS, PISTON_MASS, GRAVITY, AREA, ROD_AREA, LOWER_LENGTH, UPPER_LENGTH, DEAD_LOWER, DEAD_UPPER, STROKE,
  GAMMA, GAS_CONSTANT, ATMOSPHERE, FRICTION, FRICTION_SCALE, LAW, CONTACT_K, CONTACT_C, STOP_K, STOP_C,
  VALVE_AREA, DISCHARGE, VELOCITY, PRESSURE_GAUGE, TEMPERATURE, VALVE_MAX_AREA, VALVE_LAW, SONIC_CONDUCTANCE,
- CRITICAL_RATIO) = range(29)
-N_PARAM = 29
+ CRITICAL_RATIO, CONTACT_N, CONTACT_M) = range(31)
+N_PARAM = 31
 
 #: channels a simulation can return, in the order of :func:`channels`
 CHANNELS = ("u1", "v1", "u2", "v2", "pressure_lower", "pressure_upper", "gas_mass_lower", "gas_mass_upper",
@@ -54,7 +55,7 @@ def volumes(u2, p):
 def force_parameters(p):
     """The parameters :func:`forces_of` depends on, as a tuple (read once, then passed by value)."""
     return (int(p[LAW]), p[CONTACT_K], p[CONTACT_C], p[AREA], p[ROD_AREA], p[ATMOSPHERE], p[FRICTION],
-            p[FRICTION_SCALE], p[STOP_K], p[STOP_C], p[STROKE])
+            p[FRICTION_SCALE], p[STOP_K], p[STOP_C], p[STROKE], p[CONTACT_N], p[CONTACT_M])
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -62,8 +63,8 @@ def forces_of(u1, v1, u2, v2, p_lower, p_upper, contact_set, q):
     """Contact, pneumatic, friction, top-stop and bottom-stop forces [N] (signs as in :mod:`.forces`) of the
     displacements [m], velocities [m/s], chamber pressures [Pa] and contact set [m]; ``q`` from
     :func:`force_parameters`."""
-    law, k, c, area, rod_area, atmosphere, friction, friction_scale, stop_k, stop_c, stroke = q
-    fc = contact_force(u1 - u2, v1 - v2, contact_set, law, k, c)
+    law, k, c, area, rod_area, atmosphere, friction, friction_scale, stop_k, stop_c, stroke, n, m = q
+    fc = contact_force(u1 - u2, v1 - v2, contact_set, law, k, c, n, m)
     fp = pneumatic_force(p_lower, p_upper, area, rod_area, atmosphere)
     ff = friction_force(v2, friction, friction_scale)
     f_top = stop_force(-u2, -v2, stop_k, stop_c)
@@ -114,7 +115,7 @@ def rhs(y, p, valve_area, dy):
     law = int(p[LAW])
     # the forces of forces_of, written out: the benchmark's plain-Python model runs this function as Python
     contact_set = y[CONTACT_SET]
-    fc = contact_force(delta, delta_rate, contact_set, law, p[CONTACT_K], p[CONTACT_C])
+    fc = contact_force(delta, delta_rate, contact_set, law, p[CONTACT_K], p[CONTACT_C], p[CONTACT_N], p[CONTACT_M])
     set_rate = contact_set_rate(delta, delta_rate, contact_set, law, p[CONTACT_K], p[CONTACT_C])
     fp = pneumatic_force(y[P_LOWER], y[P_UPPER], p[AREA], p[ROD_AREA], p[ATMOSPHERE])
     ff = friction_force(v2, p[FRICTION], p[FRICTION_SCALE])
@@ -150,7 +151,8 @@ def rhs(y, p, valve_area, dy):
     dy[M_UPPER] = mdot
 
     # dissipated power: work of the non-conservative parts of contact, stops and friction
-    power = contact_loss(delta, delta_rate, contact_set, set_rate, fc, law, p[CONTACT_K]) + ff * v2
+    power = contact_loss(delta, delta_rate, contact_set, set_rate, fc, law, p[CONTACT_K], p[CONTACT_C],
+                         p[CONTACT_N], p[CONTACT_M]) + ff * v2
     if top_pen > 0.0:
         power += (f_top - p[STOP_K] * top_pen) * (-v2)
     if bottom_pen > 0.0:
@@ -171,8 +173,9 @@ def stored_energy(y, p):
     gas = (y[P_LOWER] * vol_lower + y[P_UPPER] * vol_upper) / (p[GAMMA] - 1.0)
     delta = y[U1] - y[U2]
     law = int(p[LAW])
-    force = contact_force(delta, y[V1] - y[V2], y[CONTACT_SET], law, p[CONTACT_K], p[CONTACT_C])
-    elastic = contact_energy(delta, force, law, p[CONTACT_K], p[CONTACT_C])
+    force = contact_force(delta, y[V1] - y[V2], y[CONTACT_SET], law, p[CONTACT_K], p[CONTACT_C], p[CONTACT_N],
+                          p[CONTACT_M])
+    elastic = contact_energy(delta, force, y[CONTACT_SET], law, p[CONTACT_K], p[CONTACT_C], p[CONTACT_M])
     top_pen = -y[U2]
     bottom_pen = y[U2] - p[STROKE]
     if top_pen > 0.0:

@@ -14,29 +14,46 @@ from numba import njit
 KELVIN_VOIGT = 0
 HUNT_CROSSLEY = 1
 HYSTERETIC = 2
+POWER = 3
 #: contact law name -> code used by the compiled model
-LAW_CODES = {"kelvin-voigt": KELVIN_VOIGT, "hunt-crossley": HUNT_CROSSLEY, "hysteretic": HYSTERETIC}
+LAW_CODES = {"kelvin-voigt": KELVIN_VOIGT, "hunt-crossley": HUNT_CROSSLEY, "hysteretic": HYSTERETIC, "power": POWER}
 #: flow laws of valve Z: name -> code used by the compiled model
 ORIFICE, ISO6358 = 0, 1
 VALVE_LAWS = {"orifice": ORIFICE, "iso6358": ISO6358}
 #: ISO 6358-1 reference conditions of the sonic conductance: density [kg/m³] and temperature [K] of air
 ISO_REFERENCE_DENSITY = 1.185
 ISO_REFERENCE_TEMPERATURE = 293.15
+#: compression at which the power law's stiffness is its secant stiffness [m]: F = k·δr·(δ/δr)^n, so that k [N/m]
+#: means the same for every exponent n and a fit tells it apart from n (pads are compressed by millimetres)
+REFERENCE_COMPRESSION = 0.01
 #: |x| from which math.tanh(x) is exactly ±1 in double precision (true from 19.06 on)
 TANH_SATURATION = 20.0
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def contact_force(delta, delta_rate, contact_set, law, stiffness, damping):
-    """Compressive-only contact force [N] for compression ``delta`` [m], its rate [m/s] and the set [m].
+def contact_force(delta, delta_rate, contact_set, law, stiffness, damping, exponent, unloading_exponent):
+    """Compressive-only contact force [N] for compression ``delta`` [m], its rate [m/s] and the contact's memory.
 
     Kelvin-Voigt: k·δ + c·δ'; Hunt-Crossley: k·δ^1.5·(1 + 1.5·α·δ') with ``damping`` = α [s/m];
     hysteretic (Walton-Braun): min(k1·δ, k2·(δ − s)) with ``stiffness`` = k1, ``damping`` = k2 [N/m] and the
-    contact's memory ``contact_set`` = s [m] (see :func:`contact_set_rate`); the other laws ignore ``contact_set``.
-    Zero when the bodies are apart (δ <= 0) and never negative (no adhesion).
+    contact's memory ``contact_set`` = s [m] (see :func:`contact_set_rate`); power (Masing-type, plastic set):
+    k·δr·(δ/δr)^n while δ >= δmax, else F_max·((δ − s)/(δmax − s))^m with F_max the loading force at δmax and
+    s = φ·δmax, where ``stiffness`` = k [N/m] (the secant stiffness at δr = ``REFERENCE_COMPRESSION``),
+    ``damping`` = φ [-], ``exponent`` = n, ``unloading_exponent`` = m and the memory ``contact_set`` = δmax [m],
+    the turning point; the other laws ignore the memory and the exponents.
+    Zero when the bodies are apart (δ <= 0, or δ <= s) and never negative (no adhesion).
     """
     if delta <= 0.0:
         return 0.0
+    if law == POWER:
+        scale = stiffness * REFERENCE_COMPRESSION
+        if delta >= contact_set:
+            return scale * (delta / REFERENCE_COMPRESSION) ** exponent
+        plastic_set = damping * contact_set
+        if delta <= plastic_set:
+            return 0.0
+        return scale * (contact_set / REFERENCE_COMPRESSION) ** exponent \
+            * ((delta - plastic_set) / (contact_set - plastic_set)) ** unloading_exponent
     if law == HYSTERETIC:
         force = min(stiffness * delta, damping * (delta - contact_set))
     elif law == HUNT_CROSSLEY:
@@ -48,16 +65,25 @@ def contact_force(delta, delta_rate, contact_set, law, stiffness, damping):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def contact_set_rate(delta, delta_rate, contact_set, law, stiffness, damping):
-    """Rate of the hysteretic contact's set s [m/s] (zero for the other laws).
+    """Rate of the contact's memory [m/s]: the hysteretic law's set s, the power law's turning point δmax (zero
+    for the other laws).
 
-    The set is the compression at which the unloading line F = k2·(δ − s) reaches zero force. While the contact is
-    compressed further (δ' > 0) the set grows as (1 − k1/k2)·r²·δ', with r = F/(k1·δ) the force relative to the
-    loading line: on the loading line (r = 1) this keeps F = k1·δ exactly, and on a reloading line (r < 1) the
-    force bends smoothly back onto the loading line instead of meeting it at a corner (a Masing-type minor loop:
-    every closed load cycle dissipates energy). While the contact unloads the set is frozen, so the force follows
-    the stiffer unloading line; once the force is zero (δ <= s) the set follows the compression down to zero, so
-    a contact that opens fully starts the next pulse as a fresh pad.
+    Hysteretic: the set is the compression at which the unloading line F = k2·(δ − s) reaches zero force. While
+    the contact is compressed further (δ' > 0) the set grows as (1 − k1/k2)·r²·δ', with r = F/(k1·δ) the force
+    relative to the loading line: on the loading line (r = 1) this keeps F = k1·δ exactly, and on a reloading line
+    (r < 1) the force bends smoothly back onto the loading line instead of meeting it at a corner (a Masing-type
+    minor loop: every closed load cycle dissipates energy). While the contact unloads the set is frozen, so the
+    force follows the stiffer unloading line; once the force is zero (δ <= s) the set follows the compression down
+    to zero, so a contact that opens fully starts the next pulse as a fresh pad.
+
+    Power: the turning point follows the compression while the pad is loaded beyond it (δ >= δmax, δ' > 0) and is
+    kept otherwise: unloading and reloading run along the same curve below it, and the plastic set φ·δmax stays
+    for the rest of the record (the rate is continuous: δ' is zero where the pad turns).
     """
+    if law == POWER:
+        if delta_rate > 0.0 and delta > 0.0 and delta >= contact_set:
+            return delta_rate
+        return 0.0
     if law != HYSTERETIC:
         return 0.0
     if delta_rate > 0.0:
@@ -71,25 +97,42 @@ def contact_set_rate(delta, delta_rate, contact_set, law, stiffness, damping):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def contact_loss(delta, delta_rate, contact_set, set_rate, force, law, stiffness):
-    """Power dissipated in the contact [W] (force times rate, minus the rate of its stored energy)."""
+def contact_loss(delta, delta_rate, contact_set, set_rate, force, law, stiffness, damping, exponent,
+                 unloading_exponent):
+    """Power dissipated in the contact [W] (force times rate, minus the rate of its stored energy,
+    :func:`contact_energy`).
+
+    Power law on its loading curve (δ >= δmax): the stored energy F·(δ − φ·δmax)/(m + 1) with F ∝ δ^n grows at
+    less than F·δ' (a fraction (n + 1)·(1 − φ)/(m + 1) of it while δmax = δ); below the turning point the
+    unloading-reloading curve stores exactly the work done on it (no loss).
+    """
     if law == HYSTERETIC:
         return force * set_rate
     if delta <= 0.0:
         return 0.0
+    if law == POWER:
+        if delta < contact_set:
+            return 0.0
+        scale = 1.0 / (unloading_exponent + 1.0)
+        slope = scale * (exponent * force / delta * (delta - damping * contact_set) + force)  # ∂E/∂δ
+        return (force - slope) * delta_rate + scale * force * damping * set_rate
     if law == HUNT_CROSSLEY:
         return (force - stiffness * delta * math.sqrt(delta)) * delta_rate
     return (force - stiffness * delta) * delta_rate
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def contact_energy(delta, force, law, stiffness, damping):
-    """Elastic energy stored in the contact [J] at compression ``delta`` [m] carrying ``force`` [N].
+def contact_energy(delta, force, contact_set, law, stiffness, damping, unloading_exponent):
+    """Elastic energy stored in the contact [J] at compression ``delta`` [m] carrying ``force`` [N], with the
+    contact's memory ``contact_set`` [m].
 
-    Hysteretic: the energy the unloading line gives back, F²/(2·k2).
+    Hysteretic: the energy the unloading line gives back, F²/(2·k2). Power: the energy the unloading curve gives
+    back, F·(δ − φ·δmax)/(m + 1) (zero below the plastic set).
     """
     if delta <= 0.0:
         return 0.0
+    if law == POWER:
+        return force * max(delta - damping * contact_set, 0.0) / (unloading_exponent + 1.0)
     if law == HYSTERETIC:
         return 0.5 * force * force / damping
     if law == HUNT_CROSSLEY:

@@ -37,9 +37,14 @@ def pack(rig: Rig, scenario: Scenario) -> np.ndarray:
     p[d.FRICTION_SCALE] = rig.friction.velocity_scale
     p[d.LAW] = LAW_CODES[rig.contact.law]
     p[d.CONTACT_K] = rig.contact.stiffness
-    # the second contact parameter: the damping, or the unloading stiffness k2 of the hysteretic law [N/m]
-    p[d.CONTACT_C] = (rig.contact.unloading_stiffness if rig.contact.law == "hysteretic"
-                      else rig.contact.damping)
+    # the second contact parameter: the damping, the unloading stiffness k2 of the hysteretic law [N/m] or the
+    # plastic set fraction of the power law [-]; the exponents of the power law (1 for the others, unused)
+    if rig.contact.law == "hysteretic":
+        p[d.CONTACT_C] = rig.contact.unloading_stiffness
+    else:
+        p[d.CONTACT_C] = rig.contact.set_fraction if rig.contact.law == "power" else rig.contact.damping
+    p[d.CONTACT_N] = rig.contact.exponent or 1.0
+    p[d.CONTACT_M] = rig.contact.unloading_exponent or 1.0
     p[d.STOP_K] = rig.stops.stiffness
     p[d.STOP_C] = rig.stops.damping
     p[d.VALVE_AREA] = rig.valve.area

@@ -38,19 +38,23 @@ MAX_FIT_STEPS = 20_000
 TRIAL_RANGES = {d.MASS: (1e-3, 1e6), d.VELOCITY: (1e-4, 100.0), d.CONTACT_K: (1.0, 1e15),
                 d.CONTACT_C: (0.0, 1e15), d.FRICTION: (0.0, 1e6), d.FRICTION_SCALE: (1e-7, 10.0),
                 d.PISTON_MASS: (1e-3, 1e6), d.PRESSURE_GAUGE: (0.0, 1e9), d.DEAD_LOWER: (0.0, 1.0),
-                d.DEAD_UPPER: (0.0, 1.0), d.STOP_K: (1.0, 1e13)}
+                d.DEAD_UPPER: (0.0, 1.0), d.STOP_K: (1.0, 1e13), d.CONTACT_N: (0.2, 10.0), d.CONTACT_M: (0.2, 50.0)}
 #: model channels predicted, in the order of the recorded channels (contact force, piston acceleration)
 CHANNEL_INDEX = np.array([d.CHANNELS.index("contact_force"), d.CHANNELS.index("a2")], dtype=np.int64)
 
 #: stand parameter -> (packed index, transform, shift or scale) of the fitted variable, which is unbounded:
 #: ``log``: ln(value + shift); ``logit``: ln(value/(1 − value)) for a value in (0, 1); ``linear``: value/scale.
-#: ``contact.restitution`` is e of the hysteretic law (packed as its unloading stiffness k1/e²); a dead volume may be
+#: ``contact.restitution`` is e of the hysteretic law (packed as its unloading stiffness k1/e²),
+#: ``contact.set_fraction`` φ of the power law (packed as it is, in the slot of the damping); a dead volume may be
 #: zero, so its variable is ln(volume + 1 cm³) (a record tells 0.1 cm³ from none where ln(volume) would lose the
 #: slope that brings a volume back from near zero).
 STAND_PARAMETERS: dict[str, tuple[int, str, float]] = {
     "contact.stiffness": (d.CONTACT_K, "log", 0.0),
     "contact.damping": (d.CONTACT_C, "log", 0.0),
     "contact.restitution": (d.CONTACT_C, "logit", 0.0),
+    "contact.exponent": (d.CONTACT_N, "log", 0.0),
+    "contact.unloading_exponent": (d.CONTACT_M, "log", 0.0),
+    "contact.set_fraction": (d.CONTACT_C, "logit", 0.0),
     "friction.force": (d.FRICTION, "log", 0.0),
     "friction.velocity_scale": (d.FRICTION_SCALE, "log", 0.0),
     "cylinder.piston_mass": (d.PISTON_MASS, "log", 0.0),
