@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from calibration_drops import BASE_STAND, CALIBRATION, HELD_BACK, TRUE_STAND, TRUTH, drops
-from impactometer.calibrate import DEFAULT_FIT, _check_fit, calibrate, validate
+from impactometer.calibrate import DEFAULT_FIT, _check_fit, calibrate, check_inputs, validate
 from impactometer.calibrate.separation import CORRELATION_LIMIT, _flagged
 from impactometer.errors import IdentificationError, ParameterError, RecordingError
 from impactometer.identify.model_fit import identify
@@ -366,7 +366,7 @@ def test_the_contact_instant_starts_from_the_back_extrapolated_force_rise(expone
     """A noisy force rising as a·(t − t0)^n is extrapolated back to its onset t0 within ONSET_LEAD samples (the
     noise at the foot of the rise biases it a few samples early); a half-sine pulse of that power (the rise bends
     over towards its peak) to within half the delay of a trigger a millisecond late."""
-    from impactometer.calibrate.drops import ONSET_LEAD, rise_onset
+    from impactometer.calibrate.drops import ONSET_LEAD, _rise_onset
     from impactometer.recording import Recording
 
     rate, onset, trigger = 50e3, 0.37e-3, 1.37e-3
@@ -379,5 +379,5 @@ def test_the_contact_instant_starts_from_the_back_extrapolated_force_rise(expone
         rec = Recording(sample_rate=rate, channels={"contact_force": pulse + noise,
                                                     "piston_acceleration": np.zeros(time.size)},
                         start_time=float(time[0]), metadata={})
-        estimate = rise_onset(rec, trigger)
+        estimate = _rise_onset(rec, trigger)
         assert estimate is not None and abs(estimate - onset) < tolerance
