@@ -404,7 +404,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     if reference:
         achievable = achievable_reference(scenario, rig, absorber, start, window=window,
                                           charge_pressure=float(closed.pressure_lower[0]), duration=duration,
-                                          sample_rate=sample_rate, evaluations=reference_evaluations)
+                                          sample_rate=sample_rate, evaluations=reference_evaluations,
+                                          partial_switch=found.available_at if found.error is None else math.inf)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,
                             over_capacity=bool(over or bound.over_capacity), control_start=start,
                             reference=achievable, notes=tuple(notes), window=window)

@@ -56,7 +56,8 @@ ORACLE = f"{ORACLE_OF} (oracle)"
 ORACLE_LATE = f"{ORACLE_OF} (oracle from the control start)"
 #: the reference's families, each as its best program from first contact (the ``achievable_<key>_force_ratio``
 #: columns)
-FAMILIES = {"segments": "segments", "level": "level", "moving target": "moving_target"}
+FAMILIES = {"segments": "segments", "level": "level", "moving target": "moving_target",
+            "partial knowledge": "partial_knowledge"}
 REFERENCE = "achievable reference"
 #: the per-strategy columns of a row (keys of ``AbsorptionResult.to_dict()["strategies"][name]``): the headline
 #: first, then the run's own window (supplementary)
