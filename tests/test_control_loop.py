@@ -381,3 +381,10 @@ def test_partial_knowledge_settings_and_rated_masses_are_checked():
     assert mean == 30.0 and std == pytest.approx(40.0 / math.sqrt(12.0))
     with pytest.raises(ParameterError, match="early"):
         absorb(SCENARIO, early="yes")
+
+
+def test_cli_absorb_early(capsys):
+    main(["absorb", "--mass", "20kg", "--height", "0.2m", "--pressure", "300kPa", "--strategy", "predictive",
+          "--early", "--json"])
+    data = json.loads(capsys.readouterr().out)
+    assert 0.0 < data["strategies"]["predictive"]["control_start_s"] < 3e-3  # from V0's answer, not M1's
