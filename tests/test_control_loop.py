@@ -388,3 +388,17 @@ def test_cli_absorb_early(capsys):
           "--early", "--json"])
     data = json.loads(capsys.readouterr().out)
     assert 0.0 < data["strategies"]["predictive"]["control_start_s"] < 3e-3  # from V0's answer, not M1's
+
+
+def test_absorption_study_acts_early_when_asked():
+    load_studies()
+    study = get_study("absorption")
+    options = options_for(study, StudyOptions(rig_is_default=True, params={
+        "absorption.strategies": ["predictive"], "absorption.policy": "early", "absorption.reference_evaluations": 0}))
+    case = {"case": 0, "mass": 20.0, "velocity": 1.98, "pressure_gauge": 300e3}
+    rows = {r["strategy"]: r for r in study.evaluate([case], options)}
+    assert 0.0 < rows["predictive"]["control_start_s"] < 3e-3
+    assert rows["predictive"]["achievable_partial_knowledge_force_ratio"] >= rows["achievable reference"][
+        "stage_b_ratio"]
+    with pytest.raises(ParameterError, match="policy"):
+        options_for(study, StudyOptions(params={"absorption.policy": "sometimes"}))
