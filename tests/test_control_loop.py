@@ -355,6 +355,7 @@ def test_the_early_policy_acts_from_first_contact_and_reads_the_record_only_befo
     moved = time[np.argmax(command > 0.0)] + run.absorber.drive.dead_time
     assert until == pytest.approx(moved) and answer.error is None
     assert answer.details["data_until_s"] <= moved
+    assert run.to_dict()["strategies"]["predictive"]["answer_at_s"] == answer.available_at
     # the same run without the answer is the same up to the answer's instant
     monkeypatch.setattr(control_loop, "identify_impact", lambda *a, **k: Identification(
         method="none", mass=math.nan, velocity=math.nan, available_at=math.inf, error="none"))

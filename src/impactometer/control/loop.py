@@ -63,6 +63,8 @@ class StrategyRun:
     controller: dict[str, np.ndarray]
     metrics: AbsorptionMetrics
     valve_opening_constant: float = math.nan
+    #: the instant the strategy's controller takes the identification's answer [s] (inf: never; NaN: closed valve)
+    answer_at: float = math.nan
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -105,6 +107,8 @@ class AbsorptionResult:
             strategies[name] = run.metrics.to_dict()
             if math.isfinite(run.valve_opening_constant):
                 strategies[name]["valve_opening"] = run.valve_opening_constant
+            if not math.isnan(run.answer_at):
+                strategies[name]["answer_at_s"] = finite_or_none(run.answer_at)
             mass = run.controller.get("estimated_mass")
             if mass is not None and np.any(np.isfinite(mass)):
                 last = int(np.flatnonzero(np.isfinite(mass))[-1])
@@ -393,7 +397,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                            if control.strategy in ("realtime", "predictive")])
     runs = {name: StrategyRun(strategy=name, result=result, controller=history,
                               metrics=absorption_metrics(result, start, usable, window),
-                              valve_opening_constant=control.opening if control.strategy == "constant" else math.nan)
+                              valve_opening_constant=control.opening if control.strategy == "constant" else math.nan,
+                              answer_at=math.nan if control.strategy == "closed" else control.start)
             for name, (control, result, history) in simulated.items()}
     if math.isfinite(start) and start <= closed.time[-1]:
         bound = dataclasses.replace(efficiency_bound(closed, start, usable), first_collision_peak=first_collision_peak(
