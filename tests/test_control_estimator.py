@@ -67,12 +67,31 @@ def test_an_own_estimate_is_acted_on_only_once_it_can_be_trusted(std, trusted):
     e[Estimator.WINDOWS + Windows.MASS] = 30.0
     e[Estimator.WINDOWS + Windows.STD] = std
     ctrl = ControlSettings(strategy="predictive").packed()
-    est._combine(e, ctrl, False)
+    est._combine(e, ctrl, False, False)
     assert (std < 30.0 * est.MASS_TRUST) == trusted
     if trusted:
         assert e[Estimator.MASS] == 30.0 and e[Estimator.MASS_STD] == std
     else:
         assert math.isnan(e[Estimator.MASS]) and math.isinf(e[Estimator.MASS_STD])
+
+
+def test_the_rated_masses_prior_is_the_mass_until_stage_b_refines_it():
+    """Acting on partial knowledge, the mass is the prior (its standard deviation as given, no floor) until a
+    stage-B estimate exists, then the inverse-variance combination of the two; the answer replaces the prior once
+    known."""
+    ctrl = ControlSettings(strategy="predictive", early_start=0.0, early_mass=30.0, early_mass_std=11.5,
+                           early_velocity=2.0, mass=12.0, mass_std=0.5).packed()
+    e = np.zeros(N_ESTIMATOR)
+    e[Estimator.WINDOWS:] = windows.initial()
+    est._combine(e, ctrl, False, True)
+    assert e[Estimator.MASS] == 30.0 and e[Estimator.MASS_STD] == 11.5
+    e[Estimator.WINDOWS + Windows.MASS], e[Estimator.WINDOWS + Windows.STD] = 20.0, 2.0
+    est._combine(e, ctrl, False, True)
+    weight = 1.0 / 11.5 ** 2, 1.0 / 2.0 ** 2
+    assert e[Estimator.MASS] == pytest.approx((30.0 * weight[0] + 20.0 * weight[1]) / sum(weight))
+    est._combine(e, ctrl, True, False)  # the answer (floored at PRIOR_FLOOR of it) and the stage-B estimate
+    floor = 1.0 / (est.PRIOR_FLOOR * 12.0) ** 2
+    assert e[Estimator.MASS] == pytest.approx((12.0 * floor + 20.0 * weight[1]) / (floor + weight[1]))
 
 
 def test_prior_and_stage_b_are_weighted_by_their_errors():

@@ -94,6 +94,9 @@ def absorb(
         "--latency", metavar="TIME", help="Latency budget of the real-time system: the identification's answer is "
                                           "acted on this long after the last sample it used (default 1ms: a "
                                           "compiled real-time core).")] = "1ms",
+    early: Annotated[bool, typer.Option(
+        "--early", help="Act from first contact on what is known: V0 from the first 0.5 ms of contact, M1's prior "
+                        "over the rated masses, refined as the mass becomes known.")] = False,
     contact: ContactOpt = None,
     rig: Annotated[str, typer.Option("--rig", metavar="STAND", help="Stand: a preset name or a TOML file.")]
     = ABSORPTION_RIG,
@@ -124,7 +127,7 @@ def absorb(
             announce_compilation(doing, compile_time="about 30-80 s"):
         result = run_absorb(scenario, stand, strategy=names, identification=method,
                             noise=quantity(noise, "fraction", "--noise"), seed=seed, response_map=map_path,
-                            reference=reference, latency=quantity(latency, "time", "--latency"))
+                            reference=reference, latency=quantity(latency, "time", "--latency"), early=early)
     if as_json:
         print(json.dumps(result.to_dict(), indent=2, allow_nan=False))
     else:

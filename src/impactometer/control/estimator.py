@@ -19,7 +19,9 @@ Sensors (with noise): contact force Fc, piston acceleration a2, chamber pressure
   larger than stated), and dropped when the two differ by more than 3 combined standard errors (an early answer
   of 5 kg for a 40 kg mass happens).
 - What the identification answered (M1, V0 and M1's standard error) is known from the control start on; before,
-  only the controller's own stage-B estimates exist.
+  only the controller's own stage-B estimates exist, or, from ``early_start`` on, the partial knowledge the
+  controller acts on from first contact: V0 from the first samples of the contact and M1 from a prior over the
+  stand's rated masses (``early_mass`` ± ``early_mass_std``), which the stage-B estimate refines like an answer.
 - Mass velocity: before mass and piston move together, the momentum balance of the mass,
   v1 = V0 + g·t − ∫Fc dt / M1, with the latest M1 (unknown before the control start). Once they do (a sustained
   contact, or a contact that has held a whole window), it starts from the observer's piston velocity (mostly at a
@@ -118,7 +120,9 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
     if e[Estimator.STAGE_B] == 0.0 and together:
         e[Estimator.STAGE_B] = 1.0
     known = t >= ctrl[Settings.START]  # the identification's answer exists from the control start on
-    _combine(e, ctrl, known)
+    early = not known and t >= ctrl[Settings.EARLY_START]  # partial knowledge: V0 and a prior of M1
+    _combine(e, ctrl, known, early)
+    v0 = ctrl[Settings.EARLY_VELOCITY] if early else ctrl[Settings.VELOCITY]
     if e[Estimator.STAGE_B] != 0.0:  # momentum balance of the mass, pulled slowly towards the observer's velocity
         if e[Estimator.STAGE_B] == 1.0:  # onset: mostly at a window end, where both bodies have the piston's velocity
             e[Estimator.VELOCITY] = e[Estimator.V_HAT]
@@ -126,19 +130,25 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
         deceleration = force / e[Estimator.MASS] if e[Estimator.MASS] > 0.0 else 0.0
         e[Estimator.VELOCITY] += (gravity - deceleration) * dt \
             + VELOCITY_CORRECTION * dt * (e[Estimator.V_HAT] - e[Estimator.VELOCITY])
-    elif not known:
+    elif not (known or early):
         e[Estimator.VELOCITY] = math.nan
     elif e[Estimator.MASS] > 0.0:
-        e[Estimator.VELOCITY] = ctrl[Settings.VELOCITY] + gravity * t - e[Estimator.IMPULSE] / e[Estimator.MASS]
+        e[Estimator.VELOCITY] = v0 + gravity * t - e[Estimator.IMPULSE] / e[Estimator.MASS]
     else:
-        e[Estimator.VELOCITY] = ctrl[Settings.VELOCITY] + gravity * t
+        e[Estimator.VELOCITY] = v0 + gravity * t
 
 
 @njit(cache=True, error_model="numpy")
-def _combine(e, ctrl, known):
-    """Mass estimate [kg] and its standard error from the prior (once ``known``) and the stage-B windows."""
-    prior = ctrl[Settings.MASS] if known else math.nan
-    prior_std = max(ctrl[Settings.MASS_STD], PRIOR_FLOOR * prior) if prior > 0.0 else math.inf
+def _combine(e, ctrl, known, early):
+    """Mass estimate [kg] and its standard error from the prior (the answer once ``known``, the rated masses'
+    prior while ``early``) and the stage-B windows."""
+    if known:
+        prior = ctrl[Settings.MASS]
+        prior_std = max(ctrl[Settings.MASS_STD], PRIOR_FLOOR * prior) if prior > 0.0 else math.inf
+    elif early:
+        prior, prior_std = ctrl[Settings.EARLY_MASS], ctrl[Settings.EARLY_MASS_STD]
+    else:
+        prior, prior_std = math.nan, math.inf
     stage_b, stage_b_std = e[Estimator.WINDOWS + Windows.MASS], e[Estimator.WINDOWS + Windows.STD]
     if not (stage_b > 0.0 and math.isfinite(stage_b_std)):
         e[Estimator.MASS] = prior

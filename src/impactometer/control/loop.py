@@ -30,6 +30,8 @@ from .event import BODY_CFC, STOPPED_FRACTION, CommonWindow, body_load, common_w
 from .identified import (
     IDENTIFICATION_WINDOW,
     LATENCY,
+    contact_velocity,
+    identification_record,
     identify_impact,
     loop_method,
     loop_summary,
@@ -61,6 +63,8 @@ class StrategyRun:
     controller: dict[str, np.ndarray]
     metrics: AbsorptionMetrics
     valve_opening_constant: float = math.nan
+    #: the instant the strategy's controller takes the identification's answer [s] (inf: never; NaN: closed valve)
+    answer_at: float = math.nan
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -103,6 +107,8 @@ class AbsorptionResult:
             strategies[name] = run.metrics.to_dict()
             if math.isfinite(run.valve_opening_constant):
                 strategies[name]["valve_opening"] = run.valve_opening_constant
+            if not math.isnan(run.answer_at):
+                strategies[name]["answer_at_s"] = finite_or_none(run.answer_at)
             mass = run.controller.get("estimated_mass")
             if mass is not None and np.any(np.isfinite(mass)):
                 last = int(np.flatnonzero(np.isfinite(mass))[-1])
@@ -132,6 +138,22 @@ class AbsorptionResult:
 
         loads = {name: body_load(run.result) for name, run in self.runs.items()}
         return plot_absorption(self, loads, BODY_CFC, ax=ax)
+
+
+def early_knowledge(scenario: Scenario, rig: Rig, absorber: Absorber, *, noise: float, seed: int,
+                    sample_rate: float, latency: float) -> dict[str, float]:
+    """What a controller knows from first contact on, as :class:`.strategies.ControlContext` fields: V0 from the
+    first samples of the contact (:func:`~.identified.contact_velocity` on the noisy record the identification
+    reads, from ``early_start`` = its data's end + ``latency`` [s]) and M1's prior over the stand's rated masses
+    (``early_mass`` ± ``early_mass_std`` [kg], :meth:`.valve.Absorber.mass_prior`). Empty where V0 is not found or
+    not trusted (the controller then waits for the identification)."""
+    rec = identification_record(scenario, rig, noise=noise, seed=seed, sample_rate=sample_rate)
+    v0 = contact_velocity(rec, rig, latency=latency)
+    if not math.isfinite(usable_velocity(v0)):
+        return {}
+    mass, mass_std = absorber.mass_prior()
+    return {"early_start": float(v0.available_at), "early_mass": mass, "early_mass_std": mass_std,
+            "early_velocity": float(v0.velocity)}
 
 
 def _knew(history: dict[str, np.ndarray], result) -> float:
@@ -220,16 +242,45 @@ def _notes(found: Identification, required: float, usable: float, absorber: Abso
 
 
 def _strategy_run(name: str, context: ControlContext, found: Identification, closed, scenario: Scenario,
-                  absorber: Absorber, *, sigma: np.ndarray, seed: int):
+                  absorber: Absorber, *, sigma: np.ndarray, seed: int, answer_until=None):
     """(settings, run, controller histories) of strategy ``name``: the closed-valve run itself for ``closed`` (and
-    for every strategy but the force ones when the identification failed), else a run until the mass stops."""
+    for every strategy but the force ones when the identification failed), else a run until the mass stops. A force
+    strategy acting on partial knowledge (``context.early_start`` finite) takes the identification's answer
+    ``answer_until(t)`` from the record up to its valve's first motion t [s] (:func:`_early_run`)."""
     control = get_strategy(name)(context)
     if found.error is not None and control.strategy not in ("realtime", "predictive"):
         control = context.base("closed")  # no early answer: only the force strategies act, on their own estimates
     if control.strategy == "closed":
         return control, closed, {key: np.full_like(closed.time, np.nan) for key in plant.HISTORIES}
+    if answer_until is not None and control.strategy in ("realtime", "predictive") \
+            and math.isfinite(control.early_start):
+        return _early_run(control, context, scenario, absorber, sigma=sigma, seed=seed, answer_until=answer_until)
     return (control, *run_until_stopped(scenario, context.rig, control, absorber, duration=context.duration,
                                         sample_rate=context.sample_rate, sigma=sigma, seed=seed))
+
+
+def _early_run(control, context: ControlContext, scenario: Scenario, absorber: Absorber, *, sigma: np.ndarray,
+               seed: int, answer_until):
+    """A force strategy that acts from first contact on partial knowledge and takes the identification's answer
+    where one exists from the closed-valve record: the run without an answer first (the run with one is the same up
+    to the answer's instant), its valve's first motion t_m (its first non-zero command + the drive's dead time, which
+    the controller knows), then the answer from the record up to t_m (``answer_until(t_m)``; the identification's
+    models are the closed-valve stand's, and the record after t_m is not one of them) acted on from its
+    ``available_at``. Without such an answer the run on partial knowledge, refined in stage B, is the run."""
+    waiting = dataclasses.replace(control, start=math.inf)
+    result, history = run_until_stopped(scenario, context.rig, waiting, absorber, duration=context.duration,
+                                        sample_rate=context.sample_rate, sigma=sigma, seed=seed)
+    sent = np.flatnonzero(history["valve_command"] > 0.0)
+    moved = float(result.time[sent[0]]) + absorber.drive.dead_time if sent.size else math.inf
+    answer = answer_until(moved)
+    mass, velocity = usable_mass(answer), usable_velocity(answer)
+    if answer.error is not None or not math.isfinite(mass) or answer.available_at >= result.time[-1]:
+        return waiting, result, history
+    known = dataclasses.replace(control, start=float(answer.available_at), mass=mass,
+                                mass_std=answer.mass_std if not math.isnan(answer.mass_std) else math.inf,
+                                velocity=velocity if math.isfinite(velocity) else control.early_velocity)
+    return (known, *run_until_stopped(scenario, context.rig, known, absorber, duration=context.duration,
+                                      sample_rate=context.sample_rate, sigma=sigma, seed=seed))
 
 
 def _check(scenario, noise, seed, identification, absorber, control_start) -> None:
@@ -249,7 +300,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
            identification: str = "model", noise: float = 0.02, seed: int = 0, absorber: Absorber | None = None,
            sample_rate: float = 50e3, duration: float | None = None, control_start: float | None = None,
            response_map=None, reference: bool = False, reference_evaluations: int = REFERENCE_EVALUATIONS,
-           latency: float = LATENCY) -> AbsorptionResult:
+           latency: float = LATENCY, early: bool = False) -> AbsorptionResult:
     """Absorb one impact with the closed loop identify → control.
 
     Parameters
@@ -290,6 +341,12 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         sample it used (default :data:`~.identified.LATENCY`, 1 ms: a compiled real-time core). Stated, not
         measured: the same arguments give the same numbers on any machine. Not used by the oracle, nor with
         ``control_start``.
+    early : bool
+        Act on what is known as soon as it is known (:func:`early_knowledge`): the force strategies drive the valve
+        from V0's answer (:func:`~.identified.contact_velocity`, ~0.5 ms of contact + ``latency``) with M1 taken
+        from the prior over ``absorber.rated_masses`` and refined by the controller's stage-B estimate. An
+        identification's answer is used only where its data end before the valve can have moved (the stream's model
+        is the closed-valve stand's; a record read after the valve moved would bias it).
 
     Returns
     -------
@@ -301,6 +358,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     check_flag("reference", reference)
     check_integer("reference_evaluations", reference_evaluations, low=0, high=10_000)
     check_real("latency", latency, low=0.0, high=0.1, unit=" [s]")
+    check_flag("early", early)
     names = strategy_names(strategy)
     rig = get_rig(ABSORPTION_RIG if rig is None else rig)
     scenario.check_against(rig)
@@ -314,6 +372,10 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     over = required > absorber.rated_force
     notes = _notes(found, required, usable, absorber)
     start = found.available_at if found.error is None else math.inf
+    known = {}
+    if early and identification != "oracle":
+        known = early_knowledge(scenario, rig, absorber, noise=noise, seed=seed, sample_rate=sample_rate,
+                                latency=latency)
     sigma = sensor_sigma(closed, noise)
     window = common_window(closed, usable, vented=absorber.drive.route == "atmosphere")
     trusted_mass = usable_mass(found)
@@ -323,14 +385,20 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
                              sample_rate=sample_rate, pressure_lower_start=float(closed.pressure_lower[0]),
                              temperature_lower_start=rig.gas.temperature, force_noise=float(sigma[0]),
-                             acceleration_noise=float(sigma[1]))
-    simulated = {name: _strategy_run(name, context, found, closed, scenario, absorber, sigma=sigma, seed=seed)
-                 for name in names}
+                             acceleration_noise=float(sigma[1]), **known)
+    answer_until = None
+    if known:
+        def answer_until(moved: float) -> Identification:
+            return identify_impact(scenario, rig, method=identification, noise=noise, seed=seed,
+                                   sample_rate=sample_rate, response_map=response_map, latency=latency, until=moved)
+    simulated = {name: _strategy_run(name, context, found, closed, scenario, absorber, sigma=sigma, seed=seed,
+                                     answer_until=answer_until) for name in names}
     start = min([start] + [_knew(history, result) for control, result, history in simulated.values()
                            if control.strategy in ("realtime", "predictive")])
     runs = {name: StrategyRun(strategy=name, result=result, controller=history,
                               metrics=absorption_metrics(result, start, usable, window),
-                              valve_opening_constant=control.opening if control.strategy == "constant" else math.nan)
+                              valve_opening_constant=control.opening if control.strategy == "constant" else math.nan,
+                              answer_at=math.nan if control.strategy == "closed" else control.start)
             for name, (control, result, history) in simulated.items()}
     if math.isfinite(start) and start <= closed.time[-1]:
         bound = dataclasses.replace(efficiency_bound(closed, start, usable), first_collision_peak=first_collision_peak(
@@ -341,7 +409,8 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     if reference:
         achievable = achievable_reference(scenario, rig, absorber, start, window=window,
                                           pressure_lower_start=float(closed.pressure_lower[0]), duration=duration,
-                                          sample_rate=sample_rate, evaluations=reference_evaluations)
+                                          sample_rate=sample_rate, evaluations=reference_evaluations,
+                                          partial_switch=found.available_at if found.error is None else math.inf)
     return AbsorptionResult(scenario=scenario, rig=rig, absorber=absorber, identified=found, runs=runs, bound=bound,
                             over_capacity=bool(over or bound.over_capacity), control_start=start,
                             reference=achievable, notes=tuple(notes), window=window)

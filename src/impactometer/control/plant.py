@@ -81,7 +81,8 @@ def run_loop(p, y0, ctrl, drive, noise, sample_rate, rtol, atol, out, extra, sto
         if t > turned + stop_after:
             return stepper.OK, j - 1
         dynamics.channels(y, p, row)
-        if turned == math.inf and t > ctrl[Settings.START] and y[dynamics.V1] < 0.0 and row[SENSOR_INDEX[0]] > 0.0:
+        if turned == math.inf and t > min(ctrl[Settings.START], ctrl[Settings.EARLY_START]) \
+                and y[dynamics.V1] < 0.0 and row[SENSOR_INDEX[0]] > 0.0:
             turned = t  # the mass, in contact, turns back up: its deepest point
         for i in range(dynamics.N_CHANNEL):
             out[i, j] = row[i]

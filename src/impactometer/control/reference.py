@@ -12,7 +12,11 @@ usable stroke + ``STROKE_TOLERANCE``, the piston never touches the bottom stop):
    then hold the contact force at a level F_c (the ``level`` law with the predictive controller's lag
    compensation, no supervisor), F_c on a grid around F_ref and refined by golden section;
 3. the ``predictive`` law's moving target F* = M1·(v²/(2·s_rem) + g) from first contact and from the control
-   start, with full knowledge.
+   start, with full knowledge;
+4. **partial knowledge** from first contact: the same law from first contact with the true V0 and M1's prior over
+   the stand's rated masses (its mean, :meth:`.valve.Absorber.mass_prior`), switched to the true M1 when the loop's
+   identification answers (``partial_switch``; never without an answer): what a controller that acts on what is
+   known as soon as it is known can reach, without the identification's errors.
 
 The reference is the lowest R_B among them: the best this search finds in a stated family, not a proof that no
 program does better (the closed-loop controllers are not in family 1; the study counts the impacts where they beat
@@ -68,7 +72,7 @@ class AchievableReference:
     plant simulations run (R_B NaN when no program is feasible or the impact has no common window), the R_B of
     the best program acting only from the control start [-] (NaN without a control start), and the R_B of the best
     program of each family acting from first contact [-] (``by_family``: ``segments``, ``level``, ``moving
-    target``; inf where none of it is feasible)."""
+    target``, ``partial knowledge``; inf where none of it is feasible)."""
 
     force_ratio: float
     whole_event_peak_ratio: float
@@ -164,12 +168,14 @@ def _golden_levels(cost, levels: list[float]) -> None:
 
 def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, control_start: float, *,
                          window: CommonWindow, pressure_lower_start: float, duration: float,
-                         sample_rate: float = 50e3, evaluations: int = EVALUATIONS) -> AchievableReference:
+                         sample_rate: float = 50e3, evaluations: int = EVALUATIONS,
+                         partial_switch: float = math.inf) -> AchievableReference:
     """Search the program families (module notes) for the impact ``scenario`` on ``rig``; families 2 and 3 start
     at first contact and at ``control_start`` [s] (``inf``: first contact only), ``window`` is the impact's common
     window (F_ref centres the level scan), ``pressure_lower_start`` [Pa absolute] the lower chamber's pressure at
     first contact, ``evaluations`` the budget of plant simulations of the piecewise-constant search (0: family 1 is
-    skipped)."""
+    skipped),
+    ``partial_switch`` the instant the partial-knowledge program learns the true M1 [s] (family 4)."""
     nothing = AchievableReference(force_ratio=math.nan, whole_event_peak_ratio=math.nan, stroke_used=math.nan,
                                   family="", level=math.nan, openings=(), runs=0)
     if not math.isfinite(window.start):
@@ -201,6 +207,13 @@ def achievable_reference(scenario: Scenario, rig: Rig, absorber: Absorber, contr
         candidates[("moving target", when, math.nan)] = _outcome(scenario, rig, absorber, tracking, window,
                                                                  duration, sample_rate)
         runs += len(tried) + 1
+    prior, prior_std = absorber.mass_prior()
+    partial = dataclasses.replace(base, strategy="predictive", force_level=math.nan, start=float(partial_switch),
+                                  early_start=0.0, early_mass=prior, early_mass_std=prior_std,
+                                  early_velocity=scenario.velocity)
+    candidates[("partial knowledge", "first contact", math.nan)] = _outcome(scenario, rig, absorber, partial, window,
+                                                                           duration, sample_rate)
+    runs += 1
     found_openings: dict[str, tuple[float, ...]] = {}  # by when the segments begin
     if evaluations > 0:
         program_settings = dataclasses.replace(base, strategy="closed", start=window.start)

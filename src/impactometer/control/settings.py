@@ -50,6 +50,10 @@ class ControlSettings:
     observer_bandwidth : Bandwidth of the piston position/velocity observer [rad/s].
     acceleration_noise : Standard deviation of the accelerometer's noise [m/s²] (the noise floor of the stage-B
         mass estimate's standard error).
+    early_start : Time from which the controller acts on partial knowledge [s] (``inf``: never): before ``start``
+        it takes ``early_mass`` ± ``early_mass_std`` [kg] (a prior over the stand's rated masses) and
+        ``early_velocity`` [m/s] (V0 from the first samples of the contact) as M1 and V0, refined by its
+        stage-B estimate; from ``start`` on, the identification's answer replaces them.
     """
 
     strategy: str = "closed"
@@ -73,6 +77,10 @@ class ControlSettings:
     supervise: bool = True
     observer_bandwidth: float = 2.0 * math.pi * 40.0
     acceleration_noise: float = 0.0
+    early_start: float = math.inf
+    early_mass: float = math.nan
+    early_mass_std: float = math.inf
+    early_velocity: float = math.nan
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -85,15 +93,24 @@ class ControlSettings:
                 check_flag(f"control.{f.name}", value)
             elif not is_real(value):
                 raise ParameterError(f"control.{f.name} must be a number, got {shown(value)}")
-        for name in ("start", "usable_stroke", "tau_control", "tau_filter", "pressure_lower_start",
-                     "temperature_lower_start", "force_noise", "observer_bandwidth", "acceleration_noise"):
-            check_real(f"control.{name}", getattr(self, name), low=0.0, finite=name != "start", state_range=True,
+        for name in ("start", "early_start", "usable_stroke", "tau_control", "tau_filter", "pressure_lower_start",
+                     "temperature_lower_start",
+                     "force_noise", "observer_bandwidth", "acceleration_noise"):
+            check_real(f"control.{name}", getattr(self, name), low=0.0, finite=name not in ("start", "early_start"),
+                       state_range=True,
                        low_open=name in ("tau_control", "tau_filter", "pressure_lower_start", "temperature_lower_start",
                                          "observer_bandwidth"))
         if not 0.0 <= self.opening <= 1.0:
             raise ParameterError(f"control.opening must be a fraction within [0, 1], got {self.opening!r}")
         if not (math.isnan(self.mass) or (math.isfinite(self.mass) and self.mass > 0.0)):
             raise ParameterError(f"control.mass must be > 0 [kg] or NaN (unknown), got {self.mass!r}")
+        if math.isfinite(self.early_start) and not (math.isfinite(self.early_mass) and self.early_mass > 0.0
+                                                    and math.isfinite(self.early_velocity)
+                                                    and self.early_velocity > 0.0):
+            raise ParameterError(f"control.early_mass [kg] and control.early_velocity [m/s] must be > 0 with a finite "
+                                 f"early_start, got {self.early_mass!r} and {self.early_velocity!r}")
+        if math.isnan(self.early_mass_std) or self.early_mass_std < 0.0:
+            raise ParameterError(f"control.early_mass_std must be >= 0 [kg], got {self.early_mass_std!r}")
         if math.isnan(self.mass_std) or self.mass_std < 0.0:
             raise ParameterError(f"control.mass_std must be >= 0 [kg] (inf: no weight), got {self.mass_std!r}")
         if self.strategy == "level" and not (math.isfinite(self.force_level) and self.force_level > 0.0):

@@ -71,6 +71,10 @@ class Settings(IntEnum):
     SUPERVISE = 18
     OBSERVER_BANDWIDTH = 19
     ACCELERATION_NOISE = 20
+    EARLY_START = 21
+    EARLY_MASS = 22
+    EARLY_MASS_STD = 23
+    EARLY_VELOCITY = 24
 
 
 @slots

@@ -54,6 +54,9 @@ class ControlContext:
         first contact.
     force_noise, acceleration_noise : Standard deviations of the force sensor's [N] and the accelerometer's
         [m/s²] noise.
+    early_start, early_mass, early_mass_std, early_velocity : What is known before the control start, from
+        ``early_start`` [s] on (``inf``: nothing): a prior of M1 [kg] with its standard deviation and V0 [m/s]
+        (:class:`.settings.ControlSettings`); the force strategies act on it.
     """
 
     rig: Rig
@@ -69,6 +72,10 @@ class ControlContext:
     mass_std: float = math.inf
     force_noise: float = 0.0
     acceleration_noise: float = 0.0
+    early_start: float = math.inf
+    early_mass: float = math.nan
+    early_mass_std: float = math.inf
+    early_velocity: float = math.nan
 
     def base(self, strategy: str, **extra) -> ControlSettings:
         """Controller settings with the common fields filled."""
@@ -78,7 +85,8 @@ class ControlContext:
                                pressure_lower_start=self.pressure_lower_start,
                                temperature_lower_start=self.temperature_lower_start,
                                force_noise=self.force_noise, acceleration_noise=self.acceleration_noise,
-                               refine_mass=not oracle, **extra)
+                               refine_mass=not oracle, early_start=self.early_start, early_mass=self.early_mass,
+                               early_mass_std=self.early_mass_std, early_velocity=self.early_velocity, **extra)
 
 
 def plan_closed(context: ControlContext) -> ControlSettings:

@@ -26,7 +26,7 @@ from ..model.actuated import ROUTES
 from ..model.forces import ISO_REFERENCE_DENSITY, ISO_REFERENCE_TEMPERATURE
 from ..model.setup import pack
 from ..rig import Rig, Scenario, get_rig
-from ..validation import check_flag, check_real
+from ..validation import check_flag, check_real, is_real
 
 #: largest dead time of a valve drive [s]
 MAX_DEAD_TIME = 0.05
@@ -93,12 +93,15 @@ class Absorber:
     bounce_gate : The real-time strategy lowers the gas force only while the mass and the piston approach each
         other (``control.controller.bounce_gate``); off by default: on the built-in stand it raises the peak force
         after the control start (see docs/absorption.md).
+    rated_masses : The stand's rated range of M1 [kg] (low, high): the prior of M1 of a controller that acts
+        before the mass is identified (``absorb(early=True)``), uniform over it.
     """
 
     stroke_margin: float = 0.01
     rated_force: float = 5e3
     drive: ValveDrive = ValveDrive()
     bounce_gate: bool = False
+    rated_masses: tuple[float, float] = (10.0, 50.0)
 
     def __post_init__(self) -> None:
         _positive("absorber.stroke_margin", self.stroke_margin, allow_zero=True, unit=" [m]")
@@ -106,6 +109,16 @@ class Absorber:
         if not isinstance(self.drive, ValveDrive):
             raise ParameterError(f"absorber.drive must be a ValveDrive, got {self.drive!r}")
         check_flag("absorber.bounce_gate", self.bounce_gate)
+        masses = self.rated_masses
+        if not (isinstance(masses, tuple) and len(masses) == 2 and all(is_real(m) for m in masses)
+                and 0.0 < masses[0] <= masses[1] < math.inf):
+            raise ParameterError(f"absorber.rated_masses must be (low, high) with 0 < low <= high [kg], got "
+                                 f"{masses!r}")
+
+    def mass_prior(self) -> tuple[float, float]:
+        """Mean and standard deviation [kg] of the uniform prior of M1 over :attr:`rated_masses`."""
+        low, high = self.rated_masses
+        return 0.5 * (low + high), (high - low) / math.sqrt(12.0)
 
     def usable_stroke(self, rig: Rig) -> float:
         """Largest displacement of the mass the absorber may use on ``rig`` [m]."""

@@ -12,6 +12,8 @@ The identification's answer is acted on ``absorption.latency`` after the last sa
 compiled real-time core; ``--set absorption.latency=3ms``): a stated budget, so the rows are the same for the same
 arguments on any machine. ``--set absorption.control_start_ms=T`` makes the answer known T ms after first contact
 (with ``absorption.identification=oracle``: what a controller that knew M1 and V0 then would reach).
+``--set absorption.policy=early`` lets the force strategies act on what is known as soon as it is known
+(``absorb(early=True)``: V0 from the first 0.5 ms of contact, M1's prior over the rated masses, refined in stage B).
 
 R_B,wide (``wide_window_ratio``) is the same peak taken from the end of the first contact pulse + 1 ms: a peak
 moved before the common window counts there. Medians and percentiles of R_B are taken over the **common set**: the
@@ -40,20 +42,22 @@ NAME = "absorption"
 GRID = 2
 DEFAULTS = {"noise": 0.02, "identification": "model", "strategies": ["closed", "constant", "realtime",
                                                                        "predictive"],
-            "reference_evaluations": 240, "control_start_ms": None, "latency": LATENCY}
+            "reference_evaluations": 240, "control_start_ms": None, "latency": LATENCY, "policy": "wait"}
 SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
             "identification": Setting("choice", choices=("robust", "paper", "model", "oracle")),
             "strategies": Setting("choices", choices=ALL_STRATEGIES),
             "reference_evaluations": Setting("integer", 0, 10_000),
             "control_start_ms": Setting("number", 0.0, 1e3),
-            "latency": Setting("number", 0.0, 0.1, "time")}
+            "latency": Setting("number", 0.0, 0.1, "time"),
+            "policy": Setting("choice", choices=("wait", "early"))}
 #: the strategy run with the oracle, and the labels of the extra rows
 ORACLE_OF = "predictive"
 ORACLE = f"{ORACLE_OF} (oracle)"
 ORACLE_LATE = f"{ORACLE_OF} (oracle from the control start)"
 #: the reference's families, each as its best program from first contact (the ``achievable_<key>_force_ratio``
 #: columns)
-FAMILIES = {"segments": "segments", "level": "level", "moving target": "moving_target"}
+FAMILIES = {"segments": "segments", "level": "level", "moving target": "moving_target",
+            "partial knowledge": "partial_knowledge"}
 REFERENCE = "achievable reference"
 #: the per-strategy columns of a row (keys of ``AbsorptionResult.to_dict()["strategies"][name]``): the headline
 #: first, then the run's own window (supplementary)
@@ -87,7 +91,7 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
                    identification=options.param(NAME, "identification", DEFAULTS["identification"]),
                    reference_evaluations=int(options.param(NAME, "reference_evaluations",
                                                            DEFAULTS["reference_evaluations"])),
-                   latency=latency)
+                   latency=latency, early=options.param(NAME, "policy", DEFAULTS["policy"]) == "early")
     # the same controller with the true M1 and V0 from first contact (what the loop's instant costs is judged
     # against it), and from the loop's own control start (what the identification's error costs)
     oracle = absorb(scenario, options.rig, strategy=ORACLE_OF, identification="oracle", control_start=0.0,
