@@ -99,8 +99,8 @@ def test_contact_help_states_the_default_law():
     assert get_rig().contact.law == "hysteretic"
     for path in (["simulate"], ["record"], ["absorb"], ["study"], ["map", "build"]):
         option = _option(path, "--contact")
-        assert option.help == ("Contact law: hysteretic, kelvin-voigt (kv) or hunt-crossley (hunt) (default: the "
-                               "stand's own, hysteretic on drop-stand)."), path
+        assert option.help == ("Contact law: hysteretic, kelvin-voigt (kv), hunt-crossley (hunt) or power (masing) "
+                               "(default: the stand's own, hysteretic on drop-stand)."), path
         assert option.metavar == "LAW"
 
 

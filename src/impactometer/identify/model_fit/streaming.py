@@ -149,7 +149,12 @@ class ModelStream:
         self.cadence, self.first, self.window = check_schedule(cadence, first, window, sample_rate=sample_rate)
         self.robust = StreamingIdentifier(sample_rate, start_time=start_time, estimates=robust_starts)
         self.sample_rate, self.start_time = float(sample_rate), float(start_time)
-        self.rig, self.laws = get_rig(rig), contact_laws(contact)
+        self.rig = get_rig(rig)
+        # the stream screens one law per update from its first window on: the power law (six contact parameters)
+        # is a candidate where the stand's pad is one or where it is the law named; the batch fit tries it always
+        laws = contact_laws(contact)
+        self.laws = laws if len(laws) == 1 else tuple(law for law in laws
+                                                      if law != "power" or self.rig.contact.law == "power")
         self.uncertain, self.contact = check_uncertain(uncertain, self.laws), contact
         if metadata is not None and not isinstance(metadata, dict):
             raise ParameterTypeError(f"metadata must be None or a dict (the recording's metadata), got "
