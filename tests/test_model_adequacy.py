@@ -19,7 +19,7 @@ from foreign_stand import foreign_case
 from impactometer.cli import main
 from impactometer.identify.details import Adequacy
 from impactometer.identify.model_fit import identify
-from impactometer.identify.model_fit.adequacy import VERDICTS, Z_ADEQUATE, Residual, bandwidth, sandwich, statistics
+from impactometer.identify.model_fit.adequacy import VERDICTS, Z_ADEQUATE, _bandwidth, _Residual, _sandwich, _statistics
 from impactometer.io import write_recording
 from impactometer.rig import Scenario
 from impactometer.sensors import record
@@ -27,24 +27,24 @@ from impactometer.sensors import record
 Z = 4.0
 
 
-def _residual(after: np.ndarray, before: np.ndarray) -> Residual:
-    return Residual(after=after, before=before, problem=None, vector=np.empty(0), onset=0)  # type: ignore[arg-type]
+def _residual(after: np.ndarray, before: np.ndarray) -> _Residual:
+    return _Residual(after=after, before=before, problem=None, vector=np.empty(0), onset=0)  # type: ignore[arg-type]
 
 
 def test_white_residuals_pass_and_correlated_ones_do_not():
     rng = np.random.default_rng(5)
-    white = statistics(_residual(rng.normal(size=(2, 2500)), rng.normal(size=(2, 1000))))
+    white = _statistics(_residual(rng.normal(size=(2, 2500)), rng.normal(size=(2, 1000))))
     assert max(white["misfit_z"]) < Z_ADEQUATE and max(white["autocorrelation_z"]) < Z_ADEQUATE
     # a smooth model error of half the noise's variance: its lag-1 autocorrelation 0.5/1.5, z = 0.33/0.037 = 9 ± 1
     t = np.arange(2500) / 50e3
     smooth = np.sqrt(0.5 * 2) * np.sin(2 * np.pi * 150 * t)
-    model_error = statistics(_residual(rng.normal(size=(2, 2500)) + smooth, rng.normal(size=(2, 1000))))
+    model_error = _statistics(_residual(rng.normal(size=(2, 2500)) + smooth, rng.normal(size=(2, 1000))))
     assert min(model_error["autocorrelation_z"]) > Z_ADEQUATE + 2
     # coloured noise (the same before and after contact) is the noise, not a model error
     colour = np.array([1.0, 0.8, 0.5])
     coloured = [np.apply_along_axis(np.convolve, 1, rng.normal(size=(2, n)), colour, "same") / np.linalg.norm(colour)
                 for n in (2500, 1000)]
-    assert max(statistics(_residual(*coloured))["autocorrelation_z"]) < Z_ADEQUATE
+    assert max(_statistics(_residual(*coloured))["autocorrelation_z"]) < Z_ADEQUATE
 
 
 def test_an_in_family_record_is_adequate():
@@ -112,8 +112,8 @@ def test_the_sandwich_sigma_of_a_mean_counts_the_residuals_correlation(rho):
         r[:, i] = rho * r[:, i - 1] + np.sqrt(1 - rho ** 2) * e[:, i]
     problem = _Problem(n)
     fit = type("Fit", (), {"x": np.zeros(2), "cov": np.eye(2) / n})()
-    res = Residual(after=r, before=rng.normal(size=(2, 1000)), problem=problem, vector=r.ravel(), onset=0)
-    lags = bandwidth(r)
-    ratio = np.diag(sandwich(res, fit, lags)) / np.diag(fit.cov)  # type: ignore[arg-type]
+    res = _Residual(after=r, before=rng.normal(size=(2, 1000)), problem=problem, vector=r.ravel(), onset=0)
+    lags = _bandwidth(r)
+    ratio = np.diag(_sandwich(res, fit, lags)) / np.diag(fit.cov)  # type: ignore[arg-type]
     expected = (1 + rho) / (1 - rho)
     assert np.all(np.abs(ratio / expected - 1) < 0.35)

@@ -11,7 +11,7 @@ from impactometer.errors import IdentificationError, ParameterError, ParameterTy
 from impactometer.identify.details import ModelDetails
 from impactometer.identify.model_fit import cramer_rao, identify
 from impactometer.identify.model_fit.select import STAGES
-from impactometer.identify.model_fit.streaming import ModelStream, check_schedule, stream_model_arrays
+from impactometer.identify.model_fit.streaming import ModelStream, _stream_model_arrays, check_schedule
 from impactometer.identify.peak_to_peak.streaming import StreamingIdentifier
 from impactometer.io import write_recording
 from impactometer.recording import Recording
@@ -116,7 +116,7 @@ def test_the_final_answer_is_the_batch_fit_of_the_same_samples_whatever_the_chun
 
 def test_stream_model_arrays_ends_with_the_final_answer_and_a_quiet_stream_has_none():
     rec = _record(30.0, 2.0, 100e3, 31, duration=0.02)
-    got = stream_model_arrays(rec.contact_force, rec.piston_acceleration, rec.sample_rate, chunk=500,
+    got = _stream_model_arrays(rec.contact_force, rec.piston_acceleration, rec.sample_rate, chunk=500,
                               start_time=rec.start_time, metadata=rec.metadata)
     assert got[-1].details["stage"] == "final" and abs(got[-1].mass - 30.0) <= Z * got[-1].mass_std
     quiet = ModelStream(50e3)
@@ -218,28 +218,28 @@ def _first_window(mass, velocity, pressure, seed):
     """A record's first 4 ms as the stream's first fit reads it, and the core layout started 20 % off in M1 and
     5 % in V0 (first contact at t = 0 on the record's clock)."""
     from impactometer.identify.model_fit import engine
-    from impactometer.identify.model_fit.select import Start, _start_law
+    from impactometer.identify.model_fit.select import _Start, _start_law
 
     rec = _record(mass, velocity, pressure, seed)
     design = engine.anti_alias_design(rec)
     contact = 0.0
     data = engine.window(engine.observe(rec, design, contact, min_duration=0.0), contact + STAGES[0][0])
-    start = Start(mass=1.2 * mass, velocity=0.95 * velocity, contact_time=contact, pressure=pressure,
+    start = _Start(mass=1.2 * mass, velocity=0.95 * velocity, contact_time=contact, pressure=pressure,
                   pressure_gauge_start=pressure)
     layouts, values = _start_law(get_rig(), get_rig().contact.law, None, start, rec.sample_rate)
     return data, layouts("core", values), values
 
 
 def test_the_streams_predictions_on_the_calling_thread_equal_the_batch_fits():
-    from impactometer.identify.model_fit.forward import predict
+    from impactometer.identify.model_fit.forward import _predict
 
     data, layout, values = _first_window(30.0, 2.0, 100e3, 21)
     rows = layout.variables(values)[None, :] + np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 1.5], [-1.0, 0.4, -2.0]])
     params, times = layout.packed(rows)
-    assert np.array_equal(predict(data.grid, params, times, in_turn=True), predict(data.grid, params, times))
+    assert np.array_equal(_predict(data.grid, params, times, in_turn=True), _predict(data.grid, params, times))
     for in_turn in (True, False):  # one range check
         with pytest.raises(IdentificationError, match="outside"):
-            predict(data.grid, *layout.packed(np.array([[-20.0, 0.0, 0.0]])), in_turn=in_turn)
+            _predict(data.grid, *layout.packed(np.array([[-20.0, 0.0, 0.0]])), in_turn=in_turn)
 
 
 @pytest.mark.parametrize(("mass", "velocity", "pressure", "seed"), [(30.0, 2.0, 100e3, 21), (10.0, 3.0, 400e3, 22)])
@@ -247,13 +247,13 @@ def test_the_engines_paths_agree(mass, velocity, pressure, seed):
     """The one solver run three ways on a first window (Python with predictions on the thread pool, Python on the
     calling thread, compiled) finds the same optimum, fitted to convergence and updated by one step."""
     from impactometer.identify.model_fit.engine import fit_law
-    from impactometer.identify.model_fit.first_window import fit_window, takes
+    from impactometer.identify.model_fit.first_window import _fit_window, _takes
 
     data, layout, values = _first_window(mass, velocity, pressure, seed)
-    assert takes(data, layout)
+    assert _takes(data, layout)
     batch = fit_law(data, layout, values)
     python = fit_law(data, layout, values, in_turn=True)
-    compiled = fit_window(data, layout, values)
+    compiled = _fit_window(data, layout, values)
     assert batch.converged and python.converged and compiled.converged
     # the same predictions, the same arithmetic: equal to rounding
     assert python.chi2 == pytest.approx(batch.chi2, rel=1e-9)
@@ -269,7 +269,7 @@ def test_the_engines_paths_agree(mass, velocity, pressure, seed):
     moved = {**batch.values, "mass": 1.02 * batch.values["mass"]}
     reference = fit_law(data, layout, moved, offsets=batch.offsets, jacobians=1)
     python = fit_law(data, layout, moved, offsets=batch.offsets, jacobians=1, in_turn=True)
-    compiled = fit_window(data, layout, moved, batch.offsets, jacobians=1)
+    compiled = _fit_window(data, layout, moved, batch.offsets, jacobians=1)
     assert reference.chi2 < fit_law(data, layout, moved, offsets=batch.offsets, evaluations=1).chi2
     assert python.chi2 == pytest.approx(reference.chi2, rel=1e-9)
     assert python.std("mass") == pytest.approx(reference.std("mass"), rel=1e-6)
@@ -283,18 +283,18 @@ def test_the_compiled_fit_takes_every_layout_with_the_python_solvers_answer():
     pressure with its prior): the same optimum as the solver in Python on the same residuals, within the stopping
     rule's reach (χ² to its tolerance, the values to a small fraction of their σ)."""
     from impactometer.identify.model_fit.engine import TOLERANCE, fit_law
-    from impactometer.identify.model_fit.first_window import fit_window, takes
-    from impactometer.identify.model_fit.select import Start, _start_law
+    from impactometer.identify.model_fit.first_window import _fit_window, _takes
+    from impactometer.identify.model_fit.select import _Start, _start_law
 
     data, _, _ = _first_window(30.0, 2.0, 100e3, 21)
-    start = Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure=100e3, pressure_gauge_start=100e3,
+    start = _Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure=100e3, pressure_gauge_start=100e3,
                   pressure_std=10e3)
     layouts, values = _start_law(get_rig(), get_rig().contact.law, None, start, data.grid.sample_rate)
     for kind in ("core", "all"):
         layout = layouts(kind, values)
-        assert takes(data, layout) and layout.priors and "pressure_gauge" in layout.names
+        assert _takes(data, layout) and layout.priors and "pressure_gauge" in layout.names
         python = fit_law(data, layout, values, in_turn=True)
-        compiled = fit_window(data, layout, values)
+        compiled = _fit_window(data, layout, values)
         assert compiled.residuals == python.residuals
         assert compiled.chi2 == pytest.approx(python.chi2, rel=10 * TOLERANCE)
         for name in ("mass", "velocity"):

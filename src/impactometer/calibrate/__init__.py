@@ -28,9 +28,9 @@ from ..identify.model_fit.select import SCREEN_MARGIN
 from ..recording import Recording
 from ..rig import Rig, get_rig, parameter_names
 from ..validation import check_flag
-from .drops import ObservedDrop, _read_drops
+from .drops import _ObservedDrop, _read_drops
 from .influence import MISFIT_LIMIT, _drop_figures, _inconsistent, _limit, _set_misfit_sigma
-from .joint import NUISANCES, SCREEN_STAGE, Family, fit_family, stages_for
+from .joint import NUISANCES, SCREEN_STAGE, _Family, _fit_family, _stages_for
 from .result import Calibration, DropFit
 from .separation import CORRELATION_LIMIT, _correlation, _flagged, _suggest
 from .validate import DropValidation, Validation, _force_nrmse, validate
@@ -131,7 +131,7 @@ def _check_options(velocity_sigma: float, duration: float | None) -> None:
                              f"{shown(duration)}", field="duration", expected=f"must be >= {MIN_DURATION:g} s")
 
 
-def _check_count(drops: Sequence[ObservedDrop], laws: Sequence[str], names: tuple[str, ...]) -> tuple[str, ...]:
+def _check_count(drops: Sequence[_ObservedDrop], laws: Sequence[str], names: tuple[str, ...]) -> tuple[str, ...]:
     """The laws of ``laws`` whose families the drops have enough of to fit (at least MIN_DROPS, and one drop per
     PARAMETERS_PER_DROP parameters); IdentificationError when there is none."""
     counts = {law: len(free_parameters(law, names)) for law in laws}
@@ -240,11 +240,11 @@ def calibrate(recordings: Sequence[Recording], *, rig: Rig | str | None = None,
         *again.warnings, *(f"{r['file']} left out (drop_outliers): {r['reason']}" for r in reasons)))
 
 
-def _calibrate(drops: Sequence[ObservedDrop], base: Rig, names: tuple[str, ...], laws: Sequence[str], *,
+def _calibrate(drops: Sequence[_ObservedDrop], base: Rig, names: tuple[str, ...], laws: Sequence[str], *,
                velocity_sigma: float, duration: float | None, name: str | None,
                progress: Callable[[int, int], None] | None) -> Calibration:
     """The calibration of checked drops (see :func:`calibrate`)."""
-    stages = stages_for(duration)
+    stages = _stages_for(duration)
     total, done = len(laws) * len(stages), 0
 
     def step() -> None:
@@ -261,20 +261,20 @@ def _calibrate(drops: Sequence[ObservedDrop], base: Rig, names: tuple[str, ...],
     return _result(best, drops, base, report, velocity_sigma=velocity_sigma, duration=duration, name=name)
 
 
-def _fit_families(drops: Sequence[ObservedDrop], base: Rig, laws: Sequence[str], names: tuple[str, ...],
-                  velocity_sigma: float, stages, step: Callable[[], None]) -> tuple[dict[str, Family], dict]:
+def _fit_families(drops: Sequence[_ObservedDrop], base: Rig, laws: Sequence[str], names: tuple[str, ...],
+                  velocity_sigma: float, stages, step: Callable[[], None]) -> tuple[dict[str, _Family], dict]:
     """Each family through the screening window, the ones within ``SCREEN_MARGIN`` of the best BIC to the end."""
-    screened: dict[str, tuple[Family, np.ndarray]] = {}
+    screened: dict[str, tuple[_Family, np.ndarray]] = {}
     report: dict[str, dict] = {}
     head, tail = stages[:SCREEN_STAGE + 1], stages[SCREEN_STAGE + 1:]
     for law in laws:
         free = free_parameters(law, names)
         try:
-            screened[law] = fit_family(drops, base, law, free, velocity_sigma=velocity_sigma, stages=head,
+            screened[law] = _fit_family(drops, base, law, free, velocity_sigma=velocity_sigma, stages=head,
                                        final=not tail, progress=step)
         except IdentificationError as exc:
             report[law] = {"error": str(exc)}
-    families: dict[str, Family] = {}
+    families: dict[str, _Family] = {}
     if not screened:
         return families, report
     lowest = min(family.bic for family, _ in screened.values())
@@ -290,7 +290,7 @@ def _fit_families(drops: Sequence[ObservedDrop], base: Rig, laws: Sequence[str],
             families[law] = family
         else:
             try:
-                families[law], _ = fit_family(drops, base, law, family.free, velocity_sigma=velocity_sigma,
+                families[law], _ = _fit_family(drops, base, law, family.free, velocity_sigma=velocity_sigma,
                                               stages=tail, x0=x, progress=step)
             except IdentificationError as exc:
                 report[law] = {**screen, "error": str(exc)}
@@ -299,7 +299,7 @@ def _fit_families(drops: Sequence[ObservedDrop], base: Rig, laws: Sequence[str],
     return families, report
 
 
-def _result(best: Family, drops: Sequence[ObservedDrop], base: Rig, report: dict, *, velocity_sigma: float,
+def _result(best: _Family, drops: Sequence[_ObservedDrop], base: Rig, report: dict, *, velocity_sigma: float,
             duration: float | None, name: str | None) -> Calibration:
     """The :class:`Calibration` of the chosen family."""
     cov, rank = covariance(best.root)

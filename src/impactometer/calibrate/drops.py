@@ -43,7 +43,7 @@ RISE_BAND = (0.05, 0.5)
 
 
 @dataclass(frozen=True)
-class ObservedDrop:
+class _ObservedDrop:
     """One drop of a calibration set.
 
     ``mass`` [kg] (exact), ``velocity`` [m/s] (the light gate's), ``pressure`` [Pa gauge]; ``data`` the observed
@@ -189,8 +189,8 @@ def _rise_onset(recording: Recording, trigger: float) -> float | None:
     return float(onsets[best]) if 0.5 <= slope[best] <= 5.0 else None
 
 
-def _read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
-    """The :class:`ObservedDrop` of each recording, checked: the channels the fit needs, the truth, a pre-trigger
+def _read_drops(recordings: Sequence[Recording]) -> list[_ObservedDrop]:
+    """The :class:`_ObservedDrop` of each recording, checked: the channels the fit needs, the truth, a pre-trigger
     and the length after contact, one stand, no drop twice. Each drop's ``source`` is its recording's, numbered
     (``memory #3``) where recordings share one."""
     if not isinstance(recordings, Sequence) or isinstance(recordings, (str, bytes)):
@@ -216,6 +216,6 @@ def _read_drops(recordings: Sequence[Recording]) -> list[ObservedDrop]:
         onset = _rise_onset(recording, trigger)
         if onset is not None and onset - delay < start - ONSET_LEAD / recording.sample_rate:
             start = onset - delay
-        drops.append(ObservedDrop(source=label, mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
+        drops.append(_ObservedDrop(source=label, mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
                           pressure=truth["pressure_gauge_Pa"], data=data, contact_time=start))
     return drops

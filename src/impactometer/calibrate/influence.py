@@ -32,8 +32,8 @@ import numpy as np
 from scipy.stats import norm
 
 from ..identify.model_fit.engine import Residuals, window
-from .drops import ObservedDrop
-from .joint import NUISANCES, Family
+from .drops import _ObservedDrop
+from .joint import NUISANCES, _Family
 
 #: false-alarm probability of naming a drop of a set that a right model fits [-]
 FALSE_ALARM = 0.01
@@ -70,7 +70,7 @@ def _misfit_sigma(chi2: float, dof: int, pre_samples: float) -> float:
     return (chi2 / max(dof, 1) - 1.0) / spread
 
 
-def _set_misfit_sigma(family: Family, drops: Sequence[ObservedDrop]) -> float:
+def _set_misfit_sigma(family: _Family, drops: Sequence[_ObservedDrop]) -> float:
     """The misfit of every drop's samples together [σ]: their χ² over its scatter under a right model, each drop's
     noise estimate weighted by its share of the degrees of freedom (see the module notes)."""
     dofs = np.array([n - len(NUISANCES) for n in family.drop_residuals], dtype=float)
@@ -80,12 +80,12 @@ def _set_misfit_sigma(family: Family, drops: Sequence[ObservedDrop]) -> float:
     return (float(sum(family.drop_chi2)) / dof - 1.0) / spread
 
 
-def _pre_samples(drop: ObservedDrop) -> float:
+def _pre_samples(drop: _ObservedDrop) -> float:
     """Number of samples before the drop's first contact (where each channel's σ was measured) [-]."""
     return max((drop.contact_time - drop.data.grid.start_time) * drop.data.grid.sample_rate, 2.0)
 
 
-def _drop_figures(family: Family, drops: Sequence[ObservedDrop], *, velocity_sigma: float,
+def _drop_figures(family: _Family, drops: Sequence[_ObservedDrop], *, velocity_sigma: float,
                   duration: float | None) -> list[dict[str, float]]:
     """Each drop's light-gate pull, misfit and influence [σ] (see the module notes) at the fit ``family``."""
     s, k = len(family.free), family.unknowns

@@ -34,7 +34,7 @@ from ..identify.model_fit.engine import (
 )
 from ..identify.model_fit.forward import Layout, make_layout, stand_values, to_variable
 from ..rig import Rig
-from .drops import ObservedDrop
+from .drops import _ObservedDrop
 
 #: windows after each drop's start contact instant [s] fitted in turn, up to the length fitted (see
 #: :func:`stages_for`), and which shared stand parameters are free in them: none ("core": each drop's V0, contact
@@ -53,14 +53,14 @@ FINAL_TOLERANCE = 1e-10
 NUISANCES = ("velocity", "contact_time", "offset.contact_force", "offset.piston_acceleration")
 
 
-def stages_for(duration: float | None) -> tuple[tuple[float | None, str], ...]:
+def _stages_for(duration: float | None) -> tuple[tuple[float | None, str], ...]:
     """The windows of :data:`STAGES` shorter than ``duration`` [s], then ``duration`` itself (None: whole
     records)."""
     return (*((end, kind) for end, kind in STAGES if duration is None or end < duration), (duration, "all"))
 
 
 @dataclass(frozen=True)
-class Family(Quality):
+class _Family(Quality):
     """The joint fit of one contact-law family.
 
     ``x`` holds the fit variables (the shared ones, then per drop :data:`NUISANCES`: ln V0, the contact instant in
@@ -94,7 +94,7 @@ class Family(Quality):
     def local(self, i: int, x: np.ndarray | None = None) -> np.ndarray:
         """Drop ``i``'s vector of :class:`~impactometer.identify.model_fit.engine.Residuals` (V0, contact instant, the
         shared variables, the offsets) of the joint vector ``x`` (default the optimum)."""
-        return local(self.x if x is None else x, i, len(self.free))
+        return _local(self.x if x is None else x, i, len(self.free))
 
     def summary(self) -> dict:
         """JSON-ready figures of the fit."""
@@ -103,7 +103,7 @@ class Family(Quality):
                 "drops_reduced_chi2": [self.drop_reduced_chi2(i) for i in range(len(self.drop_chi2))]}
 
 
-def local(x: np.ndarray, i: int, shared: int) -> np.ndarray:
+def _local(x: np.ndarray, i: int, shared: int) -> np.ndarray:
     """Drop ``i``'s vector (V0, contact instant, the ``shared`` variables, the offsets) of a joint vector."""
     own = x[shared + len(NUISANCES) * i: shared + len(NUISANCES) * (i + 1)]
     return np.r_[own[:2], x[:shared], own[2:]]
@@ -113,7 +113,7 @@ class _Joint:
     """Residuals and Jacobian of one family on every drop, each drop up to the end of its window, the shared
     variables outside ``active`` held at their values in ``x0``."""
 
-    def __init__(self, drops: Sequence[ObservedDrop], layouts: Sequence[Layout], shared: int, end: float | None,
+    def __init__(self, drops: Sequence[_ObservedDrop], layouts: Sequence[Layout], shared: int, end: float | None,
                  x0: np.ndarray, active: np.ndarray):
         self.models = [Residuals(drop.data if end is None else window(drop.data, drop.contact_time + end), layout)
                        for drop, layout in zip(drops, layouts, strict=True)]
@@ -136,7 +136,7 @@ class _Joint:
     def parts(self, x: np.ndarray) -> list[np.ndarray] | None:
         """Each drop's weighted residuals at the joint vector ``x`` (None where a drop's model cannot be
         integrated)."""
-        parts = [model.residuals(local(x, i, self.shared)) for i, model in enumerate(self.models)]
+        parts = [model.residuals(_local(x, i, self.shared)) for i, model in enumerate(self.models)]
         return None if any(part is None for part in parts) else parts  # type: ignore[return-value]
 
     def residuals(self, xa: np.ndarray) -> np.ndarray | None:
@@ -148,7 +148,7 @@ class _Joint:
         """The joint Jacobian as each drop's block (its rows touch the shared columns and its own only:
         ``columns``)."""
         x = self.full(xa)
-        return [model.jacobian(local(x, i, self.shared)) for i, model in enumerate(self.models)]
+        return [model.jacobian(_local(x, i, self.shared)) for i, model in enumerate(self.models)]
 
     def normal(self, blocks: list[np.ndarray], r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The normal equations JᵀJ, Jᵀr of the active variables, summed drop by drop from each block's
@@ -187,7 +187,7 @@ class _Joint:
         return float(sum(model.constant for model in self.models))
 
 
-def start_vector(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...],
+def _start_vector(drops: Sequence[_ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...],
                  start: dict[str, float]) -> np.ndarray:
     """The joint vector at the stand values ``start`` [SI], each drop at its light-gate V0, its start contact
     instant and the offsets of its pre-trigger."""
@@ -197,7 +197,7 @@ def start_vector(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free:
     return np.r_[shared, np.ravel(own)].astype(float)
 
 
-def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[ObservedDrop], *,
+def _make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[_ObservedDrop], *,
                  velocity_sigma: float) -> tuple[Layout, ...]:
     """Each drop's layout: V0 (with the light gate's reading as its prior of relative σ ``velocity_sigma``) and the
     contact instant unknown, M1 and p0 known, the ``free`` stand parameters."""
@@ -206,7 +206,7 @@ def make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[Obse
                                  "velocity", drop.velocity, velocity_sigma * drop.velocity) for drop in drops)
 
 
-def fit_stage(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...], x0: np.ndarray, *,
+def _fit_stage(drops: Sequence[_ObservedDrop], layouts: Sequence[Layout], free: tuple[str, ...], x0: np.ndarray, *,
               velocity_sigma: float, end: float | None, kind: str, evaluations: int = STAGE_EVALUATIONS,
               tolerance: float = TOLERANCE, information: bool = False) -> tuple[Solution, _Joint]:
     """One stage: the joint least-squares fit on the window ``end`` [s] after each drop's start contact instant
@@ -224,19 +224,19 @@ def fit_stage(drops: Sequence[ObservedDrop], layouts: Sequence[Layout], free: tu
                     evaluations=answer.evaluations, converged=answer.converged), joint
 
 
-def fit_family(drops: Sequence[ObservedDrop], rig: Rig, law: str, free: tuple[str, ...], *, velocity_sigma: float,
+def _fit_family(drops: Sequence[_ObservedDrop], rig: Rig, law: str, free: tuple[str, ...], *, velocity_sigma: float,
                stages: Sequence[tuple[float | None, str]], x0: np.ndarray | None = None, final: bool = True,
-               progress: Callable[[], None] | None = None) -> tuple[Family, np.ndarray]:
+               progress: Callable[[], None] | None = None) -> tuple[_Family, np.ndarray]:
     """Fit the family of ``law`` jointly over ``drops`` through ``stages`` (from ``x0``, default the stand's own
     values, see :func:`start_vector`) by :func:`~impactometer.identify.model_fit.engine.staged`; returns the last
     stage's :class:`Family` and its vector. ``progress`` is called after each stage."""
-    layouts = make_layouts(rig, law, free, drops, velocity_sigma=velocity_sigma)
-    x = start_vector(drops, layouts, free, stand_values(rig, law, free)) if x0 is None else x0
+    layouts = _make_layouts(rig, law, free, drops, velocity_sigma=velocity_sigma)
+    x = _start_vector(drops, layouts, free, stand_values(rig, law, free)) if x0 is None else x0
     last = len(stages) - 1
 
     def fit_one(stage, state):
         k, (end, kind) = stage
-        answer, joint = fit_stage(drops, layouts, free, state[0].x if state else x, velocity_sigma=velocity_sigma,
+        answer, joint = _fit_stage(drops, layouts, free, state[0].x if state else x, velocity_sigma=velocity_sigma,
                                   end=end, kind=kind, information=k == last,
                                   tolerance=FINAL_TOLERANCE if final and k == last else TOLERANCE)
         if progress is not None:
@@ -251,7 +251,7 @@ def fit_family(drops: Sequence[ObservedDrop], rig: Rig, law: str, free: tuple[st
         every = _Joint(drops, layouts, len(free), stages[-1][0], x, np.ones(x.size, dtype=bool))
         root = every.root(every.jacobian(x))
     drop_chi2 = joint.drop_chi2(x)
-    family = Family(law=law, free=free, layouts=layouts, x=x, root=root, chi2=answer.chi2 + joint.constant,
+    family = _Family(law=law, free=free, layouts=layouts, x=x, root=root, chi2=answer.chi2 + joint.constant,
                     residuals=joint.size, drop_chi2=drop_chi2, drop_residuals=tuple(joint.sizes),
                     evaluations=evaluations, converged=answer.converged)
     return family, x

@@ -26,8 +26,8 @@ from ..identify.model_fit.engine import weighted_jacobian, window
 from ..identify.model_fit.forward import make_layout
 from ..identify.model_fit.information import covariance
 from ..rig import MASS_RANGE, VELOCITY_RANGE, Rig
-from .drops import ObservedDrop
-from .joint import NUISANCES, Family
+from .drops import _ObservedDrop
+from .joint import NUISANCES, _Family
 
 #: |correlation| above which two fitted parameters are reported as not told apart by the drops [-]
 CORRELATION_LIMIT = 0.95
@@ -59,7 +59,7 @@ def _flagged(names: Sequence[str], cov: np.ndarray) -> tuple[list[tuple[str, str
     return pairs, lost
 
 
-def _candidates(drops: Sequence[ObservedDrop], rig: Rig) -> dict[str, tuple[float, float, float]]:
+def _candidates(drops: Sequence[_ObservedDrop], rig: Rig) -> dict[str, tuple[float, float, float]]:
     """The extra drops tried (see the module notes): kind -> (M1 [kg], V0 [m/s], p0 [Pa gauge])."""
     masses = np.array([drop.mass for drop in drops])
     velocities = np.array([drop.velocity for drop in drops])
@@ -74,7 +74,7 @@ def _candidates(drops: Sequence[ObservedDrop], rig: Rig) -> dict[str, tuple[floa
             "pressure": (mass, velocity, other_pressure)}
 
 
-def _with_drop(family: Family, drops: Sequence[ObservedDrop], rig: Rig, scenario: tuple[float, float, float],
+def _with_drop(family: _Family, drops: Sequence[_ObservedDrop], rig: Rig, scenario: tuple[float, float, float],
                velocity_sigma: float, end: float | None) -> np.ndarray:
     """The covariance of the shared variables with one more drop of ``scenario`` (recorded like the first drop:
     its sample rate, noise and length)."""
@@ -98,7 +98,7 @@ def _with_drop(family: Family, drops: Sequence[ObservedDrop], rig: Rig, scenario
     return cov[:s, :s]
 
 
-def _suggest(family: Family, drops: Sequence[ObservedDrop], rig: Rig, pairs: Sequence[tuple[str, str, float]], *,
+def _suggest(family: _Family, drops: Sequence[_ObservedDrop], rig: Rig, pairs: Sequence[tuple[str, str, float]], *,
              velocity_sigma: float, end: float | None) -> dict | None:
     """The extra drop that best separates ``pairs`` (see the module notes), or None when no pair is flagged or no
     candidate can be predicted: kind, M1, V0, p0 and the largest |correlation| of the pairs before and after."""

@@ -27,7 +27,7 @@ from ..recording import Recording
 from ..rig import Rig, get_rig
 from ..signals.pulses import detect_pulses
 from ..signals.stage_b import sustained_start
-from .drops import ObservedDrop, _read_drops
+from .drops import _ObservedDrop, _read_drops
 from .result import Drop
 
 #: window after the start contact instant fitted first [s] (the contact instant is found on the first pulse)
@@ -132,7 +132,7 @@ def _model_error(nrmse: float, noise: float) -> float:
     return math.sqrt(max(nrmse ** 2 - noise ** 2, 0.0))
 
 
-def _validate_drop(drop: ObservedDrop, rig: Rig) -> DropValidation:
+def _validate_drop(drop: _ObservedDrop, rig: Rig) -> DropValidation:
     """One drop reproduced by ``rig`` (its own contact law), V0 held at the light gate's."""
     layout = make_layout(rig, rig.contact.law, (), pressure=drop.pressure, contact_time=drop.contact_time,
                          sample_rate=drop.data.grid.sample_rate, mass=drop.mass, velocity=drop.velocity)

@@ -28,7 +28,7 @@ from ...validation import check_real
 from ..details import Adequacy, ModelDetails
 from ..plausibility import check_answer
 from ..result import Identification
-from .adequacy import Z_JOINT, Z_JOINT_ADEQUATE, assess, disagreement, shortened
+from .adequacy import Z_JOINT, Z_JOINT_ADEQUATE, _assess, _disagreement, _shortened
 from .engine import (
     MIN_DURATION,
     LawFit,
@@ -39,9 +39,9 @@ from .engine import (
     observe,
     weighted_jacobian,
 )
-from .forward import check_uncertain, free_parameters, make_layout, stand_values
+from .forward import _check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
-from .select import CRITERION, Start, _fit_laws, _grid_start
+from .select import CRITERION, _fit_laws, _grid_start, _Start
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
 
@@ -180,7 +180,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     check_channels(recording)
     rig = get_rig(rig)
     laws = contact_laws(contact)
-    free_names = check_uncertain(uncertain, laws)
+    free_names = _check_uncertain(uncertain, laws)
     max_reduced_chi2 = check_real("max_reduced_chi2", max_reduced_chi2, low=1.0, unit=" [-]", state_range=True)
     p0, p0_std = _pressure(recording, pressure, rig, pressure_std)
     design = anti_alias_design(recording)
@@ -194,7 +194,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         robust, failed = None, str(exc)
     if robust is not None:
         data = observe(recording, design, robust.t00)
-        start = Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay, pressure=p0,
+        start = _Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay, pressure=p0,
                       pressure_gauge_start=pressure_gauge_start, pressure_std=p0_std)
     else:  # a few samples before the crude trigger: the first window's fit finds the instant
         data = observe(recording, design, trigger)
@@ -220,8 +220,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         reason = "every contact law's fit failed: " + "; ".join(f"{k}: {v.get('error')}" for k, v in selection.items())
         return _fallback(recording, rig, common, best, Adequacy(verdict="fell back", reason=reason))
     quiet = robust.t00 if robust is not None else trigger  # the noise σ was measured before it (observe)
-    adequacy, mass_std, velocity_std = assess(data, best, quiet)
-    if adequacy.verdict != "adequate" and (short := shortened(data, best, quiet)) is not None:
+    adequacy, mass_std, velocity_std = _assess(data, best, quiet)
+    if adequacy.verdict != "adequate" and (short := _shortened(data, best, quiet)) is not None:
         whole = adequacy.reason
         best, adequacy, mass_std, velocity_std = short
         assert best.span is not None  # a shortened fit states its span
@@ -237,7 +237,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (p0, p0_std), mass_std, velocity_std)
     if robust is None:
         return answer
-    z = disagreement((answer.mass, answer.mass_std, answer.velocity, answer.velocity_std),
+    z = _disagreement((answer.mass, answer.mass_std, answer.velocity, answer.velocity_std),
                      (robust.mass, robust.mass_std, robust.velocity, robust.velocity_std))
     adequacy = replace(adequacy, robust_z=z)
     if adequacy.verdict == "adequate" and z <= Z_JOINT_ADEQUATE or z <= Z_JOINT and (
@@ -304,7 +304,7 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
             log_velocity_std: float | None = None) -> Identification:
     """The :class:`Identification` of the chosen fit (its details ``common``'s, with the fit's); ``stated`` the
     stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely); the σ of ln M1 and ln V0 from
-    :func:`.adequacy.assess` (default: the Fisher information's, inflated by sqrt(χ²/dof) where that exceeds 1)."""
+    :func:`.adequacy._assess` (default: the Fisher information's, inflated by sqrt(χ²/dof) where that exceeds 1)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     crb = _bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
@@ -391,7 +391,7 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
         raise ParameterError(f"at must be one of {list(BOUND_POINTS)}, got {shown(at)}")
     rig = get_rig(rig)
     law = rig.contact.law
-    free = free_parameters(law, check_uncertain(uncertain, (law,)))
+    free = free_parameters(law, _check_uncertain(uncertain, (law,)))
     given = {"mass": recording.metadata.get("mass_kg") if mass is None else mass,
              "velocity": recording.metadata.get("velocity_m_s") if velocity is None else velocity}
     values: dict[str, float] = {}

@@ -54,7 +54,7 @@ MAX_BANDWIDTH_FRACTION = 0.25
 
 
 @dataclass(frozen=True)
-class Residual:
+class _Residual:
     """Each channel's weighted residuals after first contact (2, n), those of the pre-trigger (2, n0), the fit's
     residual vector and the problem it belongs to."""
 
@@ -65,7 +65,7 @@ class Residual:
     onset: int
 
 
-def residuals_of(data: Observed, best: LawFit, quiet: float) -> Residual | None:
+def _residuals_of(data: Observed, best: LawFit, quiet: float) -> _Residual | None:
     """The weighted residuals of ``best`` on the part of ``data`` it was fitted to, the pre-trigger's up to
     ``GUARD_SAMPLES`` before ``quiet`` (the instant [s] the noise σ was measured up to, :func:`.engine.observe`);
     None where the model cannot be integrated at its answer."""
@@ -80,7 +80,7 @@ def residuals_of(data: Observed, best: LawFit, quiet: float) -> Residual | None:
     # the pre-trigger the noise σ was measured on (the samples up to GUARD_SAMPLES before first contact)
     pre = int(math.floor((quiet - part.grid.start_time) * fs)) - GUARD_SAMPLES
     before = part.channels[:, :max(pre, 2)] / part.noise[:, None] - best.x[problem.q:, None]
-    return Residual(after=tail[:, onset:], before=before, problem=problem, vector=vector, onset=onset)
+    return _Residual(after=tail[:, onset:], before=before, problem=problem, vector=vector, onset=onset)
 
 
 def _lag1(r: np.ndarray) -> float:
@@ -89,7 +89,7 @@ def _lag1(r: np.ndarray) -> float:
     return float(r[1:] @ r[:-1]) / denominator if denominator > 0.0 else 0.0
 
 
-def statistics(res: Residual) -> dict:
+def _statistics(res: _Residual) -> dict:
     """Per channel: the misfit v and its z, the lag-1 autocorrelation after and before contact and its z."""
     out: dict = {"misfit": [], "misfit_z": [], "autocorrelation": [], "autocorrelation_before": [],
                  "autocorrelation_z": []}
@@ -106,7 +106,7 @@ def statistics(res: Residual) -> dict:
     return out
 
 
-def bandwidth(after: np.ndarray) -> int:
+def _bandwidth(after: np.ndarray) -> int:
     """The sandwich's bandwidth [samples]: the first lag at which the autocorrelation of the residuals after contact
     (both channels pooled) falls below its noise level 2/sqrt(n), at least 1 and at most
     :data:`MAX_BANDWIDTH_FRACTION` of n."""
@@ -121,7 +121,7 @@ def bandwidth(after: np.ndarray) -> int:
     return int(below[0] + 1) if below.size else limit
 
 
-def sandwich(res: Residual, best: LawFit, lags: int) -> np.ndarray:
+def _sandwich(res: _Residual, best: LawFit, lags: int) -> np.ndarray:
     """Newey-West covariance of the fit's variables: H⁻¹·S·H⁻¹ with H⁻¹ the fit's inverse Fisher information and S
     the Bartlett-weighted long-run covariance (``lags``) of the scores of each channel's residuals after contact;
     the rows before contact, of the pre-trigger's means and of the priors enter S with their Fisher information."""
@@ -145,18 +145,18 @@ def sandwich(res: Residual, best: LawFit, lags: int) -> np.ndarray:
     return bread @ meat[np.ix_(kept, kept)] @ bread
 
 
-def assess(data: Observed, best: LawFit, quiet: float) -> tuple[Adequacy, float, float]:
+def _assess(data: Observed, best: LawFit, quiet: float) -> tuple[Adequacy, float, float]:
     """The adequacy of ``best`` and the σ of ln M1 and ln V0 its answer carries: the Fisher σ inflated by
     sqrt(χ²/dof) where that exceeds 1 when adequate, the sandwich σ (never below that) otherwise. ``quiet``: the
     instant [s] the noise σ was measured up to."""
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     plain = (math.sqrt(best.cov[0, 0]) * inflation, math.sqrt(best.cov[1, 1]) * inflation)
-    res = residuals_of(data, best, quiet)
+    res = _residuals_of(data, best, quiet)
     if res is None or res.after.shape[1] < 4:
         return (Adequacy(verdict="adequate", reason="the residuals could not be recomputed; the Fisher σ is given",
                          reduced_chi2=best.reduced_chi2, chi2_z=None, autocorrelation=None, autocorrelation_z=None),
                 *plain)
-    stats = statistics(res)
+    stats = _statistics(res)
     z_misfit = max(stats["misfit_z"])
     z_rho = max(stats["autocorrelation_z"])
     common = dict(reduced_chi2=best.reduced_chi2, chi2_z=z_misfit, misfit=tuple(stats["misfit"]),
@@ -166,8 +166,8 @@ def assess(data: Observed, best: LawFit, quiet: float) -> tuple[Adequacy, float,
         return (Adequacy(verdict="adequate", reason=f"the residuals after contact are the noise of the pre-trigger: "
                          f"misfit z {z_misfit:.2g}, lag-1 autocorrelation z {z_rho:.2g} (each within "
                          f"{Z_ADEQUATE:g})", **common), *plain)
-    lags = bandwidth(res.after)
-    cov = sandwich(res, best, lags)
+    lags = _bandwidth(res.after)
+    cov = _sandwich(res, best, lags)
     wide = (max(math.sqrt(max(cov[0, 0], 0.0)), plain[0]), max(math.sqrt(max(cov[1, 1], 0.0)), plain[1]))
     which = "misfit" if z_misfit > Z_ADEQUATE else "autocorrelation"
     reason = (f"the residuals after contact are not the noise of the pre-trigger (misfit z {z_misfit:.3g}, lag-1 "
@@ -178,13 +178,13 @@ def assess(data: Observed, best: LawFit, quiet: float) -> tuple[Adequacy, float,
                      widening=(wide[0] / plain[0], wide[1] / plain[1]), **common), *wide)
 
 
-def disagreement(model: tuple[float, float, float, float], robust: tuple[float, float, float, float]) -> float:
+def _disagreement(model: tuple[float, float, float, float], robust: tuple[float, float, float, float]) -> float:
     """The larger of |M1 − M1_robust| and |V0 − V0_robust| over their joint σ [-]; each answer as (M1, σ, V0, σ)."""
     return max(abs(model[0] - robust[0]) / math.hypot(model[1], robust[1]),
                abs(model[2] - robust[2]) / math.hypot(model[3], robust[3]))
 
 
-def shortened(data: Observed, best: LawFit, quiet: float) -> tuple[LawFit, Adequacy, float, float] | None:
+def _shortened(data: Observed, best: LawFit, quiet: float) -> tuple[LawFit, Adequacy, float, float] | None:
     """The fit of ``best``'s law and unknowns on the longest of :data:`SPANS` (shorter than the span it read) that
     the model explains down to the noise, from ``best``'s answer, with its adequacy and σ of ln M1 and ln V0; None
     where no span is explained."""
@@ -199,7 +199,7 @@ def shortened(data: Observed, best: LawFit, quiet: float) -> tuple[LawFit, Adequ
             continue
         fit = replace(fit, span=(end, f"the first {end * 1e3:g} ms after contact: the model explains them down to "
                                       "the noise, not the whole record"))
-        adequacy, mass_std, velocity_std = assess(part, fit, quiet)
+        adequacy, mass_std, velocity_std = _assess(part, fit, quiet)
         if adequacy.verdict == "adequate" and math.isfinite(mass_std) and math.isfinite(velocity_std):
             return fit, adequacy, mass_std, velocity_std
     return None

@@ -1,13 +1,13 @@
 """The fitting engine of every model fit of the project (the batch fit, the stream's first window and updates, the
 calibration and the validation): a record as the fit reads it (:class:`Observed`), the weighted residual problem
 of a layout on it (:class:`Residuals`), one Levenberg-Marquardt solver (:func:`solve`: one damping step,
-:func:`damped_step`, and one stopping rule, :func:`stops`) and one answer (:class:`LawFit`).
+:func:`_damped_step`, and one stopping rule, :func:`_stops`) and one answer (:class:`LawFit`).
 
 ::
 
     Layout (named unknowns)  ->  Residuals (data − offset − model)/σ, Jacobian  ->  solve  ->  Solution  ->  LawFit
 
-The solver's loop is :func:`advance`, which asks its caller for residuals and Jacobians one request at a time:
+The solver's loop is :func:`_advance`, which asks its caller for residuals and Jacobians one request at a time:
 :func:`solve` answers it in Python for any :class:`Problem`, the stream's compiled fits (:mod:`.first_window`)
 with compiled residuals.
 """
@@ -26,7 +26,7 @@ from ...errors import IdentificationError, shown
 from ...recording import Recording
 from ...rig import CONTACT_LAWS, contact_law_name
 from ...signals.noise import quiet_noise_std, robust_noise_std
-from .forward import Grid, Layout, make_grid, predict
+from .forward import Grid, Layout, _make_grid, _predict
 from .information import covariance
 
 #: finite-difference step of the Jacobian in the fit variables (ln of a positive value, value/scale of a linear
@@ -42,7 +42,7 @@ MAX_EVALUATIONS = 40
 #: (MINPACK's ftol): 1e-6 of χ² is ~0.01 on a record of 7000 residuals, nothing beside its scatter of ±120
 TOLERANCE = 1e-6
 #: Marquardt damping of the first step (relative to the diagonal of JᵀJ), its floor, and the damping at which a fit
-#: that finds no lower χ² stops (at the minimum to the precision of the model); :func:`adapt` moves it in between
+#: that finds no lower χ² stops (at the minimum to the precision of the model); :func:`_adapt` moves it in between
 FIRST_DAMPING, LEAST_DAMPING, MOST_DAMPING = 1e-3, 1e-12, 1e8
 
 #: fewest samples before first contact (the noise σ of each channel comes from them)
@@ -68,7 +68,7 @@ def normal_equations(jac, r):
 
 
 @njit(cache=True, error_model="numpy")
-def damped_step(normal, gradient, damping):
+def _damped_step(normal, gradient, damping):
     """The Levenberg-Marquardt step −(JᵀJ + λ·diag JᵀJ)⁻¹Jᵀr of the normal equations ``normal`` = JᵀJ and
     ``gradient`` = Jᵀr with damping λ, solved in column-scaled variables (a Cholesky factor; least squares where
     the damped matrix is not positive definite), and the reduction of χ² the linearised model predicts for it (the
@@ -89,7 +89,7 @@ def damped_step(normal, gradient, damping):
 
 
 @njit(cache=True, error_model="numpy")
-def adapt(damping, growth, gain):
+def _adapt(damping, growth, gain):
     """The damping and its growth factor after a step of ``gain`` = achieved / predicted reduction of χ² (Nielsen's
     rule, H. B. Nielsen, IMM-REP-1999-05): a step that lowers χ² (gain > 0) lowers the damping by up to a factor 3
     as the linearised model predicted it well; one that does not raises it by ``growth``, which doubles with each
@@ -100,38 +100,38 @@ def adapt(damping, growth, gain):
 
 
 @njit(cache=True, error_model="numpy")
-def stops(chi2, lower, damping, tolerance):
+def _stops(chi2, lower, damping, tolerance):
     """The stopping rule of every fit: χ² falls (predicted by the linearised model or achieved: ``lower``) by no
     more than ``tolerance`` of it, or no damping up to :data:`MOST_DAMPING` finds a lower χ²."""
     return 0.0 <= chi2 - lower <= tolerance * chi2 or damping > MOST_DAMPING
 
 
-#: what the solver asks of its caller next (:func:`advance`): nothing (the fit is done), the χ² at the trial point,
+#: what the solver asks of its caller next (:func:`_advance`): nothing (the fit is done), the χ² at the trial point,
 #: to take the trial point and stop, to take it and make the Jacobian there
 DONE, TRIAL, ACCEPT, ACCEPT_JACOBIAN = 0, 1, 2, 3
 #: the solver's memory (:func:`begin`): χ², damping, its growth factor, χ² the last step predicted, residual
 #: evaluations, Jacobians made, converged
 _CHI2, _DAMPING, _GROWTH, _LOWER, _COUNT, _MADE, _CONVERGED = range(7)
-#: the ``new`` of :func:`advance` after a Jacobian (a χ² is never negative)
+#: the ``new`` of :func:`_advance` after a Jacobian (a χ² is never negative)
 NO_TRIAL = -1.0
 
 
 @njit(cache=True, error_model="numpy")
-def begin(chi2):
+def _begin(chi2):
     """The solver's memory at the start point of χ² ``chi2`` (its residuals and Jacobian made)."""
     return np.array([chi2, FIRST_DAMPING, 2.0, chi2, 1.0, 1.0, 0.0])
 
 
 @njit(cache=True, error_model="numpy")
-def advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, tolerance):
+def _advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, tolerance):
     """The Levenberg-Marquardt loop of every fit, one request at a time (reverse communication): after the
     Jacobian at ``x`` (its normal equations ``normal``, ``gradient``; ``new`` :data:`NO_TRIAL`) or the χ² ``new``
     of the last trial point (inf or NaN where the model cannot be evaluated there), returns what the caller does
     next (:data:`TRIAL`: evaluate at ``trial``; :data:`ACCEPT`, :data:`ACCEPT_JACOBIAN`: ``x`` moved to the trial
     point, keep its residuals, and make the Jacobian there; :data:`DONE`). ``memo`` (:func:`begin`) holds the rest.
 
-    Damped steps (:func:`damped_step`), the damping lowered after a step that lowers χ² and raised after one that
-    does not (:func:`adapt`), until :func:`stops` (converged), ``evaluations`` residual evaluations are spent, or
+    Damped steps (:func:`_damped_step`), the damping lowered after a step that lowers χ² and raised after one that
+    does not (:func:`_adapt`), until :func:`_stops` (converged), ``evaluations`` residual evaluations are spent, or
     ``jacobians`` Jacobians are made (> 0; an update of a fit whose window grew a little: one Jacobian and one or
     a few residual evaluations). With ``information`` the Jacobian of a converged answer is made at it.
     """
@@ -140,9 +140,9 @@ def advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, infor
             new = np.inf
         chi2 = memo[_CHI2]
         memo[_COUNT] += 1.0
-        memo[_DAMPING], memo[_GROWTH] = adapt(memo[_DAMPING], memo[_GROWTH], (chi2 - new) / max(chi2 - memo[_LOWER],
+        memo[_DAMPING], memo[_GROWTH] = _adapt(memo[_DAMPING], memo[_GROWTH], (chi2 - new) / max(chi2 - memo[_LOWER],
                                                                                               1e-300))
-        converged = stops(chi2, new, memo[_DAMPING], tolerance)
+        converged = _stops(chi2, new, memo[_DAMPING], tolerance)
         if new < chi2:
             x[:] = trial
             memo[_CHI2], memo[_CONVERGED] = new, converged
@@ -157,9 +157,9 @@ def advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, infor
         return DONE
     if memo[_COUNT] >= evaluations:
         return DONE
-    step, reduction = damped_step(normal, gradient, memo[_DAMPING])
+    step, reduction = _damped_step(normal, gradient, memo[_DAMPING])
     memo[_LOWER] = memo[_CHI2] - reduction
-    if stops(memo[_CHI2], memo[_LOWER], memo[_DAMPING], tolerance):
+    if _stops(memo[_CHI2], memo[_LOWER], memo[_DAMPING], tolerance):
         memo[_CONVERGED] = 1.0
         return DONE
     trial[:] = x + step
@@ -167,7 +167,7 @@ def advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, infor
 
 
 @njit(cache=True, error_model="numpy")
-def outcome(memo):
+def _outcome(memo):
     """χ², residual evaluations and whether it converged, of the solver's memory ``memo``."""
     return memo[_CHI2], int(memo[_COUNT]), memo[_CONVERGED] > 0.0
 
@@ -199,7 +199,7 @@ class Solution:
 
 def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS, tolerance: float = TOLERANCE,
           jacobians: int | None = None, information: bool = True) -> Solution:
-    """Levenberg-Marquardt on ``problem`` from ``x`` (:func:`advance`, which see for ``evaluations``,
+    """Levenberg-Marquardt on ``problem`` from ``x`` (:func:`_advance`, which see for ``evaluations``,
     ``jacobians`` and ``information``; without ``information`` the Jacobian is the last one made, where the fit
     stops).
 
@@ -213,10 +213,10 @@ def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS
     if r is None:
         raise IdentificationError("the model cannot be integrated at the fit's start")
     r_trial: np.ndarray | None = r
-    memo, trial, new = begin(float(r @ r)), np.empty_like(x), NO_TRIAL
+    memo, trial, new = _begin(float(r @ r)), np.empty_like(x), NO_TRIAL
     jac = problem.jacobian(x)
     normal, gradient = problem.normal(jac, r)
-    while (request := advance(memo, x, trial, normal, gradient, new, evaluations, jacobians or 0, information,
+    while (request := _advance(memo, x, trial, normal, gradient, new, evaluations, jacobians or 0, information,
                               tolerance)) != DONE:
         if request == TRIAL:
             r_trial = problem.residuals(trial)
@@ -228,7 +228,7 @@ def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS
             break
         jac = problem.jacobian(x)
         normal, gradient = problem.normal(jac, r)
-    chi2, count, converged = outcome(memo)
+    chi2, count, converged = _outcome(memo)
     return Solution(x=x, residuals=r, chi2=float(chi2), jacobian=jac, evaluations=count, converged=bool(converged))
 
 
@@ -301,7 +301,7 @@ class Residuals:
         if np.any(times < self.earliest):
             raise IdentificationError("the model is not predicted at a contact instant before the part of the "
                                       "record it is predicted on")
-        return predict(self.grid, params, times, in_turn=self.in_turn) / self.noise[None, :, None]
+        return _predict(self.grid, params, times, in_turn=self.in_turn) / self.noise[None, :, None]
 
     def model(self, x: np.ndarray) -> np.ndarray:
         """Predicted channels over σ (2, n) at ``x`` (offsets excluded), on the samples after the head."""
@@ -425,7 +425,7 @@ class LawFit(Quality):
                             "piston_acceleration_m_s2": float(self.offsets[1])}}
 
 
-def law_fit(problem: Residuals, solution: Solution, *, information: bool = True,
+def _law_fit(problem: Residuals, solution: Solution, *, information: bool = True,
             converged: bool | None = None) -> LawFit:
     """The :class:`LawFit` of ``solution`` on ``problem`` (its covariance from the solution's Jacobian with
     ``information``, else NaN; ``converged`` overrides the solution's)."""
@@ -437,7 +437,7 @@ def law_fit(problem: Residuals, solution: Solution, *, information: bool = True,
                   converged=solution.converged if converged is None else converged)
 
 
-def variables(layout: Layout, values: dict[str, float], offsets: np.ndarray, noise: np.ndarray) -> np.ndarray:
+def _variables(layout: Layout, values: dict[str, float], offsets: np.ndarray, noise: np.ndarray) -> np.ndarray:
     """The fit vector of physical ``values`` (name -> value [SI]) and ``offsets`` [N], [m/s²]."""
     return np.r_[layout.variables(values), offsets / noise]
 
@@ -456,21 +456,21 @@ def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, offsets:
         When the model cannot be integrated at the start.
     """
     problem = Residuals(data, layout, in_turn=in_turn)
-    x0 = variables(layout, start, data.offsets if offsets is None else offsets, data.noise)
+    x0 = _variables(layout, start, data.offsets if offsets is None else offsets, data.noise)
     try:
         solution = solve(problem, x0, evaluations=evaluations, jacobians=jacobians,
                          information=information and jacobians is None)
     except IdentificationError as exc:
         raise IdentificationError(f"the {layout.law} fit failed: {exc}") from None
     if jacobians is not None:
-        return law_fit(problem, solution, converged=True)
-    return law_fit(problem, solution, information=information)
+        return _law_fit(problem, solution, converged=True)
+    return _law_fit(problem, solution, information=information)
 
 
 def weighted_jacobian(data: Observed, layout: Layout, values: dict[str, float]) -> np.ndarray:
     """The weighted Jacobian of ``layout`` on ``data`` at physical ``values`` (offsets zero: they enter linearly,
     so the Jacobian does not depend on them); its JᵀJ is the Fisher information of every sample."""
-    return Residuals(data, layout).jacobian(variables(layout, values, np.zeros(2), np.ones(2)))
+    return Residuals(data, layout).jacobian(_variables(layout, values, np.zeros(2), np.ones(2)))
 
 
 def contact_laws(contact: str | None) -> tuple[str, ...]:
@@ -514,7 +514,7 @@ def observe(recording: Recording, design: str, contact_time: float, min_duration
     noise = quiet_noise_std(data[:, :pre], axis=1, ddof=1)
     floor = NOISE_FLOOR * np.max(np.abs(data - np.median(data[:, :pre], axis=1)[:, None]), axis=1)
     noise = np.maximum(noise, np.maximum(floor, 1e-300))
-    grid = make_grid(recording.start_time, fs, data.shape[1], design)
+    grid = _make_grid(recording.start_time, fs, data.shape[1], design)
     return Observed(channels=data, noise=noise, grid=grid, offsets=np.median(data[:, :pre], axis=1))
 
 

@@ -4,7 +4,7 @@ the calling thread.
 
 The compiled fit is :func:`.engine.fit_law` of any layout with a fitted contact instant (the same residuals with
 the pre-trigger through its sums and a row per prior, the same Jacobian by forward differences, the same packing
-of the variables :func:`.forward.pack_row`, and the same solver: the requests of :func:`.engine.advance` answered
+of the variables :func:`.forward._pack_row`, and the same solver: the requests of :func:`.engine._advance` answered
 by compiled residuals and Jacobians) without the ~0.1 ms of Python around each prediction and step, which was two
 thirds of a first answer's time. Its predictions equal :func:`.forward.predict`'s. Every other record is fitted by
 :func:`.engine.fit_law` with the predictions on the calling thread.
@@ -38,13 +38,13 @@ from .engine import (
     Observed,
     Residuals,
     Solution,
-    advance,
-    begin,
+    _advance,
+    _begin,
+    _law_fit,
+    _outcome,
+    _variables,
     fit_law,
-    law_fit,
     normal_equations,
-    outcome,
-    variables,
 )
 from .forward import (
     CHANNEL_INDEX,
@@ -52,9 +52,9 @@ from .forward import (
     MAX_FIT_STEPS,
     Layout,
     _fir_decimate,
-    outside_ranges,
-    pack_row,
-    predict_row,
+    _outside_ranges,
+    _pack_row,
+    _predict_row,
 )
 
 #: what the compiled fit reports: converged, stopped at its evaluations or Jacobians, not integrable at the start
@@ -62,7 +62,7 @@ from .forward import (
 CONVERGED, STOPPED, NO_START, NO_JACOBIAN = 0, 1, 2, 3
 
 
-class Timing(NamedTuple):
+class _Timing(NamedTuple):
     """The instants of a compiled fit: origin of the contact instant [s] (the variable counts sample periods from
     it), sample rate [Hz], start of the samples after the head [s], earliest contact [s], and the sensor model's
     oversampling factor and pad [internal samples]."""
@@ -75,7 +75,7 @@ class Timing(NamedTuple):
     pad: int
 
 
-class Window(NamedTuple):
+class _Window(NamedTuple):
     """Everything the compiled fit reads of one window: the layout (its packed held values, its
     :attr:`.forward.Layout.codes` as ``slots``, ``code`` and ``param``, whether the law is hysteretic, its priors:
     index, mean and σ of each), the start vector, the finite-difference steps, the :class:`Timing`, the internal
@@ -92,7 +92,7 @@ class Window(NamedTuple):
     prior_sigma: np.ndarray
     x: np.ndarray
     steps: np.ndarray
-    timing: Timing
+    timing: _Timing
     offsets: np.ndarray
     fir: np.ndarray
     noise: np.ndarray
@@ -101,7 +101,7 @@ class Window(NamedTuple):
     head: np.ndarray
 
 
-def takes(data: Observed, layout: Layout) -> bool:
+def _takes(data: Observed, layout: Layout) -> bool:
     """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model and a fitted contact instant."""
     return data.grid.design == "causal" and "contact_time" in layout.names
 
@@ -109,13 +109,13 @@ def takes(data: Observed, layout: Layout) -> bool:
 @njit(cache=True, error_model="numpy")
 def _channels(w, x, out, internal, y0, p):
     """``out`` (2, n) := the channels over σ predicted at the layout's variables ``x``; False where the model is
-    not integrated there (:func:`.forward.predict_row`'s refusals, a contact before the earliest)."""
+    not integrated there (:func:`.forward._predict_row`'s refusals, a contact before the earliest)."""
     timing = w.timing
-    shift = pack_row(w.base, x, w.slots, w.code, w.param, w.hysteretic, p)
+    shift = _pack_row(w.base, x, w.slots, w.code, w.param, w.hysteretic, p)
     contact = timing.origin + shift / timing.sample_rate
     if not (np.isfinite(contact) and contact >= timing.earliest):
         return False
-    if predict_row(p, y0, w.offsets, contact - timing.start_time, CHANNEL_INDEX, w.tolerances[0],
+    if _predict_row(p, y0, w.offsets, contact - timing.start_time, CHANNEL_INDEX, w.tolerances[0],
                    w.tolerances[1:], MAX_STEP, MAX_FIT_STEPS, internal) != fast.OK:
         return False
     _fir_decimate(internal, w.fir, timing.pad - w.fir.size + 1, timing.factor, out)
@@ -172,7 +172,7 @@ def _jacobian(w, x, model, internal, y0, p, moved, jac):
 @njit(cache=True, error_model="numpy")
 def _solve(w, evaluations, jacobians, information, jac):
     """:func:`.engine.solve` compiled from ``w.x`` (``jacobians`` <= 0: no limit): the same requests of
-    :func:`.engine.advance` answered by the compiled residuals and Jacobian; returns (report, x, χ² less the
+    :func:`.engine._advance` answered by the compiled residuals and Jacobian; returns (report, x, χ² less the
     head's constant, residual evaluations); ``jac`` holds the last Jacobian made."""
     n, rows = w.tail.shape[1], jac.shape[0]
     internal, y0, p = np.empty((2, w.offsets.size)), np.empty(d.N_STATE), np.empty(w.base.size)
@@ -184,10 +184,10 @@ def _solve(w, evaluations, jacobians, information, jac):
         return NO_START, x, np.inf, 1
     if not _jacobian(w, x, model, internal, y0, p, moved, jac):
         return NO_JACOBIAN, x, chi2, 1
-    memo, trial, new = begin(chi2), np.empty_like(x), NO_TRIAL
+    memo, trial, new = _begin(chi2), np.empty_like(x), NO_TRIAL
     normal, gradient = normal_equations(jac, r)
     while True:
-        request = advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, TOLERANCE)
+        request = _advance(memo, x, trial, normal, gradient, new, evaluations, jacobians, information, TOLERANCE)
         if request == DONE:
             break
         if request == TRIAL:
@@ -197,36 +197,36 @@ def _solve(w, evaluations, jacobians, information, jac):
         if request == ACCEPT:
             break
         if not _jacobian(w, x, model, internal, y0, p, moved, jac):
-            chi2, count, _ = outcome(memo)
+            chi2, count, _ = _outcome(memo)
             return NO_JACOBIAN, x, chi2, count
         normal, gradient = normal_equations(jac, r)
-    chi2, count, converged = outcome(memo)
+    chi2, count, converged = _outcome(memo)
     return CONVERGED if converged else STOPPED, x, chi2, count
 
 
 def _window(data: Observed, layout: Layout, start: dict[str, float], offsets: np.ndarray) -> tuple[
-        Window | None, Residuals]:
+        _Window | None, Residuals]:
     """The compiled fit's :class:`Window` (None where the start is outside the ranges) and the residual problem it
     compiles (the record after the head and the head's sums)."""
     problem = Residuals(data, layout)
     grid = problem.grid
-    x = variables(layout, start, offsets, data.noise)
-    if outside_ranges(layout.packed(x[None, :problem.q])[0][0]) >= 0:
+    x = _variables(layout, start, offsets, data.noise)
+    if _outside_ranges(layout.packed(x[None, :problem.q])[0][0]) >= 0:
         return None, problem
-    timing = Timing(origin=float(layout.origin), sample_rate=float(layout.sample_rate), start_time=grid.start_time,
+    timing = _Timing(origin=float(layout.origin), sample_rate=float(layout.sample_rate), start_time=grid.start_time,
                     earliest=problem.earliest, factor=int(grid.factor), pad=int(grid.pad))
     index, code, param = layout.codes
-    return Window(base=layout.base, slots=index, code=code, param=param, hysteretic=layout.law == "hysteretic",
+    return _Window(base=layout.base, slots=index, code=code, param=param, hysteretic=layout.law == "hysteretic",
                   prior_index=problem.prior_index, prior_mean=problem.prior_mean, prior_sigma=problem.prior_sigma,
                   x=x, steps=problem.steps.astype(float), timing=timing, offsets=grid.offsets, fir=grid.taps,
                   noise=data.noise, tolerances=np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)],
                   tail=np.ascontiguousarray(problem.tail), head=np.r_[problem.root, problem.mean]), problem
 
 
-def fit_window(data: Observed, layout: Layout, start: dict[str, float], offsets: np.ndarray | None = None, *,
+def _fit_window(data: Observed, layout: Layout, start: dict[str, float], offsets: np.ndarray | None = None, *,
                evaluations: int = MAX_EVALUATIONS, information: bool = True, jacobians: int | None = None) -> LawFit:
     """:func:`.engine.fit_law` of a stream's window on the calling thread, compiled for the core layout on a
-    causal record (:func:`takes`).
+    causal record (:func:`_takes`).
 
     Raises
     ------
@@ -234,7 +234,7 @@ def fit_window(data: Observed, layout: Layout, start: dict[str, float], offsets:
         When the model cannot be integrated at the start or at a Jacobian.
     """
     offsets = data.offsets if offsets is None else offsets
-    if not takes(data, layout):
+    if not _takes(data, layout):
         return fit_law(data, layout, start, offsets=offsets, evaluations=evaluations, information=information,
                        jacobians=jacobians, in_turn=True)
     w, problem = _window(data, layout, start, offsets)
@@ -245,7 +245,7 @@ def fit_window(data: Observed, layout: Layout, start: dict[str, float], offsets:
         if report not in (NO_START, NO_JACOBIAN):
             solution = Solution(x=x, residuals=np.empty(0), chi2=chi2, jacobian=jac, evaluations=count,
                                 converged=update or report == CONVERGED)
-            return law_fit(problem, solution, information=information or update)
+            return _law_fit(problem, solution, information=information or update)
     raise IdentificationError(f"the {layout.law} model cannot be integrated at the fit's start or its answer")
 
 
@@ -253,7 +253,7 @@ def fit_window(data: Observed, layout: Layout, start: dict[str, float], offsets:
 _WARM: list[bool] = []
 
 
-def warm() -> None:
+def _warm() -> None:
     """Compile the kernels of the stream's fits, or load them from numba's cache, once per process: a real-time
     system has them before the impact (a first call in the middle of an impact took 1-3 s). Each is called with
     the argument types of its use and an M1 outside its range, so nothing is integrated."""
@@ -261,9 +261,9 @@ def warm() -> None:
         return
     from .forward import _predict_in_turn
 
-    timing = Timing(origin=0.0, sample_rate=1.0, start_time=0.0, earliest=0.0, factor=1, pad=0)
+    timing = _Timing(origin=0.0, sample_rate=1.0, start_time=0.0, earliest=0.0, factor=1, pad=0)
     index, code, param = (np.array([d.MASS, d.VELOCITY, -1]), np.array([0, 0, 2]), np.array([0.0, 0.0, 1.0]))
-    w = Window(base=np.zeros(d.N_PARAM), slots=index, code=code, param=param, hysteretic=True,
+    w = _Window(base=np.zeros(d.N_PARAM), slots=index, code=code, param=param, hysteretic=True,
                prior_index=np.zeros(1, dtype=np.int64), prior_mean=np.zeros(1), prior_sigma=np.ones(1),
                x=np.full(5, -1e3), steps=np.ones(3), timing=timing, offsets=np.zeros(4), fir=np.ones(1),
                noise=np.ones(2), tolerances=np.ones(1 + d.N_STATE), tail=np.zeros((2, 1)), head=np.ones(3))

@@ -86,7 +86,7 @@ KINDS = ("log", "logit", "linear")
 
 
 @njit(cache=True, error_model="numpy")
-def variable_value(x, code, param):
+def _variable_value(x, code, param):
     """Physical value of the fit variable ``x`` of transform ``KINDS[code]`` (inverse of :func:`to_variable`)."""
     if code == 0:  # a trial point far off: a huge or tiny value, no overflow
         return np.exp(min(max(x, -700.0), 700.0)) - param
@@ -98,10 +98,10 @@ def variable_value(x, code, param):
 @njit(cache=True, error_model="numpy")
 def _variable_values(x, code, param, out):
     for i in range(x.size):
-        out[i] = variable_value(x[i], code, param)
+        out[i] = _variable_value(x[i], code, param)
 
 
-def from_variable(x, kind: str, param: float):
+def _from_variable(x, kind: str, param: float):
     """Physical value of a fit variable or an array of them (:func:`variable_value`)."""
     values = np.asarray(x, dtype=float)
     out = np.empty(values.size)
@@ -110,14 +110,14 @@ def from_variable(x, kind: str, param: float):
 
 
 @njit(cache=True, error_model="numpy")
-def pack_row(base, x, index, code, param, hysteretic, out):
+def _pack_row(base, x, index, code, param, hysteretic, out):
     """``out`` := the packed parameters of fit variables ``x`` (a :class:`Layout`'s :attr:`~Layout.codes`, ``base``
     its held values); returns the ``contact_time`` variable's value (sample periods from the layout's origin; 0
     where it is not fitted). The hysteretic law's unloading stiffness k2 = k1/e² follows k1 and e (packed as e)."""
     out[:] = base
     contact = 0.0
     for j in range(index.size):
-        value = variable_value(x[j], code[j], param[j])
+        value = _variable_value(x[j], code[j], param[j])
         if index[j] < 0:
             contact = value
         else:
@@ -132,7 +132,7 @@ def contact_parameters(law: str) -> tuple[str, ...]:
     return tuple(f"contact.{name}" for name in CONTACT_LAWS[law])
 
 
-def check_uncertain(uncertain: Sequence[str] | None, laws: Sequence[str]) -> tuple[str, ...] | None:
+def _check_uncertain(uncertain: Sequence[str] | None, laws: Sequence[str]) -> tuple[str, ...] | None:
     """The stand parameters marked uncertain, checked (None: each law's contact parameters and the seal friction).
 
     ``"contact"`` stands for every parameter of the fitted law. A name that is no parameter the fit can free, or
@@ -158,7 +158,7 @@ def check_uncertain(uncertain: Sequence[str] | None, laws: Sequence[str]) -> tup
 
 
 def free_parameters(law: str, uncertain: tuple[str, ...] | None) -> tuple[str, ...]:
-    """The stand parameters a fit with contact ``law`` frees (see :func:`check_uncertain`)."""
+    """The stand parameters a fit with contact ``law`` frees (see :func:`_check_uncertain`)."""
     own = contact_parameters(law)
     if uncertain is None:
         return (*own, "friction.force")
@@ -175,7 +175,7 @@ def free_parameters(law: str, uncertain: tuple[str, ...] | None) -> tuple[str, .
 PARAMETERS = (*CORE_PARAMETERS, *STAND_PARAMETERS, "pressure_gauge")
 
 
-def parameter_spec(name: str, base: np.ndarray) -> tuple[int, str, float]:
+def _parameter_spec(name: str, base: np.ndarray) -> tuple[int, str, float]:
     """(packed index, transform, parameter) of the fit variable of parameter ``name`` on the packed stand
     ``base`` (the charge pressure's variable is ln of the absolute pressure)."""
     if name == "pressure_gauge":
@@ -233,7 +233,7 @@ class Layout:
         value: a table edit (the stand parameters go before ``pressure_gauge``, which stays last)."""
         if name in self.names:
             return self
-        spec = parameter_spec(name, self.base)
+        spec = _parameter_spec(name, self.base)
         at = self.names.index("pressure_gauge") if "pressure_gauge" in self.names else len(self.names)
         return replace(self, names=(*self.names[:at], name, *self.names[at:]),
                        specs=(*self.specs[:at], spec, *self.specs[at:]),
@@ -242,7 +242,7 @@ class Layout:
     def with_held(self, name: str, value: float) -> Layout:
         """This layout with the unknown ``name`` held at ``value`` [SI] (its prior dropped): a table edit. The
         contact instant is always fitted."""
-        index, _, _ = parameter_spec(name, self.base)
+        index, _, _ = _parameter_spec(name, self.base)
         if index < 0:
             raise ParameterError(f"the contact instant cannot be held; hold any of "
                                  f"{[n for n in PARAMETERS if n != 'contact_time']}")
@@ -258,13 +258,13 @@ class Layout:
 
     def table(self, x: np.ndarray | None = None) -> tuple[Parameter, ...]:
         """Every parameter the fit can free, by name: its value (an unknown's at the fit variables ``x``, else at
-        none: NaN; a held one's), the range the solver's one range check keeps it in (:func:`outside_ranges`),
+        none: NaN; a held one's), the range the solver's one range check keeps it in (:func:`_outside_ranges`),
         whether it is free, and its prior."""
         values = {} if x is None else self.values(np.asarray(x, dtype=float)[:len(self.names)])
         priors = {self.names[j]: (mean, spread) for j, mean, spread in self.priors}
         rows = []
         for name in PARAMETERS:
-            index, kind, param = parameter_spec(name, self.base)
+            index, kind, param = _parameter_spec(name, self.base)
             free = name in self.names
             if free:
                 value = values.get(name, math.nan)
@@ -296,7 +296,7 @@ class Layout:
         """Physical values [SI] of fit variables ``x``."""
         out = {}
         for name, xi, (_, kind, param) in zip(self.names, x, self.specs, strict=False):
-            value = float(from_variable(xi, kind, param))
+            value = float(_from_variable(xi, kind, param))
             out[name] = self.origin + value / self.sample_rate if name == "contact_time" else value
         return out
 
@@ -306,14 +306,14 @@ class Layout:
         if kind == "log":
             return float(np.exp(x))
         if kind == "logit":
-            e = float(from_variable(x, kind, param))
+            e = float(_from_variable(x, kind, param))
             return e * (1.0 - e)
         return param / self.sample_rate if name == "contact_time" else param
 
     @cached_property
     def codes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The packed index (-1: the contact instant), transform code (:data:`KINDS`) and parameter of each
-        unknown, as the compiled kernels read them (:func:`pack_row`)."""
+        unknown, as the compiled kernels read them (:func:`_pack_row`)."""
         return (np.array([index for index, _, _ in self.specs], dtype=np.int64),
                 np.array([KINDS.index(kind) for _, kind, _ in self.specs], dtype=np.int64),
                 np.array([param for _, _, param in self.specs], dtype=float))
@@ -325,7 +325,7 @@ class Layout:
         shifts = np.empty(rows.shape[0])
         index, code, param = self.codes
         for s in range(rows.shape[0]):
-            shifts[s] = pack_row(self.base, np.ascontiguousarray(rows[s]), index, code, param,
+            shifts[s] = _pack_row(self.base, np.ascontiguousarray(rows[s]), index, code, param,
                                  self.law == "hysteretic", params[s])
         times = self.origin + shifts / self.sample_rate if "contact_time" in self.names else np.zeros(rows.shape[0])
         return params, times
@@ -402,7 +402,7 @@ class Grid:
         return (np.arange(n_int) - self.pad) / (self.factor * self.sample_rate)
 
 
-def make_grid(start_time: float, sample_rate: float, size: int, design: str) -> Grid:
+def _make_grid(start_time: float, sample_rate: float, size: int, design: str) -> Grid:
     """The :class:`Grid` of a recording of ``size`` samples from ``start_time`` [s] at ``sample_rate`` [Hz]."""
     if design not in ANTI_ALIAS:
         raise IdentificationError(f"anti_alias must be one of {sorted(ANTI_ALIAS)}, got {design!r}")
@@ -421,7 +421,7 @@ NO_START, OUTSIDE = -100, -101
 
 
 @njit(cache=True, error_model="numpy")
-def outside_ranges(p):
+def _outside_ranges(p):
     """The first packed index of row ``p`` outside :data:`TRIAL_RANGES` (a NaN is outside); -1 where none is: the
     one range check of every prediction of a fit."""
     for k in range(_RANGE_INDEX.size):
@@ -432,12 +432,12 @@ def outside_ranges(p):
 
 
 @njit(cache=True, error_model="numpy")
-def predict_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max_steps, out):
+def _predict_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max_steps, out):
     """One row of a prediction on the calling thread: the channels ``out`` (channels, instants) at ``offsets -
     shift`` after contact, zero before the last instant before it, which is integrated too (it holds the state at
     contact: a contact force that jumps at first touch shares the jump with it, fast.share_jump). ``y0`` is scratch
     for the state at contact. Returns the integrator's status, :data:`OUTSIDE` or :data:`NO_START`."""
-    if outside_ranges(p) >= 0:
+    if _outside_ranges(p) >= 0:
         return OUTSIDE
     if not contact_state(p, y0):
         return NO_START
@@ -452,22 +452,22 @@ def predict_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max_
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def _predict_rows(params, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
-    """:func:`predict_row` of every row on the thread pool."""
+    """:func:`_predict_row` of every row on the thread pool."""
     for s in prange(params.shape[0]):
-        status[s] = predict_row(params[s], np.empty(d.N_STATE), offsets, shifts[s], channel_index, rtol, atol,
+        status[s] = _predict_row(params[s], np.empty(d.N_STATE), offsets, shifts[s], channel_index, rtol, atol,
                                 max_step, max_steps, out[s])
 
 
 @njit(cache=True, error_model="numpy")
 def _predict_in_turn(params, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
-    """:func:`predict_row` of every row, one after the other on the calling thread."""
+    """:func:`_predict_row` of every row, one after the other on the calling thread."""
     y0 = np.empty(d.N_STATE)
     for s in range(params.shape[0]):
-        status[s] = predict_row(params[s], y0, offsets, shifts[s], channel_index, rtol, atol, max_step, max_steps,
+        status[s] = _predict_row(params[s], y0, offsets, shifts[s], channel_index, rtol, atol, max_step, max_steps,
                                 out[s])
 
 
-def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_turn: bool = False) -> np.ndarray:
+def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_turn: bool = False) -> np.ndarray:
     """Recorded contact force [N] and piston acceleration [m/s²] without offsets and noise, shape (m, 2, size), of
     packed parameter rows (m, N_PARAM) with first contact at ``contact_times`` (m,) [s] on the recording's clock;
     ``in_turn``: on the calling thread, one row after the other (the same numbers; a launch on the thread pool
@@ -492,7 +492,7 @@ def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tur
     if np.any(status != fast.OK):
         i = int(np.flatnonzero(status != fast.OK)[0])
         if status[i] == OUTSIDE:
-            index = int(outside_ranges(params[i]))
+            index = int(_outside_ranges(params[i]))
             low, high = TRIAL_RANGES[index]
             raise IdentificationError(f"the model is not integrated at packed parameter {index} = "
                                       f"{params[i, index]!r}, outside [{low:g}, {high:g}]")
@@ -500,10 +500,10 @@ def predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tur
             raise IdentificationError("the model cannot start: the charge is too low to carry the piston")
         raise IdentificationError(f"the model's integration failed ({fast.STATUS_TEXT[int(status[i])]}) at "
                                   f"M1 = {params[i, d.MASS]:.4g} kg, V0 = {params[i, d.VELOCITY]:.4g} m/s")
-    return sensed(grid, out)
+    return _sensed(grid, out)
 
 
-def sensed(grid: Grid, internal: np.ndarray) -> np.ndarray:
+def _sensed(grid: Grid, internal: np.ndarray) -> np.ndarray:
     """Channels (..., size) of internal histories (..., len(grid.offsets)) through the grid's anti-alias filter
     and decimation (the causal FIR evaluated at the kept samples only)."""
     end = grid.pad + (grid.size - 1) * grid.factor + 1
@@ -545,7 +545,7 @@ LONG_FLIGHT = 0.03
 HORIZON_GUARD = 1e-3
 
 
-def horizon(layout: Layout, x: np.ndarray, span: float) -> tuple[float, str]:
+def _horizon(layout: Layout, x: np.ndarray, span: float) -> tuple[float, str]:
     """How long after first contact [s] a fit at variables ``x`` (of ``layout``) reads a record of ``span`` [s]
     after contact, and why.
 

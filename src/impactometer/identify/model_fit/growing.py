@@ -1,7 +1,7 @@
 """The model fit of a record that grows, as :class:`~.streaming.ModelStream` runs it: the first answer on the first
 window, the screen of the contact laws, and one update per cadence warm-started from the last.
 
-The state of one impact is a :class:`Growing`; the functions here advance it. Every window of the record reaches
+The state of one impact is a :class:`_Growing`; the functions here advance it. Every window of the record reaches
 them as an :class:`~.engine.Observed` whose last sample is the last one the answer may read.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ...rig import Rig
 from .engine import MAX_EVALUATIONS, LawFit, Observed
-from .first_window import fit_window
+from .first_window import _fit_window
 from .forward import Layout
 from .select import (
     EARLY_MARGIN,
@@ -24,9 +24,9 @@ from .select import (
     SCREEN_MARGIN,
     SCREEN_WINDOW,
     STAGES,
-    Start,
     _Layouts,
     _screen,
+    _Start,
     _start_law,
 )
 
@@ -69,7 +69,7 @@ class _Pending:
 
 
 @dataclass
-class Growing:
+class _Growing:
     """The fit of one impact's growing record: the stand, the laws to consider, the unknowns marked uncertain, the
     laws followed (``states``), where their fits started, the laws still to screen on the first window
     (``pending``: its data, its length [s], the laws and the fits made of them), the chosen law and why, and notes
@@ -79,7 +79,7 @@ class Growing:
     laws: tuple[str, ...]
     uncertain: tuple[str, ...] | None
     states: dict[str, _LawState] = field(default_factory=dict)
-    start: Start | None = None
+    start: _Start | None = None
     pending: _Pending = field(default_factory=_Pending)
     chosen: str | None = None
     choice: str = ""
@@ -90,7 +90,7 @@ class Growing:
         return min((state.fit for state in self.states.values()), key=lambda fit: fit.bic, default=None)
 
 
-def explains(fit: LawFit, data: Observed) -> bool:
+def _explains(fit: LawFit, data: Observed) -> bool:
     """Whether ``fit`` explains the samples of ``data`` after its first contact down to their noise (see
     :data:`EXPLAINED_SPREAD`); the model is zero before contact, so those samples' share of χ² is the offsets'."""
     times = data.grid.start_time + np.arange(data.channels.shape[1]) / data.grid.sample_rate
@@ -100,7 +100,7 @@ def explains(fit: LawFit, data: Observed) -> bool:
     return dof > 0 and (fit.chi2 - pre) / dof <= 1.0 + EXPLAINED_SPREAD * math.sqrt(2.0 / dof)
 
 
-def _fit_core(growing: Growing, law: str, data: Observed, core: dict | None, evaluations: int,
+def _fit_core(growing: _Growing, law: str, data: Observed, core: dict | None, evaluations: int,
               information: bool) -> _LawState:
     """``law`` fitted on ``data`` with the stand held, from the growing fit's start or the ``core`` values (M1,
     V0, the contact instant) of another law's fit."""
@@ -108,17 +108,17 @@ def _fit_core(growing: Growing, law: str, data: Observed, core: dict | None, eva
     layouts, values = _start_law(growing.rig, law, growing.uncertain, growing.start, data.grid.sample_rate)
     if core is not None:
         values.update({name: core[name] for name in ("mass", "velocity", "contact_time")})
-    fit = fit_window(data, layouts("core", values), values, evaluations=evaluations, information=information)
+    fit = _fit_window(data, layouts("core", values), values, evaluations=evaluations, information=information)
     return _LawState(layouts, {**values, **fit.values}, fit.offsets, fit)
 
 
-def first_fit(growing: Growing, data: Observed, span: float, starts: list[Start]) -> LawFit | None:
+def _first_fit(growing: _Growing, data: Observed, span: float, starts: list[_Start]) -> LawFit | None:
     """The first answer on the first window (``span`` [s] after contact): the stand's own law (the first of
     ``laws`` otherwise) fitted to convergence with the stand held, from each start in turn until a fit explains the
     window (:func:`explains`); the fit of smallest χ². The other laws wait for :func:`_screen_pending` (one at each
     update) unless no fit explains the window; then they are screened at once."""
     own = growing.rig.contact.law if growing.rig.contact.law in growing.laws else growing.laws[0]
-    found: tuple[_LawState, Start] | None = None
+    found: tuple[_LawState, _Start] | None = None
     for start in starts:
         growing.start = start
         try:
@@ -128,7 +128,7 @@ def first_fit(growing: Growing, data: Observed, span: float, starts: list[Start]
             continue
         if found is None or state.fit.chi2 < found[0].fit.chi2:
             found = (state, start)
-        if explains(found[0].fit, data):
+        if _explains(found[0].fit, data):
             break
     if found is None:
         return None
@@ -137,12 +137,12 @@ def first_fit(growing: Growing, data: Observed, span: float, starts: list[Start]
     if growing.pending.laws:
         growing.choice = (f"{own} (the stand's law) for the first answer; the other laws are screened on the first "
                           f"{span * 1e3:.3g} ms at the next update")
-        if not explains(found[0].fit, data):
+        if not _explains(found[0].fit, data):
             _screen_pending(growing, every=True)
     return growing.best()
 
 
-def _screen_pending(growing: Growing, *, every: bool = False) -> None:
+def _screen_pending(growing: _Growing, *, every: bool = False) -> None:
     """One law still to screen (``every``: all of them) fitted on the first window from the first law's answer, in
     ``STREAM_SCREEN_EVALUATIONS``; once none is left, the laws screened as the batch fit screens them on that
     window, and the law chosen where one is left."""
@@ -172,7 +172,7 @@ def _screen_pending(growing: Growing, *, every: bool = False) -> None:
     _keep(growing, dropped, "the only law left", span, only=len(growing.states) - len(dropped) == 1)
 
 
-def _keep(growing: Growing, dropped: dict[str, str], why: str, span: float, *, only: bool) -> None:
+def _keep(growing: _Growing, dropped: dict[str, str], why: str, span: float, *, only: bool) -> None:
     for law in dropped:
         del growing.states[law]
     growing.choice = ""
@@ -186,11 +186,11 @@ def _keep(growing: Growing, dropped: dict[str, str], why: str, span: float, *, o
 
 
 def _refine(data: Observed, layout: Layout, values: dict, offsets: np.ndarray, steps: int) -> LawFit:
-    """``steps`` Levenberg-Marquardt steps from ``values`` and ``offsets`` (:func:`.first_window.fit_window`)."""
-    return fit_window(data, layout, values, offsets, evaluations=1 + STEP_EVALUATIONS * steps, jacobians=steps)
+    """``steps`` Levenberg-Marquardt steps from ``values`` and ``offsets`` (:func:`.first_window._fit_window`)."""
+    return _fit_window(data, layout, values, offsets, evaluations=1 + STEP_EVALUATIONS * steps, jacobians=steps)
 
 
-def update(growing: Growing, data: Observed, span: float) -> LawFit | None:
+def _update(growing: _Growing, data: Observed, span: float) -> LawFit | None:
     """One update on the record so far (``span`` [s] after contact): the pending screen first; each law followed
     refined from its last values (:func:`_refine`), the stand held before ``STAGES[SCREEN_WINDOW]`` and every
     unknown free from it on, where the smallest BIC chooses among the laws left (and the choice is kept)."""

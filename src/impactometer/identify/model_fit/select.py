@@ -22,7 +22,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ...rig import Rig
 from .engine import MAX_EVALUATIONS, LawFit, Observed, fit_law, staged, window
-from .forward import Grid, free_parameters, horizon, make_layout, predict, stand_values
+from .forward import Grid, _horizon, _predict, free_parameters, make_layout, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
 #: the whole record follows
@@ -56,7 +56,7 @@ SCREEN_EVALUATIONS = 8
 
 
 @dataclass(frozen=True)
-class Start:
+class _Start:
     """Where every law's fit starts: M1 [kg], V0 [m/s], the contact instant [s] and the pre-charge [Pa gauge]
     (None: fitted, starting from ``pressure_gauge_start``; else held where ``pressure_std`` [Pa] is 0, or fitted with
     the prior ``pressure`` ± ``pressure_std``)."""
@@ -84,7 +84,7 @@ def _screen(fits: dict[str, LawFit], span: float, margin: float, *, within: floa
             for law, fit in fits.items() if fit.bic > best.bic + margin}
 
 
-def _start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: Start,
+def _start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: _Start,
                sample_rate: float) -> tuple[_Layouts, dict]:
     """The layouts of ``law``'s windows and the physical values its fit starts from."""
     free = free_parameters(law, uncertain)
@@ -98,7 +98,7 @@ def _start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: Sta
 
 
 def _fit_laws(data: Observed, rig: Rig, laws: tuple[str, ...], uncertain: tuple[str, ...] | None,
-              start: Start) -> tuple[dict[str, LawFit], dict[str, dict]]:
+              start: _Start) -> tuple[dict[str, LawFit], dict[str, dict]]:
     """Fit every law of ``laws`` (screened on the windows ``STAGES[EARLY_WINDOW]`` and ``STAGES[SCREEN_WINDOW]``);
     returns the whole-record fits of the laws kept and, for every law, what became of it (a summary of its fit,
     the screening window's BIC, or why it failed or was dropped)."""
@@ -151,7 +151,7 @@ class _Layouts:
     """The layouts of one law's windows: ``core`` (M1, V0, contact instant; the stand held), ``stand`` (V0, the
     contact instant and the stand parameters; M1 held at its last value) and ``all``."""
 
-    def __init__(self, rig: Rig, law: str, free: tuple[str, ...], start: Start, sample_rate: float):
+    def __init__(self, rig: Rig, law: str, free: tuple[str, ...], start: _Start, sample_rate: float):
         self.rig, self.law, self.free, self.start, self.sample_rate = rig, law, free, start, sample_rate
         self.fixed = {kind: self._make(() if kind == "core" else free) for kind in ("core", "all")}
 
@@ -164,7 +164,7 @@ class _Layouts:
         return self._make(self.free, values["mass"]) if kind == "stand" else self.fixed[kind]
 
 
-def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
+def _retry(data: Observed, layouts, fit: LawFit, start: _Start) -> LawFit | None:
     """The fit of :data:`FINE_STAGES` from the start, where ``fit`` stopped before it converged or leaves
     χ²/dof above ``RETRY_REDUCED_CHI2`` and the finer continuation does better; else None."""
     if fit.converged and fit.reduced_chi2 <= RETRY_REDUCED_CHI2:
@@ -178,7 +178,7 @@ def _retry(data: Observed, layouts, fit: LawFit, start: Start) -> LawFit | None:
     return other if other.reduced_chi2 < fit.reduced_chi2 else None
 
 
-def _fit_stages(data: Observed, layouts: _Layouts, values: dict, offsets, stages, start: Start, *,
+def _fit_stages(data: Observed, layouts: _Layouts, values: dict, offsets, stages, start: _Start, *,
                 evaluations: int = MAX_EVALUATIONS):
     """Fit the windows of ``stages`` in turn (:func:`.engine.staged`; None: the record up to its
     :func:`~.forward.horizon` at the last window's answer), each from the last one's answer; returns the last fit
@@ -190,7 +190,7 @@ def _fit_stages(data: Observed, layouts: _Layouts, values: dict, offsets, stages
         layout = layouts(kind, values)
         if end is None:
             span = data.grid.start_time + (data.grid.size - 1) / data.grid.sample_rate - values["contact_time"]
-            reach, why = horizon(layout, layout.variables(values), span)
+            reach, why = _horizon(layout, layout.variables(values), span)
             part = window(data, values["contact_time"] + reach) if reach < span else data
         else:
             part = window(data, start.contact_time + end)
@@ -208,26 +208,26 @@ START_VELOCITIES = np.geomspace(0.3, 8.0, 9)
 
 
 def _grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | None,
-                pressure_gauge_start: float) -> Start:
+                pressure_gauge_start: float) -> _Start:
     """A start for :func:`_fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
     :data:`START_VELOCITIES` whose prediction of the first window (``STAGES[0]``) with the stand's own law and
     parameters fits best (offsets from the pre-trigger), first contact at ``contact_time`` [s]."""
-    return grid_starts(data, rig, contact_time, pressure, pressure_gauge_start)[0]
+    return _grid_starts(data, rig, contact_time, pressure, pressure_gauge_start)[0]
 
 
-def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_gauge_start: float,
-                count: int = 1, predicted: np.ndarray | None = None) -> list[Start]:
+def _grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_gauge_start: float,
+                count: int = 1, predicted: np.ndarray | None = None) -> list[_Start]:
     """The ``count`` best starts of :func:`_grid_start`, best first, none next to (one grid step from) a better
     one: the first window of a light, fast impact can hold more than one minimum. ``predicted`` (from
     :func:`grid_predictions` on the same window) spares the integrations. The window is ``data`` up to
     ``STAGES[0]`` after ``contact_time``, or all of it where it is shorter."""
     part = window(data, contact_time + STAGES[0][0])
     if predicted is None or predicted.shape[-1] != part.grid.size:
-        predicted = grid_predictions(part.grid, rig, contact_time, pressure, pressure_gauge_start)
+        predicted = _grid_predictions(part.grid, rig, contact_time, pressure, pressure_gauge_start)
     chi2 = np.sum(np.square((part.channels - part.offsets[:, None]) / part.noise[:, None]
                             - predicted / part.noise[None, :, None]), axis=(1, 2))
     chi2 = np.where(np.isfinite(chi2), chi2, np.inf).reshape(START_MASSES.size, START_VELOCITIES.size)
-    starts: list[Start] = []
+    starts: list[_Start] = []
     taken: list[tuple[int, int]] = []
     for flat in np.argsort(chi2, axis=None, kind="stable"):
         i, j = (int(k) for k in np.unravel_index(flat, chi2.shape))
@@ -236,14 +236,14 @@ def grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float |
         if any(abs(i - a) <= 1 and abs(j - b) <= 1 for a, b in taken):
             continue
         taken.append((i, j))
-        starts.append(Start(mass=float(START_MASSES[i]), velocity=float(START_VELOCITIES[j]),
+        starts.append(_Start(mass=float(START_MASSES[i]), velocity=float(START_VELOCITIES[j]),
                             contact_time=contact_time, pressure=pressure, pressure_gauge_start=pressure_gauge_start))
     if not starts:
         raise IdentificationError("no impact of the start grid can be integrated on this stand")
     return starts
 
 
-def grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure: float | None,
+def _grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure: float | None,
                      pressure_gauge_start: float) -> np.ndarray:
     """The recorded channels (offsets zero) of every impact of :data:`START_MASSES` × :data:`START_VELOCITIES`,
     shape (masses × velocities, 2, samples), on ``grid`` with the stand's own law and parameters, first contact at
@@ -258,13 +258,13 @@ def grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure: float 
         rows[:, -1] = np.log(pressure_gauge_start + rig.gas.atmospheric_pressure)
     params, times = layout.packed(rows)
     try:
-        return predict(grid, params, times)
+        return _predict(grid, params, times)
     except IdentificationError:  # a grid point the model cannot carry: one by one, that point left out
         return np.stack([_one(grid, params[k:k + 1], times[k:k + 1]) for k in range(rows.shape[0])])
 
 
 def _one(grid: Grid, params: np.ndarray, times: np.ndarray) -> np.ndarray:
     try:
-        return predict(grid, params, times)[0]
+        return _predict(grid, params, times)[0]
     except IdentificationError:
         return np.full((2, grid.size), np.nan)

@@ -7,7 +7,7 @@ algorithms, this class the schedule):
 
 - **First answer** as soon as ``first`` (default ``STAGES[0]``, 4 ms) of record after first contact has arrived:
   M1, V0 and the contact instant fitted with the stand's law and parameters held, from the robust answer where
-  the stream has one by then, else from the best impacts of the start grid (:func:`.select.grid_starts`, whose
+  the stream has one by then, else from the best impacts of the start grid (:func:`.select._grid_starts`, whose
   predictions are made before the impact). It is given where it explains the samples after contact down to
   their noise.
 - **Contact law**: the other laws are fitted on that first window, one at each update, and screened as the batch
@@ -57,10 +57,10 @@ from .engine import (
     observe,
     window,
 )
-from .first_window import warm
-from .forward import check_uncertain, make_grid
-from .growing import Growing, explains, first_fit, update
-from .select import SCREEN_WINDOW, STAGES, Start, grid_predictions, grid_starts
+from .first_window import _warm
+from .forward import _check_uncertain, _make_grid
+from .growing import _explains, _first_fit, _Growing, _update
+from .select import SCREEN_WINDOW, STAGES, _grid_predictions, _grid_starts, _Start
 
 #: default time between updates [s] of record: an update of the record up to 50 ms after contact took a median
 #: 4.7 ms on one core of the (loaded) development machine, the first answer 3 ms (docs/model_identification.md)
@@ -99,7 +99,7 @@ class _Impact:
     first: int
     contact_time: float
     next_stop: int
-    fit: Growing
+    fit: _Growing
     done: bool = False
     checked: bool = False
 
@@ -155,7 +155,7 @@ class ModelStream:
         laws = contact_laws(contact)
         self.laws = laws if len(laws) == 1 else tuple(law for law in laws
                                                       if law != "power" or self.rig.contact.law == "power")
-        self.uncertain, self.contact = check_uncertain(uncertain, self.laws), contact
+        self.uncertain, self.contact = _check_uncertain(uncertain, self.laws), contact
         if metadata is not None and not isinstance(metadata, dict):
             raise ParameterTypeError(f"metadata must be None or a dict (the recording's metadata), got "
                                      f"{shown(metadata)}", field="metadata", expected="must be None or a dict")
@@ -169,10 +169,10 @@ class ModelStream:
         self.pressure, self.pressure_std = batch._pressure(probe, pressure, self.rig, pressure_std)
         self._given_pressure = pressure, pressure_std  # the final batch fit combines them with the metadata itself
         self.delay = anti_alias_delay(self.design, sample_rate)
-        self._grid_model = make_grid(self.start_time, sample_rate, 1, self.design)
+        self._grid_model = _make_grid(self.start_time, sample_rate, 1, self.design)
         self._chunk = max(int(self.cadence * sample_rate), 1)
         clock = time.perf_counter()
-        warm()  # the compiled fits, before any impact
+        _warm()  # the compiled fits, before any impact
         self._grid = self._arm()
         #: wall time of the grid's predictions, made before any impact [s]
         self.arming_time = time.perf_counter() - clock
@@ -185,14 +185,14 @@ class ModelStream:
 
     def _arm(self) -> dict:
         """The predictions of the start grid for the window it is ranked on (the first window, at most
-        ``STAGES[0]``: :func:`.select.grid_starts`) of an impact with the full pre-trigger, keyed by (samples
+        ``STAGES[0]``: :func:`.select._grid_starts`) of an impact with the full pre-trigger, keyed by (samples
         before the trigger, samples of the window)."""
         pre = int(PRE_TRIGGER * self.sample_rate)
         contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
         size = int(math.floor((contact + min(self.first, STAGES[0][0])) * self.sample_rate + 1e-9)) + 1
         pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         try:
-            return {(pre, size): grid_predictions(make_grid(0.0, self.sample_rate, size, self.design), self.rig,
+            return {(pre, size): _grid_predictions(_make_grid(0.0, self.sample_rate, size, self.design), self.rig,
                                                   contact, self.pressure, pressure_gauge_start)}
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
@@ -250,7 +250,7 @@ class ModelStream:
         contact = self.start_time + (trigger - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
         self._impact = _Impact(trigger=trigger, first=first, contact_time=contact,
                                next_stop=self._stop(contact, self.first),
-                               fit=Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
+                               fit=_Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
         self.estimates = []
 
     def _observe(self, recording: Recording, contact_time: float) -> Observed:
@@ -279,7 +279,7 @@ class ModelStream:
                 check_length(recording, min_duration=0.0)
                 impact.checked = True
             data = self._observe(recording, impact.contact_time)
-            fit = self._first(impact, data, span) if not impact.fit.states else update(impact.fit, data, span)
+            fit = self._first(impact, data, span) if not impact.fit.states else _update(impact.fit, data, span)
         except IdentificationError as exc:  # no estimate this time; the final answer decides
             impact.fit.notes.append(f"up to {span * 1e3:.3g} ms after first contact: {exc}")
             return []
@@ -294,7 +294,7 @@ class ModelStream:
         pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         if self.robust.estimates:
             robust = self.robust.estimates[-1]
-            starts = [Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
+            starts = [_Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
                             pressure=self.pressure, pressure_gauge_start=pressure_gauge_start,
                             pressure_std=self.pressure_std)]
         else:
@@ -309,16 +309,16 @@ class ModelStream:
                     part.grid, start_time=part.grid.start_time + (cut - 1e-6) / self.sample_rate,  # period early:
                     size=part.grid.size - cut))  # the window's floor keeps its last sample)
                 predicted = predicted[..., cut:]
-            starts = [replace(start, pressure_std=self.pressure_std) for start in grid_starts(
+            starts = [replace(start, pressure_std=self.pressure_std) for start in _grid_starts(
                 part, self.rig, impact.contact_time, self.pressure, pressure_gauge_start, count=GRID_STARTS,
                 predicted=predicted)]
-        return first_fit(impact.fit, data, span, starts)
+        return _first_fit(impact.fit, data, span, starts)
 
     def _emit(self, fit: LawFit, recording: Recording, *, stage: str, clock: float, span: float,
               impact: _Impact, data: Observed) -> list[Identification]:
         growing = impact.fit
         held = fit.layout.names == growing.states[fit.law].layouts.fixed["core"].names
-        if held and not explains(fit, data):  # the stand held: only an answer that explains the record so far
+        if held and not _explains(fit, data):  # the stand held: only an answer that explains the record so far
             growing.notes.append(f"up to {span * 1e3:.3g} ms after first contact: the {fit.law} model with the "
                                  "stand held does not explain the samples after contact down to their noise")
             return []
@@ -388,7 +388,7 @@ class ModelStream:
         return last_outcome(self.outcomes)
 
 
-def stream_model_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64,
+def _stream_model_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64,
                         **options) -> list[Identification]:
     """Replay arrays through a :class:`ModelStream` in chunks of ``chunk`` samples; every estimate in order of
     availability, the final answer included (a refused final answer adds none)."""
