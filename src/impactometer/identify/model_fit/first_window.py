@@ -93,7 +93,7 @@ class _Window(NamedTuple):
     x: np.ndarray
     steps: np.ndarray
     timing: _Timing
-    offsets: np.ndarray
+    instants: np.ndarray
     fir: np.ndarray
     noise: np.ndarray
     tolerances: np.ndarray
@@ -115,7 +115,7 @@ def _channels(w, x, out, internal, y0, p):
     contact = timing.origin + shift / timing.sample_rate
     if not (np.isfinite(contact) and contact >= timing.earliest):
         return False
-    if _predict_row(p, y0, w.offsets, contact - timing.start_time, CHANNEL_INDEX, w.tolerances[0],
+    if _predict_row(p, y0, w.instants, contact - timing.start_time, CHANNEL_INDEX, w.tolerances[0],
                    w.tolerances[1:], MAX_STEP, MAX_FIT_STEPS, internal) != fast.OK:
         return False
     _fir_decimate(internal, w.fir, timing.pad - w.fir.size + 1, timing.factor, out)
@@ -175,7 +175,7 @@ def _solve(w, evaluations, jacobians, information, jac):
     :func:`.engine._advance` answered by the compiled residuals and Jacobian; returns (report, x, χ² less the
     head's constant, residual evaluations); ``jac`` holds the last Jacobian made."""
     n, rows = w.tail.shape[1], jac.shape[0]
-    internal, y0, p = np.empty((2, w.offsets.size)), np.empty(d.N_STATE), np.empty(w.base.size)
+    internal, y0, p = np.empty((2, w.instants.size)), np.empty(d.N_STATE), np.empty(w.base.size)
     model, trial_model, moved = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
     r, r_trial = np.empty(rows), np.empty(rows)
     x = w.x.copy()
@@ -218,7 +218,7 @@ def _window(data: Observed, layout: Layout, start: dict[str, float], offsets: np
     index, code, param = layout.codes
     return _Window(base=layout.base, slots=index, code=code, param=param, hysteretic=layout.law == "hysteretic",
                   prior_index=problem.prior_index, prior_mean=problem.prior_mean, prior_sigma=problem.prior_sigma,
-                  x=x, steps=problem.steps.astype(float), timing=timing, offsets=grid.offsets, fir=grid.taps,
+                  x=x, steps=problem.steps.astype(float), timing=timing, instants=grid.instants, fir=grid.taps,
                   noise=data.noise, tolerances=np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)],
                   tail=np.ascontiguousarray(problem.tail), head=np.r_[problem.root, problem.mean]), problem
 
@@ -265,7 +265,7 @@ def _warm() -> None:
     index, code, param = (np.array([d.MASS, d.VELOCITY, -1]), np.array([0, 0, 2]), np.array([0.0, 0.0, 1.0]))
     w = _Window(base=np.zeros(d.N_PARAM), slots=index, code=code, param=param, hysteretic=True,
                prior_index=np.zeros(1, dtype=np.int64), prior_mean=np.zeros(1), prior_sigma=np.ones(1),
-               x=np.full(5, -1e3), steps=np.ones(3), timing=timing, offsets=np.zeros(4), fir=np.ones(1),
+               x=np.full(5, -1e3), steps=np.ones(3), timing=timing, instants=np.zeros(4), fir=np.ones(1),
                noise=np.ones(2), tolerances=np.ones(1 + d.N_STATE), tail=np.zeros((2, 1)), head=np.ones(3))
     _solve(w, 1, 0, True, np.zeros((5, 5)))
     _predict_in_turn(np.zeros((1, d.N_PARAM)), np.zeros(4), np.zeros(1), CHANNEL_INDEX, FIT_RTOL,

@@ -396,7 +396,7 @@ class Grid:
     taps: np.ndarray
 
     @property
-    def offsets(self) -> np.ndarray:
+    def instants(self) -> np.ndarray:
         """Internal instants relative to the first sample [s]."""
         n_int = 2 * self.pad + (self.size - 1) * self.factor + 1
         return (np.arange(n_int) - self.pad) / (self.factor * self.sample_rate)
@@ -432,8 +432,8 @@ def _outside_ranges(p):
 
 
 @njit(cache=True, error_model="numpy")
-def _predict_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max_steps, out):
-    """One row of a prediction on the calling thread: the channels ``out`` (channels, instants) at ``offsets -
+def _predict_row(p, y0, instants, shift, channel_index, rtol, atol, max_step, max_steps, out):
+    """One row of a prediction on the calling thread: the channels ``out`` (channels, instants) at ``instants -
     shift`` after contact, zero before the last instant before it, which is integrated too (it holds the state at
     contact: a contact force that jumps at first touch shares the jump with it, fast.share_jump). ``y0`` is scratch
     for the state at contact. Returns the integrator's status, :data:`OUTSIDE` or :data:`NO_START`."""
@@ -441,7 +441,7 @@ def _predict_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max
         return OUTSIDE
     if not contact_state(p, y0):
         return NO_START
-    t = offsets - shift
+    t = instants - shift
     first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
     for j in range(channel_index.size):
         out[j, :first] = 0.0
@@ -451,19 +451,19 @@ def _predict_row(p, y0, offsets, shift, channel_index, rtol, atol, max_step, max
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _predict_rows(params, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
+def _predict_rows(params, instants, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
     """:func:`_predict_row` of every row on the thread pool."""
     for s in prange(params.shape[0]):
-        status[s] = _predict_row(params[s], np.empty(d.N_STATE), offsets, shifts[s], channel_index, rtol, atol,
+        status[s] = _predict_row(params[s], np.empty(d.N_STATE), instants, shifts[s], channel_index, rtol, atol,
                                 max_step, max_steps, out[s])
 
 
 @njit(cache=True, error_model="numpy")
-def _predict_in_turn(params, offsets, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
+def _predict_in_turn(params, instants, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
     """:func:`_predict_row` of every row, one after the other on the calling thread."""
     y0 = np.empty(d.N_STATE)
     for s in range(params.shape[0]):
-        status[s] = _predict_row(params[s], y0, offsets, shifts[s], channel_index, rtol, atol, max_step, max_steps,
+        status[s] = _predict_row(params[s], y0, instants, shifts[s], channel_index, rtol, atol, max_step, max_steps,
                                 out[s])
 
 
@@ -482,12 +482,12 @@ def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tu
     params = np.ascontiguousarray(params, dtype=float)
     if not np.all(np.isfinite(contact_times)):
         raise IdentificationError("the model is not integrated at a contact instant that is not finite")
-    offsets = grid.offsets
-    out = np.empty((params.shape[0], 2, offsets.size))
+    instants = grid.instants
+    out = np.empty((params.shape[0], 2, instants.size))
     status = np.zeros(params.shape[0], dtype=np.int64)
     shifts = np.asarray(contact_times, dtype=float) - grid.start_time
     kernel = _predict_in_turn if in_turn else _predict_rows
-    kernel(params, offsets, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS,
+    kernel(params, instants, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS,
            out, status)
     if np.any(status != fast.OK):
         i = int(np.flatnonzero(status != fast.OK)[0])
@@ -504,7 +504,7 @@ def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tu
 
 
 def _sensed(grid: Grid, internal: np.ndarray) -> np.ndarray:
-    """Channels (..., size) of internal histories (..., len(grid.offsets)) through the grid's anti-alias filter
+    """Channels (..., size) of internal histories (..., len(grid.instants)) through the grid's anti-alias filter
     and decimation (the causal FIR evaluated at the kept samples only)."""
     end = grid.pad + (grid.size - 1) * grid.factor + 1
     if grid.design == "causal":
