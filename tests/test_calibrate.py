@@ -239,7 +239,7 @@ def no_fit(monkeypatch):
     """Fail the test if a fit starts: what these cases refuse is refused before any work."""
     def fit(*args, **kwargs):
         raise AssertionError("a fit started")
-    monkeypatch.setattr("impactometer.calibrate.fit_family", fit)
+    monkeypatch.setattr("impactometer.calibrate._fit_family", fit)
 
 
 def _with(recording, **metadata):

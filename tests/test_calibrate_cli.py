@@ -115,7 +115,7 @@ def test_bad_input_one_line_nothing_written(folders, tmp_path, capsys):
 def test_targets_and_sets_refused_before_any_work(folders, tmp_path, capsys, monkeypatch):
     def no_fit(*args, **kwargs):
         raise AssertionError("a fit started")
-    monkeypatch.setattr("impactometer.calibrate.fit_family", no_fit)
+    monkeypatch.setattr("impactometer.calibrate._fit_family", no_fit)
     calibration, base = str(folders["calibration"]), str(folders["base"])
     out = tmp_path / "cal.toml"
     _fails(capsys, ["calibrate", calibration, "--rig", base, "--out", str(tmp_path / "cal.txt")], "must end in .toml")

@@ -120,8 +120,8 @@ def test_the_forward_model_reproduces_the_sensor_model():
         layout = fw.make_layout(rig, "hysteretic", free, pressure=200e3, contact_time=0.0, sample_rate=50e3)
         x = layout.variables({"mass": 20.0, "velocity": 1.5, "contact_time": 0.0,
                               **fw.stand_values(rig, "hysteretic", free)})
-        grid = fw.make_grid(rec.start_time, rec.sample_rate, rec.contact_force.size, design)
-        predicted = fw.predict(grid, *layout.packed(x[None, :]))[0]
+        grid = fw._make_grid(rec.start_time, rec.sample_rate, rec.contact_force.size, design)
+        predicted = fw._predict(grid, *layout.packed(x[None, :]))[0]
         for row, name in zip(predicted, ("contact_force", "piston_acceleration"), strict=True):
             recorded = rec.channel(name)
             # the integrations sample the same trajectory at instants that differ by rounding: 1e-5 of the peak
@@ -166,14 +166,14 @@ def test_the_bounds_of_the_table_are_the_solvers_one_range_check():
     layout = fw.make_layout(rig, "hysteretic", ("contact.stiffness",), pressure=200e3, contact_time=0.0,
                             sample_rate=50e3)
     low, high = {row.name: row for row in layout.table()}["contact.stiffness"].bounds
-    grid = fw.make_grid(0.0, 50e3, 64, "causal")
+    grid = fw._make_grid(0.0, 50e3, 64, "causal")
     for stiffness in (0.5 * low, 2.0 * high):
         x = layout.variables({"mass": 30.0, "velocity": 2.0, "contact_time": 0.0, "contact.stiffness": stiffness})
         params, times = layout.packed(x[None, :])
-        assert fw.outside_ranges(params[0]) == fw.STAND_PARAMETERS["contact.stiffness"][0]
+        assert fw._outside_ranges(params[0]) == fw.STAND_PARAMETERS["contact.stiffness"][0]
         for in_turn in (True, False):
             with pytest.raises(IdentificationError, match="outside"):
-                fw.predict(grid, params, times, in_turn=in_turn)
+                fw._predict(grid, params, times, in_turn=in_turn)
 
 
 def test_zero_phase_record_and_fitted_pressure():
