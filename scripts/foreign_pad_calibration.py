@@ -9,8 +9,8 @@ M1 and p0 as stated) calibrated from the built-in stand (``impactometer.calibrat
 the contact's parameters, the seal friction and both dead volumes fitted); then ``--held-back`` drops (50 ms after
 contact + 20 ms pre-trigger, 5 % noise, only p0 stated) reproduced with the calibrated stand
 (``impactometer.calibrate.validate``: force NRMSE with V0 held at the light gate's), and identified with it by the
-model fit (``rig=`` the calibrated stand), by the robust peak-to-peak method and, for reference, by the model fit
-on the true stand (what is left to the calibration).
+model fit (``rig=`` the calibrated stand's file, which carries its parameters' σ), by the robust peak-to-peak
+method and, for reference, by the model fit on the true stand (what is left to the calibration).
 
     python scripts/foreign_pad_calibration.py [--pads 2] [--drops 6] [--held-back 10] [--seed 1] [--record]
 
