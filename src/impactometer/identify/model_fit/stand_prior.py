@@ -6,17 +6,24 @@ and the seal friction) are determined by the record itself; those it holds at th
 dead volumes) would make M1 and V0 look surer than they are. Their covariance is propagated linearly through the
 fit's own Jacobian at its optimum: with J the weighted Jacobian of the fit's unknowns and J_s that of the held
 parameters (their fit variables), the answer moves by S = −(JᵀJ)⁻¹JᵀJ_s per unit of the held variables, and the
-covariance of the answer gains S Σ_s Sᵀ (Σ_s the stated covariance in the fit variables). To first order this is the
+covariance of the answer gains S Σ_s Sᵀ (Σ_s the stated covariance in the fit variables). J_s is a central
+difference over ± each parameter's stated σ (at least the fit's own step): the secant over the range the calibration
+leaves open, where the fit's own small step (:data:`.engine.STEP`) reads the integrator's tolerance rather than the
+slope of a parameter as weak in a record as a dead volume (its S came out 2-50 times off a refit's; the secant's
+agrees with a refit on the stand moved by ±σ). To first order this is the
 σ of a fit that frees them with the stated Gaussian prior, where the record adds nothing to what the calibration
 knows of them; it costs one Jacobian instead of a fit with more unknowns, and leaves the answer itself unchanged.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
+from ...errors import IdentificationError
 from ...rig import Rig, StandUncertainty
-from .engine import LawFit, Observed, weighted_jacobian, window
+from .engine import STEP, LawFit, Observed, Residuals, weighted_jacobian, window
 from .forward import STAND_PARAMETERS, contact_parameters, stand_values
 
 
@@ -42,17 +49,26 @@ def stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUnce
     layout = fit.layout
     for name in names:
         layout = layout.with_free(name)
-    held = stand_values(rig, fit.law, names)
-    point = {**fit.values, **held}
+    point = {**fit.values, **stand_values(rig, fit.law, names)}
     part = data if fit.span is None else window(data, fit.values["contact_time"] + fit.span[0])
-    jacobian = weighted_jacobian(part, layout, point)
     columns = [layout.names.index(name) for name in names]
-    own = [j for j in range(jacobian.shape[1]) if j not in columns]
-    if not np.all(np.isfinite(fit.cov)):
-        return 0.0, 0.0, names
-    sensitivity = -fit.cov @ (jacobian[:, own].T @ jacobian[:, columns])
-    x = layout.variables(point)
+    x = np.r_[layout.variables(point), fit.x[-2:]]
     slope = np.array([abs(layout.derivative(name, float(x[j]))) for name, j in zip(names, columns, strict=True)])
     stated = uncertainty.covariance(names) / np.outer(slope, slope)
+    problem = Residuals(part, layout)
+    slopes = []
+    for i, j in enumerate(columns):
+        step = np.zeros_like(x)
+        step[j] = max(math.sqrt(stated[i, i]), STEP)
+        up, down = problem.residuals(x + step), problem.residuals(x - step)
+        if up is None or down is None:
+            raise IdentificationError(f"the model cannot be integrated with {names[i]} one stated σ from the "
+                                      "calibrated value: the stand file's [uncertainty] is too wide for the fit")
+        slopes.append((up - down) / (2.0 * step[j]))
+    held = np.column_stack(slopes)
+    own = weighted_jacobian(part, fit.layout, fit.values)
+    if not np.all(np.isfinite(fit.cov)):
+        return 0.0, 0.0, names
+    sensitivity = -fit.cov @ (own.T @ held)
     added = sensitivity[:2] @ stated @ sensitivity[:2].T
     return float(added[0, 0]), float(added[1, 1]), names
