@@ -58,13 +58,7 @@ def stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUnce
     problem = Residuals(part, layout)
     slopes = []
     for i, j in enumerate(columns):
-        step = np.zeros_like(x)
-        step[j] = max(math.sqrt(stated[i, i]), STEP)
-        up, down = problem.residuals(x + step), problem.residuals(x - step)
-        if up is None or down is None:
-            raise IdentificationError(f"the model cannot be integrated with {names[i]} one stated σ from the "
-                                      "calibrated value: the stand file's [uncertainty] is too wide for the fit")
-        slopes.append((up - down) / (2.0 * step[j]))
+        slopes.append(_secant(problem, x, j, max(math.sqrt(stated[i, i]), STEP), names[i]))
     held = np.column_stack(slopes)
     own = weighted_jacobian(part, fit.layout, fit.values)
     if not np.all(np.isfinite(fit.cov)):
@@ -72,3 +66,19 @@ def stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUnce
     sensitivity = -fit.cov @ (own.T @ held)
     added = sensitivity[:2] @ stated @ sensitivity[:2].T
     return float(added[0, 0]), float(added[1, 1]), names
+
+
+def _secant(problem: Residuals, x: np.ndarray, j: int, step: float, name: str) -> np.ndarray:
+    """The central difference of the residuals of ``problem`` in variable ``j`` over ± ``step``, halved until the
+    model can be integrated at both ends (a stated σ that reaches beyond the range the model is integrated in, as
+    an inflated σ of a stand that does not describe its drops can), down to the fit's own step."""
+    while True:
+        moved = np.zeros_like(x)
+        moved[j] = step
+        up, down = problem.residuals(x + moved), problem.residuals(x - moved)
+        if up is not None and down is not None:
+            return (up - down) / (2.0 * step)
+        if step <= STEP:
+            raise IdentificationError(f"the model cannot be integrated with {name} moved by the fit's own step from "
+                                      "the calibrated value")
+        step = max(step / 4.0, STEP)
