@@ -319,12 +319,12 @@ def _fallback(recording: Recording, rig: Rig, common: ModelDetails, best: LawFit
 def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
             stated: tuple[float | None, float], log_mass_std: float | None = None,
             log_velocity_std: float | None = None,
-            stand: tuple[float, float, tuple[str, ...]] = (0.0, 0.0, ())) -> Identification:
+            stand: tuple[float, float, tuple[str, ...], tuple[str, ...]] = (0.0, 0.0, (), ())) -> Identification:
     """The :class:`Identification` of the chosen fit (its details ``common``'s, with the fit's); ``stated`` the
     stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely); the σ of ln M1 and ln V0 from
     :func:`.adequacy.assess` (default: the Fisher information's, inflated by sqrt(χ²/dof) where that exceeds 1);
-    ``stand`` the variance of ln M1 and ln V0 the stand's stated uncertainty adds, and its parameters
-    (:func:`.stand_prior.stand_variance`)."""
+    ``stand`` the variance of ln M1 and ln V0 the stand's stated uncertainty adds, its parameters and those not
+    carried (:func:`.stand_prior.stand_variance`)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     crb = _bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
@@ -366,9 +366,13 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
     velocity_std = crb.velocity_std * inflation if log_velocity_std is None else velocity * log_velocity_std
     added_mass, added_velocity = mass * math.sqrt(stand[0]), velocity * math.sqrt(stand[1])
     mass_std, velocity_std = math.hypot(mass_std, added_mass), math.hypot(velocity_std, added_velocity)
-    if stand[2]:
+    if stand[2] or stand[3]:
         details = replace(details, stand_uncertainty={"parameters": list(stand[2]), "mass_std_kg": added_mass,
-                                                      "velocity_std_m_s": added_velocity})
+                                                      "velocity_std_m_s": added_velocity,
+                                                      "not_carried": list(stand[3])})
+    if stand[3]:
+        found.append(f"the stand's stated σ of {', '.join(stand[3])} is not carried into σ(M1), σ(V0): the model "
+                     "cannot be integrated with it moved from the calibrated value")
     return Identification(mass=mass, velocity=velocity, mass_std=mass_std, velocity_std=velocity_std,
                           available_at=end, method="model/ml", warnings=tuple(found), details=details)
 

@@ -21,7 +21,6 @@ import math
 
 import numpy as np
 
-from ...errors import IdentificationError
 from ...rig import Rig, StandUncertainty
 from .engine import STEP, LawFit, Observed, Residuals, weighted_jacobian, window
 from .forward import STAND_PARAMETERS, contact_parameters, stand_values
@@ -39,39 +38,47 @@ def carried(uncertainty: StandUncertainty | None, rig: Rig, fit: LawFit) -> tupl
 
 
 def stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUncertainty | None
-                   ) -> tuple[float, float, tuple[str, ...]]:
+                   ) -> tuple[float, float, tuple[str, ...], tuple[str, ...]]:
     """The variance of ln M1 and ln V0 [-] that the stated uncertainty of the stand parameters ``fit`` holds adds
-    to the fit's (S Σ_s Sᵀ, see the module), and the parameters it comes from; (0, 0, ()) where none is carried."""
+    to the fit's (S Σ_s Sᵀ, see the module), the parameters it comes from, and those whose slope the model could not
+    be integrated for (not carried); (0, 0, (), ()) where none is carried."""
     names = carried(uncertainty, rig, fit)
     if not names:
-        return 0.0, 0.0, ()
+        return 0.0, 0.0, (), ()
     assert uncertainty is not None  # names are carried from a stated uncertainty only
     layout = fit.layout
     for name in names:
         layout = layout.with_free(name)
     point = {**fit.values, **stand_values(rig, fit.law, names)}
     part = data if fit.span is None else window(data, fit.values["contact_time"] + fit.span[0])
-    columns = [layout.names.index(name) for name in names]
     x = np.r_[layout.variables(point), fit.x[-2:]]
-    slope = np.array([abs(layout.derivative(name, float(x[j]))) for name, j in zip(names, columns, strict=True)])
-    stated = uncertainty.covariance(names) / np.outer(slope, slope)
     problem = Residuals(part, layout)
-    slopes = []
-    for i, j in enumerate(columns):
-        slopes.append(_secant(problem, x, j, max(math.sqrt(stated[i, i]), STEP), names[i]))
-    held = np.column_stack(slopes)
+    # each stated σ in its fit variable (d value / d variable at the calibrated value)
+    scale = {name: abs(layout.derivative(name, float(x[layout.names.index(name)]))) for name in names}
+    slopes = {}
+    for name in names:
+        std = math.sqrt(uncertainty.covariance((name,))[0, 0]) / scale[name]
+        slope = _secant(problem, x, layout.names.index(name), max(std, STEP))
+        if slope is not None:
+            slopes[name] = slope
+    lost = tuple(name for name in names if name not in slopes)
+    kept = tuple(slopes)
+    if not kept or not np.all(np.isfinite(fit.cov)):
+        return 0.0, 0.0, kept, lost
+    factor = np.array([scale[name] for name in kept])
+    stated = uncertainty.covariance(kept) / np.outer(factor, factor)
+    held = np.column_stack([slopes[name] for name in kept])
     own = weighted_jacobian(part, fit.layout, fit.values)
-    if not np.all(np.isfinite(fit.cov)):
-        return 0.0, 0.0, names
     sensitivity = -fit.cov @ (own.T @ held)
     added = sensitivity[:2] @ stated @ sensitivity[:2].T
-    return float(added[0, 0]), float(added[1, 1]), names
+    return float(added[0, 0]), float(added[1, 1]), kept, lost
 
 
-def _secant(problem: Residuals, x: np.ndarray, j: int, step: float, name: str) -> np.ndarray:
+def _secant(problem: Residuals, x: np.ndarray, j: int, step: float) -> np.ndarray | None:
     """The central difference of the residuals of ``problem`` in variable ``j`` over ± ``step``, halved until the
     model can be integrated at both ends (a stated σ that reaches beyond the range the model is integrated in, as
-    an inflated σ of a stand that does not describe its drops can), down to the fit's own step."""
+    an inflated σ of a stand that does not describe its drops can), down to the fit's own step; None where even that
+    cannot be integrated."""
     while True:
         moved = np.zeros_like(x)
         moved[j] = step
@@ -79,6 +86,5 @@ def _secant(problem: Residuals, x: np.ndarray, j: int, step: float, name: str) -
         if up is not None and down is not None:
             return (up - down) / (2.0 * step)
         if step <= STEP:
-            raise IdentificationError(f"the model cannot be integrated with {name} moved by the fit's own step from "
-                                      "the calibrated value")
+            return None
         step = max(step / 4.0, STEP)
