@@ -75,8 +75,9 @@ def stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUnce
 
 
 def _secant(problem: Residuals, x: np.ndarray, j: int, step: float) -> np.ndarray | None:
-    """The central difference of the residuals of ``problem`` in variable ``j`` over ± ``step``, halved until the
-    model can be integrated at both ends (a stated σ that reaches beyond the range the model is integrated in, as
+    """The central difference of the residuals of ``problem`` in variable ``j`` over ± ``step`` (one-sided where one
+    end leaves the range the model is integrated in, as a calibrated volume of 0 does), quartered until the model can
+    be integrated (a stated σ that reaches beyond the range the model is integrated in, as
     an inflated σ of a stand that does not describe its drops can), down to the fit's own step; None where even that
     cannot be integrated."""
     while True:
@@ -85,6 +86,9 @@ def _secant(problem: Residuals, x: np.ndarray, j: int, step: float) -> np.ndarra
         up, down = problem.residuals(x + moved), problem.residuals(x - moved)
         if up is not None and down is not None:
             return (up - down) / (2.0 * step)
+        middle = problem.residuals(x)
+        if middle is not None and (up is not None or down is not None):  # at the edge of the range (a volume of 0)
+            return (up - middle) / step if up is not None else (middle - down) / step
         if step <= STEP:
             return None
         step = max(step / 4.0, STEP)
