@@ -45,7 +45,7 @@ from .engine import (
 from .forward import check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
 from .select import CRITERION, Start, _fit_laws, _grid_start
-from .stand_prior import stand_variance
+from .stand_prior import _stand_variance
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
 
@@ -249,7 +249,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                   "explains no shorter span down to the noise: it does not describe this record, so the robust answer "
                   "is given")
         return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
-    stand = stand_variance(data, best, rig, stand_uncertainty)
+    stand = _stand_variance(data, best, rig, stand_uncertainty)
     answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (p0, p0_std), mass_std, velocity_std,
                      stand)
     if robust is None:
@@ -324,7 +324,7 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
     stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely); the σ of ln M1 and ln V0 from
     :func:`.adequacy.assess` (default: the Fisher information's, inflated by sqrt(χ²/dof) where that exceeds 1);
     ``stand`` the variance of ln M1 and ln V0 the stand's stated uncertainty adds, its parameters and those not
-    carried (:func:`.stand_prior.stand_variance`)."""
+    carried (:func:`.stand_prior._stand_variance`)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     crb = _bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))

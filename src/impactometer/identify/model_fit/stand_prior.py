@@ -26,7 +26,7 @@ from .engine import STEP, LawFit, Observed, Residuals, weighted_jacobian, window
 from .forward import STAND_PARAMETERS, contact_parameters, stand_values
 
 
-def carried(uncertainty: StandUncertainty | None, rig: Rig, fit: LawFit) -> tuple[str, ...]:
+def _carried(uncertainty: StandUncertainty | None, rig: Rig, fit: LawFit) -> tuple[str, ...]:
     """The parameters of ``uncertainty`` that ``fit`` holds and whose stated value it uses: stand parameters the
     fit can free, not freed, with a σ > 0; a contact parameter only where the fit's law is the stand's own."""
     if uncertainty is None:
@@ -37,12 +37,12 @@ def carried(uncertainty: StandUncertainty | None, rig: Rig, fit: LawFit) -> tupl
                       or (fit.law == rig.contact.law and name in contact_parameters(fit.law))))
 
 
-def stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUncertainty | None
+def _stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUncertainty | None
                    ) -> tuple[float, float, tuple[str, ...], tuple[str, ...]]:
     """The variance of ln M1 and ln V0 [-] that the stated uncertainty of the stand parameters ``fit`` holds adds
     to the fit's (S Σ_s Sᵀ, see the module), the parameters it comes from, and those whose slope the model could not
     be integrated for (not carried); (0, 0, (), ()) where none is carried."""
-    names = carried(uncertainty, rig, fit)
+    names = _carried(uncertainty, rig, fit)
     if not names:
         return 0.0, 0.0, (), ()
     assert uncertainty is not None  # names are carried from a stated uncertainty only
