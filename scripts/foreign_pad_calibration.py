@@ -9,8 +9,8 @@ M1 and p0 as stated) calibrated from the built-in stand (``impactometer.calibrat
 the contact's parameters, the seal friction and both dead volumes fitted); then ``--held-back`` drops (50 ms after
 contact + 20 ms pre-trigger, 5 % noise, only p0 stated) reproduced with the calibrated stand
 (``impactometer.calibrate.validate``: force NRMSE with V0 held at the light gate's), and identified with it by the
-model fit (``rig=`` the calibrated stand), by the robust peak-to-peak method and, for reference, by the model fit
-on the true stand (what is left to the calibration).
+model fit (``rig=`` the calibrated stand's file, which carries its parameters' σ), by the robust peak-to-peak
+method and, for reference, by the model fit on the true stand (what is left to the calibration).
 
     python scripts/foreign_pad_calibration.py [--pads 2] [--drops 6] [--held-back 10] [--seed 1] [--record]
 
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -40,7 +41,8 @@ from impactometer.identify.peak_to_peak import identify as identify_robust  # no
 from impactometer.rig import Rig, get_rig  # noqa: E402
 from recorded import recorded  # noqa: E402
 
-#: the methods compared on the held-back drops: name -> (record, calibrated stand, true stand) -> answer; the model
+#: the methods compared on the held-back drops: name -> (record, calibrated stand file, true stand) -> answer (the
+#: calibrated stand is read from the file calibrate writes, with the uncertainty of its parameters); the model
 #: on the true stand (the simulator's pad in the power law, its cylinder as the built-in stand's) is the reference
 #: that tells what the calibration leaves
 METHODS = {"model (calibrated stand)": lambda record, rig, truth: identify_model(record, rig=rig),
@@ -101,6 +103,7 @@ def measure(args, rec) -> None:
         calibration_set, _ = drops_of(pad, rng, args.drops, duration=0.1, truth=True,
                                       gate_rng=np.random.default_rng([args.seed, p, 1]))
         result = calibrate(calibration_set, rig="drop-stand")
+        stand_file = result.to_toml(Path(tempfile.mkdtemp()) / "calibrated.toml")
         held, truths = drops_of(pad, rng, args.held_back, duration=0.05, truth=False)
         gated = [r.with_metadata(mass_kg=t.mass, velocity_m_s=t.velocity) for r, t in zip(held, truths, strict=True)]
         check = validate(result.rig, gated)
@@ -115,7 +118,7 @@ def measure(args, rec) -> None:
         for record, truth in zip(held, truths, strict=True):
             for name, method in METHODS.items():
                 try:
-                    answer = method(record, result.rig, true_stand(pad))
+                    answer = method(record, str(stand_file), true_stand(pad))
                 except ImpactometerError as exc:  # a refusal is counted and named, not scored
                     refusals[name].append(f"{type(exc).__name__}: {exc}")
                     continue

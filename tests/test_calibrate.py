@@ -19,7 +19,7 @@ from impactometer.calibrate import DEFAULT_FIT, _check_fit, calibrate, check_inp
 from impactometer.calibrate.separation import CORRELATION_LIMIT, _flagged
 from impactometer.errors import IdentificationError, ParameterError, RecordingError
 from impactometer.identify.model_fit import identify
-from impactometer.rig import CONTACT_LAWS, PRESETS, fingerprint, get_rig
+from impactometer.rig import CONTACT_LAWS, PRESETS, fingerprint, get_rig, load_uncertainty
 
 
 @pytest.fixture(scope="module")
@@ -84,6 +84,10 @@ def test_stand_file_loads_everywhere_with_provenance(calibration, tmp_path):
     provenance = tomllib.loads(path.read_text())["provenance"]
     assert provenance["contact_law"] == "hysteretic" and provenance["created"]
     assert len(provenance["drops"]) == 6 and all("reduced_chi2" in d for d in provenance["drops"])
+    stated = load_uncertainty(path)  # the σ and correlation of every fitted parameter, in the fit's names
+    assert stated is not None and stated.names == tuple(calibration.parameters)
+    assert stated.std == pytest.approx([calibration.std[name] for name in stated.names], rel=1e-12)
+    np.testing.assert_allclose(stated.correlation, calibration.correlation, atol=1e-12)
     with pytest.raises(ParameterError, match="exists"):
         calibration.to_toml(path)
 

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..rig import Rig, save_toml
+from ..rig import Rig, StandUncertainty, save_toml
 
 
 def _finite(value: float) -> float | None:
@@ -194,10 +194,22 @@ class Calibration:
                            "misfit_sigma": d.misfit_sigma, "inconsistent": d.inconsistent} for d in self.drops],
                 "warnings": list(self.warnings)}
 
+    def uncertainty(self) -> StandUncertainty:
+        """The σ [SI] and correlation of the fitted parameters whose σ is finite (the ``[uncertainty]`` table of the
+        stand file; :func:`~impactometer.identify.model_fit.identify` carries it into σ(M1), σ(V0))."""
+        kept = [i for i, name in enumerate(self.parameters) if math.isfinite(self.std[name])]
+        names = [list(self.parameters)[i] for i in kept]
+        correlation = np.nan_to_num(np.asarray(self.correlation, dtype=float)[np.ix_(kept, kept)])
+        np.fill_diagonal(correlation, 1.0)
+        return StandUncertainty(names=tuple(names), std=tuple(self.std[name] for name in names),
+                                correlation=np.clip(correlation, -1.0, 1.0))
+
     def to_toml(self, path: str | Path, *, overwrite: bool = False) -> Path:
-        """Write the calibrated stand with its provenance (loadable by :func:`~impactometer.rig.get_rig`), under a
-        temporary name moved into place: a failed or interrupted write leaves any previous file as it was."""
-        return save_toml(self.rig, path, overwrite=overwrite, provenance=self.provenance())
+        """Write the calibrated stand with its provenance and the uncertainty of its fitted parameters (loadable by
+        :func:`~impactometer.rig.get_rig` and :func:`~impactometer.rig.load_uncertainty`), under a temporary name
+        moved into place: a failed or interrupted write leaves any previous file as it was."""
+        return save_toml(self.rig, path, overwrite=overwrite, provenance=self.provenance(),
+                         uncertainty=self.uncertainty())
 
     def plot(self, folder: str | Path) -> list[Path]:
         """One figure per drop (measured and simulated channels with residuals) and a parameter summary, written

@@ -308,6 +308,8 @@ class ModelDetails(Details):
     fit_span_reason: str | None = None
     #: fitted stand parameter -> value [SI] and its σ
     parameters: Mapping[str, Any] | None = None
+    #: the calibrated stand's stated uncertainty carried into σ(M1), σ(V0): the parameters and the σ they add
+    stand_uncertainty: Mapping[str, Any] | None = None
     #: on fall-back, the details of the robust answer given
     fallback: Mapping[str, Any] | None = None
     #: in a stream, where the answer was given
@@ -323,6 +325,7 @@ class ModelDetails(Details):
                "noise_acceleration_m_s2": self.noise_acceleration, "anti_alias": self.anti_alias,
                "path": self.path, "reason": self.reason, "t00": self.t00, "reduced_chi2": self.reduced_chi2,
                "chi2": self.chi2, "dof": self.dof, "crb": self.crb, "fit_span_s": self.fit_span,
-               "fit_span": self.fit_span_reason, "parameters": self.parameters, "adequacy": self.adequacy}
+               "fit_span": self.fit_span_reason, "parameters": self.parameters,
+               "stand_uncertainty": self.stand_uncertainty, "adequacy": self.adequacy}
         return {**base, **_present(own), "contact_law": self.contact_law,
                 **({} if self.stream is None else self.stream.named())}

@@ -33,11 +33,23 @@ from .parts import (
 )
 from .presets import ABSORPTION_RIG, PAD_STAND, PRESETS, STIFF_STAND, get_rig
 from .scenario import Scenario
-from .stand import Rig, check_stops, from_dict, load_toml, parameter_names, save_toml, to_dict, toml_text
+from .stand import (
+    Rig,
+    check_stops,
+    from_dict,
+    load_toml,
+    load_uncertainty,
+    parameter_names,
+    save_toml,
+    to_dict,
+    toml_text,
+)
 from .toml import PROVENANCE_KEY
+from .uncertainty import UNCERTAINTY_KEY, StandUncertainty
 
 __all__ = ["ABSORPTION_RIG", "CONTACT_ALIASES", "CONTACT_LAWS", "CYLINDER_LIMITS", "FREE_FALL_HEIGHTS",
            "ISO6358_DEFAULTS", "MASS_RANGE", "PAD_STAND", "PRESETS", "PROVENANCE_KEY", "STAND_KEY", "STIFF_STAND",
            "VALVE_LAW_PARAMETERS", "VELOCITY_RANGE", "Contact", "Cylinder", "Friction", "Gas", "Recorded", "Rig",
            "Scenario", "Stops", "Valve", "check_recorded_on", "check_stops", "contact_law_name", "fingerprint",
-           "from_dict", "get_rig", "load_toml", "parameter_names", "save_toml", "to_dict", "toml_text"]
+           "from_dict", "get_rig", "load_toml", "load_uncertainty", "StandUncertainty", "UNCERTAINTY_KEY",
+           "parameter_names", "save_toml", "to_dict", "toml_text"]

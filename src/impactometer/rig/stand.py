@@ -18,6 +18,7 @@ from ..outputs import as_path
 from ..validation import check_real
 from .parts import VALVE_LAW_PARAMETERS, Contact, Cylinder, Friction, Gas, Stops, Valve, contact_law_name
 from .toml import PROVENANCE_KEY, loading, read_table, table_text, write_table
+from .uncertainty import UNCERTAINTY_KEY, StandUncertainty
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -112,9 +113,10 @@ def from_dict(data: dict[str, Any], *, source: str = "rig") -> Rig:
     if not isinstance(data, dict):
         raise ParameterError(f"{source}: expected a table of rig sections, got {type(data).__name__}")
     known_top = set(_SECTIONS) | {"name", "gravity"}
-    unknown = sorted(set(data) - known_top - {PROVENANCE_KEY})
-    if not isinstance(data.get(PROVENANCE_KEY, {}), dict):
-        raise ParameterError(f"{source}: [{PROVENANCE_KEY}] must be a table, got {data[PROVENANCE_KEY]!r}")
+    unknown = sorted(set(data) - known_top - {PROVENANCE_KEY, UNCERTAINTY_KEY})
+    for key in (PROVENANCE_KEY, UNCERTAINTY_KEY):
+        if not isinstance(data.get(key, {}), dict):
+            raise ParameterError(f"{source}: [{key}] must be a table, got {data[key]!r}")
     if unknown:
         raise ParameterError(f"{source}: unknown key(s) {unknown}; expected {sorted(known_top)}")
     kwargs: dict[str, Any] = {k: data[k] for k in ("name", "gravity") if k in data}
@@ -152,6 +154,16 @@ def load_toml(path: str | Path) -> Rig:
         raise loading(path, exc) from None
 
 
+def load_uncertainty(path: str | Path) -> StandUncertainty | None:
+    """The σ and correlation of the calibrated parameters of the stand file at ``path`` (its ``[uncertainty]``
+    table), or None where it states none (a stand not calibrated)."""
+    path = as_path(path, "rig file")
+    table = read_table(path)
+    if UNCERTAINTY_KEY not in table:
+        return None
+    return StandUncertainty.from_table(table[UNCERTAINTY_KEY], source=str(path))
+
+
 def toml_text(rig: Rig) -> str:
     """``rig`` as the text of its TOML file (what :func:`save_toml` writes; :func:`load_toml` reads it back)."""
     if not isinstance(rig, Rig):
@@ -160,9 +172,13 @@ def toml_text(rig: Rig) -> str:
 
 
 def save_toml(rig: Rig, path: str | Path, *, overwrite: bool = False,
-              provenance: dict[str, Any] | None = None) -> Path:
+              provenance: dict[str, Any] | None = None, uncertainty: StandUncertainty | None = None) -> Path:
     """Write ``rig`` to ``path`` as TOML, with a ``[provenance]`` table when ``provenance`` is given (plain numbers,
-    strings, lists and tables; None values are left out)."""
+    strings, lists and tables; None values are left out) and an ``[uncertainty]`` table when ``uncertainty`` is
+    (:func:`load_uncertainty` reads it back)."""
     if not isinstance(rig, Rig):
         raise ParameterError(f"rig must be a Rig, got {type(rig).__name__}")
-    return write_table(to_dict(rig), path, overwrite=overwrite, provenance=provenance)
+    if uncertainty is not None and not isinstance(uncertainty, StandUncertainty):
+        raise ParameterError(f"uncertainty must be a StandUncertainty or None, got {type(uncertainty).__name__}")
+    return write_table(to_dict(rig), path, overwrite=overwrite, provenance=provenance,
+                       uncertainty=None if uncertainty is None else uncertainty.to_table())

@@ -8,10 +8,12 @@ robust peak-to-peak answer (from a grid of impacts where that fails). Unknowns: 
 and the seal friction) and the charge pressure unless it is known. Each contact-law family of the project is fitted
 (:mod:`.select`); the smallest BIC chooses. Standard errors come from the Fisher information at the optimum
 (:mod:`.information`), inflated by sqrt(χ²/dof) where that exceeds 1, where the model explains the record down to
-its noise; :mod:`.adequacy` judges that, gives the fit of the first span the model explains or a sandwich σ where it
-does not, and checks the answer against the robust answer. When the best law leaves χ²/dof above
-:data:`MAX_REDUCED_CHI2` and explains no shorter span, or its answer disagrees with the robust one, the answer is
-the robust one; its details say which path was taken and why (``adequacy``).
+its noise, and widened by the calibrated stand's stated uncertainty of the parameters the fit holds
+(:mod:`.stand_prior`: propagated linearly through the fit's Jacobian); :mod:`.adequacy` judges that, gives the fit
+of the first span the model explains or a sandwich σ where it does not, and checks the answer against the robust
+answer. When the best law leaves χ²/dof above :data:`MAX_REDUCED_CHI2` and explains no shorter span, or its answer
+disagrees with the robust one, the answer is the robust one; its details say which path was taken and why
+(``adequacy``).
 """
 
 from __future__ import annotations
@@ -19,10 +21,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import replace
+from pathlib import Path
 
 from ...errors import IdentificationError, ParameterError, RecordingError, shown
 from ...recording import Recording
-from ...rig import PRESETS, STAND_KEY, Rig, fingerprint, get_rig
+from ...rig import PRESETS, STAND_KEY, Rig, StandUncertainty, fingerprint, get_rig, load_uncertainty
 from ...sensors import anti_alias_delay
 from ...validation import check_real
 from ..details import Adequacy, ModelDetails
@@ -42,6 +45,7 @@ from .engine import (
 from .forward import _check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
 from .select import CRITERION, _fit_laws, _grid_start, _Start
+from .stand_prior import _stand_variance
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
 
@@ -133,7 +137,8 @@ def _stand_warning(recording: Recording, rig: Rig) -> tuple[str, ...]:
 
 def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: float | None = None,
              pressure_std: float | None = None, uncertain: Sequence[str] | None = None, contact: str | None = "auto",
-             max_reduced_chi2: float = MAX_REDUCED_CHI2) -> Identification:
+             max_reduced_chi2: float = MAX_REDUCED_CHI2,
+             stand_uncertainty: StandUncertainty | None = None) -> Identification:
     """Identify M1 and V0 by the maximum-likelihood fit of the whole record (method ``model``).
 
     Parameters
@@ -158,6 +163,11 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         ``"auto"`` (default): fit every contact law and keep the smallest BIC; or one law's name.
     max_reduced_chi2 : float
         χ²/dof of the best law above which the robust answer is given instead [-].
+    stand_uncertainty : StandUncertainty, optional
+        σ and correlation of the stand's calibrated parameters; default the ``[uncertainty]`` table of the stand
+        file ``rig`` names (a calibrated stand's), none for a preset or a Rig. Those the fit holds widen σ(M1) and
+        σ(V0) by their covariance propagated linearly through the fit's Jacobian, S Σ_stand Sᵀ
+        (:mod:`.stand_prior`); the answer itself is unchanged.
 
     Returns
     -------
@@ -178,6 +188,11 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     from ..peak_to_peak import identify_arrays as identify_robust
 
     check_channels(recording)
+    if stand_uncertainty is None and isinstance(rig, (str, Path)) and str(rig) not in PRESETS:
+        stand_uncertainty = load_uncertainty(rig) if Path(rig).suffix.lower() == ".toml" else None
+    elif stand_uncertainty is not None and not isinstance(stand_uncertainty, StandUncertainty):
+        raise ParameterError(f"stand_uncertainty must be a StandUncertainty or None, got {shown(stand_uncertainty)}",
+                             field="stand_uncertainty", expected="a StandUncertainty or None")
     rig = get_rig(rig)
     laws = contact_laws(contact)
     free_names = _check_uncertain(uncertain, laws)
@@ -234,7 +249,9 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                   "explains no shorter span down to the noise: it does not describe this record, so the robust answer "
                   "is given")
         return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
-    answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (p0, p0_std), mass_std, velocity_std)
+    stand = _stand_variance(data, best, rig, stand_uncertainty)
+    answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (p0, p0_std), mass_std, velocity_std,
+                     stand)
     if robust is None:
         return answer
     z = _disagreement((answer.mass, answer.mass_std, answer.velocity, answer.velocity_std),
@@ -301,10 +318,13 @@ def _fallback(recording: Recording, rig: Rig, common: ModelDetails, best: LawFit
 
 def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
             stated: tuple[float | None, float], log_mass_std: float | None = None,
-            log_velocity_std: float | None = None) -> Identification:
+            log_velocity_std: float | None = None,
+            stand: tuple[float, float, tuple[str, ...], tuple[str, ...]] = (0.0, 0.0, (), ())) -> Identification:
     """The :class:`Identification` of the chosen fit (its details ``common``'s, with the fit's); ``stated`` the
     stated pressure [Pa gauge] and its σ [Pa] (None, 0 where it is fitted freely); the σ of ln M1 and ln V0 from
-    :func:`.adequacy._assess` (default: the Fisher information's, inflated by sqrt(χ²/dof) where that exceeds 1)."""
+    :func:`.adequacy._assess` (default: the Fisher information's, inflated by sqrt(χ²/dof) where that exceeds 1);
+    ``stand`` the variance of ln M1 and ln V0 the stand's stated uncertainty adds, its parameters and those not
+    carried (:func:`.stand_prior._stand_variance`)."""
     mass, velocity = best.values["mass"], best.values["velocity"]
     inflation = math.sqrt(max(1.0, best.reduced_chi2))
     crb = _bound_of(best.cov, mass, velocity, law=best.law, at="estimate", unknowns=_unknowns(best.layout.names))
@@ -344,6 +364,15 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
                     for name in best.layout.names[3:]})
     mass_std = crb.mass_std * inflation if log_mass_std is None else mass * log_mass_std
     velocity_std = crb.velocity_std * inflation if log_velocity_std is None else velocity * log_velocity_std
+    added_mass, added_velocity = mass * math.sqrt(stand[0]), velocity * math.sqrt(stand[1])
+    mass_std, velocity_std = math.hypot(mass_std, added_mass), math.hypot(velocity_std, added_velocity)
+    if stand[2] or stand[3]:
+        details = replace(details, stand_uncertainty={"parameters": list(stand[2]), "mass_std_kg": added_mass,
+                                                      "velocity_std_m_s": added_velocity,
+                                                      "not_carried": list(stand[3])})
+    if stand[3]:
+        found.append(f"the stand's stated σ of {', '.join(stand[3])} is not carried into σ(M1), σ(V0): the model "
+                     "cannot be integrated with it moved from the calibrated value")
     return Identification(mass=mass, velocity=velocity, mass_std=mass_std, velocity_std=velocity_std,
                           available_at=end, method="model/ml", warnings=tuple(found), details=details)
 
