@@ -45,7 +45,7 @@ NOISE = 0.02
 def timed_pushes(recording, rig, pressure: float) -> list[tuple[float, int, bool]]:
     """(processor time [s], updates, whether it gave the answer) of each push of the loop's stream."""
     out = []
-    pushes = model_answers(recording, rig, pressure=pressure, latency=LATENCY)
+    pushes = model_answers(recording, rig, pressure_gauge=pressure, latency=LATENCY)
     while True:
         began = time.thread_time()
         try:

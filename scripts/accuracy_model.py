@@ -63,8 +63,8 @@ def evaluate(stand: str, law: str, noise: float, seed: int, grid, duration: floa
             rows.append(None)
             continue
         seconds = time.perf_counter() - start
-        bound = cramer_rao(rec, rig=rig, mass=mass, velocity=velocity, pressure=pressure,
-                           pressure_unknown=fit_pressure)
+        bound = cramer_rao(rec, rig=rig, mass=mass, velocity=velocity, pressure_gauge=pressure,
+                           pressure_gauge_unknown=fit_pressure)
         robust = answer.details["robust"]
         rows.append((answer.mass / mass - 1, answer.velocity / velocity - 1,
                      robust.get("mass_kg", np.nan) / mass - 1, robust.get("velocity_m_s", np.nan) / velocity - 1,

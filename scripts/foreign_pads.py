@@ -110,7 +110,7 @@ def mismatch_job(task: tuple) -> dict:
                  duration=0.05, noise=0.05, seed=(100 if case == "stiff" else 200) + index, pre_trigger=0.02)
     dropped = ("rig", STAND_KEY) if case == "stiff" else ("pressure_gauge_Pa",)
     rec = replace(rec, metadata={k: v for k, v in rec.metadata.items() if k not in dropped})
-    answer = identify(rec, pressure=None if case == "stiff" else pressure * factor)
+    answer = identify(rec, pressure_gauge=None if case == "stiff" else pressure * factor)
     adequacy = answer.details.get("adequacy") or {}
     named = "pass rig" if case == "stiff" else "pass pressure"
     return {"case": case, "factor": factor, "index": index, "z": [(answer.mass - mass) / answer.mass_std,

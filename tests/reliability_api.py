@@ -69,7 +69,7 @@ def calls(recording: Recording, path: Path, map_path: Path, folder: Path) -> dic
         "StreamingIdentifier": lambda x, y: StreamingIdentifier(x, start_time=y),
         "StreamingIdentifier.push": lambda x, y: StreamingIdentifier(5e4).push(x, y),
         # a record too short for the model fit: its options are checked, then the record is refused
-        "model_fit.identify": lambda x, y: identify_model(short, uncertain=x, pressure=y),
+        "model_fit.identify": lambda x, y: identify_model(short, uncertain=x, pressure_gauge=y),
         "model_fit.cramer_rao": lambda x, y: cramer_rao(short, at=x, mass=y),
         "ModelStream": lambda x, y: ModelStream(5e4, metadata=x, cadence=y),
         "stream_arrays": lambda x, y: stream_arrays(f, a, 5e4, chunk=x, variant=y),

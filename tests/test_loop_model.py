@@ -30,7 +30,7 @@ def test_first_answer_is_trusted_early_and_within_its_sigma(case):
     """The answer holds the true M1 and V0 within 4 of its stated σ (the stand known: its σ is the stand's), its
     mass σ is within the trust the loop asks, and its data end within the window the loop gives the stream."""
     mass, velocity, pressure = case
-    found = first_model_answer(_record(mass, velocity, pressure), RIG, pressure=pressure)
+    found = first_model_answer(_record(mass, velocity, pressure), RIG, pressure_gauge=pressure)
     assert found.method == "model/ml" and found.error is None
     assert found.mass_std < MODEL_MASS_TRUST * found.mass
     assert abs(found.mass - mass) < 4.0 * found.mass_std

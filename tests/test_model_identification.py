@@ -10,6 +10,7 @@ the χ² inflation). The reduced χ² of a correct model is 1 within the scatter
 """
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -117,7 +118,7 @@ def test_the_forward_model_reproduces_the_sensor_model():
         rec = _record(20.0, 1.5, 200e3, 0, noise=0.0, anti_alias=design)
         rig = get_rig()
         free = fw.free_parameters("hysteretic", None)
-        layout = fw.make_layout(rig, "hysteretic", free, pressure=200e3, contact_time=0.0, sample_rate=50e3)
+        layout = fw.make_layout(rig, "hysteretic", free, pressure_gauge=200e3, contact_time=0.0, sample_rate=50e3)
         x = layout.variables({"mass": 20.0, "velocity": 1.5, "contact_time": 0.0,
                               **fw.stand_values(rig, "hysteretic", free)})
         grid = fw._make_grid(rec.start_time, rec.sample_rate, rec.contact_force.size, design)
@@ -133,9 +134,9 @@ def test_freeing_and_holding_a_parameter_is_a_table_edit():
     the layout make_layout makes for the same unknowns (the same variables, packing and prior rows)."""
     rig = get_rig()
     common = dict(contact_time=0.01, sample_rate=50e3)
-    held = fw.make_layout(rig, "hysteretic", ("contact.stiffness",), pressure=200e3, **common)
-    freed = fw.make_layout(rig, "hysteretic", ("contact.stiffness", "friction.force"), pressure=200e3,
-                           pressure_std=20e3, **common)
+    held = fw.make_layout(rig, "hysteretic", ("contact.stiffness",), pressure_gauge=200e3, **common)
+    freed = fw.make_layout(rig, "hysteretic", ("contact.stiffness", "friction.force"), pressure_gauge=200e3,
+                           pressure_gauge_std=20e3, **common)
     edited = held.with_free("friction.force").with_free("pressure_gauge").with_prior("pressure_gauge", 200e3, 20e3)
     assert edited.names == freed.names and edited.specs == freed.specs and edited.priors == freed.priors
     values = {"mass": 30.0, "velocity": 2.0, "contact_time": 0.0101, "contact.stiffness": 2e6,
@@ -163,7 +164,7 @@ def test_the_bounds_of_the_table_are_the_solvers_one_range_check():
     """A trial point outside a parameter's bounds is refused by the one range check of every prediction (the
     solver steps back), and a fit started inside them stays inside."""
     rig = get_rig()
-    layout = fw.make_layout(rig, "hysteretic", ("contact.stiffness",), pressure=200e3, contact_time=0.0,
+    layout = fw.make_layout(rig, "hysteretic", ("contact.stiffness",), pressure_gauge=200e3, contact_time=0.0,
                             sample_rate=50e3)
     low, high = {row.name: row for row in layout.table()}["contact.stiffness"].bounds
     grid = fw._make_grid(0.0, 50e3, 64, "causal")
@@ -174,6 +175,47 @@ def test_the_bounds_of_the_table_are_the_solvers_one_range_check():
         for in_turn in (True, False):
             with pytest.raises(IdentificationError, match="outside"):
                 fw._predict(grid, params, times, in_turn=in_turn)
+
+
+def test_a_layout_sets_its_own_bounds():
+    """A bound set on the table is shown by it, refused by the one range check of every prediction, and a fit held
+    inside it stops at it; bounds as wide as the model's own range give the table of a fresh layout."""
+    rig = get_rig()
+    rec = _record(30.0, 2.0, 100e3, 17, noise=0.05)
+    layout = fw.make_layout(rig, "hysteretic", (), pressure_gauge=100e3, contact_time=0.0, sample_rate=50e3)
+    fresh = {row.name: row for row in layout.table()}
+    same = layout.with_bounds("mass", *fresh["mass"].bounds).with_bounds("cylinder.piston_mass",
+                                                                          *fresh["cylinder.piston_mass"].bounds)
+    assert same.table() == layout.table()
+    bounded = layout.with_bounds("mass", 1.0, 28.0)
+    rows = {row.name: row for row in bounded.table()}
+    assert rows["mass"].bounds == (1.0, 28.0) and rows["velocity"].bounds == fresh["velocity"].bounds
+    assert bounded.with_bounds("mass", 1.0, 29.0).bounds == (("mass", 1.0, 29.0),)  # set again: replaced
+    x = bounded.variables({"mass": 29.0, "velocity": 2.0, "contact_time": 0.0})
+    params, times = bounded.packed(x[None, :])
+    assert fw._outside_ranges(params[0]) == fw.CORE_PARAMETERS["mass"][0]
+    with pytest.raises(IdentificationError, match="outside"):
+        fw._predict(fw._make_grid(0.0, 50e3, 64, "causal"), params, times)
+    from impactometer.identify.model_fit.engine import anti_alias_design, fit_law, observe
+
+    data = observe(rec, anti_alias_design(rec), 0.0)
+    start = {"mass": 25.0, "velocity": 2.0, "contact_time": 0.0}
+    free, held = fit_law(data, layout, start), fit_law(data, bounded, start)
+    assert abs(free.values["mass"] - 30.0) <= Z * free.std("mass")  # the truth, 30 kg, is outside the bound
+    # the bounded fit stops at the bound (within the step that found no lower χ² inside it), with a worse χ²
+    assert held.values["mass"] == pytest.approx(28.0, rel=1e-3) and held.chi2 > free.chi2
+    # validated: a name, numbers, lower < upper, the held value inside
+    with pytest.raises(ParameterError, match="no fit parameter"):
+        layout.with_bounds("mas", 1.0, 2.0)
+    with pytest.raises(ParameterError, match=r"^upper must be > 2"):
+        layout.with_bounds("mass", 2.0, 2.0)
+    with pytest.raises(ParameterError, match=r"^lower must be a number"):
+        layout.with_bounds("mass", float("nan"), 2.0)
+    with pytest.raises(ParameterError, match="cylinder.piston_mass's bounds must hold its held value"):
+        layout.with_bounds("cylinder.piston_mass", 100.0, math.inf)
+    with pytest.raises(ParameterError, match=r"friction.force must be <= 1"):
+        layout.with_bounds("friction.force", 0.0, 1.0e3).with_free("friction.force").with_held("friction.force",
+                                                                                                 2e3)
 
 
 def test_zero_phase_record_and_fitted_pressure():
@@ -210,13 +252,13 @@ def test_cramer_rao_bound_of_a_pad_record():
     assert bound.at == "truth" and bound.contact_law == "hysteretic"
     fixed = cramer_rao(rec, uncertain=[])
     assert fixed.mass_std < bound.mass_std  # fewer unknowns, more precision
-    assert cramer_rao(rec, pressure_unknown=True).mass_std > bound.mass_std
+    assert cramer_rao(rec, pressure_gauge_unknown=True).mass_std > bound.mass_std
 
 
 def test_bad_input_is_refused_in_one_line():
     rec = _record(30.0, 2.0, 100e3, 61)
     with pytest.raises(ParameterError, match="contradicts the recording's metadata pressure_gauge_Pa"):
-        identify(rec, pressure=150e3)
+        identify(rec, pressure_gauge=150e3)
     with pytest.raises(ParameterError, match="unknown stand parameter 'contact.colour'"):
         identify(rec, uncertain=["contact.colour"])
     with pytest.raises(ParameterError, match="a parameter of none of the contact laws fitted"):
@@ -261,22 +303,23 @@ def test_a_misread_pressure_gauge_is_covered_by_its_prior(mass, velocity, pressu
     rec = _record(mass, velocity, pressure, seed, noise=noise)
     rec.metadata.pop("pressure_gauge_Pa")  # the gauge's reading is the only statement
     for error in GAUGE_ERRORS:
-        answer = identify(rec, pressure=pressure * (1.0 + error))
+        answer = identify(rec, pressure_gauge=pressure * (1.0 + error))
         assert answer.details["path"] == "ml"
         inside = (abs(answer.mass - mass) <= GAUGE_Z * answer.mass_std
                   and abs(answer.velocity - velocity) <= GAUGE_Z * answer.velocity_std)
         assert inside or any("pressure" in warning for warning in answer.warnings), error
     # on the true pressure nothing is lost: the answer within Z σ, its σ that of the bound with the prior, which
     # lies between the bounds of the pressure held exactly and of the pressure unknown
-    on = identify(rec, pressure=pressure)
+    on = identify(rec, pressure_gauge=pressure)
     assert abs(on.mass - mass) <= Z * on.mass_std and abs(on.velocity - velocity) <= Z * on.velocity_std
-    held, prior, unknown = (cramer_rao(rec, pressure=pressure, pressure_std=0.0), cramer_rao(rec, pressure=pressure),
-                            cramer_rao(rec, pressure=pressure, pressure_unknown=True))
+    held, prior, unknown = (cramer_rao(rec, pressure_gauge=pressure, pressure_gauge_std=0.0),
+                            cramer_rao(rec, pressure_gauge=pressure),
+                            cramer_rao(rec, pressure_gauge=pressure, pressure_gauge_unknown=True))
     assert held.mass_std < prior.mass_std < unknown.mass_std
     assert CRB_FACTOR[0] <= on.mass_std / prior.mass_std <= CRB_FACTOR[1]
     assert CRB_FACTOR[0] <= on.velocity_std / prior.velocity_std <= CRB_FACTOR[1]
     # the bound of the answer's details carries the prior: it exceeds the one of the pressure held exactly
-    exact = identify(rec, pressure=pressure, pressure_std=0.0)
+    exact = identify(rec, pressure_gauge=pressure, pressure_gauge_std=0.0)
     assert on.details["crb"]["mass_std_kg"] > exact.details["crb"]["mass_std_kg"]
     assert "pressure_gauge" in on.details["parameters"] and "pressure_gauge" not in exact.details["parameters"]
 
@@ -293,12 +336,12 @@ def test_a_given_pressure_and_the_metadata_are_combined_or_refused():
     sigma = np.array([2.06e3, 2e3])
     assert mean == pytest.approx(np.sum(np.array([103e3, 100e3]) / sigma ** 2) / np.sum(sigma ** -2.0))
     assert std == pytest.approx(np.sum(sigma ** -2.0) ** -0.5)
-    assert _pressure(rec, 101e3, rig, pressure_std=0.0) == (101e3, 0.0)  # held exactly where stated so
+    assert _pressure(rec, 101e3, rig, pressure_gauge_std=0.0) == (101e3, 0.0)  # held exactly where stated so
     with pytest.raises(ParameterError, match="more than 3 times their combined") as refused:
         _pressure(rec, 110e3, rig)
-    assert refused.value.field == "pressure"
-    with pytest.raises(ParameterError, match="pressure_std must be a finite number >= 0"):
-        _pressure(rec, 100e3, rig, pressure_std=-1.0)
+    assert refused.value.field == "pressure_gauge"
+    with pytest.raises(ParameterError, match="pressure_gauge_std must be a finite number >= 0"):
+        _pressure(rec, 100e3, rig, pressure_gauge_std=-1.0)
 
 
 def test_cli_pressure_std(tmp_path, capsys):

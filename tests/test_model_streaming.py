@@ -137,7 +137,7 @@ def test_bad_options_and_chunks_are_refused():
     with pytest.raises(ParameterError, match="window must be"):
         ModelStream(50e3, window=0.005)
     with pytest.raises(ParameterError, match="contradicts"):
-        ModelStream(50e3, metadata={"pressure_gauge_Pa": 100e3}, pressure=200e3)
+        ModelStream(50e3, metadata={"pressure_gauge_Pa": 100e3}, pressure_gauge=200e3)
     with pytest.raises(ParameterError, match="unknown stand parameter"):
         ModelStream(50e3, uncertain=["contact.colour"])
     with pytest.raises(IdentificationError, match="equal length"):
@@ -224,7 +224,7 @@ def _first_window(mass, velocity, pressure, seed):
     design = engine.anti_alias_design(rec)
     contact = 0.0
     data = engine.window(engine.observe(rec, design, contact, min_duration=0.0), contact + STAGES[0][0])
-    start = _Start(mass=1.2 * mass, velocity=0.95 * velocity, contact_time=contact, pressure=pressure,
+    start = _Start(mass=1.2 * mass, velocity=0.95 * velocity, contact_time=contact, pressure_gauge=pressure,
                   pressure_gauge_start=pressure)
     layouts, values = _start_law(get_rig(), get_rig().contact.law, None, start, rec.sample_rate)
     return data, layouts("core", values), values
@@ -287,8 +287,8 @@ def test_the_compiled_fit_takes_every_layout_with_the_python_solvers_answer():
     from impactometer.identify.model_fit.select import _Start, _start_law
 
     data, _, _ = _first_window(30.0, 2.0, 100e3, 21)
-    start = _Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure=100e3, pressure_gauge_start=100e3,
-                  pressure_std=10e3)
+    start = _Start(mass=33.0, velocity=1.95, contact_time=0.0, pressure_gauge=100e3, pressure_gauge_start=100e3,
+                  pressure_gauge_std=10e3)
     layouts, values = _start_law(get_rig(), get_rig().contact.law, None, start, data.grid.sample_rate)
     for kind in ("core", "all"):
         layout = layouts(kind, values)
@@ -376,12 +376,16 @@ def test_wrong_types_and_values_of_the_api_are_refused_naming_the_field():
     with pytest.raises(ParameterError, match=r"at must be one of \['truth', 'estimate'\], got 'bogus'"):
         cramer_rao(rec, at="bogus")
     for flag in (True, np.bool_(False)):  # a flag is no pressure, not 1 Pa (nor 0 Pa)
-        with pytest.raises(ParameterError, match=r"pressure must be a number within \[0, .*\[Pa gauge\].*got"):
-            identify(rec, pressure=flag)
-        with pytest.raises(ParameterError, match="pressure must be"):
-            ModelStream(50e3, pressure=flag)
+        with pytest.raises(ParameterError, match=r"pressure_gauge must be a number within \[0, .*\[Pa gauge\].*got"):
+            identify(rec, pressure_gauge=flag)
+        with pytest.raises(ParameterError, match="pressure_gauge must be"):
+            ModelStream(50e3, pressure_gauge=flag)
         with pytest.raises(ParameterError, match="mass must be"):
             cramer_rao(rec, mass=flag)
+    for call in (lambda: identify(rec, pressure=100e3), lambda: ModelStream(50e3, pressure_std=1e3),
+                 lambda: cramer_rao(rec, pressure_unknown=True)):  # a former name is refused naming the present one
+        with pytest.raises(ParameterTypeError, match=r"^pressure\w* is now named pressure_gauge\w*: pass "):
+            call()
     with pytest.raises(ParameterError, match=r"cadence must be > 0 \[s\], got 0"):
         check_schedule(cadence=0.0)  # without a sample rate: what the command line checks before reading
     assert check_schedule(cadence=0.005) == (0.005, STAGES[0][0], 0.05)

@@ -28,7 +28,7 @@ def test_real_array_takes_numbers_as_they_are():
 
 @pytest.mark.parametrize("call", [
     lambda rec: check_real("pressure", True),
-    lambda rec: identify_model(rec, pressure=True),
+    lambda rec: identify_model(rec, pressure_gauge=True),
     lambda rec: simulate_batch(True, 2.0, 200e3, duration=0.002),
     lambda rec: simulate_batch(30.0, 2.0, [200e3, True], duration=0.002),
     lambda rec: build_map_simulated(None, True, masses=[10.0, 20.0], velocities=[1.0, 2.0]),

@@ -8,13 +8,18 @@ field, the value and what was expected.
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
-from typing import Any
+from collections.abc import Callable
+from typing import Any, ParamSpec, TypeVar
 
 import numpy as np
 
-from .errors import ImpactometerError, ParameterError, shown
+from .errors import ImpactometerError, ParameterError, ParameterTypeError, shown
+
+P = ParamSpec("P")
+R = TypeVar("R")
 
 
 def is_real(value: Any) -> bool:
@@ -134,3 +139,19 @@ def finite_or_none(value: Any) -> float | None:
     """``value`` as a float where it is a finite real number, else None: the JSON form of a number that may be
     unknown (NaN, an infinity, None)."""
     return float(value) if is_finite(value) else None
+
+
+def renamed(**names: str) -> Callable[[Callable[P, R]], Callable[P, R]]:
+    """Decorator: a call that passes a keyword by its former name (``names``: former -> present) raises
+    :class:`~impactometer.errors.ParameterTypeError` naming the present one, instead of Python's bare "unexpected
+    keyword argument"."""
+    def wrap(func: Callable[P, R]) -> Callable[P, R]:
+        @functools.wraps(func)
+        def call(*args: P.args, **kwargs: P.kwargs) -> R:
+            for old, new in names.items():
+                if old in kwargs:
+                    raise ParameterTypeError(f"{old} is now named {new}: pass {new}={shown(kwargs[old])}", field=old,
+                                             expected=f"named {new}")
+            return func(*args, **kwargs)
+        return call
+    return wrap

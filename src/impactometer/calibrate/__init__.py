@@ -337,7 +337,8 @@ def _result(best: _Family, drops: Sequence[_ObservedDrop], base: Rig, report: di
         own = best.layouts[i].values(local)
         simulated = Residuals(data, best.layouts[i]).predicted(local)
         j = s + len(NUISANCES) * i
-        fits.append(DropFit(source=drop.source, mass=drop.mass, pressure=drop.pressure, velocity_gate=drop.velocity,
+        fits.append(DropFit(source=drop.source, mass=drop.mass, pressure_gauge=drop.pressure_gauge,
+                            velocity_gate=drop.velocity,
                             velocity=own["velocity"],
                             velocity_std=own["velocity"] * math.sqrt(cov[j, j]) * inflation,
                             contact_time=own["contact_time"], offsets=tuple(local[-2:] * data.noise),

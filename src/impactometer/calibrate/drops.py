@@ -46,7 +46,7 @@ RISE_BAND = (0.05, 0.5)
 class _ObservedDrop:
     """One drop of a calibration set.
 
-    ``mass`` [kg] (exact), ``velocity`` [m/s] (the light gate's), ``pressure`` [Pa gauge]; ``data`` the observed
+    ``mass`` [kg] (exact), ``velocity`` [m/s] (the light gate's), ``pressure_gauge`` [Pa gauge]; ``data`` the observed
     channels; ``contact_time`` [s] where the fit starts the contact instant (on the recording's clock, the
     anti-alias delay taken off); ``source`` the file.
     """
@@ -54,7 +54,7 @@ class _ObservedDrop:
     source: str
     mass: float
     velocity: float
-    pressure: float
+    pressure_gauge: float
     data: Observed
     contact_time: float
 
@@ -75,11 +75,11 @@ def _truth(recording: Recording) -> dict[str, float]:
         if not math.isfinite(number) or number < 0 or (number == 0 and key != "pressure_gauge_Pa"):
             raise RecordingError(f"{recording.source}: {key} must be a number > 0 [{unit}], got {shown(value)}")
         out[key] = number
-    pressure = out["pressure_gauge_Pa"]
-    meant = likely_units(pressure, "pressure")
+    pressure_gauge = out["pressure_gauge_Pa"]
+    meant = likely_units(pressure_gauge, "pressure")
     if meant:  # a charge pressure below 1 kPa gauge: written in kPa (or bar) under a column in Pa
-        raise RecordingError(f"{recording.source}: pressure_gauge_Pa = {pressure:g} Pa gauge, below any charge "
-                             f"pressure; did you mean {' or '.join(f'{pressure:g}{u}' for u in meant)}? (the "
+        raise RecordingError(f"{recording.source}: pressure_gauge_Pa = {pressure_gauge:g} Pa gauge, below any charge "
+                             f"pressure; did you mean {' or '.join(f'{pressure_gauge:g}{u}' for u in meant)}? (the "
                              "manifest column is in Pa)")
     low, high = MASS_RANGE
     if not low <= out["mass_kg"] <= high:
@@ -217,5 +217,5 @@ def _read_drops(recordings: Sequence[Recording]) -> list[_ObservedDrop]:
         if onset is not None and onset - delay < start - ONSET_LEAD / recording.sample_rate:
             start = onset - delay
         drops.append(_ObservedDrop(source=label, mass=truth["mass_kg"], velocity=truth["velocity_m_s"],
-                          pressure=truth["pressure_gauge_Pa"], data=data, contact_time=start))
+                          pressure_gauge=truth["pressure_gauge_Pa"], data=data, contact_time=start))
     return drops

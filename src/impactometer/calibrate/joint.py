@@ -201,7 +201,7 @@ def _make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[_Ob
                  velocity_sigma: float) -> tuple[Layout, ...]:
     """Each drop's layout: V0 (with the light gate's reading as its prior of relative σ ``velocity_sigma``) and the
     contact instant unknown, M1 and p0 known, the ``free`` stand parameters."""
-    return tuple(make_layout(rig, law, free, pressure=drop.pressure, contact_time=drop.contact_time,
+    return tuple(make_layout(rig, law, free, pressure_gauge=drop.pressure_gauge, contact_time=drop.contact_time,
                              sample_rate=drop.data.grid.sample_rate, mass=drop.mass).with_prior(
                                  "velocity", drop.velocity, velocity_sigma * drop.velocity) for drop in drops)
 

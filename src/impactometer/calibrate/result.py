@@ -27,7 +27,7 @@ class Drop:
     source: str
     mass: float
     velocity: float
-    pressure: float
+    pressure_gauge: float
     reduced_chi2: float
     time: np.ndarray
     measured: np.ndarray
@@ -36,7 +36,7 @@ class Drop:
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (without the arrays)."""
         return {"file": self.source, "mass_kg": self.mass, "velocity_m_s": self.velocity,
-                "pressure_gauge_Pa": self.pressure, "reduced_chi2": self.reduced_chi2}
+                "pressure_gauge_Pa": self.pressure_gauge, "reduced_chi2": self.reduced_chi2}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -188,7 +188,7 @@ class Calibration:
                 "parameters": {name: {"value": self.parameters[name], "std": _finite(self.std[name])}
                                for name in self.parameters},
                 "drops": [{"file": d.source, "mass_kg": d.mass, "velocity_gate_m_s": d.velocity_gate,
-                           "pressure_gauge_Pa": d.pressure, "velocity_m_s": d.velocity,
+                           "pressure_gauge_Pa": d.pressure_gauge, "velocity_m_s": d.velocity,
                            "reduced_chi2": d.reduced_chi2, "force_nrmse": d.force_nrmse,
                            "velocity_pull_sigma": d.velocity_pull, "influence_sigma": d.influence_sigma,
                            "misfit_sigma": d.misfit_sigma, "inconsistent": d.inconsistent} for d in self.drops],

@@ -63,14 +63,14 @@ def _candidates(drops: Sequence[_ObservedDrop], rig: Rig) -> dict[str, tuple[flo
     """The extra drops tried (see the module notes): kind -> (M1 [kg], V0 [m/s], p0 [Pa gauge])."""
     masses = np.array([drop.mass for drop in drops])
     velocities = np.array([drop.velocity for drop in drops])
-    pressures = np.array([drop.pressure for drop in drops])
-    mass, velocity, pressure = (float(np.median(a)) for a in (masses, velocities, pressures))
+    pressures = np.array([drop.pressure_gauge for drop in drops])
+    mass, velocity, pressure_gauge = (float(np.median(a)) for a in (masses, velocities, pressures))
     heavier = MASS_STEP * masses.max()
     other_mass = heavier if heavier <= MASS_RANGE[1] else masses.min() / 3.0
     faster = min(VELOCITY_STEP * velocities.max(), VELOCITY_RANGE[1])
     rated = rig.cylinder.rated_pressure_gauge
-    other_pressure = PRESSURE_FRACTIONS[0 if pressure <= rated / 2 else 1] * rated
-    return {"mass": (other_mass, velocity, pressure), "height": (mass, faster, pressure),
+    other_pressure = PRESSURE_FRACTIONS[0 if pressure_gauge <= rated / 2 else 1] * rated
+    return {"mass": (other_mass, velocity, pressure_gauge), "height": (mass, faster, pressure_gauge),
             "pressure": (mass, velocity, other_pressure)}
 
 
@@ -78,11 +78,11 @@ def _with_drop(family: _Family, drops: Sequence[_ObservedDrop], rig: Rig, scenar
                velocity_sigma: float, end: float | None) -> np.ndarray:
     """The covariance of the shared variables with one more drop of ``scenario`` (recorded like the first drop:
     its sample rate, noise and length)."""
-    mass, velocity, pressure = scenario
+    mass, velocity, pressure_gauge = scenario
     first = drops[0]
     t0 = family.layouts[0].values(family.local(0))["contact_time"]
     data = first.data if end is None else window(first.data, first.contact_time + end)
-    layout = make_layout(rig, family.law, family.free, pressure=pressure, contact_time=t0,
+    layout = make_layout(rig, family.law, family.free, pressure_gauge=pressure_gauge, contact_time=t0,
                          sample_rate=data.grid.sample_rate, mass=mass)
     shared = family.layouts[0].values(family.local(0))
     values = {**{name: shared[name] for name in family.free}, "velocity": velocity, "contact_time": t0}

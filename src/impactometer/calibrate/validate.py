@@ -134,7 +134,7 @@ def _model_error(nrmse: float, noise: float) -> float:
 
 def _validate_drop(drop: _ObservedDrop, rig: Rig) -> DropValidation:
     """One drop reproduced by ``rig`` (its own contact law), V0 held at the light gate's."""
-    layout = make_layout(rig, rig.contact.law, (), pressure=drop.pressure, contact_time=drop.contact_time,
+    layout = make_layout(rig, rig.contact.law, (), pressure_gauge=drop.pressure_gauge, contact_time=drop.contact_time,
                          sample_rate=drop.data.grid.sample_rate, mass=drop.mass, velocity=drop.velocity)
     data = drop.data
 
@@ -152,7 +152,8 @@ def _validate_drop(drop: _ObservedDrop, rig: Rig) -> DropValidation:
     model = simulated[0, onset:] - fit.offsets[0]
     nrmse, noise = _force_nrmse(data, simulated, fit.values["contact_time"])
     first_pulse, stage_b = _timing(force, model, float(data.noise[0]), rate)
-    return DropValidation(source=drop.source, mass=drop.mass, velocity=drop.velocity, pressure=drop.pressure,
+    return DropValidation(source=drop.source, mass=drop.mass, velocity=drop.velocity,
+                          pressure_gauge=drop.pressure_gauge,
                           force_nrmse=nrmse, noise_nrmse=noise, model_error_limit=REPRODUCED_LIMIT,
                           peak_force_error=float((np.max(model) - np.max(force)) / np.max(force)),
                           first_pulse_error=first_pulse, stage_b_error=stage_b, reduced_chi2=fit.reduced_chi2,

@@ -139,7 +139,8 @@ def quantity(text: str | None, dimension: str, field: str) -> float | None:
 
 
 #: what the core calls a parameter -> the option that gives it (as Python spells the option), where they differ
-CORE_NAMES = {"pressure_gauge": "pressure", "contact.law": "contact", "identification": "method",
+CORE_NAMES = {"pressure_gauge": "pressure", "pressure_gauge_std": "pressure_std",
+              "contact.law": "contact", "identification": "method",
               "response_map": "map", "extra_channels": "extra"}
 
 

@@ -213,7 +213,7 @@ def drops_table(result: Calibration) -> Table:
         # "[kg]" is no markup; the names and the velocities are not broken over lines
         table.add_column(escape(column), no_wrap=column in ("drop", "V0 gate / fitted [m/s]", "verdict"))
     for d in result.drops:
-        table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.pressure / 1e3:g}",
+        table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.pressure_gauge / 1e3:g}",
                       f"{d.velocity_gate:.4g} / {with_uncertainty(d.velocity, d.velocity_std)}",
                       f"{d.velocity_pull:+.1f}", f"{d.reduced_chi2:.4g}", f"{d.misfit_sigma:.1f}",
                       f"{d.force_nrmse:.2%}", f"{d.influence_sigma:.1f}",
@@ -269,7 +269,7 @@ def validation_table(result: Validation) -> Table:
         return "-" if value is None else f"{value * 1e3:+.3f}"
 
     for d in result.drops:
-        table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.velocity:g}", f"{d.pressure / 1e3:g}",
+        table.add_row(Path(d.source).name, f"{d.mass:g}", f"{d.velocity:g}", f"{d.pressure_gauge / 1e3:g}",
                       f"{d.force_nrmse:.2%}", f"{d.noise_nrmse:.2%}", f"{d.model_error:.2%}",
                       f"{d.peak_force_error:+.2%}", ms(d.first_pulse_error), ms(d.stage_b_error),
                       "reproduced" if d.reproduced else "not reproduced")

@@ -128,7 +128,7 @@ def identify(file: Annotated[Path, typer.Argument(metavar="FILE", help="Recordin
         gauge_std = _pressure_std(pressure_std, pressure_gauge, rec.metadata.get("pressure_gauge_Pa"))
         with given(rig=rig, pressure=pressure, pressure_std=pressure_std), \
                 announce_compilation("fitting the stand model to the record", compile_time="about 10-40 s"):
-            result = identify_model(rec, rig=rig, pressure=pressure_gauge, pressure_std=gauge_std)
+            result = identify_model(rec, rig=rig, pressure_gauge=pressure_gauge, pressure_gauge_std=gauge_std)
     else:
         from ..identify.peak_to_peak import identify as identify_p2p
 
@@ -252,7 +252,7 @@ def _stream_model(file: Path, rec, durations: dict, texts: dict, chunk: int, rea
     given_times = {name: value for name, value in durations.items() if value is not None}
     with given(**texts):
         ident = ModelStream(rec.sample_rate, start_time=rec.start_time, metadata=rec.metadata, rig=texts["rig"],
-                            pressure=quantity(texts["pressure"], "pressure", "--pressure"), **given_times)
+                            pressure_gauge=quantity(texts["pressure"], "pressure", "--pressure"), **given_times)
     check_length(rec)  # the final answer's record, before any estimate is printed
 
     behind = False

@@ -22,7 +22,7 @@ from ..recording import Recording
 from ..rig import Rig, Scenario
 from ..sensors import record
 from ..signals.noise import quiet_noise_std
-from ..validation import finite_or_none
+from ..validation import finite_or_none, renamed
 from .estimator import MASS_TRUST
 
 #: length of the closed-valve record given to the identification [s], and the quiet record before first contact
@@ -131,7 +131,7 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     found: Identification | None
     try:
         if method == "model":
-            found = first_model_answer(rec, rig, pressure=scenario.pressure_gauge, latency=latency)
+            found = first_model_answer(rec, rig, pressure_gauge=scenario.pressure_gauge, latency=latency)
         elif method == "response-map":
             if response_map is None:
                 raise ParameterError("identification 'response-map' needs response_map= (a map or its file)")
@@ -222,10 +222,12 @@ def contact_velocity(recording: Recording, rig: Rig, *, window: float = VELOCITY
                           details={"data_until_s": until, "latency_s": latency, "samples": int(x.size)})
 
 
-def first_model_answer(recording: Recording, rig: Rig, *, pressure: float, latency: float = LATENCY) -> Identification:
+@renamed(pressure="pressure_gauge")
+def first_model_answer(recording: Recording, rig: Rig, *, pressure_gauge: float,
+                       latency: float = LATENCY) -> Identification:
     """The first answer of the model stream that the controller can act on (:func:`model_answers`); its
     ``available_at`` [s] is the end of the data it used (add the latency for the instant it is acted on)."""
-    answers = [found for _, _, found in model_answers(recording, rig, pressure=pressure, latency=latency)
+    answers = [found for _, _, found in model_answers(recording, rig, pressure_gauge=pressure_gauge, latency=latency)
                if found is not None]  # the stream ends after its answer
     if answers:
         return answers[0]
@@ -251,7 +253,8 @@ def _turned(recording: Recording, until: float, noise: float) -> bool:
     return seen.size > 0 and float(seen.max() - seen[-1]) > TURN_SIGMAS * noise
 
 
-def model_answers(recording: Recording, rig: Rig, *, pressure: float,
+@renamed(pressure="pressure_gauge")
+def model_answers(recording: Recording, rig: Rig, *, pressure_gauge: float,
                   latency: float = LATENCY) -> Iterator[tuple[float, int, Identification | None]]:
     """The loop's model stream, push by push, as a real-time system with a latency budget gets it.
 
@@ -275,7 +278,7 @@ def model_answers(recording: Recording, rig: Rig, *, pressure: float,
     from ..identify.model_fit.streaming import ModelStream
 
     stream = ModelStream(recording.sample_rate, start_time=recording.start_time, metadata=recording.metadata,
-                         rig=rig, pressure=pressure, contact=rig.contact.law, cadence=MODEL_CADENCE,
+                         rig=rig, pressure_gauge=pressure_gauge, contact=rig.contact.law, cadence=MODEL_CADENCE,
                          first=MODEL_FIRST, window=MODEL_LAST,  # its grid of starts is made here, before the impact
                          robust_starts=False)  # no robust estimate comes before the first window's end
     force, acceleration = recording.contact_force, recording.piston_acceleration

@@ -42,7 +42,7 @@ def plot_drop(drop, ax=None):
     quality = getattr(drop, "force_nrmse", None)
     figure = f"force NRMSE {quality:.2%}" if quality is not None else f"chi2/dof {drop.reduced_chi2:.3g}"
     axes[0].set_title(f"{Path(drop.source).name}: M1 = {drop.mass:.4g} kg, V0 = {drop.velocity:.4g} m/s, "
-                      f"p0 = {drop.pressure / 1e3:.4g} kPa; {figure}")
+                      f"p0 = {drop.pressure_gauge / 1e3:.4g} kPa; {figure}")
     return fig
 
 

@@ -27,7 +27,7 @@ from ...errors import IdentificationError, ParameterError, RecordingError, shown
 from ...recording import Recording
 from ...rig import PRESETS, STAND_KEY, Rig, StandUncertainty, fingerprint, get_rig, load_uncertainty
 from ...sensors import anti_alias_delay
-from ...validation import check_real
+from ...validation import check_real, renamed
 from ..details import Adequacy, ModelDetails
 from ..plausibility import check_answer
 from ..result import Identification
@@ -71,18 +71,18 @@ BOUND_POINTS = ("truth", "estimate")
 DEFAULT_PRESSURE_GAUGE_START = 200e3
 
 
-def _gauge_std(pressure: float) -> float:
+def _gauge_std(pressure_gauge: float) -> float:
     """The default σ [Pa] of a charge pressure [Pa gauge] as a gauge states it: :data:`GAUGE_RELATIVE_STD` (2 %) of
     the reading, at least :data:`GAUGE_FLOOR_STD` (1 kPa). A pressure gauge of a drop stand is typically good to 1-4 %
     of its reading (class 1-2.5 dial gauges on half their span, or a transducer's drift); 2 % is the middle of that
     range, and the floor is a dial's resolution near zero."""
-    return max(GAUGE_RELATIVE_STD * abs(pressure), GAUGE_FLOOR_STD)
+    return max(GAUGE_RELATIVE_STD * abs(pressure_gauge), GAUGE_FLOOR_STD)
 
 
-def _pressure(recording: Recording, pressure: float | None, rig: Rig,
-              pressure_std: float | None = None) -> tuple[float | None, float]:
+def _pressure(recording: Recording, pressure_gauge: float | None, rig: Rig,
+              pressure_gauge_std: float | None = None) -> tuple[float | None, float]:
     """The charge pressure [Pa gauge] and its σ [Pa]: the one given, the metadata's, or both combined (their
-    inverse-variance mean) where both are stated; (None, 0) when neither states it (fitted). ``pressure_std`` is
+    inverse-variance mean) where both are stated; (None, 0) when neither states it (fitted). ``pressure_gauge_std`` is
     the σ of the pressure given (else of the metadata's); default :func:`_gauge_std` of each. A σ of 0 holds the
     pressure exactly. A pressure given and the metadata's more than :data:`PRESSURE_CONTRADICTION` combined σ apart
     are refused."""
@@ -93,31 +93,34 @@ def _pressure(recording: Recording, pressure: float | None, rig: Rig,
         except (TypeError, ValueError):
             raise RecordingError(f"{recording.source}: metadata pressure_gauge_Pa must be a number [Pa gauge], got "
                                  f"{shown(stated)}") from None
-    if pressure_std is not None:
-        pressure_std = check_real("pressure_std", pressure_std, low=0.0, unit=" [Pa]", state_range=True)
-    if pressure is None:
+    if pressure_gauge_std is not None:
+        pressure_gauge_std = check_real("pressure_gauge_std", pressure_gauge_std, low=0.0, unit=" [Pa]",
+                                        state_range=True)
+    if pressure_gauge is None:
         if stated is None:
             return None, 0.0
-        return stated, _gauge_std(stated) if pressure_std is None else pressure_std
-    pressure = check_real("pressure", pressure, low=0.0, high=rig.cylinder.rated_pressure_gauge,
+        return stated, _gauge_std(stated) if pressure_gauge_std is None else pressure_gauge_std
+    pressure_gauge = check_real("pressure_gauge", pressure_gauge, low=0.0, high=rig.cylinder.rated_pressure_gauge,
                           unit=f" [Pa gauge] (the rating of {rig.name!r})", state_range=True)
-    given_std = _gauge_std(pressure) if pressure_std is None else pressure_std
+    given_std = _gauge_std(pressure_gauge) if pressure_gauge_std is None else pressure_gauge_std
     if stated is None:
-        return float(pressure), given_std
+        return pressure_gauge, given_std
     stated_std = _gauge_std(stated)
     combined = math.hypot(given_std, stated_std)
-    if abs(pressure - stated) > PRESSURE_CONTRADICTION * combined:
-        raise ParameterError(f"pressure {pressure:g} Pa gauge contradicts the recording's metadata "
-                             f"pressure_gauge_Pa = {stated:g} Pa: they differ by {abs(pressure - stated):.4g} Pa, "
+    if abs(pressure_gauge - stated) > PRESSURE_CONTRADICTION * combined:
+        raise ParameterError(f"pressure_gauge {pressure_gauge:g} Pa gauge contradicts the recording's metadata "
+                             f"pressure_gauge_Pa = {stated:g} Pa: they differ by "
+                             f"{abs(pressure_gauge - stated):.4g} Pa, "
                              f"more than {PRESSURE_CONTRADICTION:g} times their combined σ {combined:.4g} Pa "
-                             "(leave pressure out to use the metadata's, or state its pressure_std)",
-                             field="pressure", expected=f"contradicts the recording's metadata pressure_gauge_Pa = "
+                             "(leave pressure_gauge out to use the metadata's, or state its pressure_gauge_std)",
+                             field="pressure_gauge",
+                             expected=f"contradicts the recording's metadata pressure_gauge_Pa = "
                              f"{stated:g} Pa by more than {PRESSURE_CONTRADICTION:g} times their combined σ "
-                             f"{combined:.4g} Pa (leave it out to use the metadata's, or state its pressure_std)")
+                             f"{combined:.4g} Pa (leave it out to use the metadata's, or state its pressure_gauge_std)")
     if given_std == 0.0:
-        return float(pressure), 0.0
+        return pressure_gauge, 0.0
     weights = 1.0 / given_std ** 2, 1.0 / stated_std ** 2
-    return (float((weights[0] * pressure + weights[1] * stated) / sum(weights)),
+    return (float((weights[0] * pressure_gauge + weights[1] * stated) / sum(weights)),
             float(1.0 / math.sqrt(sum(weights))))
 
 
@@ -135,8 +138,10 @@ def _stand_warning(recording: Recording, rig: Rig) -> tuple[str, ...]:
             + (f" -- the recording was made on the preset {name!r}: pass rig={name!r}" if preset else ""),)
 
 
-def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: float | None = None,
-             pressure_std: float | None = None, uncertain: Sequence[str] | None = None, contact: str | None = "auto",
+@renamed(pressure="pressure_gauge", pressure_std="pressure_gauge_std")
+def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gauge: float | None = None,
+             pressure_gauge_std: float | None = None, uncertain: Sequence[str] | None = None,
+             contact: str | None = "auto",
              max_reduced_chi2: float = MAX_REDUCED_CHI2,
              stand_uncertainty: StandUncertainty | None = None) -> Identification:
     """Identify M1 and V0 by the maximum-likelihood fit of the whole record (method ``model``).
@@ -148,14 +153,14 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         ``GUARD_SAMPLES`` samples before first contact) and at least ``MIN_DURATION`` after it.
     rig : Rig or str, optional
         The stand (a preset name or a TOML file; default ``drop-stand``).
-    pressure : float, optional
-        Charge pressure p0 [Pa gauge] as a gauge reads it; default the metadata's ``pressure_gauge_Pa``, else
+    pressure_gauge : float, optional
+        Charge pressure [Pa gauge] as a gauge reads it; default the metadata's ``pressure_gauge_Pa``, else
         fitted freely. Where both are stated they are combined (their inverse-variance mean), and refused when they
         differ by more than :data:`PRESSURE_CONTRADICTION` times their combined σ.
-    pressure_std : float, optional
-        σ of the stated pressure [Pa] (of ``pressure``, else of the metadata's); default :func:`_gauge_std` (2 % of
-        the reading, at least 1 kPa). The pressure is fitted with the Gaussian prior stated ± σ, so the σ of M1 and
-        V0 (and the Cramér-Rao bound of the details) include the gauge's error; 0 holds it exactly.
+    pressure_gauge_std : float, optional
+        σ of the stated pressure [Pa] (of ``pressure_gauge``, else of the metadata's); default :func:`_gauge_std`
+        (2 % of the reading, at least 1 kPa). The pressure is fitted with the Gaussian prior stated ± σ, so the σ of
+        M1 and V0 (and the Cramér-Rao bound of the details) include the gauge's error; 0 holds it exactly.
     uncertain : sequence of str, optional
         Stand parameters fitted with M1 and V0 (dotted names, ``"contact"`` for the law's parameters); default the
         contact law's parameters and ``friction.force``.
@@ -197,7 +202,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
     laws = contact_laws(contact)
     free_names = _check_uncertain(uncertain, laws)
     max_reduced_chi2 = check_real("max_reduced_chi2", max_reduced_chi2, low=1.0, unit=" [-]", state_range=True)
-    p0, p0_std = _pressure(recording, pressure, rig, pressure_std)
+    gauge, gauge_std = _pressure(recording, pressure_gauge, rig, pressure_gauge_std)
     design = anti_alias_design(recording)
     trigger = check_length(recording)
     pressure_gauge_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_GAUGE_START
@@ -209,12 +214,13 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
         robust, failed = None, str(exc)
     if robust is not None:
         data = observe(recording, design, robust.t00)
-        start = _Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay, pressure=p0,
-                      pressure_gauge_start=pressure_gauge_start, pressure_std=p0_std)
+        start = _Start(mass=robust.mass, velocity=robust.velocity, contact_time=robust.t00 - delay,
+                       pressure_gauge=gauge,
+                      pressure_gauge_start=pressure_gauge_start, pressure_gauge_std=gauge_std)
     else:  # a few samples before the crude trigger: the first window's fit finds the instant
         data = observe(recording, design, trigger)
-        start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, p0,
-                                    pressure_gauge_start), pressure_std=p0_std)
+        start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, gauge,
+                                    pressure_gauge_start), pressure_gauge_std=gauge_std)
     fits, selection = _fit_laws(data, rig, laws, free_names, start)
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,
@@ -250,45 +256,48 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure: fl
                   "is given")
         return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
     stand = _stand_variance(data, best, rig, stand_uncertainty)
-    answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (p0, p0_std), mass_std, velocity_std,
-                     stand)
+    answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (gauge, gauge_std), mass_std,
+                     velocity_std, stand)
     if robust is None:
         return answer
-    z = _disagreement((answer.mass, answer.mass_std, answer.velocity, answer.velocity_std),
-                     (robust.mass, robust.mass_std, robust.velocity, robust.velocity_std))
+    z = _disagreement(answer, robust)
     adequacy = replace(adequacy, robust_z=z)
     if adequacy.verdict == "adequate" and z <= Z_JOINT_ADEQUATE or z <= Z_JOINT and (
             answer.mass_std <= robust.mass_std and answer.velocity_std <= robust.velocity_std):
         return _with_adequacy(answer, adequacy)
     mismatch = (f"differ by {z:.3g} of their joint σ: the record is not of the stand the model takes (pass rig the "
-                "stand it was made on), or its charge pressure is not the one stated (pass pressure as the gauge reads "
-                "it, with its pressure_std), or its pad is outside the contact laws")
+                "stand it was made on), or its charge pressure is not the one stated (pass pressure_gauge as the gauge "
+                "reads it, with its pressure_gauge_std), or its pad is outside the contact laws")
     if adequacy.verdict == "adequate":
         # the model explains the record down to its noise: its answer stands, with a σ that reaches the robust one
         # (the robust answer's own σ can be short; a stand or pressure the fit absorbs leaves no misfit)
-        reason = (f"the model's answer (M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 {answer.velocity:.5g} ± "
-                  f"{answer.velocity_std:.2g} m/s) explains the record down to its noise, and it and the robust answer "
-                  f"(M1 {robust.mass:.5g} ± {robust.mass_std:.2g} kg, V0 {robust.velocity:.5g} ± "
-                  f"{robust.velocity_std:.2g} m/s) {mismatch}; the model's σ is widened to reach the robust answer")
-        widened = replace(answer, mass_std=math.hypot(answer.mass_std, answer.mass - robust.mass),
-                          velocity_std=math.hypot(answer.velocity_std, answer.velocity - robust.velocity),
-                          warnings=(*answer.warnings, reason))
+        reason = (f"the model's answer ({_said(answer)}) explains the record down to its noise, and it and the robust "
+                  f"answer ({_said(robust)}) {mismatch}; the model's σ is widened to reach the robust answer")
+        widened = replace(_widened(answer, robust), warnings=(*answer.warnings, reason))
         verdict = replace(adequacy, verdict="widened", reason=reason,
                           widening=(widened.mass_std / answer.mass_std, widened.velocity_std / answer.velocity_std))
         return _with_adequacy(widened, verdict)
     if z <= Z_JOINT and adequacy.verdict != "adequate":  # they agree; the model's answer is the less precise
-        reason = (f"{adequacy.reason}; its answer (M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 "
-                  f"{answer.velocity:.5g} ± {answer.velocity_std:.2g} m/s) agrees with the robust answer (within "
+        reason = (f"{adequacy.reason}; its answer ({_said(answer)}) agrees with the robust answer (within "
                   f"{z:.2g} of their joint σ) and is the less precise, so the robust answer is given")
         return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
-    reason = (f"the model's answer (M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 {answer.velocity:.5g} ± "
-              f"{answer.velocity_std:.2g} m/s, {adequacy.verdict}: the model does not explain the whole record) and "
-              f"the "
-              f"robust answer (M1 {robust.mass:.5g} ± {robust.mass_std:.2g} kg, V0 {robust.velocity:.5g} ± "
-              f"{robust.velocity_std:.2g} m/s) {mismatch}; the robust answer is given, its σ widened to reach the "
-              "model's answer")
+    reason = (f"the model's answer ({_said(answer)}, {adequacy.verdict}: the model does not explain the whole "
+              f"record) and the robust answer ({_said(robust)}) {mismatch}; the robust answer is given, its σ widened "
+              "to reach the model's answer")
     return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason),
                      model=answer)
+
+
+def _said(answer: Identification) -> str:
+    """M1 and V0 of ``answer`` with their σ, as a message states them."""
+    return (f"M1 {answer.mass:.5g} ± {answer.mass_std:.2g} kg, V0 {answer.velocity:.5g} ± {answer.velocity_std:.2g} "
+            "m/s")
+
+
+def _widened(answer: Identification, other: Identification) -> Identification:
+    """``answer`` with each σ widened to sqrt(σ² + Δ²), Δ its difference to ``other``."""
+    return replace(answer, mass_std=math.hypot(answer.mass_std, other.mass - answer.mass),
+                   velocity_std=math.hypot(answer.velocity_std, other.velocity - answer.velocity))
 
 
 def _with_adequacy(answer: Identification, adequacy: Adequacy) -> Identification:
@@ -308,8 +317,7 @@ def _fallback(recording: Recording, rig: Rig, common: ModelDetails, best: LawFit
                              recording.start_time)
     reason = adequacy.reason
     if model is not None:
-        robust = replace(robust, mass_std=math.hypot(robust.mass_std, model.mass - robust.mass),
-                         velocity_std=math.hypot(robust.velocity_std, model.velocity - robust.velocity))
+        robust = _widened(robust, model)
     return replace(robust, method="model/fallback",
                    warnings=(*_stand_warning(recording, rig), *robust.warnings, reason),
                    details=replace(common, path="fallback", reason=reason, fallback=robust.details, adequacy=adequacy,
@@ -335,14 +343,15 @@ def _answer(recording: Recording, rig: Rig, best: LawFit, common: ModelDetails,
             best.values["pressure_gauge"] - PRESSURE_CONTRADICTION * best.std("pressure_gauge") * inflation > rated):
         found.append(f"the fitted charge pressure {best.values['pressure_gauge']:.4g} Pa exceeds the rated "
                      f"{rated:g} Pa of {rig.name!r} beyond {PRESSURE_CONTRADICTION:g} of its σ: "
-                     "pass pressure as the gauge reads it, with its pressure_std")
-    pressure, pressure_std = stated
-    if pressure is not None and pressure_std > 0.0 and (
-            abs(best.values["pressure_gauge"] - pressure) > PRESSURE_PULL * pressure_std):
+                     "pass pressure_gauge as the gauge reads it, with its pressure_gauge_std")
+    pressure_gauge, pressure_gauge_std = stated
+    if pressure_gauge is not None and pressure_gauge_std > 0.0 and (
+            abs(best.values["pressure_gauge"] - pressure_gauge) > PRESSURE_PULL * pressure_gauge_std):
         found.append(f"the fit moves the charge pressure to {best.values['pressure_gauge']:.5g} Pa, "
-                     f"{abs(best.values['pressure_gauge'] - pressure) / pressure_std:.3g} σ from the stated "
-                     f"{pressure:.5g} ± {pressure_std:.3g} Pa: the stated pressure or the stand is off (pass pressure "
-                     "as the gauge reads it with its pressure_std, or pass rig the stand the record was made on)")
+                     f"{abs(best.values['pressure_gauge'] - pressure_gauge) / pressure_gauge_std:.3g} σ from the "
+                     f"stated {pressure_gauge:.5g} ± {pressure_gauge_std:.3g} Pa: the stated pressure or the stand is "
+                     "off (pass pressure_gauge as the gauge reads it with its pressure_gauge_std, or pass rig the "
+                     "stand the record was made on)")
     if not best.converged:
         found.append(f"the {best.law} fit stopped after {best.evaluations} evaluations before it converged")
     if best.rank < best.unknowns:
@@ -381,10 +390,12 @@ def _unknowns(names: Sequence[str]) -> tuple[str, ...]:
     return (*names[2:], "offset.contact_force", "offset.piston_acceleration")
 
 
+@renamed(pressure="pressure_gauge", pressure_std="pressure_gauge_std", pressure_unknown="pressure_gauge_unknown")
 def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: float | None = None,
-               contact_time: float = 0.0, rig: Rig | str | None = None, pressure: float | None = None,
-               pressure_std: float | None = None, uncertain: Sequence[str] | None = None,
-               pressure_unknown: bool = False, at: str = "truth") -> CramerRao:
+               contact_time: float = 0.0, rig: Rig | str | None = None,
+               pressure_gauge: float | None = None, pressure_gauge_std: float | None = None,
+               uncertain: Sequence[str] | None = None,
+               pressure_gauge_unknown: bool = False, at: str = "truth") -> CramerRao:
     """Cramér-Rao bound of M1 and V0 for ``recording`` under the stand model, at a given impact.
 
     Every unknown of the fit is estimated alongside (the contact instant, the stand parameters marked uncertain,
@@ -402,11 +413,12 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
         First contact on the recording's clock [s] (0 for a simulated record).
     rig : Rig or str, optional
         The stand, with the contact law and the values of its parameters (default ``drop-stand``).
-    pressure, pressure_std, uncertain
+    pressure_gauge, pressure_gauge_std, uncertain
         As in :func:`identify`; the pressure is where the bound is evaluated [Pa gauge] (default the metadata's), and
-        its prior (the stated pressure ± ``pressure_std``, as :func:`identify` fits it) is part of the information.
-    pressure_unknown : bool
-        Count the pre-charge among the unknowns (as :func:`identify` does when neither ``pressure`` nor the
+        its prior (the stated pressure ± ``pressure_gauge_std``, as :func:`identify` fits it) is part of the
+        information.
+    pressure_gauge_unknown : bool
+        Count the pre-charge among the unknowns (as :func:`identify` does when neither ``pressure_gauge`` nor the
         metadata gives it).
     at : str
         Label of the point: ``"truth"`` or ``"estimate"``.
@@ -428,14 +440,15 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
         values[name] = check_real(name, value, low=0.0, low_open=True,
                                   unit=f" [{'kg' if name == 'mass' else 'm/s'}] (or stated in the recording's "
                                   "metadata)", state_range=True)
-    p0, p0_std = _pressure(recording, pressure, rig, pressure_std)
-    if p0 is None:
-        raise ParameterError("pressure must be given [Pa gauge] (the recording's metadata states none): the bound "
-                             "is evaluated at a known impact on a known stand")
+    gauge, gauge_std = _pressure(recording, pressure_gauge, rig, pressure_gauge_std)
+    if gauge is None:
+        raise ParameterError("pressure_gauge must be given [Pa gauge] (the recording's metadata states none): the "
+                             "bound is evaluated at a known impact on a known stand")
     design = anti_alias_design(recording)
     data = observe(recording, design, contact_time + anti_alias_delay(design, recording.sample_rate))
-    layout = make_layout(rig, law, free, pressure=None if pressure_unknown else p0, contact_time=contact_time,
-                         sample_rate=recording.sample_rate, pressure_std=p0_std)
-    point = {**values, "contact_time": contact_time, **stand_values(rig, law, free), "pressure_gauge": p0}
+    layout = make_layout(rig, law, free, pressure_gauge=None if pressure_gauge_unknown else gauge,
+                         contact_time=contact_time,
+                         sample_rate=recording.sample_rate, pressure_gauge_std=gauge_std)
+    point = {**values, "contact_time": contact_time, **stand_values(rig, law, free), "pressure_gauge": gauge}
     cov, _ = covariance(weighted_jacobian(data, layout, point))
     return _bound_of(cov, values["mass"], values["velocity"], law=law, at=at, unknowns=_unknowns(layout.names))

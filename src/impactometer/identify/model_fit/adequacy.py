@@ -30,6 +30,7 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ..details import Adequacy
+from ..result import Identification
 from .engine import GUARD_SAMPLES, LawFit, Observed, Residuals, fit_law, window
 
 #: the paths an answer takes: the model's fit with its Fisher σ; the fit of the first span the model explains; the
@@ -178,10 +179,10 @@ def _assess(data: Observed, best: LawFit, quiet: float) -> tuple[Adequacy, float
                      widening=(wide[0] / plain[0], wide[1] / plain[1]), **common), *wide)
 
 
-def _disagreement(model: tuple[float, float, float, float], robust: tuple[float, float, float, float]) -> float:
-    """The larger of |M1 − M1_robust| and |V0 − V0_robust| over their joint σ [-]; each answer as (M1, σ, V0, σ)."""
-    return max(abs(model[0] - robust[0]) / math.hypot(model[1], robust[1]),
-               abs(model[2] - robust[2]) / math.hypot(model[3], robust[3]))
+def _disagreement(model: Identification, robust: Identification) -> float:
+    """The larger of |M1 − M1_robust| and |V0 − V0_robust| over their joint σ [-]."""
+    return max(abs(model.mass - robust.mass) / math.hypot(model.mass_std, robust.mass_std),
+               abs(model.velocity - robust.velocity) / math.hypot(model.velocity_std, robust.velocity_std))
 
 
 def _shortened(data: Observed, best: LawFit, quiet: float) -> tuple[LawFit, Adequacy, float, float] | None:

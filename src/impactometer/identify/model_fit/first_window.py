@@ -102,8 +102,9 @@ class _Window(NamedTuple):
 
 
 def _takes(data: Observed, layout: Layout) -> bool:
-    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model and a fitted contact instant."""
-    return data.grid.design == "causal" and "contact_time" in layout.names
+    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model, a fitted contact instant and
+    no bounds of the layout's own (:meth:`.forward.Layout.with_bounds`)."""
+    return data.grid.design == "causal" and "contact_time" in layout.names and not layout.bounds
 
 
 @njit(cache=True, error_model="numpy")

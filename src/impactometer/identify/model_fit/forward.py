@@ -206,7 +206,8 @@ class Layout:
     it is fitted) and ``specs`` their (packed index, transform, parameter); ``base`` is the packed parameter vector
     of the stand with the law and known values (the held parameters); ``origin`` is the contact instant [s] from
     which the ``contact_time`` variable counts sample periods; ``priors`` the Gaussian priors on unknowns, each
-    (index into ``names``, mean, σ) of its fit variable and one more residual row (:meth:`with_prior`).
+    (index into ``names``, mean, σ) of its fit variable and one more residual row (:meth:`with_prior`); ``bounds``
+    the layout's own bounds, each (name, lower, upper) [SI] (:meth:`with_bounds`).
     """
 
     names: tuple[str, ...]
@@ -216,6 +217,7 @@ class Layout:
     origin: float
     sample_rate: float
     priors: tuple[tuple[int, float, float], ...] = ()
+    bounds: tuple[tuple[str, float, float], ...] = ()
 
     def with_prior(self, name: str, mean: float, sigma: float) -> Layout:
         """This layout with a Gaussian prior of ``mean`` and ``sigma`` [SI] on the unknown ``name``: the residual row
@@ -239,6 +241,24 @@ class Layout:
                        specs=(*self.specs[:at], spec, *self.specs[at:]),
                        priors=tuple((j + (j >= at), mean, spread) for j, mean, spread in self.priors))
 
+    def with_bounds(self, name: str, lower: float, upper: float) -> Layout:
+        """This layout with the parameter ``name`` kept within [``lower``, ``upper``] [SI] (either may be infinite):
+        a table edit. A trial point of a fit outside them is refused by the one range check of every prediction
+        (the solver steps back), as one outside the range the model is integrated in, which still applies. The
+        held value, or the prior's mean, must lie inside."""
+        index, _, _ = _parameter_spec(name, self.base)
+        lower = check_real("lower", lower, finite=False, unit=f" [SI] (the lower bound of {name})")
+        upper = check_real("upper", upper, low=lower, low_open=True, finite=False,
+                           unit=f" [SI] (the lower bound of {name})")
+        row = next((row for row in self.table() if row.name == name), None)
+        held = row is not None and not row.free
+        value = None if row is None else row.value if held else row.prior[0] if row.prior is not None else None
+        if value is not None and not lower <= value <= upper:
+            raise ParameterError(f"{name}'s bounds must hold its {'held value' if held else 'prior mean'} "
+                                 f"{value:g}, got [{lower:g}, {upper:g}]", field=name,
+                                 expected=f"bounds holding {value:g}")
+        return replace(self, bounds=(*((n, lo, hi) for n, lo, hi in self.bounds if n != name), (name, lower, upper)))
+
     def with_held(self, name: str, value: float) -> Layout:
         """This layout with the unknown ``name`` held at ``value`` [SI] (its prior dropped): a table edit. The
         contact instant is always fitted."""
@@ -246,7 +266,8 @@ class Layout:
         if index < 0:
             raise ParameterError(f"the contact instant cannot be held; hold any of "
                                  f"{[n for n in PARAMETERS if n != 'contact_time']}")
-        value = check_real(name, value, error=ParameterError)
+        low, high = next(((lo, hi) for n, lo, hi in self.bounds if n == name), (-math.inf, math.inf))
+        value = check_real(name, value, low=low, high=high, unit=" [SI] (the layout's bounds)")
         base = self.base.copy()
         base[index] = value
         if name not in self.names:
@@ -258,7 +279,8 @@ class Layout:
 
     def table(self, x: np.ndarray | None = None) -> tuple[Parameter, ...]:
         """Every parameter the fit can free, by name: its value (an unknown's at the fit variables ``x``, else at
-        none: NaN; a held one's), the range the solver's one range check keeps it in (:func:`_outside_ranges`),
+        none: NaN; a held one's), the range the solver's one range check keeps it in (:func:`_outside_ranges`: the
+        range the model is integrated in, within the layout's own bounds),
         whether it is free, and its prior."""
         values = {} if x is None else self.values(np.asarray(x, dtype=float)[:len(self.names)])
         priors = {self.names[j]: (mean, spread) for j, mean, spread in self.priors}
@@ -274,6 +296,8 @@ class Layout:
                 value = float(self.base[index])
             low, high = (-math.inf, math.inf) if index < 0 else (0.0, 1.0) if kind == "logit" else \
                 TRIAL_RANGES[index]
+            for _, lower, upper in (bound for bound in self.bounds if bound[0] == name):
+                low, high = max(low, lower), min(high, upper)
             prior = None
             if name in priors:
                 mean, spread = priors[name]
@@ -328,19 +352,31 @@ class Layout:
             shifts[s] = _pack_row(self.base, np.ascontiguousarray(rows[s]), index, code, param,
                                  self.law == "hysteretic", params[s])
         times = self.origin + shifts / self.sample_rate if "contact_time" in self.names else np.zeros(rows.shape[0])
+        for name, lower, upper in self.bounds:  # outside the layout's bounds: NaN, refused by the one range check
+            if name in self.names:
+                j = self.names.index(name)
+                value = np.asarray(_from_variable(rows[:, j], self.specs[j][1], self.specs[j][2]), dtype=float)
+                if name == "contact_time":
+                    value = self.origin + value / self.sample_rate
+                outside = ~((lower <= value) & (value <= upper))
+                if name == "contact_time":
+                    times[outside] = math.nan
+                else:
+                    params[outside, self.specs[j][0]] = math.nan
         return params, times
 
 
-def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | None, contact_time: float,
+def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure_gauge: float | None, contact_time: float,
                 sample_rate: float, mass: float | None = None, velocity: float | None = None,
-                pressure_std: float = 0.0) -> Layout:
+                pressure_gauge_std: float = 0.0) -> Layout:
     """The :class:`Layout` of a fit on ``rig`` with contact ``law`` freeing the stand parameters ``free``, the
-    charge pressure known (``pressure`` [Pa gauge]; held where ``pressure_std`` [Pa] is 0, else fitted with the
-    Gaussian prior ``pressure`` ± ``pressure_std``) or fitted (None; the variable is ln of the absolute pressure),
+    charge pressure known (``pressure_gauge`` [Pa gauge]; held where ``pressure_gauge_std`` [Pa] is 0, else fitted
+    with the Gaussian prior ``pressure_gauge`` ± ``pressure_gauge_std``) or fitted (None; the variable is ln of the
+    absolute pressure),
     counting the contact instant from ``contact_time`` [s]; M1 held at ``mass`` [kg] and V0 at ``velocity`` [m/s]
     when they are given."""
     stand = rig if rig.contact.law == law else rig.with_contact(law)
-    base = pack(stand, Scenario(mass=1.0, velocity=1.0, pressure_gauge=pressure or 0.0))
+    base = pack(stand, Scenario(mass=1.0, velocity=1.0, pressure_gauge=pressure_gauge or 0.0))
     if law == "hysteretic":  # packed as e (see Layout.packed)
         base[d.CONTACT_C] = float(stand.contact.restitution or 0.0)
     core = dict(CORE_PARAMETERS)
@@ -354,10 +390,10 @@ def make_layout(rig: Rig, law: str, free: tuple[str, ...], *, pressure: float | 
     specs = [*core.values(), *(STAND_PARAMETERS[name] for name in free)]
     layout = Layout(names=tuple(names), specs=tuple(specs), base=base, law=law, origin=float(contact_time),
                     sample_rate=float(sample_rate))
-    if pressure is None or pressure_std > 0.0:
+    if pressure_gauge is None or pressure_gauge_std > 0.0:
         layout = layout.with_free("pressure_gauge")
-    if pressure is not None and pressure_std > 0.0:
-        layout = layout.with_prior("pressure_gauge", pressure, pressure_std)
+    if pressure_gauge is not None and pressure_gauge_std > 0.0:
+        layout = layout.with_prior("pressure_gauge", pressure_gauge, pressure_gauge_std)
     return layout
 
 

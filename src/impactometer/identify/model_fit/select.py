@@ -58,15 +58,15 @@ SCREEN_EVALUATIONS = 8
 @dataclass(frozen=True)
 class _Start:
     """Where every law's fit starts: M1 [kg], V0 [m/s], the contact instant [s] and the pre-charge [Pa gauge]
-    (None: fitted, starting from ``pressure_gauge_start``; else held where ``pressure_std`` [Pa] is 0, or fitted with
-    the prior ``pressure`` ± ``pressure_std``)."""
+    (None: fitted, starting from ``pressure_gauge_start``; else held where ``pressure_gauge_std`` [Pa] is 0, or fitted
+    with the prior ``pressure_gauge`` ± ``pressure_gauge_std``)."""
 
     mass: float
     velocity: float
     contact_time: float
-    pressure: float | None
+    pressure_gauge: float | None
     pressure_gauge_start: float
-    pressure_std: float = 0.0
+    pressure_gauge_std: float = 0.0
 
 
 def _screen(fits: dict[str, LawFit], span: float, margin: float, *, within: float | None = None) -> dict[str, str]:
@@ -90,10 +90,10 @@ def _start_law(rig: Rig, law: str, uncertain: tuple[str, ...] | None, start: _St
     free = free_parameters(law, uncertain)
     values = {"mass": start.mass, "velocity": start.velocity, "contact_time": start.contact_time,
                **stand_values(rig, law, free)}
-    if start.pressure is None:
+    if start.pressure_gauge is None:
         values["pressure_gauge"] = start.pressure_gauge_start
-    elif start.pressure_std > 0.0:
-        values["pressure_gauge"] = start.pressure
+    elif start.pressure_gauge_std > 0.0:
+        values["pressure_gauge"] = start.pressure_gauge
     return _Layouts(rig, law, free, start, sample_rate), values
 
 
@@ -156,9 +156,9 @@ class _Layouts:
         self.fixed = {kind: self._make(() if kind == "core" else free) for kind in ("core", "all")}
 
     def _make(self, free: tuple[str, ...], mass: float | None = None):
-        return make_layout(self.rig, self.law, free, pressure=self.start.pressure,
+        return make_layout(self.rig, self.law, free, pressure_gauge=self.start.pressure_gauge,
                            contact_time=self.start.contact_time, sample_rate=self.sample_rate, mass=mass,
-                           pressure_std=self.start.pressure_std)
+                           pressure_gauge_std=self.start.pressure_gauge_std)
 
     def __call__(self, kind: str, values: dict):
         return self._make(self.free, values["mass"]) if kind == "stand" else self.fixed[kind]
@@ -207,15 +207,16 @@ START_MASSES = np.geomspace(2.0, 200.0, 9)
 START_VELOCITIES = np.geomspace(0.3, 8.0, 9)
 
 
-def _grid_start(data: Observed, rig: Rig, contact_time: float, pressure: float | None,
+def _grid_start(data: Observed, rig: Rig, contact_time: float, pressure_gauge: float | None,
                 pressure_gauge_start: float) -> _Start:
     """A start for :func:`_fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
     :data:`START_VELOCITIES` whose prediction of the first window (``STAGES[0]``) with the stand's own law and
     parameters fits best (offsets from the pre-trigger), first contact at ``contact_time`` [s]."""
-    return _grid_starts(data, rig, contact_time, pressure, pressure_gauge_start)[0]
+    return _grid_starts(data, rig, contact_time, pressure_gauge, pressure_gauge_start)[0]
 
 
-def _grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float | None, pressure_gauge_start: float,
+def _grid_starts(data: Observed, rig: Rig, contact_time: float, pressure_gauge: float | None,
+                 pressure_gauge_start: float,
                 count: int = 1, predicted: np.ndarray | None = None) -> list[_Start]:
     """The ``count`` best starts of :func:`_grid_start`, best first, none next to (one grid step from) a better
     one: the first window of a light, fast impact can hold more than one minimum. ``predicted`` (from
@@ -223,7 +224,7 @@ def _grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float 
     ``STAGES[0]`` after ``contact_time``, or all of it where it is shorter."""
     part = window(data, contact_time + STAGES[0][0])
     if predicted is None or predicted.shape[-1] != part.grid.size:
-        predicted = _grid_predictions(part.grid, rig, contact_time, pressure, pressure_gauge_start)
+        predicted = _grid_predictions(part.grid, rig, contact_time, pressure_gauge, pressure_gauge_start)
     chi2 = np.sum(np.square((part.channels - part.offsets[:, None]) / part.noise[:, None]
                             - predicted / part.noise[None, :, None]), axis=(1, 2))
     chi2 = np.where(np.isfinite(chi2), chi2, np.inf).reshape(START_MASSES.size, START_VELOCITIES.size)
@@ -237,24 +238,25 @@ def _grid_starts(data: Observed, rig: Rig, contact_time: float, pressure: float 
             continue
         taken.append((i, j))
         starts.append(_Start(mass=float(START_MASSES[i]), velocity=float(START_VELOCITIES[j]),
-                            contact_time=contact_time, pressure=pressure, pressure_gauge_start=pressure_gauge_start))
+                            contact_time=contact_time, pressure_gauge=pressure_gauge,
+                            pressure_gauge_start=pressure_gauge_start))
     if not starts:
         raise IdentificationError("no impact of the start grid can be integrated on this stand")
     return starts
 
 
-def _grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure: float | None,
+def _grid_predictions(grid: Grid, rig: Rig, contact_time: float, pressure_gauge: float | None,
                      pressure_gauge_start: float) -> np.ndarray:
     """The recorded channels (offsets zero) of every impact of :data:`START_MASSES` × :data:`START_VELOCITIES`,
     shape (masses × velocities, 2, samples), on ``grid`` with the stand's own law and parameters, first contact at
     ``contact_time`` [s]; NaN for an impact the model cannot carry. They depend on the stand and the samples'
     place after first contact only: a stream computes them before the impact."""
-    layout = make_layout(rig, rig.contact.law, (), pressure=pressure, contact_time=contact_time,
+    layout = make_layout(rig, rig.contact.law, (), pressure_gauge=pressure_gauge, contact_time=contact_time,
                          sample_rate=grid.sample_rate)
     masses, velocities = np.meshgrid(START_MASSES, START_VELOCITIES, indexing="ij")
     rows = np.zeros((masses.size, len(layout.names)))
     rows[:, 0], rows[:, 1] = np.log(masses.ravel()), np.log(velocities.ravel())  # ln M1, ln V0; contact at 0
-    if pressure is None:
+    if pressure_gauge is None:
         rows[:, -1] = np.log(pressure_gauge_start + rig.gas.atmospheric_pressure)
     params, times = layout.packed(rows)
     try:

@@ -41,7 +41,7 @@ from ...errors import IdentificationError, ParameterError, ParameterTypeError, s
 from ...recording import Recording, check_sample_rate
 from ...rig import STAND_KEY, Rig, get_rig
 from ...sensors import anti_alias_delay
-from ...validation import check_integer, check_real
+from ...validation import check_integer, check_real, renamed
 from .. import model_fit as batch
 from ..details import ModelDetails, StreamStage
 from ..peak_to_peak.streaming import StreamingIdentifier, check_open, last_outcome
@@ -115,7 +115,7 @@ class ModelStream:
         Time of the first sample pushed [s].
     metadata : dict, optional
         The recording's metadata (``anti_alias``, ``pressure_gauge_Pa``), as :func:`.identify` reads it.
-    rig, pressure, pressure_std, uncertain, contact
+    rig, pressure_gauge, pressure_gauge_std, uncertain, contact
         As in :func:`.identify`.
     cadence : float
         Record between updates [s].
@@ -140,8 +140,10 @@ class ModelStream:
     ``notes`` why an update of the last impact gave no estimate.
     """
 
+    @renamed(pressure="pressure_gauge", pressure_std="pressure_gauge_std")
     def __init__(self, sample_rate: float, *, start_time: float = 0.0, metadata: dict | None = None,
-                 rig: Rig | str | None = None, pressure: float | None = None, pressure_std: float | None = None,
+                 rig: Rig | str | None = None, pressure_gauge: float | None = None,
+                 pressure_gauge_std: float | None = None,
                  uncertain: Sequence[str] | None = None,
                  contact: str | None = "auto", cadence: float = CADENCE, window: float = WINDOW,
                  first: float = STAGES[0][0], robust_starts: bool = True):
@@ -166,8 +168,9 @@ class ModelStream:
         self._stand_notes = batch._stand_warning(probe, self.rig)
         self._update_metadata = {k: v for k, v in self.metadata.items() if k != STAND_KEY}
         self.design = anti_alias_design(probe)
-        self.pressure, self.pressure_std = batch._pressure(probe, pressure, self.rig, pressure_std)
-        self._given_pressure = pressure, pressure_std  # the final batch fit combines them with the metadata itself
+        self.pressure_gauge, self.pressure_gauge_std = batch._pressure(probe, pressure_gauge, self.rig,
+                                                                       pressure_gauge_std)
+        self._given_pressure = pressure_gauge, pressure_gauge_std  # the final batch fit combines them with the metadata
         self.delay = anti_alias_delay(self.design, sample_rate)
         self._grid_model = _make_grid(self.start_time, sample_rate, 1, self.design)
         self._chunk = max(int(self.cadence * sample_rate), 1)
@@ -193,7 +196,7 @@ class ModelStream:
         pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         try:
             return {(pre, size): _grid_predictions(_make_grid(0.0, self.sample_rate, size, self.design), self.rig,
-                                                  contact, self.pressure, pressure_gauge_start)}
+                                                  contact, self.pressure_gauge, pressure_gauge_start)}
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
 
@@ -295,8 +298,8 @@ class ModelStream:
         if self.robust.estimates:
             robust = self.robust.estimates[-1]
             starts = [_Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
-                            pressure=self.pressure, pressure_gauge_start=pressure_gauge_start,
-                            pressure_std=self.pressure_std)]
+                            pressure_gauge=self.pressure_gauge, pressure_gauge_start=pressure_gauge_start,
+                            pressure_gauge_std=self.pressure_gauge_std)]
         else:
             part = window(data, impact.contact_time + STAGES[0][0])  # the window the grid is ranked on
             predicted = self._grid.get((impact.trigger - impact.first, part.grid.size))
@@ -309,8 +312,8 @@ class ModelStream:
                     part.grid, start_time=part.grid.start_time + (cut - 1e-6) / self.sample_rate,  # period early:
                     size=part.grid.size - cut))  # the window's floor keeps its last sample)
                 predicted = predicted[..., cut:]
-            starts = [replace(start, pressure_std=self.pressure_std) for start in _grid_starts(
-                part, self.rig, impact.contact_time, self.pressure, pressure_gauge_start, count=GRID_STARTS,
+            starts = [replace(start, pressure_gauge_std=self.pressure_gauge_std) for start in _grid_starts(
+                part, self.rig, impact.contact_time, self.pressure_gauge, pressure_gauge_start, count=GRID_STARTS,
                 predicted=predicted)]
         return _first_fit(impact.fit, data, span, starts)
 
@@ -339,7 +342,7 @@ class ModelStream:
                 recording.contact_force.size - 1) / self.sample_rate, details=replace(
                 common, path="fallback", reason=reason, contact_law=fit.law, fallback=robust.details))
         else:
-            answer = batch._answer(recording, self.rig, fit, common, (self.pressure, self.pressure_std))
+            answer = batch._answer(recording, self.rig, fit, common, (self.pressure_gauge, self.pressure_gauge_std))
             answer = replace(answer, warnings=(*self._stand_notes, *answer.warnings))
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
@@ -358,8 +361,8 @@ class ModelStream:
         try:
             recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
             self.last_record = recording
-            final = batch.identify(recording, rig=self.rig, pressure=self._given_pressure[0],
-                                   pressure_std=self._given_pressure[1], uncertain=self.uncertain,
+            final = batch.identify(recording, rig=self.rig, pressure_gauge=self._given_pressure[0],
+                                   pressure_gauge_std=self._given_pressure[1], uncertain=self.uncertain,
                                    contact=self.contact)
         except IdentificationError as exc:
             self.outcomes.append(exc)

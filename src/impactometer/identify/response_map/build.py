@@ -54,7 +54,7 @@ def build_map_simulated(rig: Rig | str | None = None, pressure_gauge: float | Se
     rig : Rig or str, optional
         The stand (default ``drop-stand``).
     pressure_gauge : float or sequence of float
-        Charge pressure p0 [Pa gauge]; a sequence gives a map with a pressure axis.
+        Charge pressure [Pa gauge]; a sequence gives a map with a pressure axis.
     masses, velocities : sequence of float
         Grid axes M1 [kg] and V0 [m/s], increasing.
     features : str

@@ -45,7 +45,7 @@ class ResponseMap:
     ----------
     masses : (n_m,) Mass axis M1 [kg], increasing.
     velocities : (n_v,) Velocity axis V0 [m/s], increasing.
-    pressures_gauge : (n_p,) Charge-pressure axis p0 [Pa gauge]; one entry for a map at a single pressure.
+    pressures_gauge : (n_p,) Charge-pressure axis [Pa gauge]; one entry for a map at a single pressure.
     values : (m, n_p, n_m, n_v) Feature values (units of the feature set), all > 0.
     feature_set : Name in :data:`~impactometer.identify.response_map.features.FEATURE_SETS`.
     feature_params : Parameters of the feature set (SI).
