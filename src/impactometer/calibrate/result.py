@@ -11,11 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..rig import Rig, StandUncertainty, save_toml
-
-
-def _finite(value: float) -> float | None:
-    """A JSON-ready number (None for NaN or infinity)."""
-    return float(value) if math.isfinite(value) else None
+from ..validation import finite_or_none
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -70,10 +66,11 @@ class DropFit(Drop):
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready mapping (without the arrays)."""
         return {**super().to_dict(), "velocity_gate_m_s": self.velocity_gate,
-                "velocity_std_m_s": _finite(self.velocity_std), "contact_time_s": self.contact_time,
+                "velocity_std_m_s": finite_or_none(self.velocity_std), "contact_time_s": self.contact_time,
                 "offset_contact_force_N": self.offsets[0], "offset_piston_acceleration_m_s2": self.offsets[1],
-                "force_nrmse": self.force_nrmse, "velocity_pull_sigma": _finite(self.velocity_pull),
-                "misfit_sigma": _finite(self.misfit_sigma), "influence_sigma": _finite(self.influence_sigma),
+                "force_nrmse": self.force_nrmse, "velocity_pull_sigma": finite_or_none(self.velocity_pull),
+                "misfit_sigma": finite_or_none(self.misfit_sigma),
+                "influence_sigma": finite_or_none(self.influence_sigma),
                 "inconsistent": self.inconsistent, "limit_sigma": self.limit}
 
 
@@ -165,10 +162,10 @@ class Calibration:
                 "inconsistent": list(self.inconsistent), "excluded": list(self.excluded),
                 "reduced_chi2": self.reduced_chi2, "chi2": self.chi2, "dof": self.dof,
                 "bic": self.bic, "inflation": self.inflation,
-                "parameters": {name: {"value": self.parameters[name], "std": _finite(self.std[name])}
+                "parameters": {name: {"value": self.parameters[name], "std": finite_or_none(self.std[name])}
                                for name in names},
                 "correlation": {"names": names,
-                                "matrix": [[_finite(c) for c in row] for row in self.correlation.tolist()]},
+                                "matrix": [[finite_or_none(c) for c in row] for row in self.correlation.tolist()]},
                 "families": self.families, "indistinct": list(self.indistinct),
                 "drops": [drop.to_dict() for drop in self.drops], "warnings": list(self.warnings),
                 "velocity_sigma": self.velocity_sigma, "duration_s": self.duration, "created": self.created}
@@ -185,7 +182,7 @@ class Calibration:
                 "duration_s": self.duration,
                 "families": {law: {k: v for k, v in fam.items() if k in ("reduced_chi2", "bic", "dropped", "error")}
                              for law, fam in self.families.items()},
-                "parameters": {name: {"value": self.parameters[name], "std": _finite(self.std[name])}
+                "parameters": {name: {"value": self.parameters[name], "std": finite_or_none(self.std[name])}
                                for name in self.parameters},
                 "drops": [{"file": d.source, "mass_kg": d.mass, "velocity_gate_m_s": d.velocity_gate,
                            "pressure_gauge_Pa": d.pressure_gauge, "velocity_m_s": d.velocity,

@@ -41,6 +41,7 @@ from scipy.optimize import minimize
 
 from ..model.simulate import sample_times
 from ..rig import Rig, Scenario
+from ..validation import finite_or_none
 from .event import CommonWindow, body_load, impact_force, window_peak
 from .plant import simulate_controlled
 from .settings import ControlSettings
@@ -87,15 +88,14 @@ class AchievableReference:
     def to_dict(self) -> dict:
         """JSON-ready summary with ``achievable_``-prefixed keys (``achievable_by_family``: R_B of the best of each
         family from first contact, None where none is feasible)."""
-        finite = [None if not math.isfinite(v) else float(v) for v in
+        finite = [finite_or_none(v) for v in
                   (self.force_ratio, self.whole_event_peak_ratio, self.stroke_used, self.level,
                    self.from_start_force_ratio)]
         return {"achievable_force_ratio": finite[0], "achievable_whole_event_peak_ratio": finite[1],
                 "achievable_stroke_used_m": finite[2], "achievable_family": self.family,
                 "achievable_level_N": finite[3], "achievable_openings": list(self.openings),
                 "achievable_runs": self.runs, "achievable_from_start_force_ratio": finite[4],
-                "achievable_by_family": {name: float(v) if math.isfinite(v) else None
-                                         for name, v in self.by_family.items()}}
+                "achievable_by_family": {name: finite_or_none(v) for name, v in self.by_family.items()}}
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -249,7 +249,7 @@ class Layout:
         index, _, _ = _parameter_spec(name, self.base)
         lower = check_real("lower", lower, finite=False, unit=f" [SI] (the lower bound of {name})")
         upper = check_real("upper", upper, low=lower, low_open=True, finite=False,
-                           unit=f" [SI] (the lower bound of {name})")
+                           unit=f" [SI] (the upper bound of {name}, above its lower bound)")
         row = next((row for row in self.table() if row.name == name), None)
         held = row is not None and not row.free
         value = None if row is None else row.value if held else row.prior[0] if row.prior is not None else None
