@@ -435,11 +435,9 @@ def cramer_rao(recording: Recording, *, mass: float | None = None, velocity: flo
     free = free_parameters(law, _check_uncertain(uncertain, (law,)))
     given = {"mass": recording.metadata.get("mass_kg") if mass is None else mass,
              "velocity": recording.metadata.get("velocity_m_s") if velocity is None else velocity}
-    values: dict[str, float] = {}
-    for name, value in given.items():
-        values[name] = check_real(name, value, low=0.0, low_open=True,
-                                  unit=f" [{'kg' if name == 'mass' else 'm/s'}] (or stated in the recording's "
-                                  "metadata)", state_range=True)
+    values = {name: check_real(name, value, low=0.0, low_open=True, state_range=True,
+                               unit=f" [{'kg' if name == 'mass' else 'm/s'}] (or stated in the recording's metadata)")
+              for name, value in given.items()}
     gauge, gauge_std = _pressure(recording, pressure_gauge, rig, pressure_gauge_std)
     if gauge is None:
         raise ParameterError("pressure_gauge must be given [Pa gauge] (the recording's metadata states none): the "

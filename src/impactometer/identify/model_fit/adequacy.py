@@ -128,13 +128,10 @@ def _sandwich(res: _Residual, best: LawFit, lags: int) -> np.ndarray:
     the rows before contact, of the pre-trigger's means and of the priors enter S with their Fisher information."""
     problem = res.problem
     jac = problem.jacobian(best.x)
-    n_tail = problem.tail.shape[1]
-    rows = np.arange(jac.shape[0])
-    after_rows = np.concatenate([c * n_tail + res.onset + np.arange(res.after.shape[1]) for c in range(2)])
-    rest = np.setdiff1d(rows, after_rows)
+    after = [c * problem.tail.shape[1] + res.onset + np.arange(res.after.shape[1]) for c in range(2)]
+    rest = np.setdiff1d(np.arange(jac.shape[0]), np.concatenate(after))
     meat = jac[rest].T @ jac[rest]
-    for c in range(2):
-        index = c * n_tail + res.onset + np.arange(res.after.shape[1])
+    for index in after:
         scores = jac[index] * res.vector[index, None]
         meat += scores.T @ scores
         for lag in range(1, lags + 1):
