@@ -24,9 +24,9 @@ from impactometer.identify.model_fit.adequacy import (
     Z_ADEQUATE,
     _bandwidth,
     _Residual,
+    _robust_inflation,
     _sandwich,
     _statistics,
-    robust_inflation,
 )
 from impactometer.io import write_recording
 from impactometer.rig import Scenario
@@ -89,7 +89,7 @@ def test_the_robust_sigma_is_widened_by_the_scatter_of_its_rows(chi2, dof, expec
     class _Answer:
         details = type("Details", (), {"chi2": chi2, "dof": dof})()
 
-    assert robust_inflation(_Answer()) == pytest.approx(expected)
+    assert _robust_inflation(_Answer()) == pytest.approx(expected)
 
 
 def test_a_fallback_whose_robust_rows_scatter_carries_their_scatter_and_covers_the_truth():

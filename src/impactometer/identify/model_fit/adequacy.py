@@ -178,7 +178,7 @@ def _assess(data: Observed, best: LawFit, quiet: float) -> tuple[Adequacy, float
                      widening=(wide[0] / plain[0], wide[1] / plain[1]), **common), *wide)
 
 
-def robust_inflation(robust) -> float:
+def _robust_inflation(robust) -> float:
     """The factor sqrt(max(1, χ²/dof)) [-] by which the σ of the robust answer ``robust`` (an
     :class:`~impactometer.identify.result.Identification` of the peak-to-peak method) is widened where its rows
     scatter beyond their noise (1 where its details state no χ² or no degree of freedom).
