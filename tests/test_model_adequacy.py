@@ -19,7 +19,15 @@ from foreign_stand import foreign_case
 from impactometer.cli import main
 from impactometer.identify.details import Adequacy
 from impactometer.identify.model_fit import identify
-from impactometer.identify.model_fit.adequacy import VERDICTS, Z_ADEQUATE, _bandwidth, _Residual, _sandwich, _statistics
+from impactometer.identify.model_fit.adequacy import (
+    VERDICTS,
+    Z_ADEQUATE,
+    _bandwidth,
+    _Residual,
+    _robust_inflation,
+    _sandwich,
+    _statistics,
+)
 from impactometer.io import write_recording
 from impactometer.rig import Scenario
 from impactometer.sensors import record
@@ -73,6 +81,31 @@ def test_a_foreign_pad_is_flagged_and_its_answer_covers_the_truth(kind, seed):
         assert adequacy.reason in answer.warnings
     assert abs(answer.mass - drop.mass) <= Z * answer.mass_std
     assert abs(answer.velocity - drop.velocity) <= Z * answer.velocity_std
+
+
+@pytest.mark.parametrize(("chi2", "dof", "expected"), [(50.0, 5, 10.0 ** 0.5), (3.0, 5, 1.0), (7.0, 0, 1.0),
+                                                      (None, None, 1.0)])
+def test_the_robust_sigma_is_widened_by_the_scatter_of_its_rows(chi2, dof, expected):
+    class _Answer:
+        details = type("Details", (), {"chi2": chi2, "dof": dof})()
+
+    assert _robust_inflation(_Answer()) == pytest.approx(expected)
+
+
+def test_a_fallback_whose_robust_rows_scatter_carries_their_scatter_and_covers_the_truth():
+    # a peak-oriented pad whose reload the robust rows read inconsistently (their χ²/dof far above 1): the model
+    # falls back, and the robust answer's σ counts the rows' scatter, so the truth lies within its stated σ
+    rec, drop, _ = foreign_case("peak-oriented", 7)
+    answer = identify(rec)
+    adequacy = answer.details.adequacy
+    assert answer.method == "model/fallback" and adequacy.verdict == "fell back"
+    fallback = answer.details.fallback
+    scale = (fallback.chi2 / fallback.dof) ** 0.5
+    assert scale > 2.0 and adequacy.robust_inflation == pytest.approx(scale)
+    assert adequacy.reason in answer.warnings and "widened by" in adequacy.reason
+    assert abs(answer.mass - drop.mass) <= Z * answer.mass_std
+    assert abs(answer.velocity - drop.velocity) <= Z * answer.velocity_std
+    assert answer.to_dict()["adequacy"]["robust_inflation"] == pytest.approx(scale)
 
 
 def test_the_json_answer_says_which_path_was_taken_and_why(tmp_path, capsys):

@@ -30,7 +30,7 @@ from ..rig import Rig, get_rig, parameter_names
 from ..validation import check_flag
 from .drops import _ObservedDrop, _read_drops
 from .influence import MISFIT_LIMIT, _drop_figures, _inconsistent, _limit, _set_misfit_sigma
-from .joint import NUISANCES, SCREEN_STAGE, _Family, _fit_family, _stages_for
+from .joint import NUISANCES, SCREEN_STAGE, _Family, _fit_family, _stages_for, _starts
 from .result import Calibration, DropFit
 from .separation import CORRELATION_LIMIT, _correlation, _flagged, _suggest
 from .validate import DropValidation, Validation, _force_nrmse, validate
@@ -263,17 +263,25 @@ def _calibrate(drops: Sequence[_ObservedDrop], base: Rig, names: tuple[str, ...]
 
 def _fit_families(drops: Sequence[_ObservedDrop], base: Rig, laws: Sequence[str], names: tuple[str, ...],
                   velocity_sigma: float, stages, step: Callable[[], None]) -> tuple[dict[str, _Family], dict]:
-    """Each family through the screening window, the ones within ``SCREEN_MARGIN`` of the best BIC to the end."""
+    """Each family through the screening window (from each of its starts, :func:`.joint._starts`, the lowest χ²
+    kept), the ones within ``SCREEN_MARGIN`` of the best BIC to the end."""
     screened: dict[str, tuple[_Family, np.ndarray]] = {}
     report: dict[str, dict] = {}
     head, tail = stages[:SCREEN_STAGE + 1], stages[SCREEN_STAGE + 1:]
     for law in laws:
         free = free_parameters(law, names)
-        try:
-            screened[law] = _fit_family(drops, base, law, free, velocity_sigma=velocity_sigma, stages=head,
-                                       final=not tail, progress=step)
-        except IdentificationError as exc:
-            report[law] = {"error": str(exc)}
+        errors = []
+        for k, start in enumerate(_starts(base, law, free)):  # the progress counts the stand's own start
+            try:
+                fit = _fit_family(drops, base, law, free, velocity_sigma=velocity_sigma, stages=head,
+                                  final=not tail, progress=step if k == 0 else None, start=start)
+            except IdentificationError as exc:
+                errors.append(str(exc))
+                continue
+            if law not in screened or fit[0].chi2 < screened[law][0].chi2:
+                screened[law] = fit
+        if law not in screened:
+            report[law] = {"error": "; ".join(dict.fromkeys(errors))}
     families: dict[str, _Family] = {}
     if not screened:
         return families, report

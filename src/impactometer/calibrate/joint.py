@@ -49,6 +49,12 @@ STAGE_EVALUATIONS = 100
 #: relative reduction of χ² at which the last stage has converged (the engine's stopping rule): the engine's 1e-6
 #: of a χ² of 50 000 left the optimum up to 0.3 σ of a parameter off (Δχ² ~ 0.1)
 FINAL_TOLERANCE = 1e-10
+#: further start values [-] of contact-law parameters whose joint χ² over the first pulses has more than one minimum:
+#: a power-law pad's unloading exponent m and its plastic set φ both shorten the rebound, so a fit started at the
+#: law's default m can end at another m with the set driven to zero (χ²/dof 9.9 where the start nearer the truth
+#: reaches 1). The screening stages are run from each (the law's default and these, a factor of about 1.7 each side
+#: of the default 3.5, spanning soft to stiff pads) and the lowest χ² is kept
+ALTERNATIVE_STARTS = {"contact.unloading_exponent": (2.0, 6.0)}
 #: per-drop nuisances, in the order they take in the vector of unknowns
 NUISANCES = ("velocity", "contact_time", "offset.contact_force", "offset.piston_acceleration")
 
@@ -197,6 +203,18 @@ def _start_vector(drops: Sequence[_ObservedDrop], layouts: Sequence[Layout], fre
     return np.r_[shared, np.ravel(own)].astype(float)
 
 
+def _starts(rig: Rig, law: str, free: tuple[str, ...]) -> list[dict[str, float]]:
+    """The start values [SI] of the freed stand parameters the family of ``law`` is screened from: the stand's own
+    (:func:`~impactometer.identify.model_fit.forward.stand_values`) and each of :data:`ALTERNATIVE_STARTS` that is
+    freed and differs from it."""
+    own = stand_values(rig, law, free)
+    starts = [own]
+    for name, values in ALTERNATIVE_STARTS.items():
+        if name in free:
+            starts += [{**own, name: value} for value in values if not math.isclose(value, own[name])]
+    return starts
+
+
 def _make_layouts(rig: Rig, law: str, free: tuple[str, ...], drops: Sequence[_ObservedDrop], *,
                  velocity_sigma: float) -> tuple[Layout, ...]:
     """Each drop's layout: V0 (with the light gate's reading as its prior of relative σ ``velocity_sigma``) and the
@@ -226,12 +244,16 @@ def _fit_stage(drops: Sequence[_ObservedDrop], layouts: Sequence[Layout], free: 
 
 def _fit_family(drops: Sequence[_ObservedDrop], rig: Rig, law: str, free: tuple[str, ...], *, velocity_sigma: float,
                stages: Sequence[tuple[float | None, str]], x0: np.ndarray | None = None, final: bool = True,
-               progress: Callable[[], None] | None = None) -> tuple[_Family, np.ndarray]:
-    """Fit the family of ``law`` jointly over ``drops`` through ``stages`` (from ``x0``, default the stand's own
-    values, see :func:`start_vector`) by :func:`~impactometer.identify.model_fit.engine.staged`; returns the last
-    stage's :class:`Family` and its vector. ``progress`` is called after each stage."""
+               progress: Callable[[], None] | None = None,
+               start: dict[str, float] | None = None) -> tuple[_Family, np.ndarray]:
+    """Fit the family of ``law`` jointly over ``drops`` through ``stages`` (from ``x0``, else from the stand values
+    ``start`` [SI], default the stand's own, see :func:`start_vector`) by
+    :func:`~impactometer.identify.model_fit.engine.staged`; returns the last stage's :class:`Family` and its vector.
+    ``progress`` is called after each stage."""
     layouts = _make_layouts(rig, law, free, drops, velocity_sigma=velocity_sigma)
-    x = _start_vector(drops, layouts, free, stand_values(rig, law, free)) if x0 is None else x0
+    if x0 is None:
+        x0 = _start_vector(drops, layouts, free, stand_values(rig, law, free) if start is None else start)
+    x = x0
     last = len(stages) - 1
 
     def fit_one(stage, state):

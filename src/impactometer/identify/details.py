@@ -264,6 +264,9 @@ class Adequacy(Details):
     widening: tuple[float, float] | None = None
     #: the larger difference of M1 or V0 to the robust answer over their joint σ [-]
     robust_z: float | None = None
+    #: the factor sqrt(χ²/dof) the robust answer's σ is widened by where its rows scatter beyond their noise
+    #: (``fell back``) [-]
+    robust_inflation: float | None = None
 
     def named(self) -> dict[str, Any]:
         return _present({"verdict": self.verdict, "reason": self.reason, "chi2_dof": self.reduced_chi2,
@@ -272,7 +275,7 @@ class Adequacy(Details):
                          "samples": self.samples, "pre_trigger_samples": self.pre_trigger_samples,
                          "bandwidth_samples": self.bandwidth,
                          "widening": None if self.widening is None else list(self.widening),
-                         "robust_z": self.robust_z})
+                         "robust_z": self.robust_z, "robust_inflation": self.robust_inflation})
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

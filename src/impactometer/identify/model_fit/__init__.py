@@ -31,7 +31,7 @@ from ...validation import check_real, renamed
 from ..details import Adequacy, ModelDetails
 from ..plausibility import check_answer
 from ..result import Identification
-from .adequacy import Z_JOINT, Z_JOINT_ADEQUATE, _assess, _disagreement, _shortened
+from .adequacy import Z_JOINT, Z_JOINT_ADEQUATE, _assess, _disagreement, _robust_inflation, _shortened
 from .engine import (
     MIN_DURATION,
     LawFit,
@@ -308,14 +308,22 @@ def _with_adequacy(answer: Identification, adequacy: Adequacy) -> Identification
 
 def _fallback(recording: Recording, rig: Rig, common: ModelDetails, best: LawFit | None, adequacy: Adequacy,
               model: Identification | None = None) -> Identification:
-    """The robust answer (with its early answer) in place of the model's; with the ``model``'s answer, each σ
-    widened to sqrt(σ² + Δ²), Δ the difference to the model's answer: the two disagree beyond their joint σ and the
-    record does not say which is off."""
+    """The robust answer (with its early answer) in place of the model's, its σ widened by sqrt(χ²/dof) of its
+    rows where they scatter beyond their noise (:func:`.adequacy._robust_inflation`: a record the model does not
+    describe may break the robust method's assumptions too); with the ``model``'s answer, each σ then widened to
+    sqrt(σ² + Δ²), Δ the difference to the model's answer: the two disagree beyond their joint σ and the record does
+    not say which is off."""
     from ..peak_to_peak import identify_arrays as identify_robust
 
     robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
                              recording.start_time)
     reason = adequacy.reason
+    scale = _robust_inflation(robust)
+    if scale > 1.0:
+        robust = replace(robust, mass_std=robust.mass_std * scale, velocity_std=robust.velocity_std * scale)
+        reason = (f"{reason}; the robust answer's rows scatter beyond their noise (χ²/dof {scale ** 2:.3g}), so its "
+                  f"σ is widened by {scale:.3g}")
+        adequacy = replace(adequacy, reason=reason, robust_inflation=scale)
     if model is not None:
         robust = _widened(robust, model)
     return replace(robust, method="model/fallback",

@@ -176,6 +176,24 @@ def _assess(data: Observed, best: LawFit, quiet: float) -> tuple[Adequacy, float
                      widening=(wide[0] / plain[0], wide[1] / plain[1]), **common), *wide)
 
 
+def _robust_inflation(robust) -> float:
+    """The factor sqrt(max(1, χ²/dof)) [-] by which the σ of the robust answer ``robust`` (an
+    :class:`~impactometer.identify.result.Identification` of the peak-to-peak method) is widened where its rows
+    scatter beyond their noise (1 where its details state no χ² or no degree of freedom).
+
+    The robust answer is the least-squares solution of rows (onsets, turning points, separations) whose σ counts the
+    noise and the scatter the method models; where the record's pad breaks the rows' assumptions (a reload the
+    method reads as a flight, a set it does not hold) they disagree with each other beyond that σ, and χ²/dof
+    estimates by how much their variance is understated (the Birge ratio, the same rule that inflates the model's
+    Fisher σ by sqrt(χ²/dof)). A right record's χ²/dof is near 1, so the σ is then nearly unchanged.
+    """
+    details = getattr(robust, "details", None)
+    chi2, dof = getattr(details, "chi2", None), getattr(details, "dof", None)
+    if chi2 is None or dof is None or dof < 1 or not math.isfinite(chi2):
+        return 1.0
+    return math.sqrt(max(1.0, chi2 / dof))
+
+
 def _disagreement(model: Identification, robust: Identification) -> float:
     """The larger of |M1 − M1_robust| and |V0 − V0_robust| over their joint σ [-]."""
     return max(abs(model.mass - robust.mass) / math.hypot(model.mass_std, robust.mass_std),
