@@ -22,7 +22,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ...rig import Rig
 from .engine import MAX_EVALUATIONS, LawFit, Observed, fit_law, staged, window
-from .forward import Grid, _horizon, _predict, free_parameters, make_layout, stand_values
+from .forward import Grid, Layout, _horizon, _predict, free_parameters, make_layout, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
 #: the whole record follows
@@ -156,7 +156,14 @@ class _Layouts:
 
     def __init__(self, rig: Rig, law: str, free: tuple[str, ...], start: _Start, sample_rate: float):
         self.rig, self.law, self.free, self.start, self.sample_rate = rig, law, free, start, sample_rate
-        self.fixed = {kind: self._make(() if kind == "core" else free) for kind in ("core", "all")}
+        self._fixed: dict[str, Layout] = {}
+
+    def fixed(self, kind: str) -> Layout:
+        """The layout ``core`` or ``all``, made once when first asked for (a stream's screening fits of the other
+        laws on the first window never free the stand)."""
+        if kind not in self._fixed:
+            self._fixed[kind] = self._make(() if kind == "core" else self.free)
+        return self._fixed[kind]
 
     def _make(self, free: tuple[str, ...], mass: float | None = None):
         return make_layout(self.rig, self.law, free, pressure=self.start.pressure,
@@ -164,7 +171,7 @@ class _Layouts:
                            pressure_std=self.start.pressure_std)
 
     def __call__(self, kind: str, values: dict):
-        return self._make(self.free, values["mass"]) if kind == "stand" else self.fixed[kind]
+        return self._make(self.free, values["mass"]) if kind == "stand" else self.fixed(kind)
 
 
 def _retry(data: Observed, layouts, fit: LawFit, start: _Start) -> LawFit | None:
