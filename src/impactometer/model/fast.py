@@ -67,7 +67,7 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
     # a contact whose force jumps where it closes (a Kelvin-Voigt pad's c·δ', a damped stop's c·v2): the jump is
     # spread over the samples around it (:func:`share_jump`), so that they move with the closing instant rather
     # than in steps of the grid; the closings at the last sample (the pad's is 0 at first contact, t = 0)
-    gaps = closings(y, force_parameters)
+    gap_pad, gap_top, gap_bottom = closings(y, force_parameters)
     fc = fp = ff = f_top = f_bottom = 0.0
     t = 0.0
     t_end = t_out[-1]
@@ -111,8 +111,17 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
                 c = channel_index[j]
                 out[j, i_out] = ys[c] if c < N else d.derived_value(c, gravity, mass, piston_mass, fc, fp, ff,
                                                                     f_top, f_bottom)
-            if full:
-                gaps = spread_closings(out, channel_index, i_out, t_out, gaps, ys, force_parameters)
+            if full:  # jumps of contacts that closed since the last sample spread: spread_closings written out
+                after_pad, after_top, after_bottom = closings(ys, force_parameters)
+                if i_out > 0:
+                    if gap_pad <= 0.0 < after_pad:
+                        share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], gap_pad, after_pad)
+                    if gap_top <= 0.0 < after_top:
+                        share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], gap_top, after_top)
+                    if gap_bottom <= 0.0 < after_bottom:
+                        share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], gap_bottom,
+                                   after_bottom)
+                gap_pad, gap_top, gap_bottom = after_pad, after_top, after_bottom
             i_out += 1
         t = t_new
         stepper.accept(y, k)
@@ -133,16 +142,23 @@ def closings(y, q):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def spread_closings(out, channel_index, i_out, t_out, before, y, q):
+def spread_closings(out, channel_index, i_out, t_out, pad, top, bottom, y, q):
     """The closings (:func:`closings`) at sample ``i_out`` of state ``y``; each contact that closed since the sample
-    before (its compression in ``before`` <= 0, now > 0) has its jump spread over the two (:func:`share_jump`).
-    Returns the closings, the ``before`` of the next sample."""
-    after = closings(y, q)
+    before (its compression there, ``pad``, ``top`` or ``bottom``, <= 0, now > 0) has its jump spread over the two
+    (:func:`share_jump`). Returns the closings, those before the next sample.
+
+    :func:`integrate_into` has these lines written out in its loop: called there (inlined or not), the function
+    cost as much as the rest of a sample's output, the integration twice the time.
+    """
+    after_pad, after_top, after_bottom = closings(y, q)
     if i_out > 0:
-        for k in range(3):
-            if before[k] <= 0.0 < after[k]:
-                share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], before[k], after[k])
-    return after
+        if pad <= 0.0 < after_pad:
+            share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], pad, after_pad)
+        if top <= 0.0 < after_top:
+            share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], top, after_top)
+        if bottom <= 0.0 < after_bottom:
+            share_jump(out, channel_index, i_out, t_out[i_out - 1], t_out[i_out], bottom, after_bottom)
+    return after_pad, after_top, after_bottom
 
 
 @njit(cache=True, inline="always", error_model="numpy")

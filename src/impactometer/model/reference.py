@@ -68,14 +68,15 @@ def _channels_of(states, p, time, out):
     y = np.empty(d.N_STATE)
     every = np.arange(d.N_CHANNEL)
     q = d.force_parameters(p)
-    gaps = (-1.0, -1.0, -1.0)
+    pad = top = bottom = -1.0
     for i in range(states.shape[1]):
         for j in range(d.N_STATE):
             y[j] = states[j, i]
         d.channels(y, p, row)
         for j in range(d.N_CHANNEL):
             out[j, i] = row[j]
-        gaps = spread_closings(out, every, i, time, gaps, y, q)  # jumps spread as the fast integrator spreads them
+        # jumps spread as the fast integrator spreads them
+        pad, top, bottom = spread_closings(out, every, i, time, pad, top, bottom, y, q)
 
 
 def channels_of(states: np.ndarray, p: np.ndarray, time: np.ndarray) -> np.ndarray:

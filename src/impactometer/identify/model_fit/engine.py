@@ -493,9 +493,11 @@ def anti_alias_design(recording: Recording) -> str:
     return design
 
 
-def observe(recording: Recording, design: str, contact_time: float, min_duration: float = MIN_DURATION) -> Observed:
+def observe(recording: Recording, design: str, contact_time: float, min_duration: float = MIN_DURATION,
+            quiet: dict | None = None) -> Observed:
     """The record as the fit reads it, with each channel's noise σ from the samples before ``contact_time``, and
-    at least ``min_duration`` [s] after it."""
+    at least ``min_duration`` [s] after it. ``quiet``: where given, the :func:`_pre_trigger` figures are read from
+    it, or kept in it when it is empty (a stream's updates of one impact read the same pre-trigger)."""
     data = np.vstack([np.asarray(recording.channel(name), dtype=float) for name in CHANNELS])
     fs = recording.sample_rate
     onset = int(math.floor((contact_time - recording.start_time) * fs))
@@ -508,14 +510,24 @@ def observe(recording: Recording, design: str, contact_time: float, min_duration
         raise IdentificationError(f"{recording.source}: {max(pre, 0)} samples before first contact; the model fit "
                                   f"needs at least {MIN_PRE_SAMPLES + GUARD_SAMPLES} (the noise of each channel is "
                                   "measured there) -- record with a pre-trigger")
+    figures = None if quiet is None else quiet.get("pre_trigger")
+    if figures is None:
+        figures = _pre_trigger(data[:, :pre])
+        if quiet is not None:
+            quiet["pre_trigger"] = figures
+    noise, level = figures
+    floor = NOISE_FLOOR * np.max(np.abs(data - level[:, None]), axis=1)
+    noise = np.maximum(noise, np.maximum(floor, 1e-300))
+    grid = _make_grid(recording.start_time, fs, data.shape[1], design)
+    return Observed(channels=data, noise=noise, grid=grid, offsets=level)
+
+
+def _pre_trigger(samples: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each channel's noise σ and median of the pre-trigger ``samples`` (2, n) [N], [m/s²]."""
     # the model of the pre-trigger is an offset plus white noise: the sample standard deviation is its most
     # efficient σ (the median second difference of robust_noise_std scatters 2-3 times more: 10 % off on a record
     # of 1000 pre-trigger samples)
-    noise = quiet_noise_std(data[:, :pre], axis=1, ddof=1)
-    floor = NOISE_FLOOR * np.max(np.abs(data - np.median(data[:, :pre], axis=1)[:, None]), axis=1)
-    noise = np.maximum(noise, np.maximum(floor, 1e-300))
-    grid = _make_grid(recording.start_time, fs, data.shape[1], design)
-    return Observed(channels=data, noise=noise, grid=grid, offsets=np.median(data[:, :pre], axis=1))
+    return quiet_noise_std(samples, axis=1, ddof=1), np.median(samples, axis=1)
 
 
 def check_length(recording: Recording, min_duration: float = MIN_DURATION) -> float:

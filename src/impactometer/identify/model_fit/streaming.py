@@ -33,7 +33,7 @@ import contextlib
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -102,6 +102,8 @@ class _Impact:
     fit: _Growing
     done: bool = False
     checked: bool = False
+    #: the pre-trigger's noise σ and median, the same for every update (:func:`.engine.observe`)
+    quiet: dict = field(default_factory=dict)
 
 
 class ModelStream:
@@ -256,11 +258,12 @@ class ModelStream:
                                fit=_Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
         self.estimates = []
 
-    def _observe(self, recording: Recording, contact_time: float) -> Observed:
-        """The record as the fit reads it (:func:`.engine.observe`), on a grid whose
-        sensor model the stream made once: the design of the anti-alias FIR costs a quarter of a millisecond, a
-        first answer little more than a millisecond."""
-        data = observe(recording, "none", contact_time, min_duration=0.0)  # the design only makes the grid
+    def _observe(self, recording: Recording, impact: _Impact) -> Observed:
+        """The record as the fit reads it (:func:`.engine.observe`, its pre-trigger figures kept for the impact), on
+        a grid whose sensor model the stream made once: the design of the anti-alias FIR costs a quarter of a
+        millisecond, a first answer little more than a millisecond."""
+        data = observe(recording, "none", impact.contact_time, min_duration=0.0,  # the design only makes the grid
+                       quiet=impact.quiet)
         return replace(data, grid=replace(self._grid_model, start_time=data.grid.start_time, size=data.grid.size))
 
     def _stop(self, contact: float, after: float) -> int:
@@ -281,7 +284,7 @@ class ModelStream:
             if not impact.checked:  # a pre-trigger, as the batch fit needs one (the same for every update)
                 check_length(recording, min_duration=0.0)
                 impact.checked = True
-            data = self._observe(recording, impact.contact_time)
+            data = self._observe(recording, impact)
             fit = self._first(impact, data, span) if not impact.fit.states else _update(impact.fit, data, span)
         except IdentificationError as exc:  # no estimate this time; the final answer decides
             impact.fit.notes.append(f"up to {span * 1e3:.3g} ms after first contact: {exc}")
@@ -320,7 +323,7 @@ class ModelStream:
     def _emit(self, fit: LawFit, recording: Recording, *, stage: str, clock: float, span: float,
               impact: _Impact, data: Observed) -> list[Identification]:
         growing = impact.fit
-        held = fit.layout.names == growing.states[fit.law].layouts.fixed["core"].names
+        held = fit.layout.names == growing.states[fit.law].layouts.fixed("core").names
         if held and not _explains(fit, data):  # the stand held: only an answer that explains the record so far
             growing.notes.append(f"up to {span * 1e3:.3g} ms after first contact: the {fit.law} model with the "
                                  "stand held does not explain the samples after contact down to their noise")
