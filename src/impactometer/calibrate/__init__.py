@@ -263,25 +263,37 @@ def _calibrate(drops: Sequence[_ObservedDrop], base: Rig, names: tuple[str, ...]
 
 def _fit_families(drops: Sequence[_ObservedDrop], base: Rig, laws: Sequence[str], names: tuple[str, ...],
                   velocity_sigma: float, stages, step: Callable[[], None]) -> tuple[dict[str, _Family], dict]:
-    """Each family through the screening window (from each of its starts, :func:`.joint._starts`, the lowest χ²
-    kept), the ones within ``SCREEN_MARGIN`` of the best BIC to the end."""
+    """Each family through the screening window, the ones within ``SCREEN_MARGIN`` of the best BIC to the end.
+
+    Each family is screened from the stand's own values first; where no family then explains the drops
+    (χ²/dof ≤ :data:`MAX_REDUCED_CHI2` on the screening window) a family with further starts
+    (:func:`.joint._starts`) is screened from those too and the lowest χ² kept: a second minimum matters only where
+    the first leaves the drops unexplained."""
     screened: dict[str, tuple[_Family, np.ndarray]] = {}
+    errors: dict[str, list[str]] = {law: [] for law in laws}
     report: dict[str, dict] = {}
     head, tail = stages[:SCREEN_STAGE + 1], stages[SCREEN_STAGE + 1:]
+    starts = {law: _starts(base, law, free_parameters(law, names)) for law in laws}
+
+    def screen_from(law: str, start: dict[str, float], progress: Callable[[], None] | None) -> None:
+        try:
+            fit = _fit_family(drops, base, law, free_parameters(law, names), velocity_sigma=velocity_sigma,
+                              stages=head, final=not tail, progress=progress, start=start)
+        except IdentificationError as exc:
+            errors[law].append(str(exc))
+            return
+        if law not in screened or fit[0].chi2 < screened[law][0].chi2:
+            screened[law] = fit
+
+    for law in laws:  # the progress counts the stand's own start
+        screen_from(law, starts[law][0], step)
+    if not any(family.reduced_chi2 <= MAX_REDUCED_CHI2 for family, _ in screened.values()):
+        for law in laws:
+            for start in starts[law][1:]:
+                screen_from(law, start, None)
     for law in laws:
-        free = free_parameters(law, names)
-        errors = []
-        for k, start in enumerate(_starts(base, law, free)):  # the progress counts the stand's own start
-            try:
-                fit = _fit_family(drops, base, law, free, velocity_sigma=velocity_sigma, stages=head,
-                                  final=not tail, progress=step if k == 0 else None, start=start)
-            except IdentificationError as exc:
-                errors.append(str(exc))
-                continue
-            if law not in screened or fit[0].chi2 < screened[law][0].chi2:
-                screened[law] = fit
         if law not in screened:
-            report[law] = {"error": "; ".join(dict.fromkeys(errors))}
+            report[law] = {"error": "; ".join(dict.fromkeys(errors[law]))}
     families: dict[str, _Family] = {}
     if not screened:
         return families, report
