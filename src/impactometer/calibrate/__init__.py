@@ -265,10 +265,10 @@ def _fit_families(drops: Sequence[_ObservedDrop], base: Rig, laws: Sequence[str]
                   velocity_sigma: float, stages, step: Callable[[], None]) -> tuple[dict[str, _Family], dict]:
     """Each family through the screening window, the ones within ``SCREEN_MARGIN`` of the best BIC to the end.
 
-    Each family is screened from the stand's own values first; where no family then explains the drops
-    (χ²/dof ≤ :data:`MAX_REDUCED_CHI2` on the screening window) a family with further starts
-    (:func:`.joint._starts`) is screened from those too and the lowest χ² kept: a second minimum matters only where
-    the first leaves the drops unexplained."""
+    Each family is screened from the stand's own values first; a family with further starts
+    (:func:`.joint._starts`) is screened from those too, the lowest χ² kept, where it is a contender (its BIC within
+    ``SCREEN_MARGIN`` of the best) or no family explains the drops (χ²/dof ≤ :data:`MAX_REDUCED_CHI2` on the
+    screening window): a second minimum cannot matter to a family the data has already ruled out by far."""
     screened: dict[str, tuple[_Family, np.ndarray]] = {}
     errors: dict[str, list[str]] = {law: [] for law in laws}
     report: dict[str, dict] = {}
@@ -287,8 +287,10 @@ def _fit_families(drops: Sequence[_ObservedDrop], base: Rig, laws: Sequence[str]
 
     for law in laws:  # the progress counts the stand's own start
         screen_from(law, starts[law][0], step)
-    if not any(family.reduced_chi2 <= MAX_REDUCED_CHI2 for family, _ in screened.values()):
-        for law in laws:
+    explained = any(family.reduced_chi2 <= MAX_REDUCED_CHI2 for family, _ in screened.values())
+    lowest = min((family.bic for family, _ in screened.values()), default=math.inf)
+    for law in laws:
+        if not explained or law in screened and screened[law][0].bic <= lowest + SCREEN_MARGIN:
             for start in starts[law][1:]:
                 screen_from(law, start, None)
     for law in laws:
