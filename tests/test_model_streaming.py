@@ -282,8 +282,7 @@ def test_the_compiled_fit_takes_every_layout_with_the_python_solvers_answer():
     """The stream's compiled fit answers the one solver's requests for any layout (the stand freed, the charge
     pressure with its prior): the same optimum as the solver in Python on the same residuals, within the stopping
     rule's reach (χ² to its tolerance, the values to a small fraction of their σ)."""
-    from impactometer.identify.model_fit.engine import TOLERANCE, fit_law
-    from impactometer.identify.model_fit.first_window import _fit_window, _takes
+    from impactometer.identify.model_fit.first_window import _takes
     from impactometer.identify.model_fit.select import _Start, _start_law
 
     data, _, _ = _first_window(30.0, 2.0, 100e3, 21)
@@ -293,13 +292,47 @@ def test_the_compiled_fit_takes_every_layout_with_the_python_solvers_answer():
     for kind in ("core", "all"):
         layout = layouts(kind, values)
         assert _takes(data, layout) and layout.priors and "pressure_gauge" in layout.names
-        python = fit_law(data, layout, values, in_turn=True)
-        compiled = _fit_window(data, layout, values)
-        assert compiled.residuals == python.residuals
-        assert compiled.chi2 == pytest.approx(python.chi2, rel=10 * TOLERANCE)
+        python, compiled = _same_optimum(data, layout, values)
         for name in ("mass", "velocity"):
-            assert abs(compiled.values[name] - python.values[name]) <= 0.1 * python.std(name)
             assert compiled.std(name) == pytest.approx(python.std(name), rel=0.1)
+
+
+def _same_optimum(data, layout, start):
+    """The Python solver's and the compiled fit's answers on ``layout``, asserted the same optimum within the
+    stopping rule's reach (χ² to its tolerance, M1 and V0 to a small fraction of their σ)."""
+    from impactometer.identify.model_fit.engine import TOLERANCE, fit_law
+    from impactometer.identify.model_fit.first_window import _fit_window
+
+    python = fit_law(data, layout, start, in_turn=True)
+    compiled = _fit_window(data, layout, start)
+    assert compiled.residuals == python.residuals
+    assert compiled.chi2 == pytest.approx(python.chi2, rel=10 * TOLERANCE)
+    for name in ("mass", "velocity"):
+        assert abs(compiled.values[name] - python.values[name]) <= 0.1 * python.std(name)
+    return python, compiled
+
+
+def test_the_compiled_fit_keeps_a_layouts_own_bounds_as_the_python_solver_does():
+    """A layout with bounds of its own (:meth:`Layout.with_bounds`) is fitted by the compiled fit with the one range
+    check of the Python solver (a value outside the bounds packed as NaN and refused): the same optimum, inside the
+    bounds, where a bound holds M1 below the free fit's answer, and on the contact instant."""
+    from impactometer.identify.model_fit.engine import fit_law
+    from impactometer.identify.model_fit.first_window import _takes
+    from impactometer.model import dynamics as d
+
+    data, layout, values = _first_window(30.0, 2.0, 100e3, 21)
+    free = fit_law(data, layout, values, in_turn=True)
+    ceiling = free.values["mass"] - 3.0 * free.std("mass")
+    lead = values["contact_time"] - 2.0 / data.grid.sample_rate
+    for bounded, start in ((layout.with_bounds("mass", 1.0, ceiling), {**values, "mass": 0.9 * ceiling}),
+                           (layout.with_bounds("contact_time", lead, lead + 1.0), values)):
+        assert _takes(data, bounded)
+        for fit in _same_optimum(data, bounded, start):
+            assert fit.values["contact_time"] >= lead
+            if bounded.bounds[0][0] == "mass":
+                assert fit.values["mass"] <= ceiling and fit.chi2 > free.chi2
+    params, _ = layout.with_bounds("mass", 1.0, ceiling).packed(layout.variables({**values, "mass": 2 * ceiling}))
+    assert np.isnan(params[0, d.MASS])  # outside: NaN, which the range check refuses
 
 
 def test_the_one_solver_on_a_problem_with_a_known_answer():

@@ -41,7 +41,9 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
     any numba target (the CPU here, a CUDA device in :mod:`.gpu`).
 
     ``work`` is a (WORK_ROWS, N_STATE) float64 array, ``need`` an (N_STATE,) int64 array and ``row`` an
-    (N_CHANNEL,) float64 array; their contents on entry do not matter.
+    (N_CHANNEL,) float64 array; their contents on entry do not matter. An ``out`` with fewer columns than
+    ``t_out`` is filled at the first instants only, and the integration stops once it is: the steps up to then are
+    those to ``t_out[-1]`` (a causal filter reads none of the instants after its last output).
     """
     n = N  # compile-time size: the loops are unrolled
     k = work  # its first stepper.WORK_ROWS rows are the step's work array
@@ -71,8 +73,9 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
     fc = fp = ff = f_top = f_bottom = 0.0
     t = 0.0
     t_end = t_out[-1]
+    size = min(t_out.size, out.shape[1])  # the instants written
     i_out = 0
-    while i_out < t_out.size and t_out[i_out] <= 0.0:
+    while i_out < size and t_out[i_out] <= 0.0:
         d.channels(y, p, row)
         for j in range(channel_index.size):
             out[j, i_out] = row[channel_index[j]]
@@ -81,7 +84,7 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
     h_abs = stepper.initial_step(stepper.PLAIN, p, row, y, k[0], t_end, rtol, atol, max_step, ys, k[1],
                                  work[SCALE])
     steps = 0
-    while t < t_end:
+    while t < t_end and i_out < size:
         if steps >= max_steps:
             return stepper.TOO_MANY_STEPS, steps
         status, t_new, h_abs = stepper.step(stepper.PLAIN, y, t, t_end, h_abs, p, row, rtol, atol, max_step, k)
@@ -90,7 +93,7 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
         h = t_new - t
         # samples inside (t, t_new]: continuous extension y(t + θh) = y + h·θ·(Q0 + θ·(Q1 + θ·(Q2 + θ·Q3))), the
         # stage state's row reused for the interpolated state
-        if i_out < t_out.size and t_out[i_out] <= t_new:
+        if i_out < size and t_out[i_out] <= t_new:
             for j in range(m):
                 i = need[j]
                 q1[i] = (_P[0, 1] * k[0, i] + _P[2, 1] * k[2, i] + _P[3, 1] * k[3, i] + _P[4, 1] * k[4, i]
@@ -99,7 +102,7 @@ def integrate_into(p, y0, t_out, channel_index, rtol, atol, max_step, max_steps,
                          + _P[5, 2] * k[5, i] + _P[6, 2] * k[6, i])
                 q3[i] = (_P[0, 3] * k[0, i] + _P[2, 3] * k[2, i] + _P[3, 3] * k[3, i] + _P[4, 3] * k[4, i]
                          + _P[5, 3] * k[5, i] + _P[6, 3] * k[6, i])
-        while i_out < t_out.size and t_out[i_out] <= t_new:
+        while i_out < size and t_out[i_out] <= t_new:
             theta = (t_out[i_out] - t) / h
             for j in range(m):
                 i = need[j]

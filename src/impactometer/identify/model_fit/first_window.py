@@ -77,8 +77,9 @@ class _Timing(NamedTuple):
 
 class _Window(NamedTuple):
     """Everything the compiled fit reads of one window: the layout (its packed held values, its
-    :attr:`.forward.Layout.codes` as ``slots``, ``code`` and ``param``, whether the law is hysteretic, its priors:
-    index, mean and σ of each), the start vector, the finite-difference steps, the :class:`Timing`, the internal
+    :attr:`.forward.Layout.codes` as ``slots``, ``code`` and ``param``, whether the law is hysteretic, its own
+    bounds :attr:`.forward.Layout.limits` as ``low`` and ``high``, its priors: index, mean and σ of each), the start
+    vector, the finite-difference steps, the :class:`Timing`, the internal
     instants, the reversed FIR taps, the noise σ (2,), rtol then the absolute tolerances, the samples after the
     head over σ (2, n), and the head (root of its size, its means)."""
 
@@ -87,6 +88,8 @@ class _Window(NamedTuple):
     code: np.ndarray
     param: np.ndarray
     hysteretic: bool
+    low: np.ndarray
+    high: np.ndarray
     prior_index: np.ndarray
     prior_mean: np.ndarray
     prior_sigma: np.ndarray
@@ -102,9 +105,8 @@ class _Window(NamedTuple):
 
 
 def _takes(data: Observed, layout: Layout) -> bool:
-    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model, a fitted contact instant and
-    no bounds of the layout's own (:meth:`.forward.Layout.with_bounds`)."""
-    return data.grid.design == "causal" and "contact_time" in layout.names and not layout.bounds
+    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model and a fitted contact instant."""
+    return data.grid.design == "causal" and "contact_time" in layout.names
 
 
 @njit(cache=True, error_model="numpy")
@@ -112,7 +114,7 @@ def _channels(w, x, out, internal, y0, p):
     """``out`` (2, n) := the channels over σ predicted at the layout's variables ``x``; False where the model is
     not integrated there (:func:`.forward._predict_row`'s refusals, a contact before the earliest)."""
     timing = w.timing
-    shift = _pack_row(w.base, x, w.slots, w.code, w.param, w.hysteretic, p)
+    shift = _pack_row(w.base, x, w.slots, w.code, w.param, w.hysteretic, w.low, w.high, p)
     contact = timing.origin + shift / timing.sample_rate
     if not (np.isfinite(contact) and contact >= timing.earliest):
         return False
@@ -176,7 +178,9 @@ def _solve(w, evaluations, jacobians, information, jac):
     :func:`.engine._advance` answered by the compiled residuals and Jacobian; returns (report, x, χ² less the
     head's constant, residual evaluations); ``jac`` holds the last Jacobian made."""
     n, rows = w.tail.shape[1], jac.shape[0]
-    internal, y0, p = np.empty((2, w.instants.size)), np.empty(d.N_STATE), np.empty(w.base.size)
+    # the internal instants the causal FIR reads (those after the last sample's: none)
+    used = w.timing.pad + (n - 1) * w.timing.factor + 1
+    internal, y0, p = np.empty((2, used)), np.empty(d.N_STATE), np.empty(w.base.size)
     model, trial_model, moved = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
     r, r_trial = np.empty(rows), np.empty(rows)
     x = w.x.copy()
@@ -217,7 +221,9 @@ def _window(data: Observed, layout: Layout, start: dict[str, float], offsets: np
     timing = _Timing(origin=float(layout.origin), sample_rate=float(layout.sample_rate), start_time=grid.start_time,
                     earliest=problem.earliest, factor=int(grid.factor), pad=int(grid.pad))
     index, code, param = layout.codes
+    low, high = layout.limits
     return _Window(base=layout.base, slots=index, code=code, param=param, hysteretic=layout.law == "hysteretic",
+                  low=low, high=high,
                   prior_index=problem.prior_index, prior_mean=problem.prior_mean, prior_sigma=problem.prior_sigma,
                   x=x, steps=problem.steps.astype(float), timing=timing, instants=grid.instants, fir=grid.taps,
                   noise=data.noise, tolerances=np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)],
@@ -265,6 +271,7 @@ def _warm() -> None:
     timing = _Timing(origin=0.0, sample_rate=1.0, start_time=0.0, earliest=0.0, factor=1, pad=0)
     index, code, param = (np.array([d.MASS, d.VELOCITY, -1]), np.array([0, 0, 2]), np.array([0.0, 0.0, 1.0]))
     w = _Window(base=np.zeros(d.N_PARAM), slots=index, code=code, param=param, hysteretic=True,
+               low=np.full(3, -np.inf), high=np.full(3, np.inf),
                prior_index=np.zeros(1, dtype=np.int64), prior_mean=np.zeros(1), prior_sigma=np.ones(1),
                x=np.full(5, -1e3), steps=np.ones(3), timing=timing, instants=np.zeros(4), fir=np.ones(1),
                noise=np.ones(2), tolerances=np.ones(1 + d.N_STATE), tail=np.zeros((2, 1)), head=np.ones(3))

@@ -110,14 +110,18 @@ def _from_variable(x, kind: str, param: float):
 
 
 @njit(cache=True, error_model="numpy")
-def _pack_row(base, x, index, code, param, hysteretic, out):
+def _pack_row(base, x, index, code, param, hysteretic, low, high, out):
     """``out`` := the packed parameters of fit variables ``x`` (a :class:`Layout`'s :attr:`~Layout.codes`, ``base``
     its held values); returns the ``contact_time`` variable's value (sample periods from the layout's origin; 0
-    where it is not fitted). The hysteretic law's unloading stiffness k2 = k1/e² follows k1 and e (packed as e)."""
+    where it is not fitted). The hysteretic law's unloading stiffness k2 = k1/e² follows k1 and e (packed as e).
+    A value outside the layout's own bounds ``low``, ``high`` (:attr:`Layout.limits`) is packed as NaN, which the
+    one range check refuses (:func:`_outside_ranges`; a contact instant that is not finite)."""
     out[:] = base
     contact = 0.0
     for j in range(index.size):
         value = _variable_value(x[j], code[j], param[j])
+        if not low[j] <= value <= high[j]:
+            value = np.nan
         if index[j] < 0:
             contact = value
         else:
@@ -342,27 +346,31 @@ class Layout:
                 np.array([KINDS.index(kind) for _, kind, _ in self.specs], dtype=np.int64),
                 np.array([param for _, _, param in self.specs], dtype=float))
 
+    @cached_property
+    def limits(self) -> tuple[np.ndarray, np.ndarray]:
+        """The layout's own bounds of each unknown as :func:`_pack_row` reads them: lower and upper [SI; the contact
+        instant in sample periods from ``origin``], infinite where it has none."""
+        low, high = np.full(len(self.names), -math.inf), np.full(len(self.names), math.inf)
+        for name, lower, upper in self.bounds:
+            if name in self.names:
+                j = self.names.index(name)
+                scale = self.sample_rate if name == "contact_time" else 1.0
+                shift = self.origin if name == "contact_time" else 0.0
+                low[j], high[j] = (lower - shift) * scale, (upper - shift) * scale
+        return low, high
+
     def packed(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Packed parameter rows (m, N_PARAM) and contact instants (m,) [s] of fit variable rows (m, q)."""
+        """Packed parameter rows (m, N_PARAM) and contact instants (m,) [s] of fit variable rows (m, q); a value
+        outside the layout's bounds is NaN (:func:`_pack_row`)."""
         rows = np.atleast_2d(np.asarray(rows, dtype=float))
         params = np.empty((rows.shape[0], self.base.size))
         shifts = np.empty(rows.shape[0])
         index, code, param = self.codes
+        low, high = self.limits
         for s in range(rows.shape[0]):
             shifts[s] = _pack_row(self.base, np.ascontiguousarray(rows[s]), index, code, param,
-                                 self.law == "hysteretic", params[s])
+                                 self.law == "hysteretic", low, high, params[s])
         times = self.origin + shifts / self.sample_rate if "contact_time" in self.names else np.zeros(rows.shape[0])
-        for name, lower, upper in self.bounds:  # outside the layout's bounds: NaN, refused by the one range check
-            if name in self.names:
-                j = self.names.index(name)
-                value = np.asarray(_from_variable(rows[:, j], self.specs[j][1], self.specs[j][2]), dtype=float)
-                if name == "contact_time":
-                    value = self.origin + value / self.sample_rate
-                outside = ~((lower <= value) & (value <= upper))
-                if name == "contact_time":
-                    times[outside] = math.nan
-                else:
-                    params[outside, self.specs[j][0]] = math.nan
         return params, times
 
 
@@ -488,7 +496,8 @@ def _predict_row(p, y0, instants, shift, channel_index, rtol, atol, max_step, ma
 
 @njit(cache=True, parallel=True, error_model="numpy")
 def _predict_rows(params, instants, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
-    """:func:`_predict_row` of every row on the thread pool."""
+    """:func:`_predict_row` of every row on the thread pool (``out`` (m, channels, n) filled at the first n
+    instants: :func:`.fast.integrate_into`)."""
     for s in prange(params.shape[0]):
         status[s] = _predict_row(params[s], np.empty(d.N_STATE), instants, shifts[s], channel_index, rtol, atol,
                                 max_step, max_steps, out[s])
@@ -496,7 +505,8 @@ def _predict_rows(params, instants, shifts, channel_index, rtol, atol, max_step,
 
 @njit(cache=True, error_model="numpy")
 def _predict_in_turn(params, instants, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
-    """:func:`_predict_row` of every row, one after the other on the calling thread."""
+    """:func:`_predict_row` of every row, one after the other on the calling thread (``out`` as
+    :func:`_predict_rows`)."""
     y0 = np.empty(d.N_STATE)
     for s in range(params.shape[0]):
         status[s] = _predict_row(params[s], y0, instants, shifts[s], channel_index, rtol, atol, max_step, max_steps,
@@ -519,7 +529,7 @@ def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tu
     if not np.all(np.isfinite(contact_times)):
         raise IdentificationError("the model is not integrated at a contact instant that is not finite")
     instants = grid.instants
-    out = np.empty((params.shape[0], 2, instants.size))
+    out = np.empty((params.shape[0], 2, _read(grid)))  # the instants after the last that the filter reads: none
     status = np.zeros(params.shape[0], dtype=np.int64)
     shifts = np.asarray(contact_times, dtype=float) - grid.start_time
     kernel = _predict_in_turn if in_turn else _predict_rows
@@ -537,6 +547,12 @@ def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tu
         raise IdentificationError(f"the model's integration failed ({fast.STATUS_TEXT[int(status[i])]}) at "
                                   f"M1 = {params[i, d.MASS]:.4g} kg, V0 = {params[i, d.VELOCITY]:.4g} m/s")
     return _sensed(grid, out)
+
+
+def _read(grid: Grid) -> int:
+    """The internal instants the grid's anti-alias filter reads, from the first (all of them but the pad after the
+    last sample under the causal FIR, :func:`_fir_decimate`)."""
+    return grid.pad + (grid.size - 1) * grid.factor + 1 if grid.design == "causal" else grid.instants.size
 
 
 def _sensed(grid: Grid, internal: np.ndarray) -> np.ndarray:

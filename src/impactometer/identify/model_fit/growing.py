@@ -84,6 +84,8 @@ class _Growing:
     chosen: str | None = None
     choice: str = ""
     notes: list[str] = field(default_factory=list)
+    #: the last fit judged by :func:`_explained` and the verdict
+    judged: tuple[LawFit, bool] | None = None
 
     def best(self) -> LawFit | None:
         """The fit of smallest BIC among the laws followed (None before the first answer)."""
@@ -94,10 +96,17 @@ def _explains(fit: LawFit, data: Observed) -> bool:
     """Whether ``fit`` explains the samples of ``data`` after its first contact down to their noise (see
     :data:`EXPLAINED_SPREAD`); the model is zero before contact, so those samples' share of χ² is the offsets'."""
     times = data.grid.start_time + np.arange(data.channels.shape[1]) / data.grid.sample_rate
-    before = times < fit.values["contact_time"]
-    pre = float(np.sum(np.square((data.channels[:, before] - fit.offsets[:, None]) / data.noise[:, None])))
-    dof = 2 * int(np.count_nonzero(~before)) - fit.unknowns
+    before = int(np.searchsorted(times, fit.values["contact_time"]))  # the samples before: the first ones
+    pre = float(np.sum(np.square((data.channels[:, :before] - fit.offsets[:, None]) / data.noise[:, None])))
+    dof = 2 * (times.size - before) - fit.unknowns
     return dof > 0 and (fit.chi2 - pre) / dof <= 1.0 + EXPLAINED_SPREAD * math.sqrt(2.0 / dof)
+
+
+def _explained(growing: _Growing, fit: LawFit, data: Observed) -> bool:
+    """:func:`_explains` of ``fit`` on ``data``, the window it was fitted on, judged once per fit."""
+    if growing.judged is None or growing.judged[0] is not fit:
+        growing.judged = (fit, _explains(fit, data))
+    return growing.judged[1]
 
 
 def _fit_core(growing: _Growing, law: str, data: Observed, core: dict | None, evaluations: int,
@@ -128,7 +137,7 @@ def _first_fit(growing: _Growing, data: Observed, span: float, starts: list[_Sta
             continue
         if found is None or state.fit.chi2 < found[0].fit.chi2:
             found = (state, start)
-        if _explains(found[0].fit, data):
+        if _explained(growing, found[0].fit, data):
             break
     if found is None:
         return None
@@ -137,7 +146,7 @@ def _first_fit(growing: _Growing, data: Observed, span: float, starts: list[_Sta
     if growing.pending.laws:
         growing.choice = (f"{own} (the stand's law) for the first answer; the other laws are screened on the first "
                           f"{span * 1e3:.3g} ms at the next update")
-        if not _explains(found[0].fit, data):
+        if not _explained(growing, found[0].fit, data):
             _screen_pending(growing, every=True)
     return growing.best()
 

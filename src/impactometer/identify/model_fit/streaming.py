@@ -59,7 +59,7 @@ from .engine import (
 )
 from .first_window import _warm
 from .forward import _check_uncertain, _make_grid
-from .growing import _explains, _first_fit, _Growing, _update
+from .growing import _explained, _first_fit, _Growing, _update
 from .select import SCREEN_WINDOW, STAGES, _grid_predictions, _grid_starts, _Start
 
 #: default time between updates [s] of record: an update of the record up to 50 ms after contact took a median
@@ -324,7 +324,8 @@ class ModelStream:
               impact: _Impact, data: Observed) -> list[Identification]:
         growing = impact.fit
         held = fit.layout.names == growing.states[fit.law].layouts.fixed("core").names
-        if held and not _explains(fit, data):  # the stand held: only an answer that explains the record so far
+        # the stand held: only an answer that explains the record so far
+        if held and not _explained(growing, fit, data):
             growing.notes.append(f"up to {span * 1e3:.3g} ms after first contact: the {fit.law} model with the "
                                  "stand held does not explain the samples after contact down to their noise")
             return []
