@@ -257,6 +257,19 @@ class ModelStream:
                                next_stop=self._stop(contact, self.first),
                                fit=_Growing(rig=self.rig, laws=self.laws, uncertain=self.uncertain))
         self.estimates = []
+        self._prepare(self._impact)
+
+    def _prepare(self, impact: _Impact) -> None:
+        """The checks and figures of the pre-trigger (:func:`.engine.check_length`, the noise σ and offsets of
+        :func:`.engine.observe`), made at the trigger on the samples so far: they read the samples before first
+        contact only, so the first answer finds them made. Where the record so far does not pass, the first update
+        checks it again and says why."""
+        recording = self._recording(np.vstack(self.robust.buffered(impact.first, self.robust.seen)), impact.first,
+                                    self._update_metadata)
+        with contextlib.suppress(IdentificationError):
+            check_length(recording, min_duration=0.0)
+            self._observe(recording, impact)
+            impact.checked = True
 
     def _observe(self, recording: Recording, impact: _Impact) -> Observed:
         """The record as the fit reads it (:func:`.engine.observe`, its pre-trigger figures kept for the impact), on
