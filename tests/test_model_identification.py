@@ -324,6 +324,35 @@ def test_a_misread_pressure_gauge_is_covered_by_its_prior(mass, velocity, pressu
     assert "pressure_gauge" in on.details["parameters"] and "pressure_gauge" not in exact.details["parameters"]
 
 
+#: records of the stiff stand identified on the default one (neither stand named in the file): (M1, V0, p0, seed)
+#: the 45 kg record is explained to its noise with nested fits 2.6 and 2.1 σ apart (a right stand's are as far in
+#: 1 record of 50) and a pressure pull of 1.7: neither test names the stand, and the answer is 5.6 σ off in V0
+STAND_CASES = [(20.0, 2.5, 300e3, 31), pytest.param(45.0, 3.2, 380e3, 32, marks=pytest.mark.xfail(
+    strict=True, reason="a stand the fit soaks up beyond what the nested fits and the pressure's pull resolve")),
+               (12.0, 1.5, 150e3, 33)]
+
+
+@pytest.mark.parametrize(("mass", "velocity", "pressure", "seed"), STAND_CASES)
+def test_another_stand_is_covered_or_named(mass, velocity, pressure, seed):
+    """A stiffer stand than the one stated, whose difference the fitted pressure soaks up so that the record is
+    explained down to its noise: the answer lies within GAUGE_Z of its σ or a warning names ``--rig``; on the stand
+    stated the same impact passes the nested-fit test (it fails a right model in 1 record of 8000)."""
+    from impactometer.identify.model_fit.adequacy import Z_NESTED
+    from impactometer.rig import STAND_KEY
+
+    rec = _record(mass, velocity, pressure, seed, rig="drop-stand-stiff")
+    for key in ("rig", STAND_KEY):
+        rec.metadata.pop(key, None)
+    answer = identify(rec)
+    inside = (abs(answer.mass - mass) <= GAUGE_Z * answer.mass_std
+              and abs(answer.velocity - velocity) <= GAUGE_Z * answer.velocity_std)
+    assert inside or any("--rig" in warning for warning in answer.warnings)
+    right = identify(_record(mass, velocity, pressure, seed))
+    assert right.details["adequacy"]["verdict"] == "adequate"
+    nested = right.details["adequacy"].get("nested_z")  # stated where the test fails
+    assert nested is None or max(abs(z) for z in nested) <= Z_NESTED
+
+
 def test_a_given_pressure_and_the_metadata_are_combined_or_refused():
     from impactometer.identify.model_fit import GAUGE_FLOOR_STD, _gauge_std, _pressure
 

@@ -267,6 +267,9 @@ class Adequacy(Details):
     #: the factor sqrt(χ²/dof) the robust answer's σ is widened by where its rows scatter beyond their noise
     #: (``fell back``) [-]
     robust_inflation: float | None = None
+    #: the difference of the fit of the first span after contact and the whole record's fit over its σ, in M1 and
+    #: V0 (the specification test, :func:`~impactometer.identify.model_fit.adequacy._nested`) [-]
+    nested_z: tuple[float, float] | None = None
 
     def named(self) -> dict[str, Any]:
         return _present({"verdict": self.verdict, "reason": self.reason, "chi2_dof": self.reduced_chi2,
@@ -275,7 +278,8 @@ class Adequacy(Details):
                          "samples": self.samples, "pre_trigger_samples": self.pre_trigger_samples,
                          "bandwidth_samples": self.bandwidth,
                          "widening": None if self.widening is None else list(self.widening),
-                         "robust_z": self.robust_z, "robust_inflation": self.robust_inflation})
+                         "robust_z": self.robust_z, "robust_inflation": self.robust_inflation,
+                         "nested_z": None if self.nested_z is None else list(self.nested_z)})
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)

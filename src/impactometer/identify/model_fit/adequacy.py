@@ -16,6 +16,10 @@ Fisher information's. Otherwise the residuals are not the noise, and the σ is t
 autocorrelation consistent, Newey-West) covariance H⁻¹·S·H⁻¹ of the fit, H the Fisher information and S the
 long-run covariance of the scores J_i·r_i with the Bartlett kernel, its bandwidth the lag at which the residuals'
 autocorrelation has fallen to noise (:func:`bandwidth`): it counts the model error as the correlated error it is.
+A record explained down to its noise can still be of another stand or at another pressure than the one stated, the
+fit soaking the difference up into the pressure and the contact: then the fit of its first span (:data:`NESTED_SPAN`)
+and the whole fit disagree beyond the σ of their difference (:func:`_nested`, a Hausman specification test); such an
+answer is ``widened`` by that difference and its warning names ``--rig`` and ``--pressure``.
 Either answer is then checked against the robust answer of the same record within their joint σ (:data:`Z_JOINT`):
 where they disagree (another stand, a misread pressure, a pad the model does not hold), the answer is the robust
 one with a σ that spans both (``fell back``).
@@ -50,6 +54,12 @@ Z_JOINT_ADEQUATE = 5.0
 #: whole record: the first impact and its rebound (the pad's loading and unloading) come before the minor loops
 #: of sustained contact, where pads differ most in how they reload
 SPANS = (0.03, 0.015, 0.008)
+#: the span after first contact [s] whose fit the whole record's fit is checked against (:func:`_nested`): the
+#: first impact and its rebound, every unknown free (the last stage of the continuation, :data:`.select.STAGES`)
+NESTED_SPAN = 0.03
+#: the nested fits disagree beyond this many σ of their difference, in ln M1 or ln V0 [-]: two statistics, each a
+#: standard normal under a right model, exceed 4 together in 1 record of 8000
+Z_NESTED = 4.0
 #: the most lags the sandwich's bandwidth reaches, as a fraction of the samples after contact [-]
 MAX_BANDWIDTH_FRACTION = 0.25
 
@@ -219,3 +229,27 @@ def _shortened(data: Observed, best: LawFit, quiet: float) -> tuple[LawFit, Adeq
         if adequacy.verdict == "adequate" and math.isfinite(mass_std) and math.isfinite(velocity_std):
             return fit, adequacy, mass_std, velocity_std
     return None
+
+
+def _nested(data: Observed, best: LawFit) -> tuple[float, float, float, float] | None:
+    """The specification (Hausman) test of ``best``: the same law and unknowns refitted on the
+    first :data:`NESTED_SPAN` after contact. Under a right model the whole fit is the efficient one, so the
+    difference of the two answers has the variance of the short fit less that of the whole (their covariance is
+    the whole fit's); a stand or a pressure that the fit soaks up into other parameters explains each span to its
+    noise with another parameter set, and the two disagree beyond that σ. Returns the z of ln M1 and ln V0 and
+    the differences of ln M1 and ln V0 (short − whole); None where ``best`` read no more than 1.5 spans, the short
+    fit fails or a variance is not positive."""
+    end = data.grid.start_time + (data.grid.size - 1) / data.grid.sample_rate - best.values["contact_time"]
+    if (end if best.span is None else min(best.span[0], end)) <= 1.5 * NESTED_SPAN:
+        return None
+    part = window(data, best.values["contact_time"] + NESTED_SPAN)
+    try:
+        short = fit_law(part, best.layout, best.values, offsets=best.offsets)
+    except IdentificationError:
+        return None
+    delta = (math.log(short.values["mass"] / best.values["mass"]),
+             math.log(short.values["velocity"] / best.values["velocity"]))
+    spread = (short.cov[0, 0] - best.cov[0, 0], short.cov[1, 1] - best.cov[1, 1])
+    if not all(math.isfinite(v) and v > 0.0 for v in spread):
+        return None
+    return delta[0] / math.sqrt(spread[0]), delta[1] / math.sqrt(spread[1]), delta[0], delta[1]
