@@ -45,7 +45,7 @@ def test_an_open_valve_given_as_input_is_identified_and_without_it_is_not():
 
 def test_a_valve_closed_throughout_is_the_closed_valve_fit_bit_for_bit():
     rec = record(SCENARIO, get_rig(), **RECORD)
-    assert fw.valve_schedule(np.zeros(rec.time.size), rec.start_time, rec.sample_rate) is None
+    assert fw._valve_schedule(np.zeros(rec.time.size), rec.start_time, rec.sample_rate) is None
     plain = identify(rec)
     zero = identify(_with_opening(rec, np.zeros(rec.time.size)))
     assert (zero.mass, zero.velocity, zero.mass_std, zero.velocity_std) == \
@@ -53,10 +53,10 @@ def test_a_valve_closed_throughout_is_the_closed_valve_fit_bit_for_bit():
 
 
 def test_the_schedule_holds_each_opening_from_its_sample():
-    times, values = fw.valve_schedule([0.0, 0.0, 0.5, 0.5, 1.0, 0.0], -1e-3, 1e3)
+    times, values = fw._valve_schedule([0.0, 0.0, 0.5, 0.5, 1.0, 0.0], -1e-3, 1e3)
     assert np.allclose(times, [1e-3, 3e-3, 4e-3]) and np.array_equal(values, [0.5, 1.0, 0.0])
     with pytest.raises(ParameterError, match="valve opening"):
-        fw.valve_schedule([0.0, 1.5], 0.0, 1e3)
+        fw._valve_schedule([0.0, 1.5], 0.0, 1e3)
 
 
 def test_a_piecewise_integration_agrees_with_one_piece():

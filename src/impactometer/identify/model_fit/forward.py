@@ -451,17 +451,17 @@ class Grid:
 
 def _make_grid(start_time: float, sample_rate: float, size: int, design: str, opening=None) -> Grid:
     """The :class:`Grid` of a recording of ``size`` samples from ``start_time`` [s] at ``sample_rate`` [Hz];
-    ``opening``: valve Z's opening [-] at each of its samples (:func:`valve_schedule`), None or all zero: closed."""
+    ``opening``: valve Z's opening [-] at each of its samples (:func:`_valve_schedule`), None or all zero: closed."""
     if design not in ANTI_ALIAS:
         raise IdentificationError(f"anti_alias must be one of {sorted(ANTI_ALIAS)}, got {design!r}")
     factor, pad = internal_layout(design, sample_rate)
     taps = causal_taps(factor) if design == "causal" else np.ones(1)
-    valve = None if opening is None else valve_schedule(opening, start_time, sample_rate)
+    valve = None if opening is None else _valve_schedule(opening, start_time, sample_rate)
     return Grid(start_time=float(start_time), sample_rate=float(sample_rate), size=int(size), design=design,
                 factor=factor, pad=pad, taps=taps[::-1].copy(), valve=valve)
 
 
-def valve_schedule(opening, start_time: float, sample_rate: float) -> tuple[np.ndarray, np.ndarray] | None:
+def _valve_schedule(opening, start_time: float, sample_rate: float) -> tuple[np.ndarray, np.ndarray] | None:
     """The opening schedule of :class:`Grid` from valve Z's opening [-] sampled with a record (``start_time``
     [s], ``sample_rate`` [Hz]): each sample's opening held from its instant, runs of one value merged; None for a
     valve closed throughout (the prediction is then the closed-valve one, bit for bit).
