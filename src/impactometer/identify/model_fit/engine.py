@@ -29,6 +29,9 @@ from ...signals.noise import quiet_noise_std, robust_noise_std
 from .forward import Grid, Layout, _make_grid, _predict
 from .information import covariance
 
+#: the record's channel of valve Z's opening [-] the fit reads as an input
+VALVE_OPENING = "valve_opening"
+
 #: finite-difference step of the Jacobian in the fit variables (ln of a positive value, value/scale of a linear
 #: one) and in sample periods for the contact instant. Smaller steps let the integrator's error (its step sequence
 #: changes with the parameters, and the contact opens and closes between steps) into the differences: at 1e-6 the
@@ -496,8 +499,11 @@ def anti_alias_design(recording: Recording) -> str:
 def observe(recording: Recording, design: str, contact_time: float, min_duration: float = MIN_DURATION,
             quiet: dict | None = None) -> Observed:
     """The record as the fit reads it, with each channel's noise σ from the samples before ``contact_time``, and
-    at least ``min_duration`` [s] after it. ``quiet``: where given, the :func:`_pre_trigger` figures are read from
-    it, or kept in it when it is empty (a stream's updates of one impact read the same pre-trigger)."""
+    at least ``min_duration`` [s] after it. A record with a :data:`VALVE_OPENING` channel (valve Z's opening [-]
+    at each sample, as the valve's command and drive give it) is predicted with that opening (the fit knows the
+    valve); without it, or with it zero throughout, with the valve closed. ``quiet``: where given, the
+    :func:`_pre_trigger` figures are read from it, or kept in it when it is empty (a stream's updates of one impact
+    read the same pre-trigger)."""
     data = np.vstack([np.asarray(recording.channel(name), dtype=float) for name in CHANNELS])
     fs = recording.sample_rate
     onset = int(math.floor((contact_time - recording.start_time) * fs))
@@ -518,7 +524,8 @@ def observe(recording: Recording, design: str, contact_time: float, min_duration
     noise, level = figures
     floor = NOISE_FLOOR * np.max(np.abs(data - level[:, None]), axis=1)
     noise = np.maximum(noise, np.maximum(floor, 1e-300))
-    grid = _make_grid(recording.start_time, fs, data.shape[1], design)
+    opening = recording.channels.get(VALVE_OPENING)  # the valve command's opening, where the record holds it
+    grid = _make_grid(recording.start_time, fs, data.shape[1], design, opening=opening)
     return Observed(channels=data, noise=noise, grid=grid, offsets=level)
 
 

@@ -438,6 +438,9 @@ class Grid:
     factor: int
     pad: int
     taps: np.ndarray
+    #: valve Z's opening schedule: instants on the recording's clock [s] (increasing) and the opening [-] of the
+    #: fully open valve held from each (zero-order hold; closed before the first); None: the valve of the parameters
+    valve: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def instants(self) -> np.ndarray:
@@ -446,14 +449,36 @@ class Grid:
         return (np.arange(n_int) - self.pad) / (self.factor * self.sample_rate)
 
 
-def _make_grid(start_time: float, sample_rate: float, size: int, design: str) -> Grid:
-    """The :class:`Grid` of a recording of ``size`` samples from ``start_time`` [s] at ``sample_rate`` [Hz]."""
+def _make_grid(start_time: float, sample_rate: float, size: int, design: str, opening=None) -> Grid:
+    """The :class:`Grid` of a recording of ``size`` samples from ``start_time`` [s] at ``sample_rate`` [Hz];
+    ``opening``: valve Z's opening [-] at each of its samples (:func:`_valve_schedule`), None or all zero: closed."""
     if design not in ANTI_ALIAS:
         raise IdentificationError(f"anti_alias must be one of {sorted(ANTI_ALIAS)}, got {design!r}")
     factor, pad = internal_layout(design, sample_rate)
     taps = causal_taps(factor) if design == "causal" else np.ones(1)
+    valve = None if opening is None else _valve_schedule(opening, start_time, sample_rate)
     return Grid(start_time=float(start_time), sample_rate=float(sample_rate), size=int(size), design=design,
-                factor=factor, pad=pad, taps=taps[::-1].copy())
+                factor=factor, pad=pad, taps=taps[::-1].copy(), valve=valve)
+
+
+def _valve_schedule(opening, start_time: float, sample_rate: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The opening schedule of :class:`Grid` from valve Z's opening [-] sampled with a record (``start_time``
+    [s], ``sample_rate`` [Hz]): each sample's opening held from its instant, runs of one value merged; None for a
+    valve closed throughout (the prediction is then the closed-valve one, bit for bit).
+
+    Raises
+    ------
+    ParameterError
+        For an opening outside [0, 1] or not finite.
+    """
+    opening = np.asarray(opening, dtype=float).ravel()
+    if not np.all(np.isfinite(opening)) or np.any(opening < 0.0) or np.any(opening > 1.0):
+        bad = opening[~(np.isfinite(opening) & (opening >= 0.0) & (opening <= 1.0))][0]
+        raise ParameterError(f"valve opening must be within [0, 1] [-] at every sample, got {bad!r}")
+    if not np.any(opening > 0.0):
+        return None
+    change = np.flatnonzero(np.diff(opening, prepend=0.0) != 0.0)
+    return start_time + change / float(sample_rate), opening[change].copy()
 
 
 #: the packed parameters a trial point is checked on, and their ranges (:data:`TRIAL_RANGES`)
@@ -494,6 +519,73 @@ def _predict_row(p, y0, instants, shift, channel_index, rtol, atol, max_step, ma
     return status
 
 
+@njit(cache=True, error_model="numpy")
+def _predict_valve_row(p, y0, instants, shift, valve_times, valve_open, channel_index, rtol, atol, max_step,
+                       max_steps, out):
+    """:func:`_predict_row` with valve Z's opening held at ``valve_open[i]`` [-] from ``valve_times[i]`` [s after
+    the first sample] (closed before the first): the model (the stand's own flow law, :func:`.dynamics.rhs` at the
+    area opening · A_max) is integrated from one change of the opening to the next, each piece restarted from the
+    state where the last ended (the opening is a step there, the right-hand side is not smooth across it)."""
+    if _outside_ranges(p) >= 0:
+        return OUTSIDE
+    if not contact_state(p, y0):
+        return NO_START
+    t = instants - shift
+    n = out.shape[1]
+    first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
+    for j in range(channel_index.size):
+        out[j, :first] = 0.0
+    changes = valve_times - shift  # after contact [s]
+    n_ch = channel_index.size
+    index = np.empty(n_ch + d.N_STATE, dtype=np.int64)  # the channels and the whole state (where a piece ends)
+    index[:n_ch] = channel_index
+    for i in range(d.N_STATE):
+        index[n_ch + i] = i
+    q = p.copy()
+    y = y0.copy()
+    b = np.searchsorted(changes, 0.0, side="right")  # the next change after contact
+    q[d.VALVE_AREA] = valve_open[b - 1] * p[d.VALVE_MAX_AREA] if b > 0 else 0.0
+    t0 = 0.0
+    i = first
+    while i < n:
+        last = b >= changes.size
+        t_end = math.inf if last else changes[b]
+        j = i
+        while j < n and t[j] <= t_end:
+            j += 1
+        size = j - i if last else j - i + 1
+        if size > 0:
+            t_piece = np.empty(size)
+            for m in range(j - i):
+                t_piece[m] = t[i + m] - t0
+            if not last:
+                t_piece[size - 1] = t_end - t0
+            piece = np.empty((index.size, size))
+            status, _ = fast.integrate_one(q, y, t_piece, index, rtol, atol, max_step, max_steps, piece)
+            if status != fast.OK:
+                return status
+            for c in range(n_ch):
+                out[c, i:j] = piece[c, :j - i]
+            for c in range(d.N_STATE):
+                y[c] = piece[n_ch + c, size - 1]
+        if last:
+            break
+        t0 = t_end
+        q[d.VALVE_AREA] = valve_open[b] * p[d.VALVE_MAX_AREA]
+        b += 1
+        i = j
+    return fast.OK
+
+
+@njit(cache=True, parallel=True, error_model="numpy")
+def _predict_valve_rows(params, instants, shifts, valve_times, valve_open, channel_index, rtol, atol, max_step,
+                        max_steps, out, status):
+    """:func:`_predict_valve_row` of every row on the thread pool (``out`` as :func:`_predict_rows`)."""
+    for s in prange(params.shape[0]):
+        status[s] = _predict_valve_row(params[s], np.empty(d.N_STATE), instants, shifts[s], valve_times, valve_open,
+                                       channel_index, rtol, atol, max_step, max_steps, out[s])
+
+
 @njit(cache=True, parallel=True, error_model="numpy")
 def _predict_rows(params, instants, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
     """:func:`_predict_row` of every row on the thread pool (``out`` (m, channels, n) filled at the first n
@@ -532,9 +624,15 @@ def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tu
     out = np.empty((params.shape[0], 2, _read(grid)))  # the instants after the last that the filter reads: none
     status = np.zeros(params.shape[0], dtype=np.int64)
     shifts = np.asarray(contact_times, dtype=float) - grid.start_time
-    kernel = _predict_in_turn if in_turn else _predict_rows
-    kernel(params, instants, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS,
-           out, status)
+    if grid.valve is not None:  # the same numbers on the calling thread or the pool: each row is integrated alone
+        valve_times, valve_open = grid.valve
+        _predict_valve_rows(params, instants, shifts, np.asarray(valve_times, float) - grid.start_time,
+                            np.asarray(valve_open, float), CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL),
+                            MAX_STEP, MAX_FIT_STEPS, out, status)
+    else:
+        kernel = _predict_in_turn if in_turn else _predict_rows
+        kernel(params, instants, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP,
+               MAX_FIT_STEPS, out, status)
     if np.any(status != fast.OK):
         i = int(np.flatnonzero(status != fast.OK)[0])
         if status[i] == OUTSIDE:

@@ -1,0 +1,80 @@
+"""The model fit with valve Z's opening as an input: a record with a ``valve_opening`` channel is predicted with
+that opening (the stand's own flow law at the area opening · A_max), so that an open valve does not corrupt the
+identification; without the channel, or with it zero throughout, the fit is the closed-valve one, bit for bit.
+
+Tolerances are stated in standard errors (``Z`` = 4 stated σ: a Gaussian estimate fails by chance with probability
+6e-5) and, for the piecewise integration, in the integrator's own tolerance.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from impactometer.errors import ParameterError
+from impactometer.identify.model_fit import forward as fw
+from impactometer.identify.model_fit import identify
+from impactometer.model.setup import pack
+from impactometer.rig import Scenario, get_rig
+from impactometer.sensors import record
+
+Z = 4.0
+OPENING = 0.3
+SCENARIO = Scenario(mass=30.0, velocity=2.0, pressure_gauge=100e3)
+RECORD = {"sample_rate": 50e3, "duration": 0.05, "noise": 0.05, "pre_trigger": 0.02, "seed": 11}
+
+
+def _open_rig(opening):
+    rig = get_rig()
+    return dataclasses.replace(rig, valve=dataclasses.replace(rig.valve, area=opening * rig.valve.max_area))
+
+
+def _with_opening(rec, opening):
+    return dataclasses.replace(rec, channels={**rec.channels, "valve_opening": np.asarray(opening, float)})
+
+
+def test_an_open_valve_given_as_input_is_identified_and_without_it_is_not():
+    rec = record(SCENARIO, _open_rig(OPENING), **RECORD)  # the valve open from before first contact
+    given = identify(_with_opening(rec, np.where(rec.time >= -1e-3, OPENING, 0.0)), rig=get_rig())
+    assert given.method == "model/ml" and given.details["path"] == "ml"
+    assert abs(given.mass - SCENARIO.mass) <= Z * given.mass_std
+    assert abs(given.velocity - SCENARIO.velocity) <= Z * given.velocity_std
+    blind = identify(rec, rig=get_rig())  # the closed-valve model does not describe the record
+    assert blind.details["path"] == "fallback" and blind.mass_std > 2.0 * given.mass_std
+
+
+def test_a_valve_closed_throughout_is_the_closed_valve_fit_bit_for_bit():
+    rec = record(SCENARIO, get_rig(), **RECORD)
+    assert fw._valve_schedule(np.zeros(rec.time.size), rec.start_time, rec.sample_rate) is None
+    plain = identify(rec)
+    zero = identify(_with_opening(rec, np.zeros(rec.time.size)))
+    assert (zero.mass, zero.velocity, zero.mass_std, zero.velocity_std) == \
+        (plain.mass, plain.velocity, plain.mass_std, plain.velocity_std)
+
+
+def test_the_schedule_holds_each_opening_from_its_sample():
+    times, values = fw._valve_schedule([0.0, 0.0, 0.5, 0.5, 1.0, 0.0], -1e-3, 1e3)
+    assert np.allclose(times, [1e-3, 3e-3, 4e-3]) and np.array_equal(values, [0.5, 1.0, 0.0])
+    with pytest.raises(ParameterError, match="valve opening"):
+        fw._valve_schedule([0.0, 1.5], 0.0, 1e3)
+
+
+def test_a_piecewise_integration_agrees_with_one_piece():
+    """A change of the schedule that keeps the opening restarts the integration there: the same history within
+    the integrator's tolerance; an opening of the valve at 5 ms changes it from then on only."""
+    rig = get_rig()
+    p = pack(_open_rig(OPENING), SCENARIO)[None, :]
+    grid = fw._make_grid(-2e-3, 50e3, 1000, "causal")
+    whole = fw._predict(dataclasses.replace(grid, valve=(np.array([-1e-3]), np.array([OPENING]))), p, np.zeros(1))
+    pieces = fw._predict(dataclasses.replace(grid, valve=(np.array([-1e-3, 5e-3]), np.array([OPENING, OPENING]))),
+                         p, np.zeros(1))
+    constant = fw._predict(grid, p, np.zeros(1))  # the parameters' own constant opening
+    scale = np.max(np.abs(constant), axis=-1, keepdims=True)
+    assert np.max(np.abs(whole - constant) / scale) < 1e-9
+    assert np.max(np.abs(pieces - whole) / scale) < 1e3 * fw.FIT_RTOL
+    closed = pack(rig, SCENARIO)[None, :]
+    late = fw._predict(dataclasses.replace(grid, valve=(np.array([5e-3]), np.array([1.0]))), closed, np.zeros(1))
+    shut = fw._predict(grid, closed, np.zeros(1))
+    t = grid.start_time + np.arange(grid.size) / grid.sample_rate
+    assert np.array_equal(late[..., t < 5e-3 - 2e-4], shut[..., t < 5e-3 - 2e-4])  # the causal filter's reach
+    assert np.max(np.abs(late - shut)[..., t > 10e-3]) > 0.01 * np.max(np.abs(shut))
