@@ -430,3 +430,20 @@ def test_a_push_after_finish_is_refused_by_the_model_stream():
     assert stream.finish() is None
     with pytest.raises(StreamFinishedError, match=r"push\(\) after finish\(\): this ModelStream"):
         stream.push(np.zeros(10), np.zeros(10))
+
+
+def test_a_window_with_a_valve_opening_is_fitted_with_it():
+    """The compiled window fit predicts with the valve closed: a record that carries valve Z's opening is fitted by
+    the Python engine, whose predictor reads the opening, so a stream's window fit equals the engine's on it."""
+    import dataclasses
+
+    from impactometer.identify.model_fit.engine import fit_law
+    from impactometer.identify.model_fit.first_window import _fit_window, _takes
+
+    data, layout, values = _first_window(30.0, 2.0, 100e3, 21)
+    opened = dataclasses.replace(data, grid=dataclasses.replace(data.grid, valve=(np.array([1e-3]), np.array([0.5]))))
+    assert _takes(data, layout) and not _takes(opened, layout)
+    stream = _fit_window(opened, layout, values)
+    engine = fit_law(opened, layout, values, in_turn=True)
+    assert stream.chi2 == engine.chi2 and stream.values == engine.values
+    assert stream.chi2 != _fit_window(data, layout, values).chi2  # the opening changed the prediction

@@ -105,8 +105,10 @@ class _Window(NamedTuple):
 
 
 def _takes(data: Observed, layout: Layout) -> bool:
-    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model and a fitted contact instant."""
-    return data.grid.design == "causal" and "contact_time" in layout.names
+    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model, a fitted contact instant and no
+    valve opening schedule (the compiled predictor integrates with the valve closed; a record with valve Z's
+    opening goes to the Python engine, whose predictor reads it)."""
+    return data.grid.design == "causal" and "contact_time" in layout.names and data.grid.valve is None
 
 
 @njit(cache=True, error_model="numpy")
