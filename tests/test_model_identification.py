@@ -327,9 +327,13 @@ def test_a_misread_pressure_gauge_is_covered_by_its_prior(mass, velocity, pressu
 #: records of the stiff stand identified on the default one (neither stand named in the file): (M1, V0, p0, seed)
 #: the 45 kg record is explained to its noise with nested fits 2.6 and 2.1 σ apart (a right stand's are as far in
 #: 1 record of 50) and a pressure pull of 1.7: neither test names the stand, and the answer is 5.6 σ off in V0
-STAND_CASES = [(20.0, 2.5, 300e3, 31), pytest.param(45.0, 3.2, 380e3, 32, marks=pytest.mark.xfail(
-    strict=True, reason="a stand the fit soaks up beyond what the nested fits and the pressure's pull resolve")),
-               (12.0, 1.5, 150e3, 33)]
+#: a stand the fit soaks up into the pressure and the contact: the residuals white, the nested fits and the robust
+#: answer within their null's reach (docs/model_identification.md, Known limits)
+SOAKED_UP = pytest.mark.xfail(
+    strict=True, reason="a stand the fit soaks up beyond what the nested fits and the pressure's pull resolve")
+STAND_CASES = [(20.0, 2.5, 300e3, 31), pytest.param(45.0, 3.2, 380e3, 32, marks=SOAKED_UP), (12.0, 1.5, 150e3, 33),
+               pytest.param(42.2, 2.62, 216e3, 505, marks=SOAKED_UP), pytest.param(35.0, 2.79, 315e3, 507,
+                                                                                   marks=SOAKED_UP)]
 
 
 @pytest.mark.parametrize(("mass", "velocity", "pressure", "seed"), STAND_CASES)
