@@ -325,8 +325,8 @@ def test_a_misread_pressure_gauge_is_covered_by_its_prior(mass, velocity, pressu
 
 
 #: records of the stiff stand identified on the default one (neither stand named in the file): (M1, V0, p0, seed)
-#: the 45 kg record is explained to its noise with nested fits 2.6 and 2.1 σ apart (a right stand's are as far in
-#: 1 record of 50) and a pressure pull of 1.7: neither test names the stand, and the answer is 5.6 σ off in V0
+#: the 45 kg record is explained to its noise with nested fits 3.1 and 2.6 σ apart and a pressure pull of 1.7:
+#: neither test names the stand, and the answer is 5.6 σ off in V0
 #: a stand the fit soaks up into the pressure and the contact: the residuals white, the nested fits and the robust
 #: answer within their null's reach (docs/model_identification.md, Known limits)
 SOAKED_UP = pytest.mark.xfail(
