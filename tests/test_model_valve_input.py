@@ -78,3 +78,38 @@ def test_a_piecewise_integration_agrees_with_one_piece():
     t = grid.start_time + np.arange(grid.size) / grid.sample_rate
     assert np.array_equal(late[..., t < 5e-3 - 2e-4], shut[..., t < 5e-3 - 2e-4])  # the causal filter's reach
     assert np.max(np.abs(late - shut)[..., t > 10e-3]) > 0.01 * np.max(np.abs(shut))
+
+
+def test_one_predictor_with_or_without_a_schedule():
+    """The one compiled predictor: an empty schedule is the one-piece integration from the state at contact, bit
+    for bit; with a schedule the same rows on the calling thread and on the thread pool, and the same range
+    check."""
+    from impactometer.model import dynamics as d
+    from impactometer.model import fast
+    from impactometer.model.setup import contact_state
+    from impactometer.model.simulate import MAX_STEP, absolute_tolerance
+
+    p = pack(get_rig(), SCENARIO)
+    grid = fw._make_grid(-2e-3, 50e3, 400, "causal")
+    shift = 2e-3  # contact 2 ms after the first sample
+    args = (fw.CHANNEL_INDEX, fw.FIT_RTOL, absolute_tolerance(fw.FIT_RTOL), MAX_STEP, fw.MAX_FIT_STEPS)
+    out = np.full((2, grid.instants.size), np.nan)
+    assert fw._predict_row(p, np.empty(d.N_STATE), grid.instants, shift, np.empty(0), np.empty(0), *args,
+                           out) == fast.OK
+    y0, t = np.empty(d.N_STATE), grid.instants - shift
+    assert contact_state(p, y0)
+    first = np.searchsorted(t, 0.0, side="right") - 1
+    straight = np.zeros_like(out)
+    assert fast.integrate_one(p, y0, t[first:], *args, straight[:, first:])[0] == fast.OK
+    assert np.array_equal(out, straight)
+    opened = dataclasses.replace(grid, valve=(np.array([-1e-3, 1e-3]), np.array([OPENING, 1.0])))
+    rows = np.stack([p, pack(get_rig(), dataclasses.replace(SCENARIO, mass=20.0))])
+    times = np.array([0.0, 1e-4])
+    pool = fw._predict(opened, rows, times)
+    assert np.array_equal(fw._predict(opened, rows, times, in_turn=True), pool)
+    assert not np.array_equal(pool, fw._predict(grid, rows, times))
+    far = rows.copy()
+    far[1, d.MASS] = 1e9
+    for in_turn in (True, False):
+        with pytest.raises(fw.IdentificationError, match="outside"):
+            fw._predict(opened, far, times, in_turn=in_turn)

@@ -55,6 +55,7 @@ from .forward import (
     _outside_ranges,
     _pack_row,
     _predict_row,
+    _schedule,
 )
 
 #: what the compiled fit reports: converged, stopped at its evaluations or Jacobians, not integrable at the start
@@ -80,7 +81,8 @@ class _Window(NamedTuple):
     :attr:`.forward.Layout.codes` as ``slots``, ``code`` and ``param``, whether the law is hysteretic, its own
     bounds :attr:`.forward.Layout.limits` as ``low`` and ``high``, its priors: index, mean and σ of each), the start
     vector, the finite-difference steps, the :class:`Timing`, the internal
-    instants, the reversed FIR taps, the noise σ (2,), rtol then the absolute tolerances, the samples after the
+    instants, valve Z's opening schedule (:func:`.forward._schedule`: empty for the valve of the parameters), the
+    reversed FIR taps, the noise σ (2,), rtol then the absolute tolerances, the samples after the
     head over σ (2, n), and the head (root of its size, its means)."""
 
     base: np.ndarray
@@ -97,6 +99,8 @@ class _Window(NamedTuple):
     steps: np.ndarray
     timing: _Timing
     instants: np.ndarray
+    valve_times: np.ndarray
+    valve_open: np.ndarray
     fir: np.ndarray
     noise: np.ndarray
     tolerances: np.ndarray
@@ -105,10 +109,9 @@ class _Window(NamedTuple):
 
 
 def _takes(data: Observed, layout: Layout) -> bool:
-    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model, a fitted contact instant and no
-    valve opening schedule (the compiled predictor integrates with the valve closed; a record with valve Z's
-    opening goes to the Python engine, whose predictor reads it)."""
-    return data.grid.design == "causal" and "contact_time" in layout.names and data.grid.valve is None
+    """Whether the compiled fit takes ``layout`` on ``data``: a causal sensor model and a fitted contact instant (a
+    record with valve Z's opening too: the compiled predictor reads its schedule)."""
+    return data.grid.design == "causal" and "contact_time" in layout.names
 
 
 @njit(cache=True, error_model="numpy")
@@ -120,8 +123,8 @@ def _channels(w, x, out, internal, y0, p):
     contact = timing.origin + shift / timing.sample_rate
     if not (np.isfinite(contact) and contact >= timing.earliest):
         return False
-    if _predict_row(p, y0, w.instants, contact - timing.start_time, CHANNEL_INDEX, w.tolerances[0],
-                   w.tolerances[1:], MAX_STEP, MAX_FIT_STEPS, internal) != fast.OK:
+    if _predict_row(p, y0, w.instants, contact - timing.start_time, w.valve_times, w.valve_open, CHANNEL_INDEX,
+                    w.tolerances[0], w.tolerances[1:], MAX_STEP, MAX_FIT_STEPS, internal) != fast.OK:
         return False
     _fir_decimate(internal, w.fir, timing.pad - w.fir.size + 1, timing.factor, out)
     for c in range(2):
@@ -224,10 +227,12 @@ def _window(data: Observed, layout: Layout, start: dict[str, float], offsets: np
                     earliest=problem.earliest, factor=int(grid.factor), pad=int(grid.pad))
     index, code, param = layout.codes
     low, high = layout.limits
+    valve_times, valve_open = _schedule(grid)
     return _Window(base=layout.base, slots=index, code=code, param=param, hysteretic=layout.law == "hysteretic",
                   low=low, high=high,
                   prior_index=problem.prior_index, prior_mean=problem.prior_mean, prior_sigma=problem.prior_sigma,
-                  x=x, steps=problem.steps.astype(float), timing=timing, instants=grid.instants, fir=grid.taps,
+                  x=x, steps=problem.steps.astype(float), timing=timing, instants=grid.instants,
+                  valve_times=valve_times, valve_open=valve_open, fir=grid.taps,
                   noise=data.noise, tolerances=np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)],
                   tail=np.ascontiguousarray(problem.tail), head=np.r_[problem.root, problem.mean]), problem
 
@@ -275,10 +280,11 @@ def _warm() -> None:
     w = _Window(base=np.zeros(d.N_PARAM), slots=index, code=code, param=param, hysteretic=True,
                low=np.full(3, -np.inf), high=np.full(3, np.inf),
                prior_index=np.zeros(1, dtype=np.int64), prior_mean=np.zeros(1), prior_sigma=np.ones(1),
-               x=np.full(5, -1e3), steps=np.ones(3), timing=timing, instants=np.zeros(4), fir=np.ones(1),
+               x=np.full(5, -1e3), steps=np.ones(3), timing=timing, instants=np.zeros(4), valve_times=np.empty(0),
+               valve_open=np.empty(0), fir=np.ones(1),
                noise=np.ones(2), tolerances=np.ones(1 + d.N_STATE), tail=np.zeros((2, 1)), head=np.ones(3))
     _solve(w, 1, 0, True, np.zeros((5, 5)))
-    _predict_in_turn(np.zeros((1, d.N_PARAM)), np.zeros(4), np.zeros(1), CHANNEL_INDEX, FIT_RTOL,
-                     absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS, np.zeros((1, 2, 4)),
+    _predict_in_turn(np.zeros((1, d.N_PARAM)), np.zeros(4), np.zeros(1), np.empty(0), np.empty(0), CHANNEL_INDEX,
+                     FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS, np.zeros((1, 2, 4)),
                      np.zeros(1, dtype=np.int64))
     _WARM.append(True)

@@ -21,7 +21,7 @@ from numba import njit, prange
 from ...errors import IdentificationError, ParameterError, ParameterTypeError, shown
 from ...model import dynamics as d
 from ...model import fast
-from ...model.setup import contact_state, initial_states, pack
+from ...model.setup import contact_state, pack
 from ...model.simulate import MAX_STEP, absolute_tolerance
 from ...rig import CONTACT_LAWS, Rig, Scenario
 from ...sensors import ANTI_ALIAS, causal_taps, internal_layout
@@ -501,11 +501,14 @@ def _outside_ranges(p):
 
 
 @njit(cache=True, error_model="numpy")
-def _predict_row(p, y0, instants, shift, channel_index, rtol, atol, max_step, max_steps, out):
+def _predict_row(p, y0, instants, shift, valve_times, valve_open, channel_index, rtol, atol, max_step, max_steps,
+                 out):
     """One row of a prediction on the calling thread: the channels ``out`` (channels, instants) at ``instants -
     shift`` after contact, zero before the last instant before it, which is integrated too (it holds the state at
     contact: a contact force that jumps at first touch shares the jump with it, fast.share_jump). ``y0`` is scratch
-    for the state at contact. Returns the integrator's status, :data:`OUTSIDE` or :data:`NO_START`."""
+    for the state at contact. Valve Z's opening is held at ``valve_open[i]`` [-] from ``valve_times[i]`` [s after
+    the first sample] (closed before the first; :func:`_integrate_schedule`); an empty schedule: the valve of the
+    parameters, integrated in one piece. Returns the integrator's status, :data:`OUTSIDE` or :data:`NO_START`."""
     if _outside_ranges(p) >= 0:
         return OUTSIDE
     if not contact_state(p, y0):
@@ -514,28 +517,22 @@ def _predict_row(p, y0, instants, shift, channel_index, rtol, atol, max_step, ma
     first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
     for j in range(channel_index.size):
         out[j, :first] = 0.0
+    if valve_times.size:
+        return _integrate_schedule(p, y0, t, first, valve_times - shift, valve_open, channel_index, rtol, atol,
+                                   max_step, max_steps, out)
     status, _ = fast.integrate_one(p, y0, t[first:], channel_index, rtol, atol, max_step, max_steps,
                                    out[:, first:])
     return status
 
 
 @njit(cache=True, error_model="numpy")
-def _predict_valve_row(p, y0, instants, shift, valve_times, valve_open, channel_index, rtol, atol, max_step,
-                       max_steps, out):
-    """:func:`_predict_row` with valve Z's opening held at ``valve_open[i]`` [-] from ``valve_times[i]`` [s after
-    the first sample] (closed before the first): the model (the stand's own flow law, :func:`.dynamics.rhs` at the
-    area opening · A_max) is integrated from one change of the opening to the next, each piece restarted from the
-    state where the last ended (the opening is a step there, the right-hand side is not smooth across it)."""
-    if _outside_ranges(p) >= 0:
-        return OUTSIDE
-    if not contact_state(p, y0):
-        return NO_START
-    t = instants - shift
+def _integrate_schedule(p, y0, t, first, changes, valve_open, channel_index, rtol, atol, max_step, max_steps, out):
+    """The channels ``out[:, first:]`` at the instants ``t[first:]`` after contact [s] from the state at contact
+    ``y0``, valve Z's opening held at ``valve_open[i]`` [-] from ``changes[i]`` [s after contact] (closed before the
+    first): the model (the stand's own flow law, :func:`.dynamics.rhs` at the area opening · A_max) is integrated
+    from one change of the opening to the next, each piece restarted from the state where the last ended (the
+    opening is a step there, the right-hand side is not smooth across it). Returns the integrator's status."""
     n = out.shape[1]
-    first = max(np.searchsorted(t, 0.0, side="right") - 1, 0)
-    for j in range(channel_index.size):
-        out[j, :first] = 0.0
-    changes = valve_times - shift  # after contact [s]
     n_ch = channel_index.size
     index = np.empty(n_ch + d.N_STATE, dtype=np.int64)  # the channels and the whole state (where a piece ends)
     index[:n_ch] = channel_index
@@ -578,31 +575,35 @@ def _predict_valve_row(p, y0, instants, shift, valve_times, valve_open, channel_
 
 
 @njit(cache=True, parallel=True, error_model="numpy")
-def _predict_valve_rows(params, instants, shifts, valve_times, valve_open, channel_index, rtol, atol, max_step,
-                        max_steps, out, status):
-    """:func:`_predict_valve_row` of every row on the thread pool (``out`` as :func:`_predict_rows`)."""
-    for s in prange(params.shape[0]):
-        status[s] = _predict_valve_row(params[s], np.empty(d.N_STATE), instants, shifts[s], valve_times, valve_open,
-                                       channel_index, rtol, atol, max_step, max_steps, out[s])
-
-
-@njit(cache=True, parallel=True, error_model="numpy")
-def _predict_rows(params, instants, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
+def _predict_rows(params, instants, shifts, valve_times, valve_open, channel_index, rtol, atol, max_step, max_steps,
+                  out, status):
     """:func:`_predict_row` of every row on the thread pool (``out`` (m, channels, n) filled at the first n
     instants: :func:`.fast.integrate_into`)."""
     for s in prange(params.shape[0]):
-        status[s] = _predict_row(params[s], np.empty(d.N_STATE), instants, shifts[s], channel_index, rtol, atol,
-                                max_step, max_steps, out[s])
+        status[s] = _predict_row(params[s], np.empty(d.N_STATE), instants, shifts[s], valve_times, valve_open,
+                                 channel_index, rtol, atol, max_step, max_steps, out[s])
 
 
 @njit(cache=True, error_model="numpy")
-def _predict_in_turn(params, instants, shifts, channel_index, rtol, atol, max_step, max_steps, out, status):
+def _predict_in_turn(params, instants, shifts, valve_times, valve_open, channel_index, rtol, atol, max_step,
+                     max_steps, out, status):
     """:func:`_predict_row` of every row, one after the other on the calling thread (``out`` as
     :func:`_predict_rows`)."""
     y0 = np.empty(d.N_STATE)
     for s in range(params.shape[0]):
-        status[s] = _predict_row(params[s], y0, instants, shifts[s], channel_index, rtol, atol, max_step, max_steps,
-                                out[s])
+        status[s] = _predict_row(params[s], y0, instants, shifts[s], valve_times, valve_open, channel_index, rtol,
+                                 atol, max_step, max_steps, out[s])
+
+
+def _schedule(grid: Grid | None) -> tuple[np.ndarray, np.ndarray]:
+    """The grid's valve schedule as the compiled predictor reads it: the instants of the changes after the first
+    sample [s] and the openings [-], both empty (typed float arrays) for the valve of the parameters (no grid, or
+    :attr:`Grid.valve` None)."""
+    if grid is None or grid.valve is None:
+        return np.empty(0), np.empty(0)
+    times, opening = grid.valve
+    return (np.ascontiguousarray(np.asarray(times, dtype=float) - grid.start_time),
+            np.ascontiguousarray(opening, dtype=float))
 
 
 def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_turn: bool = False) -> np.ndarray:
@@ -624,15 +625,9 @@ def _predict(grid: Grid, params: np.ndarray, contact_times: np.ndarray, *, in_tu
     out = np.empty((params.shape[0], 2, _read(grid)))  # the instants after the last that the filter reads: none
     status = np.zeros(params.shape[0], dtype=np.int64)
     shifts = np.asarray(contact_times, dtype=float) - grid.start_time
-    if grid.valve is not None:  # the same numbers on the calling thread or the pool: each row is integrated alone
-        valve_times, valve_open = grid.valve
-        _predict_valve_rows(params, instants, shifts, np.asarray(valve_times, float) - grid.start_time,
-                            np.asarray(valve_open, float), CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL),
-                            MAX_STEP, MAX_FIT_STEPS, out, status)
-    else:
-        kernel = _predict_in_turn if in_turn else _predict_rows
-        kernel(params, instants, shifts, CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL), MAX_STEP,
-               MAX_FIT_STEPS, out, status)
+    kernel = _predict_in_turn if in_turn else _predict_rows  # the same numbers: each row is integrated alone
+    kernel(params, instants, shifts, *_schedule(grid), CHANNEL_INDEX, FIT_RTOL, absolute_tolerance(FIT_RTOL),
+           MAX_STEP, MAX_FIT_STEPS, out, status)
     if np.any(status != fast.OK):
         i = int(np.flatnonzero(status != fast.OK)[0])
         if status[i] == OUTSIDE:
@@ -710,11 +705,8 @@ def _horizon(layout: Layout, x: np.ndarray, span: float) -> tuple[float, str]:
     times = np.arange(1, max(int(span * layout.sample_rate), 1) + 1) / layout.sample_rate
     index = np.array([d.U2, d.CHANNELS.index("contact_force")], dtype=np.int64)
     out = np.empty((2, times.size))
-    try:
-        status, _ = fast.integrate_one(params[0], initial_states(params)[0], times, index, FIT_RTOL,
-                                       absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS, out)
-    except ParameterError:
-        status = -1
+    status = _predict_row(params[0], np.empty(d.N_STATE), times, 0.0, *_schedule(None), index, FIT_RTOL,
+                          absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS, out)
     if status != fast.OK:
         return span, "the whole record (the model's course over it could not be integrated)"
     raised, touching = -out[0] > 0.0, out[1] > 0.0
