@@ -255,7 +255,7 @@ class ModelStream:
         bad = ~(np.isfinite(z) & (z >= 0.0) & (z <= 1.0))
         if bad.any():
             raise IdentificationError(f"opening_chunk must be valve Z's opening within [0, 1] [-] at every sample, "
-                                      f"got {z[bad][0]!r} at index {int(np.argmax(bad))}")
+                                      f"got {float(z[bad][0])!r} at index {int(np.argmax(bad))}")
         out: list[Identification] = []
         for k in range(0, f.size, self._chunk):  # an impact's trigger is seen within a cadence
             part = z[k:k + self._chunk]
