@@ -327,17 +327,17 @@ def test_contact_velocity_from_the_first_rise_of_the_pad(seed, mass, velocity, p
     assert clean.velocity == pytest.approx(velocity, rel=0.01)
 
 
-def test_the_early_policy_acts_from_first_contact_and_reads_the_record_only_before_the_valve_moved(monkeypatch):
+def test_the_early_policy_acts_from_first_contact_and_its_model_reads_the_valve_it_drove(monkeypatch):
     """absorb(early=True): the force strategy acts from V0's answer on M1's prior (the rated masses' mean), takes
-    the identification's answer from the record up to its valve's first motion (first command + dead time), and
-    until that answer's instant runs exactly as the same policy without it; the same arguments give the same
-    numbers."""
+    the model identification's answer from the record its run had with the valve's opening as an input (no cut at
+    the valve's first motion), and until that answer's instant runs exactly as the same policy without it; the
+    same arguments give the same numbers."""
     calls = []
     identify = control_loop.identify_impact
 
     def spy(*args, **kwargs):
         found = identify(*args, **kwargs)
-        calls.append((kwargs.get("until", math.inf), found))
+        calls.append((kwargs.get("until", math.inf), kwargs.get("recording"), found))
         return found
 
     monkeypatch.setattr(control_loop, "identify_impact", spy)
@@ -351,10 +351,12 @@ def test_the_early_policy_acts_from_first_contact_and_reads_the_record_only_befo
     started = time >= run.control_start
     assert np.all(np.isnan(history["estimated_mass"][~started])) and np.all(command[~started] == 0.0)
     assert history["estimated_mass"][np.argmax(started)] == pytest.approx(Absorber().mass_prior()[0])
-    until, answer = calls[-1]  # the answer the force strategy acted on
-    moved = time[np.argmax(command > 0.0)] + run.absorber.drive.dead_time
-    assert until == pytest.approx(moved) and answer.error is None
-    assert answer.details["data_until_s"] <= moved
+    until, recording, answer = calls[-1]  # the answer the force strategy acted on
+    assert until == math.inf and answer.error is None
+    opening = recording.channels["valve_opening"]
+    after = recording.time >= 0.0
+    assert np.any(opening > 0.0) and np.all(opening[~after] == 0.0)
+    assert np.all((opening >= 0.0) & (opening <= 1.0))
     assert run.to_dict()["strategies"]["predictive"]["answer_at_s"] == answer.available_at
     # the same run without the answer is the same up to the answer's instant
     monkeypatch.setattr(control_loop, "identify_impact", lambda *a, **k: Identification(

@@ -57,3 +57,37 @@ def test_a_longer_latency_leaves_the_stream_fewer_updates_before_its_answer():
     ends = [identify_impact(scenario, RIG, method="model", noise=0.02, seed=0, sample_rate=50e3,
                             latency=latency).details["data_until_s"] for latency in (0.0, 3e-3)]
     assert ends[1] >= ends[0]
+
+
+@pytest.mark.parametrize("mass", [30.0, 50.0])
+def test_the_early_loops_answer_reads_past_the_valves_first_motion_within_its_sigma(mass, monkeypatch):
+    """absorb(early=True): the model stream reads the record of the run with the valve the controller drove as an
+    input. 30 and 50 kg at 2 m/s and 400 kPa: the valve moves before an answer's data end (read as a closed-valve
+    record, those answers were 2.3 and 4.9 of their σ off); with the opening the answer holds M1 and V0 within 4 of
+    its stated σ, and the loop acts on it from its data's end + the latency."""
+    import math
+
+    import numpy as np
+
+    from impactometer.control import loop as control_loop
+
+    calls = []
+    identify = control_loop.identify_impact
+
+    def spy(*args, **kwargs):
+        found = identify(*args, **kwargs)
+        calls.append((kwargs.get("recording"), found))
+        return found
+
+    monkeypatch.setattr(control_loop, "identify_impact", spy)
+    run = control_loop.absorb(Scenario(mass=mass, velocity=2.0, pressure_gauge=400e3), strategy="predictive",
+                              early=True)
+    recording, found = calls[-1]
+    assert recording is not None and found.error is None and found.method == "model/ml"
+    opening = recording.channels["valve_opening"]
+    moved = float(recording.time[np.argmax(opening > 0.0)])
+    assert 0.0 < moved < found.details["data_until_s"]  # the valve moved before the answer's data ended
+    assert abs(found.mass - mass) < 4.0 * found.mass_std
+    assert abs(found.velocity - 2.0) < 4.0 * found.velocity_std
+    assert run.runs["predictive"].answer_at == found.available_at == found.details["data_until_s"] + 1e-3
+    assert math.isfinite(run.runs["predictive"].metrics.stage_b_ratio)

@@ -447,3 +447,24 @@ def test_a_window_with_a_valve_opening_is_fitted_compiled_with_it():
         assert _takes(opened, layout)
         _, compiled = _same_optimum(opened, layout, values)
         assert compiled.chi2 != _fit_window(data, layout, values).chi2  # the opening changed the prediction
+
+
+def test_an_opening_pushed_with_the_samples_is_checked_and_a_closed_valve_changes_nothing():
+    """``push(force, acceleration, opening)``: an opening that is not finite, outside [0, 1] or of another length
+    is refused naming it; an opening of zero throughout gives the answers of a stream without it, bit for bit."""
+    stream = ModelStream(50e3)
+    for bad, match in (([0.5, np.nan], "opening_chunk must be"), ([0.5, 1.5], "within \\[0, 1\\]"),
+                       ([-0.1, 0.0], "got -0.1"), ([0.5], "length 2"), (["a", "b"], "must hold numbers")):
+        with pytest.raises(IdentificationError, match=match):
+            stream.push(np.zeros(2), np.zeros(2), bad)
+    rec = _record(30.0, 2.0, 100e3, 11, duration=0.012)
+    options = {"start_time": rec.start_time, "metadata": rec.metadata, "window": 0.011, "cadence": 0.004}
+    plain, closed = ModelStream(rec.sample_rate, **options), ModelStream(rec.sample_rate, **options)
+    zeros = np.zeros(rec.contact_force.size)
+    got, same = [], []
+    for k in range(0, zeros.size, 64):
+        got += plain.push(rec.contact_force[k:k + 64], rec.piston_acceleration[k:k + 64])
+        same += closed.push(rec.contact_force[k:k + 64], rec.piston_acceleration[k:k + 64], zeros[k:k + 64])
+    assert len(got) == len(same) > 1
+    for a, b in zip(got, same, strict=True):
+        assert (a.mass, a.velocity, a.mass_std, a.available_at) == (b.mass, b.velocity, b.mass_std, b.available_at)

@@ -2,7 +2,9 @@
 record (or a response map, or the oracle), and what the controller may trust of it.
 
 Until the control starts the valve is closed, so the identification reads a record of the closed-valve impact (made
-by :func:`impactometer.sensors.record`, anti-alias filter and noise included).
+by :func:`impactometer.sensors.record`, anti-alias filter and noise included). A controller that drives the valve
+before its answer gives the model stream the record of its own run with the valve's opening as an input
+(:func:`run_record`).
 """
 
 from __future__ import annotations
@@ -85,7 +87,7 @@ def loop_summary(found: Identification) -> dict[str, Any]:
 
 def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, seed: int,
                     sample_rate: float, response_map=None, latency: float = LATENCY,
-                    until: float = math.inf) -> Identification:
+                    until: float = math.inf, recording: Recording | None = None) -> Identification:
     """Identify M1 and V0 from a noisy closed-valve record, as a real-time system would.
 
     ``model``: the stand's model is fitted to the record as it grows (:func:`first_model_answer`); the first answer
@@ -115,6 +117,9 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     until : float
         The record ends here [s] (default: :data:`IDENTIFICATION_WINDOW` after first contact): a valve that
         moves then makes the later record one the closed-valve models do not describe.
+    recording : Recording, optional
+        The record to identify (default :func:`identification_record`, the closed-valve impact); one with a
+        ``valve_opening`` channel (:func:`run_record`) is read by the model with the valve as an input.
 
     Returns
     -------
@@ -123,7 +128,8 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
         ``data_until_s`` and ``latency_s``. A failed identification has NaN mass and velocity, ``available_at`` inf
         and ``error`` set.
     """
-    rec = identification_record(scenario, rig, noise=noise, seed=seed, sample_rate=sample_rate)
+    rec = identification_record(scenario, rig, noise=noise, seed=seed, sample_rate=sample_rate) \
+        if recording is None else recording
     if until < rec.time[-1]:
         kept = rec.time <= until
         rec = replace(rec, channels={key: values[kept] for key, values in rec.channels.items()})
@@ -164,6 +170,31 @@ def identification_record(scenario: Scenario, rig: Rig, *, noise: float, seed: i
     :data:`PRE_TRIGGER` before it)."""
     return record(scenario, rig, sample_rate=sample_rate, duration=IDENTIFICATION_WINDOW, noise=noise, seed=seed,
                   pre_trigger=PRE_TRIGGER)
+
+
+def run_record(closed_record: Recording, closed, run, opening: np.ndarray) -> Recording:
+    """The noisy record of a run whose valve moved, with valve Z's opening as a channel: the closed-valve record
+    ``closed_record`` (:func:`identification_record`) plus the run's change of the clean contact force and piston
+    acceleration (``run`` − ``closed``, the controlled and the closed-valve simulations on one sample grid from first
+    contact), delayed by the record's anti-alias delay (the change is slow against the filter: the valve's lag is
+    milliseconds), and ``valve_opening`` [-], the run's opening ``opening`` at each of its samples (zero before
+    first contact and after the run). The same noise draw as the closed-valve record: where the valve stays
+    closed the record is that one, bit for bit."""
+    from ..identify.model_fit.engine import VALVE_OPENING
+    from ..recording import ACCELERATION, FORCE
+
+    n = min(closed.time.size, run.time.size)
+    at = closed_record.time - float(closed_record.metadata.get("anti_alias_delay_s", 0.0))
+    channels = dict(closed_record.channels)
+    for name, model in ((FORCE, "contact_force"), (ACCELERATION, "a2")):
+        change = getattr(run, model)[:n] - getattr(closed, model)[:n]
+        channels[name] = channels[name] + np.interp(at, closed.time[:n], change, left=0.0, right=0.0)
+    t = closed_record.time
+    index = np.rint(t * closed_record.sample_rate).astype(int)
+    inside = (index >= 0) & (index < n)
+    channels[VALVE_OPENING] = np.where(inside, np.clip(np.asarray(opening, float)[np.clip(index, 0, n - 1)],
+                                                       0.0, 1.0), 0.0)
+    return replace(closed_record, channels=channels)
 
 
 def contact_velocity(recording: Recording, rig: Rig, *, window: float = VELOCITY_WINDOW,
@@ -281,7 +312,10 @@ def model_answers(recording: Recording, rig: Rig, *, pressure_gauge: float,
                          rig=rig, pressure_gauge=pressure_gauge, contact=rig.contact.law, cadence=MODEL_CADENCE,
                          first=MODEL_FIRST, window=MODEL_LAST,  # its grid of starts is made here, before the impact
                          robust_starts=False)  # no robust estimate comes before the first window's end
+    from ..identify.model_fit.engine import VALVE_OPENING
+
     force, acceleration = recording.contact_force, recording.piston_acceleration
+    opening = recording.channels.get(VALVE_OPENING)  # valve Z's opening [-], an input of the fit where given
     noise = _force_noise(recording)
     threads = numba.get_num_threads()
     numba.set_num_threads(1)  # one core, as on the real-time system: the same numbers whatever the machine's cores
@@ -292,7 +326,7 @@ def model_answers(recording: Recording, rig: Rig, *, pressure_gauge: float,
             chunk = slice(k, min(k + STREAM_CHUNK, force.size))
             arrived = float(recording.time[chunk.stop - 1])  # a chunk is pushed once its last sample is in
             answer, updates = None, 0
-            for found in stream.push(force[chunk], acceleration[chunk]):
+            for found in stream.push(force[chunk], acceleration[chunk], None if opening is None else opening[chunk]):
                 if found.details.get("stage") == "final":
                     break  # the batch fit of MODEL_LAST: too late for the controller
                 updates += 1

@@ -35,6 +35,7 @@ from .identified import (
     identify_impact,
     loop_method,
     loop_summary,
+    run_record,
     usable_mass,
     usable_velocity,
 )
@@ -242,37 +243,36 @@ def _notes(found: Identification, required: float, usable: float, absorber: Abso
 
 
 def _strategy_run(name: str, context: ControlContext, found: Identification, closed, scenario: Scenario,
-                  absorber: Absorber, *, sigma: np.ndarray, seed: int, answer_until=None):
+                  absorber: Absorber, *, sigma: np.ndarray, seed: int, answer_of=None):
     """(settings, run, controller histories) of strategy ``name``: the closed-valve run itself for ``closed`` (and
     for every strategy but the force ones when the identification failed), else a run until the mass stops. A force
     strategy acting on partial knowledge (``context.early_start`` finite) takes the identification's answer
-    ``answer_until(t)`` from the record up to its valve's first motion t [s] (:func:`_early_run`)."""
+    ``answer_of(run, histories)`` of the record its run without the answer had (:func:`_early_run`)."""
     control = get_strategy(name)(context)
     if found.error is not None and control.strategy not in ("realtime", "predictive"):
         control = context.base("closed")  # no early answer: only the force strategies act, on their own estimates
     if control.strategy == "closed":
         return control, closed, {key: np.full_like(closed.time, np.nan) for key in plant.HISTORIES}
-    if answer_until is not None and control.strategy in ("realtime", "predictive") \
+    if answer_of is not None and control.strategy in ("realtime", "predictive") \
             and math.isfinite(control.early_start):
-        return _early_run(control, context, scenario, absorber, sigma=sigma, seed=seed, answer_until=answer_until)
+        return _early_run(control, context, scenario, absorber, sigma=sigma, seed=seed, answer_of=answer_of)
     return (control, *run_until_stopped(scenario, context.rig, control, absorber, duration=context.duration,
                                         sample_rate=context.sample_rate, sigma=sigma, seed=seed))
 
 
 def _early_run(control, context: ControlContext, scenario: Scenario, absorber: Absorber, *, sigma: np.ndarray,
-               seed: int, answer_until):
-    """A force strategy that acts from first contact on partial knowledge and takes the identification's answer
-    where one exists from the closed-valve record: the run without an answer first (the run with one is the same up
-    to the answer's instant), its valve's first motion t_m (its first non-zero command + the drive's dead time, which
-    the controller knows), then the answer from the record up to t_m (``answer_until(t_m)``; the identification's
-    models are the closed-valve stand's, and the record after t_m is not one of them) acted on from its
-    ``available_at``. Without such an answer the run on partial knowledge, refined in stage B, is the run."""
+               seed: int, answer_of):
+    """A force strategy that acts from first contact on partial knowledge and takes the identification's answer:
+    the run without an answer first, then the answer of the record that run had (``answer_of(run, histories)``:
+    the model stream with the run's valve opening as an input, or another identification on the record up to the
+    valve's first motion) acted on from its ``available_at``, the end of its data + the latency. The run with the
+    answer is the same as the one without it up to that instant, so the record up to the answer's data end is the
+    one the answer read: one pass, no fixed point to seek (the answer cannot change the data it was made from).
+    Without an answer the run on partial knowledge, refined in stage B, is the run."""
     waiting = dataclasses.replace(control, start=math.inf)
     result, history = run_until_stopped(scenario, context.rig, waiting, absorber, duration=context.duration,
                                         sample_rate=context.sample_rate, sigma=sigma, seed=seed)
-    sent = np.flatnonzero(history["valve_command"] > 0.0)
-    moved = float(result.time[sent[0]]) + absorber.drive.dead_time if sent.size else math.inf
-    answer = answer_until(moved)
+    answer = answer_of(result, history)
     mass, velocity = usable_mass(answer), usable_velocity(answer)
     if answer.error is not None or not math.isfinite(mass) or answer.available_at >= result.time[-1]:
         return waiting, result, history
@@ -386,13 +386,23 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              sample_rate=sample_rate, pressure_lower_start=float(closed.pressure_lower[0]),
                              temperature_lower_start=rig.gas.temperature, force_noise=float(sigma[0]),
                              acceleration_noise=float(sigma[1]), **known)
-    answer_until = None
+    answer_of = None
     if known:
-        def answer_until(moved: float) -> Identification:
+        closed_record = identification_record(scenario, rig, noise=noise, seed=seed, sample_rate=sample_rate)
+
+        def answer_of(run, history: dict[str, np.ndarray]) -> Identification:
+            if identification == "model":  # the valve's opening an input of the fit: the record of the run itself
+                return identify_impact(scenario, rig, method=identification, noise=noise, seed=seed,
+                                       sample_rate=sample_rate, latency=latency, recording=run_record(
+                                           closed_record, closed, run, history["valve_opening"]))
+            # the others read the closed-valve stand: the record up to the valve's first motion (its first
+            # command + the drive's dead time, which the controller knows)
+            sent = np.flatnonzero(history["valve_command"] > 0.0)
+            moved = float(run.time[sent[0]]) + absorber.drive.dead_time if sent.size else math.inf
             return identify_impact(scenario, rig, method=identification, noise=noise, seed=seed,
                                    sample_rate=sample_rate, response_map=response_map, latency=latency, until=moved)
     simulated = {name: _strategy_run(name, context, found, closed, scenario, absorber, sigma=sigma, seed=seed,
-                                     answer_until=answer_until) for name in names}
+                                     answer_of=answer_of) for name in names}
     start = min([start] + [_knew(history, result) for control, result, history in simulated.values()
                            if control.strategy in ("realtime", "predictive")])
     runs = {name: StrategyRun(strategy=name, result=result, controller=history,

@@ -49,6 +49,7 @@ from ..result import Identification
 from .engine import (
     CHANNELS,
     LEAD_SAMPLES,
+    VALVE_OPENING,
     LawFit,
     Observed,
     anti_alias_design,
@@ -152,6 +153,8 @@ class ModelStream:
         sample_rate = check_sample_rate(sample_rate, error=ParameterError)
         self.cadence, self.first, self.window = check_schedule(cadence, first, window, sample_rate=sample_rate)
         self.robust = StreamingIdentifier(sample_rate, start_time=start_time, estimates=robust_starts)
+        #: valve Z's opening [-] of the samples in the robust stream's ring buffer, by the same stream index
+        self._opening = np.zeros(self.robust.capacity)
         self.sample_rate, self.start_time = float(sample_rate), float(start_time)
         self.rig = get_rig(rig)
         # the stream screens one law per update from its first window on: the power law (six contact parameters)
@@ -202,30 +205,61 @@ class ModelStream:
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
 
-    def _recording(self, channels: np.ndarray, first: int, metadata: dict | None = None) -> Recording:
-        return Recording(sample_rate=self.sample_rate, channels=dict(zip(CHANNELS, channels, strict=True)),
+    def _recording(self, channels: np.ndarray, first: int, metadata: dict | None = None,
+                   opening: np.ndarray | None = None) -> Recording:
+        named = dict(zip(CHANNELS, channels, strict=True))
+        if opening is not None and np.any(opening > 0.0):  # a closed valve: the record without it, bit for bit
+            named[VALVE_OPENING] = opening
+        return Recording(sample_rate=self.sample_rate, channels=named,
                          start_time=self.start_time + first / self.sample_rate,
                          metadata=self.metadata if metadata is None else metadata, source="stream")
+
+    def _buffered(self, first: int, stop: int, metadata: dict | None = None) -> Recording:
+        """The record of stream indices ``first`` to ``stop`` (exclusive), with valve Z's opening where the valve
+        was open in it."""
+        opening = self._opening[np.arange(first, stop) % self._opening.size]
+        return self._recording(np.vstack(self.robust.buffered(first, stop)), first, metadata, opening)
 
     @property
     def notes(self) -> list[str]:
         """Why updates of the last impact gave no estimate (a fit that failed or did not explain the record)."""
         return [] if self._impact is None else self._impact.fit.notes
 
-    def push(self, force_chunk, acceleration_chunk) -> list[Identification]:
+    def push(self, force_chunk, acceleration_chunk, opening_chunk=None) -> list[Identification]:
         """Feed samples (any number); return the model's estimates that became available (StreamFinishedError
-        after :meth:`finish`)."""
+        after :meth:`finish`).
+
+        ``opening_chunk``: valve Z's opening [-] (0 closed, 1 fully open) at each sample, as the valve's command
+        and drive give it, for a stand whose valve moves during the impact: the fits then predict the record with
+        that opening (each sample's opening held from its instant), as the batch fit does with a record's
+        ``valve_opening`` channel. None (or zero throughout): the valve closed, the same answers as without it.
+
+        Raises
+        ------
+        IdentificationError
+            Chunks that are not 1-D numbers of equal length, or an opening that is not finite or outside [0, 1].
+        """
         check_open(self)
         try:
             f = np.atleast_1d(np.asarray(force_chunk, dtype=float))
             a = np.atleast_1d(np.asarray(acceleration_chunk, dtype=float))
+            z = np.zeros_like(f) if opening_chunk is None else np.atleast_1d(np.asarray(opening_chunk, dtype=float))
         except (TypeError, ValueError):
-            raise IdentificationError("force and acceleration chunks must hold numbers") from None
+            raise IdentificationError("force, acceleration and opening chunks must hold numbers") from None
         if f.ndim != 1 or f.shape != a.shape:
             raise IdentificationError(f"force and acceleration chunks must be 1-D of equal length, got shapes "
                                       f"{f.shape} and {a.shape}")
+        if z.shape != f.shape:
+            raise IdentificationError(f"opening_chunk must be 1-D of the force chunk's length {f.size}, got shape "
+                                      f"{z.shape}")
+        bad = ~(np.isfinite(z) & (z >= 0.0) & (z <= 1.0))
+        if bad.any():
+            raise IdentificationError(f"opening_chunk must be valve Z's opening within [0, 1] [-] at every sample, "
+                                      f"got {float(z[bad][0])!r} at index {int(np.argmax(bad))}")
         out: list[Identification] = []
         for k in range(0, f.size, self._chunk):  # an impact's trigger is seen within a cadence
+            part = z[k:k + self._chunk]
+            self._opening[(self.robust.seen + np.arange(part.size)) % self._opening.size] = part
             self.robust.push(f[k:k + self._chunk], a[k:k + self._chunk])
             out += self._advance()
         return out
@@ -264,8 +298,7 @@ class ModelStream:
         :func:`.engine.observe`), made at the trigger on the samples so far: they read the samples before first
         contact only, so the first answer finds them made. Where the record so far does not pass, the first update
         checks it again and says why."""
-        recording = self._recording(np.vstack(self.robust.buffered(impact.first, self.robust.seen)), impact.first,
-                                    self._update_metadata)
+        recording = self._buffered(impact.first, self.robust.seen, self._update_metadata)
         with contextlib.suppress(IdentificationError):
             check_length(recording, min_duration=0.0)
             self._observe(recording, impact)
@@ -277,7 +310,8 @@ class ModelStream:
         millisecond, a first answer little more than a millisecond."""
         data = observe(recording, "none", impact.contact_time, min_duration=0.0,  # the design only makes the grid
                        quiet=impact.quiet)
-        return replace(data, grid=replace(self._grid_model, start_time=data.grid.start_time, size=data.grid.size))
+        return replace(data, grid=replace(self._grid_model, start_time=data.grid.start_time, size=data.grid.size,
+                                          valve=data.grid.valve))
 
     def _stop(self, contact: float, after: float) -> int:
         """Stream index one past the last sample of the record up to ``after`` [s] after ``contact``."""
@@ -291,8 +325,7 @@ class ModelStream:
             return self._conclude(impact, stop)
         impact.next_stop = min(self._stop(impact.contact_time, span + self.cadence),
                                self._stop(impact.contact_time, self.window))
-        recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first,
-                                    self._update_metadata)
+        recording = self._buffered(impact.first, stop, self._update_metadata)
         try:
             if not impact.checked:  # a pre-trigger, as the batch fit needs one (the same for every update)
                 check_length(recording, min_duration=0.0)
@@ -376,7 +409,7 @@ class ModelStream:
         clock = time.perf_counter()
         stop = min(stop, self.robust.seen)
         try:
-            recording = self._recording(np.vstack(self.robust.buffered(impact.first, stop)), impact.first)
+            recording = self._buffered(impact.first, stop)
             self.last_record = recording
             final = batch.identify(recording, rig=self.rig, pressure_gauge=self._given_pressure[0],
                                    pressure_gauge_std=self._given_pressure[1], uncertain=self.uncertain,
