@@ -113,3 +113,17 @@ def test_one_predictor_with_or_without_a_schedule():
     for in_turn in (True, False):
         with pytest.raises(fw.IdentificationError, match="outside"):
             fw._predict(opened, far, times, in_turn=in_turn)
+
+
+def test_the_fits_horizon_follows_the_records_opening():
+    """The span a fit reads ends before the piston's return onto its top stop, which the model predicts with the
+    record's opening: closed, the piston returns within 200 ms of a 30 kg, 2 m/s drop on 100 kPa; with the valve
+    open from before contact the charge vents and it does not, so the whole record is read."""
+    layout = fw.make_layout(get_rig(), "hysteretic", (), pressure_gauge=SCENARIO.pressure_gauge, contact_time=0.0,
+                            sample_rate=RECORD["sample_rate"])
+    x = layout.variables({"mass": SCENARIO.mass, "velocity": SCENARIO.velocity, "contact_time": 0.0})
+    grid = fw._make_grid(-2e-3, RECORD["sample_rate"], 100, "causal")
+    closed, why = fw._horizon(layout, x, 0.2, grid)
+    assert closed < 0.2 and "top stop" in why and (closed, why) == fw._horizon(layout, x, 0.2)
+    opened = dataclasses.replace(grid, valve=(np.array([-1e-3]), np.array([1.0])))
+    assert fw._horizon(layout, x, 0.2, opened) == (0.2, "the whole record")

@@ -2,12 +2,13 @@
 the identification becomes available; compared with an oracle that knows the true M1 and V0.
 
 Until the control starts the valve is closed, so the identification reads a record of the closed-valve impact
-(:mod:`.identified`). The controller's own sensors (contact force, piston acceleration, chamber pressures, rod
-displacement) get white Gaussian noise of the same relative level: ``noise`` × the RMS of each channel over the
-closed-valve record. Besides the force sensor, the accelerometer and the chamber pressure sensors of the paper's
-Fig. 10, the absorber reads the piston displacement (a displacement transducer on the rod): integrating the
-acceleration twice drifts by about 1 cm over the 0.4 s of a controlled stroke at 2 % noise, as much as the whole
-stroke margin.
+(:mod:`.identified`); a controller that acts from first contact (``early``) gives the model identification the
+record of its own run with the valve's opening as an input. The controller's own sensors (contact force, piston
+acceleration, chamber pressures, rod displacement) get white Gaussian noise of the same relative level: ``noise`` ×
+the RMS of each channel over the closed-valve record. Besides the force sensor, the accelerometer and the chamber
+pressure sensors of the paper's Fig. 10, the absorber reads the piston displacement (a displacement transducer on
+the rod): integrating the acceleration twice drifts by about 1 cm over the 0.4 s of a controlled stroke at 2 % noise,
+as much as the whole stroke margin.
 """
 
 from __future__ import annotations

@@ -690,9 +690,9 @@ LONG_FLIGHT = 0.03
 HORIZON_GUARD = 1e-3
 
 
-def _horizon(layout: Layout, x: np.ndarray, span: float) -> tuple[float, str]:
+def _horizon(layout: Layout, x: np.ndarray, span: float, grid: Grid | None = None) -> tuple[float, str]:
     """How long after first contact [s] a fit at variables ``x`` (of ``layout``) reads a record of ``span`` [s]
-    after contact, and why.
+    after contact, and why (``grid``: the record's, whose valve opening schedule the model follows).
 
     The model at ``x`` is integrated over the span and the fit stops ``HORIZON_GUARD`` before the first of: the
     piston's return onto its top stop, and a re-contact of the mass after a free flight longer than
@@ -701,11 +701,14 @@ def _horizon(layout: Layout, x: np.ndarray, span: float) -> tuple[float, str]:
     minimum (errors of 5-10 stated σ on 100 ms pad records where the piston returns). The record up to there is
     read in full; its answer is as accurate as the samples before, with a standard error that holds.
     """
-    params, _ = layout.packed(x[None, :len(layout.names)])
-    times = np.arange(1, max(int(span * layout.sample_rate), 1) + 1) / layout.sample_rate
+    params, contact = layout.packed(x[None, :len(layout.names)])
+    times = np.arange(1, max(int(span * layout.sample_rate), 1) + 1) / layout.sample_rate  # after contact
     index = np.array([d.U2, d.CHANNELS.index("contact_force")], dtype=np.int64)
     out = np.empty((2, times.size))
-    status = _predict_row(params[0], np.empty(d.N_STATE), times, 0.0, *_schedule(None), index, FIT_RTOL,
+    valve_times, valve_open = _schedule(grid)
+    if grid is not None and valve_times.size:
+        valve_times = valve_times - (float(contact[0]) - grid.start_time)  # after contact
+    status = _predict_row(params[0], np.empty(d.N_STATE), times, 0.0, valve_times, valve_open, index, FIT_RTOL,
                           absolute_tolerance(FIT_RTOL), MAX_STEP, MAX_FIT_STEPS, out)
     if status != fast.OK:
         return span, "the whole record (the model's course over it could not be integrated)"

@@ -200,7 +200,7 @@ def _fit_stages(data: Observed, layouts: _Layouts, values: dict, offsets, stages
         layout = layouts(kind, values)
         if end is None:
             span = data.grid.start_time + (data.grid.size - 1) / data.grid.sample_rate - values["contact_time"]
-            reach, why = _horizon(layout, layout.variables(values), span)
+            reach, why = _horizon(layout, layout.variables(values), span, data.grid)
             part = window(data, values["contact_time"] + reach) if reach < span else data
         else:
             part = window(data, start.contact_time + end)
