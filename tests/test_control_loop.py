@@ -327,11 +327,9 @@ def test_contact_velocity_from_the_first_rise_of_the_pad(seed, mass, velocity, p
     assert clean.velocity == pytest.approx(velocity, rel=0.01)
 
 
-def test_the_early_policy_acts_from_first_contact_and_its_model_reads_the_valve_it_drove(monkeypatch):
-    """absorb(early=True): the force strategy acts from V0's answer on M1's prior (the rated masses' mean), takes
-    the model identification's answer from the record its run had with the valve's opening as an input (no cut at
-    the valve's first motion), and until that answer's instant runs exactly as the same policy without it; the
-    same arguments give the same numbers."""
+def _spied_identifications(monkeypatch) -> list:
+    """The loop's identifications, spied: each call's (``until``, ``recording``, answer) appended to the list
+    returned, in order."""
     calls = []
     identify = control_loop.identify_impact
 
@@ -341,6 +339,15 @@ def test_the_early_policy_acts_from_first_contact_and_its_model_reads_the_valve_
         return found
 
     monkeypatch.setattr(control_loop, "identify_impact", spy)
+    return calls
+
+
+def test_the_early_policy_acts_from_first_contact_and_its_model_reads_the_valve_it_drove(monkeypatch):
+    """absorb(early=True): the force strategy acts from V0's answer on M1's prior (the rated masses' mean), takes
+    the model identification's answer from the record its run had with the valve's opening as an input (no cut at
+    the valve's first motion), and until that answer's instant runs exactly as the same policy without it; the
+    same arguments give the same numbers."""
+    calls = _spied_identifications(monkeypatch)
     run = absorb(SCENARIO, strategy="predictive", early=True)
     known = control_loop.early_knowledge(SCENARIO, run.rig, run.absorber, noise=0.02, seed=0, sample_rate=50e3,
                                          latency=1e-3)
@@ -367,9 +374,22 @@ def test_the_early_policy_acts_from_first_contact_and_its_model_reads_the_valve_
     assert np.array_equal(result.u1[:before], waiting.u1[:before])
     assert not np.array_equal(result.u1[:min(time.size, waiting.time.size)],
                               waiting.u1[:min(time.size, waiting.time.size)])
-    monkeypatch.setattr(control_loop, "identify_impact", identify)
+    monkeypatch.undo()
     assert absorb(SCENARIO, strategy="predictive", early=True).to_dict() == run.to_dict()
 
+
+
+def test_the_early_policy_reads_a_closed_valve_identification_only_before_the_valve_moved(monkeypatch):
+    """absorb(early=True) with an identification that fits the closed-valve stand (robust): it reads the
+    closed-valve record up to the valve's first motion (first command + the drive's dead time), not the run's
+    record, and no answer it gives read a sample after that."""
+    calls = _spied_identifications(monkeypatch)
+    run = absorb(SCENARIO, strategy="predictive", identification="robust", early=True)
+    time, command = run.runs["predictive"].result.time, run.runs["predictive"].controller["valve_command"]
+    moved = time[np.argmax(command > 0.0)] + run.absorber.drive.dead_time
+    until, recording, answer = calls[-1]  # the answer offered to the force strategy
+    assert np.any(command > 0.0) and until == pytest.approx(moved) and recording is None
+    assert answer.error is not None or answer.details["data_until_s"] <= moved
 
 def test_partial_knowledge_settings_and_rated_masses_are_checked():
     from impactometer.control.settings import ControlSettings

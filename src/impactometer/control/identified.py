@@ -20,7 +20,7 @@ from ..errors import IdentificationError, ParameterError
 from ..identify.peak_to_peak.streaming import StreamingIdentifier
 from ..identify.response_map import identify_recording
 from ..identify.result import Identification
-from ..recording import Recording
+from ..recording import ACCELERATION, FORCE, Recording
 from ..rig import Rig, Scenario
 from ..sensors import record
 from ..signals.noise import quiet_noise_std
@@ -181,7 +181,6 @@ def run_record(closed_record: Recording, closed, run, opening: np.ndarray) -> Re
     first contact and after the run). The same noise draw as the closed-valve record: where the valve stays
     closed the record is that one, bit for bit."""
     from ..identify.model_fit.engine import VALVE_OPENING
-    from ..recording import ACCELERATION, FORCE
 
     n = min(closed.time.size, run.time.size)
     at = closed_record.time - float(closed_record.metadata.get("anti_alias_delay_s", 0.0))
@@ -306,14 +305,13 @@ def model_answers(recording: Recording, rig: Rig, *, pressure_gauge: float,
     """
     import numba
 
+    from ..identify.model_fit.engine import VALVE_OPENING
     from ..identify.model_fit.streaming import ModelStream
 
     stream = ModelStream(recording.sample_rate, start_time=recording.start_time, metadata=recording.metadata,
                          rig=rig, pressure_gauge=pressure_gauge, contact=rig.contact.law, cadence=MODEL_CADENCE,
                          first=MODEL_FIRST, window=MODEL_LAST,  # its grid of starts is made here, before the impact
                          robust_starts=False)  # no robust estimate comes before the first window's end
-    from ..identify.model_fit.engine import VALVE_OPENING
-
     force, acceleration = recording.contact_force, recording.piston_acceleration
     opening = recording.channels.get(VALVE_OPENING)  # valve Z's opening [-], an input of the fit where given
     noise = _force_noise(recording)

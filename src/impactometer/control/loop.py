@@ -345,9 +345,10 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     early : bool
         Act on what is known as soon as it is known (:func:`early_knowledge`): the force strategies drive the valve
         from V0's answer (:func:`~.identified.contact_velocity`, ~0.5 ms of contact + ``latency``) with M1 taken
-        from the prior over ``absorber.rated_masses`` and refined by the controller's stage-B estimate. An
-        identification's answer is used only where its data end before the valve can have moved (the stream's model
-        is the closed-valve stand's; a record read after the valve moved would bias it).
+        from the prior over ``absorber.rated_masses`` and refined by the controller's stage-B estimate. The model
+        identification reads the run's own record with the valve's opening as an input
+        (:func:`~.identified.run_record`); the others, which fit the closed-valve stand, read only the record before
+        the valve can have moved (a record read after it would bias them).
 
     Returns
     -------
@@ -389,10 +390,11 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
                              acceleration_noise=float(sigma[1]), **known)
     answer_of = None
     if known:
-        closed_record = identification_record(scenario, rig, noise=noise, seed=seed, sample_rate=sample_rate)
+        closed_record = identification_record(scenario, rig, noise=noise, seed=seed, sample_rate=sample_rate) \
+            if identification == "model" else None  # what the model's record of a run is made from
 
         def answer_of(run, history: dict[str, np.ndarray]) -> Identification:
-            if identification == "model":  # the valve's opening an input of the fit: the record of the run itself
+            if closed_record is not None:  # the model: the valve's opening an input of the fit, the run's record
                 return identify_impact(scenario, rig, method=identification, noise=noise, seed=seed,
                                        sample_rate=sample_rate, latency=latency, recording=run_record(
                                            closed_record, closed, run, history["valve_opening"]))
