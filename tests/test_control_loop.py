@@ -406,22 +406,29 @@ def test_partial_knowledge_settings_and_rated_masses_are_checked():
         absorb(SCENARIO, early="yes")
 
 
-def test_cli_absorb_early(capsys):
-    main(["absorb", "--mass", "20kg", "--height", "0.2m", "--pressure", "300kPa", "--strategy", "predictive",
-          "--early", "--json"])
+def test_cli_absorb_acts_early_by_default_and_waits_when_asked(capsys):
+    args = ["absorb", "--mass", "20kg", "--height", "0.2m", "--pressure", "300kPa", "--strategy", "predictive",
+            "--json"]
+    main(args)
     data = json.loads(capsys.readouterr().out)
     assert 0.0 < data["strategies"]["predictive"]["control_start_s"] < 3e-3  # from V0's answer, not M1's
+    main([*args, "--wait"])
+    waited = json.loads(capsys.readouterr().out)
+    assert waited["strategies"]["predictive"]["control_start_s"] == pytest.approx(
+        waited["identification"]["available_at_s"])  # the valve waits for M1's answer
 
 
-def test_absorption_study_acts_early_when_asked():
+def test_absorption_study_acts_early_by_default_and_waits_when_asked():
     load_studies()
     study = get_study("absorption")
     options = options_for(study, StudyOptions(rig_is_default=True, params={
-        "absorption.strategies": ["predictive"], "absorption.policy": "early", "absorption.reference_evaluations": 0}))
+        "absorption.strategies": ["predictive"], "absorption.reference_evaluations": 0}))
     case = {"case": 0, "mass": 20.0, "velocity": 1.98, "pressure_gauge": 300e3}
     rows = {r["strategy"]: r for r in study.evaluate([case], options)}
     assert 0.0 < rows["predictive"]["control_start_s"] < 3e-3
     assert rows["predictive"]["achievable_partial_knowledge_force_ratio"] >= rows["achievable reference"][
         "stage_b_ratio"]
+    waiting = options_for(study, StudyOptions(rig_is_default=True, params={"absorption.policy": "wait"}))
+    assert waiting.param("absorption", "policy", "early") == "wait"
     with pytest.raises(ParameterError, match="policy"):
         options_for(study, StudyOptions(params={"absorption.policy": "sometimes"}))

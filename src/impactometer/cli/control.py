@@ -95,8 +95,9 @@ def absorb(
                                           "acted on this long after the last sample it used (default 1ms: a "
                                           "compiled real-time core).")] = "1ms",
     early: Annotated[bool, typer.Option(
-        "--early", help="Act from first contact on what is known: V0 from the first 0.5 ms of contact, M1's prior "
-                        "over the rated masses, refined as the mass becomes known.")] = False,
+        "--early/--wait", help="The policy: act from first contact on what is known (early, the default: V0 from "
+                               "the first 0.5 ms of contact, M1's prior over the rated masses, refined as the mass "
+                               "becomes known), or keep the valve closed until M1 is known (wait).")] = True,
     contact: ContactOpt = None,
     rig: Annotated[str, typer.Option("--rig", metavar="STAND", help="Stand: a preset name or a TOML file.")]
     = ABSORPTION_RIG,

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import IdentificationError, ParameterError
+from ..errors import IdentificationError, ParameterError, ResponseMapError
 from ..identify.peak_to_peak.streaming import StreamingIdentifier
 from ..identify.response_map import identify_recording
 from ..identify.result import Identification
@@ -130,7 +130,8 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
     """
     rec = identification_record(scenario, rig, noise=noise, seed=seed, sample_rate=sample_rate) \
         if recording is None else recording
-    if until < rec.time[-1]:
+    cut = until < rec.time[-1]
+    if cut:
         kept = rec.time <= until
         rec = replace(rec, channels={key: values[kept] for key, values in rec.channels.items()})
     name = {"response-map": "response-map/fast", "model": "model/early"}.get(method, f"peak-to-peak/{method}")
@@ -141,7 +142,13 @@ def identify_impact(scenario: Scenario, rig: Rig, *, method: str, noise: float, 
         elif method == "response-map":
             if response_map is None:
                 raise ParameterError("identification 'response-map' needs response_map= (a map or its file)")
-            found = identify_recording(rec, response_map)
+            try:
+                found = identify_recording(rec, response_map)
+            except ResponseMapError as exc:
+                if not cut:
+                    raise
+                # a record cut where the valve first moved can be shorter than the map's feature window
+                raise IdentificationError(f"the record up to {until * 1e3:.3g} ms: {exc}") from exc
         else:
             stream = StreamingIdentifier(rec.sample_rate, variant=method, gravity=rig.gravity,
                                          start_time=rec.start_time)

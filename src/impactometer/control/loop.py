@@ -1,9 +1,12 @@
 """The closed loop: simulated sensors (with noise) → identification of M1 and V0 → a strategy that starts when
 the identification becomes available; compared with an oracle that knows the true M1 and V0.
 
-Until the control starts the valve is closed, so the identification reads a record of the closed-valve impact
-(:mod:`.identified`); a controller that acts from first contact (``early``) gives the model identification the
-record of its own run with the valve's opening as an input. The controller's own sensors (contact force, piston
+By default (``early``) the force strategies act from first contact on what is known (V0 from the first samples, M1's
+prior over the rated masses) and the model identification reads the record of the run with the valve's opening as an
+input; with ``early=False`` (the ``wait`` policy) the valve stays closed until the control starts, so the
+identification reads a record of the closed-valve impact (:mod:`.identified`).
+
+The controller's own sensors (contact force, piston
 acceleration, chamber pressures, rod displacement) get white Gaussian noise of the same relative level: ``noise`` ×
 the RMS of each channel over the closed-valve record. Besides the force sensor, the accelerometer and the chamber
 pressure sensors of the paper's Fig. 10, the absorber reads the piston displacement (a displacement transducer on
@@ -301,7 +304,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
            identification: str = "model", noise: float = 0.02, seed: int = 0, absorber: Absorber | None = None,
            sample_rate: float = 50e3, duration: float | None = None, control_start: float | None = None,
            response_map=None, reference: bool = False, reference_evaluations: int = REFERENCE_EVALUATIONS,
-           latency: float = LATENCY, early: bool = False) -> AbsorptionResult:
+           latency: float = LATENCY, early: bool = True) -> AbsorptionResult:
     """Absorb one impact with the closed loop identify → control.
 
     Parameters
@@ -343,12 +346,14 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
         measured: the same arguments give the same numbers on any machine. Not used by the oracle, nor with
         ``control_start``.
     early : bool
-        Act on what is known as soon as it is known (:func:`early_knowledge`): the force strategies drive the valve
+        The policy. True (the default, ``early``): act on what is known as soon as it is known
+        (:func:`early_knowledge`): the force strategies drive the valve
         from V0's answer (:func:`~.identified.contact_velocity`, ~0.5 ms of contact + ``latency``) with M1 taken
         from the prior over ``absorber.rated_masses`` and refined by the controller's stage-B estimate. The model
         identification reads the run's own record with the valve's opening as an input
         (:func:`~.identified.run_record`); the others, which fit the closed-valve stand, read only the record before
-        the valve can have moved (a record read after it would bias them).
+        the valve can have moved (a record read after it would bias them). False (``wait``): the valve stays closed
+        until the identification's answer (or the controller's own stage-B estimate) gives M1.
 
     Returns
     -------

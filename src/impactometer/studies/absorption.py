@@ -12,8 +12,9 @@ The identification's answer is acted on ``absorption.latency`` after the last sa
 compiled real-time core; ``--set absorption.latency=3ms``): a stated budget, so the rows are the same for the same
 arguments on any machine. ``--set absorption.control_start_ms=T`` makes the answer known T ms after first contact
 (with ``absorption.identification=oracle``: what a controller that knew M1 and V0 then would reach).
-``--set absorption.policy=early`` lets the force strategies act on what is known as soon as it is known
-(``absorb(early=True)``: V0 from the first 0.5 ms of contact, M1's prior over the rated masses, refined in stage B).
+The force strategies act on what is known as soon as it is known (``absorption.policy=early``, the default;
+``absorb(early=True)``: V0 from the first 0.5 ms of contact, M1's prior over the rated masses, refined in stage B and
+by the identification's answer); ``--set absorption.policy=wait`` keeps the valve closed until M1 is known.
 
 R_B,wide (``wide_window_ratio``) is the same peak taken from the end of the first contact pulse + 1 ms: a peak
 moved before the common window counts there. Medians and percentiles of R_B are taken over the **common set**: the
@@ -42,7 +43,7 @@ NAME = "absorption"
 GRID = 2
 DEFAULTS = {"noise": 0.02, "identification": "model", "strategies": ["closed", "constant", "realtime",
                                                                        "predictive"],
-            "reference_evaluations": 240, "control_start_ms": None, "latency": LATENCY, "policy": "wait"}
+            "reference_evaluations": 240, "control_start_ms": None, "latency": LATENCY, "policy": "early"}
 SETTINGS = {"noise": Setting("number", 0.0, 1.0, "fraction"),
             "identification": Setting("choice", choices=("robust", "paper", "model", "oracle")),
             "strategies": Setting("choices", choices=ALL_STRATEGIES),
