@@ -156,7 +156,8 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
         scenario = Scenario(mass=case["mass"], velocity=case["velocity"], pressure_gauge=case["pressure_gauge"])
         result = absorb(scenario, rig, strategy=["closed", "predictive"], noise=noise, seed=seed, absorber=absorber,
                         sample_rate=options.sample_rate, identification="oracle" if oracle else "model",
-                        control_start=LATENCY if oracle else None)
+                        control_start=LATENCY if oracle else None,
+                        early=False)  # designs judged, as recorded, with the valve closed until M1 is known
         m, closed = result.metrics["predictive"], result.metrics["closed"]
         rows.append({"case": case["case"], "impact": case["impact"], "mass_kg": scenario.mass,
                      "velocity_m_s": scenario.velocity, "impact_class": impact_class(scenario.mass, scenario.velocity),

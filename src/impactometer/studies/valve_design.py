@@ -63,7 +63,8 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
         seed = int(case_seed(options, NAME, case["impact"]).generate_state(1)[0])
         scenario = Scenario(mass=case["mass"], velocity=case["velocity"], pressure_gauge=case["pressure_gauge"])
         result = absorb(scenario, rig, strategy=strategy, noise=noise, seed=seed, absorber=absorber,
-                        sample_rate=options.sample_rate, identification=str(_setting(options, "identification")))
+                        sample_rate=options.sample_rate, identification=str(_setting(options, "identification")),
+                        early=False)  # valves judged, as recorded, with the valve closed until M1 is known
         m = result.metrics[strategy]
         rows.append({"case": case["case"], "impact": case["impact"], "mass_kg": scenario.mass,
                      "velocity_m_s": scenario.velocity, "pressure_gauge_Pa": scenario.pressure_gauge,
