@@ -21,6 +21,8 @@ from .validation import check_real, is_real
 
 FORCE = "contact_force"
 ACCELERATION = "piston_acceleration"
+#: valve Z's opening [-] (0 closed, 1 fully open), a channel a model fit reads as an input where a record holds it
+VALVE_OPENING = "valve_opening"
 #: SI unit of the standard channels
 CHANNEL_UNITS = {FORCE: "N", ACCELERATION: "m/s^2", "u1": "m", "u2": "m", "piston_displacement": "m",
                  "pressure_lower": "Pa", "pressure_upper": "Pa"}

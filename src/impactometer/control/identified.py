@@ -20,7 +20,7 @@ from ..errors import IdentificationError, ParameterError, ResponseMapError
 from ..identify.peak_to_peak.streaming import StreamingIdentifier
 from ..identify.response_map import identify_recording
 from ..identify.result import Identification
-from ..recording import ACCELERATION, FORCE, Recording
+from ..recording import ACCELERATION, FORCE, VALVE_OPENING, Recording
 from ..rig import Rig, Scenario
 from ..sensors import record
 from ..signals.noise import quiet_noise_std
@@ -187,8 +187,6 @@ def run_record(closed_record: Recording, closed, run, opening: np.ndarray) -> Re
     milliseconds), and ``valve_opening`` [-], the run's opening ``opening`` at each of its samples (zero before
     first contact and after the run). The same noise draw as the closed-valve record: where the valve stays
     closed the record is that one, bit for bit."""
-    from ..identify.model_fit.engine import VALVE_OPENING
-
     n = min(closed.time.size, run.time.size)
     at = closed_record.time - float(closed_record.metadata.get("anti_alias_delay_s", 0.0))
     channels = dict(closed_record.channels)
@@ -312,7 +310,6 @@ def model_answers(recording: Recording, rig: Rig, *, pressure_gauge: float,
     """
     import numba
 
-    from ..identify.model_fit.engine import VALVE_OPENING
     from ..identify.model_fit.streaming import ModelStream
 
     stream = ModelStream(recording.sample_rate, start_time=recording.start_time, metadata=recording.metadata,

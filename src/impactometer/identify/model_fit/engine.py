@@ -23,14 +23,11 @@ import numpy as np
 from numba import njit
 
 from ...errors import IdentificationError, shown
-from ...recording import Recording
+from ...recording import VALVE_OPENING, Recording
 from ...rig import CONTACT_LAWS, contact_law_name
 from ...signals.noise import quiet_noise_std, robust_noise_std
 from .forward import Grid, Layout, _make_grid, _predict
 from .information import covariance
-
-#: the record's channel of valve Z's opening [-] the fit reads as an input
-VALVE_OPENING = "valve_opening"
 
 #: finite-difference step of the Jacobian in the fit variables (ln of a positive value, value/scale of a linear
 #: one) and in sample periods for the contact instant. Smaller steps let the integrator's error (its step sequence

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ...errors import IdentificationError, ParameterError, ParameterTypeError, shown
-from ...recording import Recording, check_sample_rate
+from ...recording import VALVE_OPENING, Recording, check_sample_rate
 from ...rig import STAND_KEY, Rig, get_rig
 from ...sensors import anti_alias_delay
 from ...validation import check_integer, check_real, renamed
@@ -49,7 +49,6 @@ from ..result import Identification
 from .engine import (
     CHANNELS,
     LEAD_SAMPLES,
-    VALVE_OPENING,
     LawFit,
     Observed,
     anti_alias_design,
