@@ -35,7 +35,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ..details import Adequacy
 from ..result import Identification
-from .engine import GUARD_SAMPLES, LawFit, Observed, Residuals, fit_law, restricted, solve, window
+from .engine import GUARD_SAMPLES, LawFit, Observed, Residuals, _restricted, fit_law, solve, window
 from .information import covariance
 
 #: the paths an answer takes: the model's fit with its Fisher σ; the fit of the first span the model explains; the
@@ -85,7 +85,7 @@ def _residuals_of(data: Observed, best: LawFit, quiet: float) -> _Residual | Non
     None where the model cannot be integrated at its answer."""
     part = data if best.span is None else window(data, best.values["contact_time"] + best.span[0])
     problem = Residuals(part, best.layout)
-    known = restricted(best, problem)
+    known = _restricted(best, problem)
     vector = problem.residuals(best.x) if known is None else known[0]
     if vector is None:
         return None
@@ -254,7 +254,7 @@ def _nested(data: Observed, best: LawFit) -> tuple[float, float, float, float] |
     part = window(data, best.values["contact_time"] + NESTED_SPAN)
     problem = Residuals(part, best.layout)
     try:
-        known = restricted(best, problem) or (problem.residuals(best.x), problem.jacobian(best.x))
+        known = _restricted(best, problem) or (problem.residuals(best.x), problem.jacobian(best.x))
         short = best.layout.values(solve(problem, best.x, information=False, known=known).x[:problem.q])
         at_whole = covariance(known[1])[0]
     except IdentificationError:

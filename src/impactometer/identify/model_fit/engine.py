@@ -205,7 +205,7 @@ def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS
           ) -> Solution:
     """Levenberg-Marquardt on ``problem`` from ``x`` (:func:`_advance`, which see for ``evaluations``,
     ``jacobians`` and ``information``; without ``information`` the Jacobian is the last one made, where the fit
-    stops). ``known``: the residuals and the Jacobian at ``x`` where the caller has them (:func:`restricted`).
+    stops). ``known``: the residuals and the Jacobian at ``x`` where the caller has them (:func:`_restricted`).
 
     Raises
     ------
@@ -402,7 +402,7 @@ class LawFit(Quality):
     #: given, or the :func:`~.forward.horizon` of the whole record)
     span: tuple[float, str] | None = None
     #: the weighted residuals and their Jacobian at ``x`` (rows of :class:`Residuals`) where the fit made them
-    #: there (:func:`fit_law` with ``information``), for the tests of the answer (:func:`restricted`)
+    #: there (:func:`fit_law` with ``information``), for the tests of the answer (:func:`_restricted`)
     residual: np.ndarray | None = field(default=None, repr=False)
     jacobian: np.ndarray | None = field(default=None, repr=False)
 
@@ -477,7 +477,7 @@ def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, offsets:
     return _law_fit(problem, solution, information=information, kept=information)
 
 
-def restricted(fit: LawFit, problem: Residuals) -> tuple[np.ndarray, np.ndarray] | None:
+def _restricted(fit: LawFit, problem: Residuals) -> tuple[np.ndarray, np.ndarray] | None:
     """The residuals and the Jacobian of ``problem`` at ``fit``'s answer, read off those ``fit`` kept: ``problem``
     is ``fit``'s layout on the record it was fitted to, up to an instant no later than the fit's (its rows are the
     fit's rows of the samples up to there: under a causal anti-alias filter, or none, the model of a sample does not
