@@ -35,7 +35,7 @@ import numpy as np
 from ...errors import IdentificationError
 from ..details import Adequacy
 from ..result import Identification
-from .engine import GUARD_SAMPLES, LawFit, Observed, Residuals, fit_law, window
+from .engine import GUARD_SAMPLES, LawFit, Observed, Residuals, _restricted, fit_law, solve, window
 from .information import covariance
 
 #: the paths an answer takes: the model's fit with its Fisher σ; the fit of the first span the model explains; the
@@ -69,13 +69,14 @@ MAX_BANDWIDTH_FRACTION = 0.25
 @dataclass(frozen=True)
 class _Residual:
     """Each channel's weighted residuals after first contact (2, n), those of the pre-trigger (2, n0), the fit's
-    residual vector and the problem it belongs to."""
+    residual vector and the problem it belongs to, and its Jacobian there where the fit kept it."""
 
     after: np.ndarray
     before: np.ndarray
     problem: Residuals
     vector: np.ndarray
     onset: int
+    jacobian: np.ndarray | None = None
 
 
 def _residuals_of(data: Observed, best: LawFit, quiet: float) -> _Residual | None:
@@ -84,7 +85,8 @@ def _residuals_of(data: Observed, best: LawFit, quiet: float) -> _Residual | Non
     None where the model cannot be integrated at its answer."""
     part = data if best.span is None else window(data, best.values["contact_time"] + best.span[0])
     problem = Residuals(part, best.layout)
-    vector = problem.residuals(best.x)
+    known = _restricted(best, problem)
+    vector = problem.residuals(best.x) if known is None else known[0]
     if vector is None:
         return None
     tail = vector[:2 * problem.tail.shape[1]].reshape(2, -1)
@@ -93,7 +95,8 @@ def _residuals_of(data: Observed, best: LawFit, quiet: float) -> _Residual | Non
     # the pre-trigger the noise σ was measured on (the samples up to GUARD_SAMPLES before first contact)
     pre = int(math.floor((quiet - part.grid.start_time) * fs)) - GUARD_SAMPLES
     before = part.channels[:, :max(pre, 2)] / part.noise[:, None] - best.x[problem.q:, None]
-    return _Residual(after=tail[:, onset:], before=before, problem=problem, vector=vector, onset=onset)
+    return _Residual(after=tail[:, onset:], before=before, problem=problem, vector=vector, onset=onset,
+                     jacobian=None if known is None else known[1])
 
 
 def _lag1(r: np.ndarray) -> float:
@@ -139,7 +142,7 @@ def _sandwich(res: _Residual, best: LawFit, lags: int) -> np.ndarray:
     the Bartlett-weighted long-run covariance (``lags``) of the scores of each channel's residuals after contact;
     the rows before contact, of the pre-trigger's means and of the priors enter S with their Fisher information."""
     problem = res.problem
-    jac = problem.jacobian(best.x)
+    jac = problem.jacobian(best.x) if res.jacobian is None else res.jacobian
     after = [c * problem.tail.shape[1] + res.onset + np.arange(res.after.shape[1]) for c in range(2)]
     rest = np.setdiff1d(np.arange(jac.shape[0]), np.concatenate(after))
     meat = jac[rest].T @ jac[rest]
@@ -249,13 +252,14 @@ def _nested(data: Observed, best: LawFit) -> tuple[float, float, float, float] |
     if (end if best.span is None else min(best.span[0], end)) <= 1.5 * NESTED_SPAN:
         return None
     part = window(data, best.values["contact_time"] + NESTED_SPAN)
+    problem = Residuals(part, best.layout)
     try:
-        short = fit_law(part, best.layout, best.values, offsets=best.offsets, information=False)
-        at_whole = covariance(Residuals(part, best.layout).jacobian(best.x))[0]
+        known = _restricted(best, problem) or (problem.residuals(best.x), problem.jacobian(best.x))
+        short = best.layout.values(solve(problem, best.x, information=False, known=known).x[:problem.q])
+        at_whole = covariance(known[1])[0]
     except IdentificationError:
         return None
-    delta = (math.log(short.values["mass"] / best.values["mass"]),
-             math.log(short.values["velocity"] / best.values["velocity"]))
+    delta = (math.log(short["mass"] / best.values["mass"]), math.log(short["velocity"] / best.values["velocity"]))
     spread = (at_whole[0, 0] - best.cov[0, 0], at_whole[1, 1] - best.cov[1, 1])
     if not all(math.isfinite(v) and v > 0.0 for v in spread):
         return None

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -198,10 +198,11 @@ class Solution:
 
 
 def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS, tolerance: float = TOLERANCE,
-          jacobians: int | None = None, information: bool = True) -> Solution:
+          jacobians: int | None = None, information: bool = True, known: tuple[np.ndarray | None, Any] | None = None
+          ) -> Solution:
     """Levenberg-Marquardt on ``problem`` from ``x`` (:func:`_advance`, which see for ``evaluations``,
     ``jacobians`` and ``information``; without ``information`` the Jacobian is the last one made, where the fit
-    stops).
+    stops). ``known``: the residuals and the Jacobian at ``x`` where the caller has them (:func:`_restricted`).
 
     Raises
     ------
@@ -209,12 +210,12 @@ def solve(problem: Problem, x: np.ndarray, *, evaluations: int = MAX_EVALUATIONS
         When the problem cannot be evaluated at ``x``.
     """
     x = np.array(x, dtype=float)
-    r = problem.residuals(x)
+    r, jac = (problem.residuals(x), None) if known is None else known
     if r is None:
         raise IdentificationError("the model cannot be integrated at the fit's start")
     r_trial: np.ndarray | None = r
     memo, trial, new = _begin(float(r @ r)), np.empty_like(x), NO_TRIAL
-    jac = problem.jacobian(x)
+    jac = problem.jacobian(x) if jac is None else jac
     normal, gradient = problem.normal(jac, r)
     while (request := _advance(memo, x, trial, normal, gradient, new, evaluations, jacobians or 0, information,
                               tolerance)) != DONE:
@@ -323,8 +324,8 @@ class Residuals:
             tail = self.tail - x[self.q:, None] - self.model(x)
         except IdentificationError:
             return None
-        return np.r_[tail.ravel(), self.root * (self.mean - x[self.q:]),
-                     (x[self.prior_index] - self.prior_mean) / self.prior_sigma]
+        return np.concatenate((tail.ravel(), self.root * (self.mean - x[self.q:]),
+                               (x[self.prior_index] - self.prior_mean) / self.prior_sigma))
 
     def normal(self, jac: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The normal equations of Jacobian ``jac`` and residuals ``r`` (:func:`normal_equations`)."""
@@ -397,6 +398,10 @@ class LawFit(Quality):
     #: the span of the record after first contact the fit read [s] and why it ends there (the whole window
     #: given, or the :func:`~.forward.horizon` of the whole record)
     span: tuple[float, str] | None = None
+    #: the weighted residuals and their Jacobian at ``x`` (rows of :class:`Residuals`) where the fit made them
+    #: there (:func:`fit_law` with ``information``), for the tests of the answer (:func:`_restricted`)
+    residual: np.ndarray | None = field(default=None, repr=False)
+    jacobian: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def law(self) -> str:
@@ -426,20 +431,22 @@ class LawFit(Quality):
 
 
 def _law_fit(problem: Residuals, solution: Solution, *, information: bool = True,
-            converged: bool | None = None) -> LawFit:
+            converged: bool | None = None, kept: bool = False) -> LawFit:
     """The :class:`LawFit` of ``solution`` on ``problem`` (its covariance from the solution's Jacobian with
-    ``information``, else NaN; ``converged`` overrides the solution's)."""
+    ``information``, else NaN; ``converged`` overrides the solution's; ``kept``: the solution's residuals and
+    Jacobian, made at its answer, kept in it)."""
     x, layout = solution.x, problem.layout
     cov, rank = covariance(solution.jacobian) if information else (np.full((x.size, x.size), np.nan), 0)
     return LawFit(layout=layout, x=x, values=layout.values(x[:problem.q]), offsets=x[problem.q:] * problem.noise,
                   cov=cov, rank=rank, chi2=solution.chi2 + problem.constant, residuals=problem.size,
                   evaluations=solution.evaluations,
-                  converged=solution.converged if converged is None else converged)
+                  converged=solution.converged if converged is None else converged,
+                  residual=solution.residuals if kept else None, jacobian=solution.jacobian if kept else None)
 
 
 def _variables(layout: Layout, values: dict[str, float], offsets: np.ndarray, noise: np.ndarray) -> np.ndarray:
     """The fit vector of physical ``values`` (name -> value [SI]) and ``offsets`` [N], [m/s²]."""
-    return np.r_[layout.variables(values), offsets / noise]
+    return np.concatenate((layout.variables(values), offsets / noise))
 
 
 def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, offsets: np.ndarray | None = None,
@@ -464,7 +471,23 @@ def fit_law(data: Observed, layout: Layout, start: dict[str, float], *, offsets:
         raise IdentificationError(f"the {layout.law} fit failed: {exc}") from None
     if jacobians is not None:
         return _law_fit(problem, solution, converged=True)
-    return _law_fit(problem, solution, information=information)
+    return _law_fit(problem, solution, information=information, kept=information)
+
+
+def _restricted(fit: LawFit, problem: Residuals) -> tuple[np.ndarray, np.ndarray] | None:
+    """The residuals and the Jacobian of ``problem`` at ``fit``'s answer, read off those ``fit`` kept: ``problem``
+    is ``fit``'s layout on the record it was fitted to, up to an instant no later than the fit's (its rows are the
+    fit's rows of the samples up to there: under a causal anti-alias filter, or none, the model of a sample does not
+    depend on later ones). None where the fit kept none or the filter is zero-phase (then they are computed)."""
+    if fit.residual is None or fit.jacobian is None or problem.layout is not fit.layout or (
+            problem.grid.design not in ("causal", "none")):
+        return None
+    whole = (fit.residual.size - 2 - problem.prior_index.size) // 2
+    n = problem.tail.shape[1]
+    if n > whole:
+        return None
+    rows = np.r_[np.arange(n), whole + np.arange(n), 2 * whole + np.arange(fit.residual.size - 2 * whole)]
+    return fit.residual[rows], fit.jacobian[rows]
 
 
 def weighted_jacobian(data: Observed, layout: Layout, values: dict[str, float]) -> np.ndarray:

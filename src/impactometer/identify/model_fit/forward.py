@@ -442,9 +442,9 @@ class Grid:
     #: fully open valve held from each (zero-order hold; closed before the first); None: the valve of the parameters
     valve: tuple[np.ndarray, np.ndarray] | None = None
 
-    @property
+    @cached_property
     def instants(self) -> np.ndarray:
-        """Internal instants relative to the first sample [s]."""
+        """Internal instants relative to the first sample [s] (made once per grid: every prediction reads them)."""
         n_int = 2 * self.pad + (self.size - 1) * self.factor + 1
         return (np.arange(n_int) - self.pad) / (self.factor * self.sample_rate)
 
