@@ -45,6 +45,7 @@ from .adequacy import (
 from .engine import (
     MIN_DURATION,
     LawFit,
+    Observed,
     anti_alias_design,
     check_channels,
     check_length,
@@ -55,6 +56,7 @@ from .engine import (
 from .forward import _check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
 from .select import CRITERION, _fit_laws, _grid_start, _Start
+from .stand_choice import STAND_FALSE_ALARM, compare_stands, names_no_stand
 from .stand_prior import _stand_variance
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
@@ -208,7 +210,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     elif stand_uncertainty is not None and not isinstance(stand_uncertainty, StandUncertainty):
         raise ParameterError(f"stand_uncertainty must be a StandUncertainty or None, got {shown(stand_uncertainty)}",
                              field="stand_uncertainty", expected="a StandUncertainty or None")
-    rig = get_rig(rig)
+    given, rig = rig, get_rig(rig)
     laws = contact_laws(contact)
     free_names = _check_uncertain(uncertain, laws)
     max_reduced_chi2 = check_real("max_reduced_chi2", max_reduced_chi2, low=1.0, unit=" [-]", state_range=True)
@@ -217,6 +219,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     trigger = check_length(recording)
     pressure_gauge_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_GAUGE_START
     delay = anti_alias_delay(design, recording.sample_rate)
+    failed = ""
     try:
         robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
                                  recording.start_time, early=False)
@@ -232,6 +235,33 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, gauge,
                                     pressure_gauge_start), pressure_gauge_std=gauge_std)
     fits, selection = _fit_laws(data, rig, laws, free_names, start)
+    choice = None
+    if given is None and names_no_stand(recording):
+        choice = compare_stands(data, rig, fits, laws, free_names, start)
+    if choice is not None and choice.better is not None:
+        assert choice.fits is not None and choice.selection is not None  # a better stand comes with its fits
+        other = choice.better
+        named = (f"another built-in stand, {other.name!r}, explains the record better than {rig.name!r} by ΔBIC "
+                 f"{choice.compared['stands'][other.name]['delta_bic']:.4g} (beyond {choice.compared['threshold']:.3g}:"
+                 f" a right stand loses by that in fewer than {STAND_FALSE_ALARM:g} of its records); the record names "
+                 f"no stand, so the answer is {other.name!r}'s -- pass rig={other.name!r} (--rig {other.name}) if "
+                 "it was made there, or the stand it was made on")
+        answer = _conclude(recording, other, data, start, robust, failed, choice.fits, choice.selection, design,
+                           trigger, (gauge, gauge_std), max_reduced_chi2, None, choice.compared)
+        return replace(answer, warnings=(named, *answer.warnings))
+    return _conclude(recording, rig, data, start, robust, failed, fits, selection, design, trigger,
+                     (gauge, gauge_std), max_reduced_chi2, stand_uncertainty,
+                     None if choice is None else choice.compared)
+
+
+def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, robust: Identification | None,
+              failed: str, fits: dict[str, LawFit], selection: dict[str, dict], design: str, trigger: float,
+              stated: tuple[float | None, float], max_reduced_chi2: float,
+              stand_uncertainty: StandUncertainty | None, stands: dict | None) -> Identification:
+    """The answer of the fits ``fits`` of every law on ``rig`` (model selection ``selection``): the adequacy test,
+    the shortened or nested fit, the check against the robust answer ``robust`` (None where it failed, why in
+    ``failed``) or the fall-back; ``stands`` the stands compared (:func:`.stand_choice.compare_stands`)."""
+    gauge, gauge_std = stated
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,
         start={"mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time,
@@ -239,7 +269,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         robust={"error": failed} if robust is None else
         {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
          "velocity_std_m_s": robust.velocity_std},
-        noise_force=float(data.noise[0]), noise_acceleration=float(data.noise[1]), anti_alias=design)
+        noise_force=float(data.noise[0]), noise_acceleration=float(data.noise[1]), anti_alias=design, stands=stands)
     best = min(fits.values(), key=lambda f: f.bic) if fits else None
     if robust is None and (best is None or best.reduced_chi2 > max_reduced_chi2):
         raise IdentificationError(f"{recording.source}: no answer: the robust method failed ({failed}) and the "
