@@ -11,9 +11,11 @@ and the seal friction) and the charge pressure unless it is known. Each contact-
 its noise, and widened by the calibrated stand's stated uncertainty of the parameters the fit holds
 (:mod:`.stand_prior`: propagated linearly through the fit's Jacobian); :mod:`.adequacy` judges that, gives the fit
 of the first span the model explains or a sandwich σ where it does not, and checks the answer against the robust
-answer. When the best law leaves χ²/dof above :data:`MAX_REDUCED_CHI2` and explains no shorter span, or its answer
-disagrees with the robust one, the answer is the robust one; its details say which path was taken and why
-(``adequacy``).
+answer. A record that names no stand, identified without ``rig``, is also fitted on every other built-in stand
+(:mod:`.stand_choice`): where one explains it better beyond what chance gives a right stand in 1 record of 1000, the
+answer is that stand's, with a warning naming it. When the best law leaves χ²/dof above :data:`MAX_REDUCED_CHI2`
+and explains no shorter span, or its answer disagrees with the robust one, the answer is the robust one; its
+details say which path was taken and why (``adequacy``).
 """
 
 from __future__ import annotations
@@ -164,7 +166,10 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         Contact force [N] and piston acceleration [m/s²] with a pre-trigger (at least ``MIN_PRE_SAMPLES`` +
         ``GUARD_SAMPLES`` samples before first contact) and at least ``MIN_DURATION`` after it.
     rig : Rig or str, optional
-        The stand (a preset name or a TOML file; default ``drop-stand``).
+        The stand (a preset name or a TOML file; default ``drop-stand``). Where it is not given and the recording's
+        metadata names no stand (``rig``, ``rig_fingerprint``), every other built-in stand is fitted too and the one
+        whose best BIC is lower than the default's by more than :func:`.stand_choice.threshold` gives the answer,
+        with a warning naming it (details ``stands``: the stands compared and their evidence).
     pressure_gauge : float, optional
         Charge pressure [Pa gauge] as a gauge reads it; default the metadata's ``pressure_gauge_Pa``, else
         fitted freely. Where both are stated they are combined (their inverse-variance mean), and refused when they
@@ -191,7 +196,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     Identification
         Method ``model/ml`` (the fit's answer) or ``model/fallback`` (the robust peak-to-peak answer, the model
         not describing the record); details: ``path`` and ``reason``, ``contact_law``, ``model_selection`` (each
-        law's χ², BIC and values), ``crb`` (Cramér-Rao σ of M1 and V0 at the estimate), ``robust``.
+        law's χ², BIC and values), ``crb`` (Cramér-Rao σ of M1 and V0 at the estimate), ``robust``, ``stands``
+        (the built-in stands compared, where they were).
 
     Raises
     ------
