@@ -403,6 +403,7 @@ def test_another_stand_named_in_the_details_and_json():
     assert set(stands["stands"]) == {"drop-stand", "drop-stand-stiff"}
     stiff = stands["stands"]["drop-stand-stiff"]
     assert stiff["better"] and stiff["delta_bic"] > stands["threshold"] and stiff["law"] == "kelvin-voigt"
+    assert stiff["adequate"]  # a stand is taken only where it explains the record down to its noise
     assert stands["stands"]["drop-stand"]["law"] and stands["false_alarm"] == pytest.approx(1e-3)
     assert "--rig drop-stand-stiff" in answer.warnings[0] and "rig='drop-stand-stiff'" in answer.warnings[0]
     named = identify(rec, rig="drop-stand-stiff")

@@ -243,7 +243,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     fits, selection = _fit_laws(data, rig, laws, free_names, start)
     choice = None
     if given is None and names_no_stand(recording):
-        choice = compare_stands(data, rig, fits, laws, free_names, start)
+        choice = compare_stands(data, rig, fits, laws, free_names, start,
+                                robust.t00 if robust is not None else trigger)
     if choice is not None and choice.better is not None:
         assert choice.fits is not None and choice.selection is not None  # a better stand comes with its fits
         other = choice.better

@@ -30,6 +30,7 @@ from scipy.stats import norm
 from ...errors import IdentificationError
 from ...recording import Recording
 from ...rig import PRESETS, STAND_KEY, Rig, fingerprint
+from .adequacy import _assess
 from .engine import LawFit, Observed, fit_law, window
 from .select import _fit_laws, _Start
 
@@ -91,10 +92,13 @@ def _until(data: Observed, fit: LawFit, end: float) -> LawFit:
 
 
 def compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: tuple[str, ...],
-                   uncertain: tuple[str, ...] | None, start: _Start) -> StandChoice | None:
+                   uncertain: tuple[str, ...] | None, start: _Start, quiet: float) -> StandChoice | None:
     """Fit the record ``data`` on every other built-in stand (:func:`other_stands`) with the laws, unknowns and start
     of the fit on ``rig`` (whose whole-record fits are ``fits``) and compare each one's best BIC with ``rig``'s over
-    the samples both read; None where ``rig``'s fits failed."""
+    the samples both read; None where ``rig``'s fits failed. A stand better beyond :func:`threshold` is taken only
+    where it explains the record down to its noise (:func:`.adequacy._assess`, ``quiet`` the instant [s] the noise
+    was measured up to): a record of a built-in stand is, and one of neither stand (a pad outside every family) can
+    be explained better, not well, by another stand's friction and volumes."""
     taken = _best(fits)
     if taken is None:
         return None
@@ -119,9 +123,10 @@ def compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: t
             compared[other.name] = {"law": best.law, "error": str(exc)}
             continue
         delta = (mine.bic - theirs.bic) / scale
+        adequate = _assess(data, best, quiet)[0].verdict == "adequate"
         compared[other.name] = {"law": best.law, "bic": best.bic, "reduced_chi2": best.reduced_chi2,
-                                "residuals": mine.residuals, "delta_bic": delta, "taken": False}
-        if delta > margin:
+                                "residuals": mine.residuals, "delta_bic": delta, "adequate": adequate, "taken": False}
+        if delta > margin and adequate:
             margin = delta
             choice = replace(choice, better=other, fits=other_fits, selection=selection)
     if choice.better is not None:
