@@ -367,12 +367,12 @@ def test_the_stand_threshold_and_the_stands_compared():
     α/m (one alternative: 9.55); the built-in stands compared are the distinct ones."""
     from scipy.stats import norm
 
-    from impactometer.identify.model_fit.stand_choice import STAND_FALSE_ALARM, other_stands, threshold
+    from impactometer.identify.model_fit.stand_choice import STAND_FALSE_ALARM, _other_stands, _threshold
 
-    assert norm.sf(math.sqrt(threshold(1))) == pytest.approx(STAND_FALSE_ALARM)
-    assert threshold(1) == pytest.approx(9.55, abs=0.01) and threshold(2) > threshold(1)
-    assert [rig.name for rig in other_stands(get_rig(None))] == ["drop-stand-stiff"]
-    assert [rig.name for rig in other_stands(get_rig("drop-stand-stiff"))] == ["drop-stand"]
+    assert norm.sf(math.sqrt(_threshold(1))) == pytest.approx(STAND_FALSE_ALARM)
+    assert _threshold(1) == pytest.approx(9.55, abs=0.01) and _threshold(2) > _threshold(1)
+    assert [rig.name for rig in _other_stands(get_rig(None))] == ["drop-stand-stiff"]
+    assert [rig.name for rig in _other_stands(get_rig("drop-stand-stiff"))] == ["drop-stand"]
 
 
 @pytest.mark.parametrize(("mass", "velocity", "pressure", "seed", "law", "noise"),

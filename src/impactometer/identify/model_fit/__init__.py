@@ -58,7 +58,7 @@ from .engine import (
 from .forward import _check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
 from .select import CRITERION, _fit_laws, _grid_start, _Start
-from .stand_choice import STAND_FALSE_ALARM, compare_stands, names_no_stand
+from .stand_choice import STAND_FALSE_ALARM, _compare_stands, _names_no_stand
 from .stand_prior import _stand_variance
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
@@ -168,7 +168,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     rig : Rig or str, optional
         The stand (a preset name or a TOML file; default ``drop-stand``). Where it is not given and the recording's
         metadata names no stand (``rig``, ``rig_fingerprint``), every other built-in stand is fitted too and the one
-        whose best BIC is lower than the default's by more than :func:`.stand_choice.threshold` gives the answer,
+        whose best BIC is lower than the default's by more than :func:`.stand_choice._threshold` gives the answer,
         with a warning naming it (details ``stands``: the stands compared and their evidence).
     pressure_gauge : float, optional
         Charge pressure [Pa gauge] as a gauge reads it; default the metadata's ``pressure_gauge_Pa``, else
@@ -242,8 +242,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
                                     pressure_gauge_start), pressure_gauge_std=gauge_std)
     fits, selection = _fit_laws(data, rig, laws, free_names, start)
     choice = None
-    if given is None and names_no_stand(recording):
-        choice = compare_stands(data, rig, fits, laws, free_names, start,
+    if given is None and _names_no_stand(recording):
+        choice = _compare_stands(data, rig, fits, laws, free_names, start,
                                 robust.t00 if robust is not None else trigger)
     if choice is not None and choice.better is not None:
         assert choice.fits is not None and choice.selection is not None  # a better stand comes with its fits
@@ -267,7 +267,7 @@ def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, rob
               stand_uncertainty: StandUncertainty | None, stands: dict | None) -> Identification:
     """The answer of the fits ``fits`` of every law on ``rig`` (model selection ``selection``): the adequacy test,
     the shortened or nested fit, the check against the robust answer ``robust`` (None where it failed, why in
-    ``failed``) or the fall-back; ``stands`` the stands compared (:func:`.stand_choice.compare_stands`)."""
+    ``failed``) or the fall-back; ``stands`` the stands compared (:func:`.stand_choice._compare_stands`)."""
     gauge, gauge_std = stated
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,

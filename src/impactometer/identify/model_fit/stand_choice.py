@@ -8,7 +8,7 @@ choice between models with the same unknowns, so the record itself tells them ap
 stand (:data:`~impactometer.rig.PRESETS`, one per fingerprint) is fitted with the same laws and selection
 (:func:`.select._fit_laws`), and its best BIC compared with the default's over the same samples.
 
-The threshold (:func:`threshold`) comes from the noise. Let two stands predict the record with a difference δ
+The threshold (:func:`_threshold`) comes from the noise. Let two stands predict the record with a difference δ
 (weighted by the noise σ, after each fit's own unknowns have taken what they can: the difference neither fit
 absorbs). Under the right stand A, to first order, ΔBIC = BIC_A − BIC_B = −‖δ‖² + 2 δ·ε with ε the white weighted
 noise: a normal of mean −‖δ‖² and σ 2‖δ‖. It exceeds t > 0 with the probability Φ(−(t + ‖δ‖²)/(2‖δ‖)), largest
@@ -39,9 +39,9 @@ STAND_FALSE_ALARM = 1e-3
 
 
 @dataclass(frozen=True)
-class StandChoice:
+class _StandChoice:
     """The stands compared (name -> evidence: best law, its BIC and ΔBIC to the stand taken over common samples) and
-    the stand that explains the record better beyond :func:`threshold` with its fits and model selection (None
+    the stand that explains the record better beyond :func:`_threshold` with its fits and model selection (None
     where the stand taken wins)."""
 
     compared: dict[str, Any]
@@ -50,18 +50,18 @@ class StandChoice:
     selection: dict[str, dict] | None = None
 
 
-def threshold(alternatives: int) -> float:
+def _threshold(alternatives: int) -> float:
     """The ΔBIC [-] by which another stand must explain a record better than the one taken, for ``alternatives``
     other stands compared: (Φ⁻¹(1 − α/m))² with α = :data:`STAND_FALSE_ALARM` (module docstring)."""
     return float(norm.isf(STAND_FALSE_ALARM / max(alternatives, 1))) ** 2
 
 
-def names_no_stand(recording: Recording) -> bool:
+def _names_no_stand(recording: Recording) -> bool:
     """True where ``recording``'s metadata names no stand (neither ``rig`` nor :data:`~impactometer.rig.STAND_KEY`)."""
     return recording.metadata.get("rig") is None and recording.metadata.get(STAND_KEY) is None
 
 
-def other_stands(rig: Rig) -> list[Rig]:
+def _other_stands(rig: Rig) -> list[Rig]:
     """The built-in stands other than ``rig``, one per distinct set of parameters (``drop-stand`` and
     ``drop-stand-pad`` are the same stand)."""
     seen = {fingerprint(rig)}
@@ -91,23 +91,23 @@ def _until(data: Observed, fit: LawFit, end: float) -> LawFit:
     return fit_law(window(data, end), fit.layout, fit.values, offsets=fit.offsets, information=False)
 
 
-def compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: tuple[str, ...],
-                   uncertain: tuple[str, ...] | None, start: _Start, quiet: float) -> StandChoice | None:
-    """Fit the record ``data`` on every other built-in stand (:func:`other_stands`) with the laws, unknowns and start
+def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: tuple[str, ...],
+                   uncertain: tuple[str, ...] | None, start: _Start, quiet: float) -> _StandChoice | None:
+    """Fit the record ``data`` on every other built-in stand (:func:`_other_stands`) with the laws, unknowns and start
     of the fit on ``rig`` (whose whole-record fits are ``fits``) and compare each one's best BIC with ``rig``'s over
-    the samples both read; None where ``rig``'s fits failed. A stand better beyond :func:`threshold` is taken only
+    the samples both read; None where ``rig``'s fits failed. A stand better beyond :func:`_threshold` is taken only
     where it explains the record down to its noise (:func:`.adequacy._assess`, ``quiet`` the instant [s] the noise
     was measured up to): a record of a built-in stand is, and one of neither stand (a pad outside every family) can
     be explained better, not well, by another stand's friction and volumes."""
     taken = _best(fits)
     if taken is None:
         return None
-    others = other_stands(rig)
-    limit = threshold(len(others))
+    others = _other_stands(rig)
+    limit = _threshold(len(others))
     scale = max(1.0, taken.reduced_chi2)
     compared: dict[str, Any] = {rig.name: {"law": taken.law, "bic": taken.bic, "reduced_chi2": taken.reduced_chi2,
                                            "taken": True}}
-    choice = StandChoice(compared={"stands": compared, "threshold": limit, "false_alarm": STAND_FALSE_ALARM,
+    choice = _StandChoice(compared={"stands": compared, "threshold": limit, "false_alarm": STAND_FALSE_ALARM,
                                    "chi2_scale": scale})
     margin = limit
     for other in others:
