@@ -375,6 +375,20 @@ def test_the_stand_threshold_and_the_stands_compared():
     assert [rig.name for rig in _other_stands(get_rig("drop-stand-stiff"))] == ["drop-stand"]
 
 
+def test_another_stand_is_taken_only_where_the_stand_taken_explains_the_record_too():
+    """A better built-in stand replaces the one taken only where both explain the record down to its noise (they
+    then differ by what the fit soaks up); where the stand taken does not, the record may be of neither stand, and
+    the stand taken answers on its own path."""
+    from impactometer.identify.model_fit.stand_choice import _StandChoice, _switches
+
+    taken, other = get_rig(None), get_rig("drop-stand-stiff")
+    stands = {taken.name: {"adequate": True}, other.name: {"adequate": True, "delta_bic": 50.0}}
+    assert _switches(_StandChoice(compared={"stands": stands}, better=other), taken)
+    assert not _switches(_StandChoice(compared={"stands": stands}), taken)
+    stands[taken.name]["adequate"] = False
+    assert not _switches(_StandChoice(compared={"stands": stands}, better=other), taken)
+
+
 @pytest.mark.parametrize(("mass", "velocity", "pressure", "seed", "law", "noise"),
                          [(30.0, 2.0, 100e3, 11, None, 0.05), (45.0, 3.2, 380e3, 32, "kelvin-voigt", 0.02)])
 def test_a_right_stand_is_not_taken_for_another(mass, velocity, pressure, seed, law, noise):

@@ -58,7 +58,7 @@ from .engine import (
 from .forward import _check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
 from .select import CRITERION, _fit_laws, _grid_start, _Start
-from .stand_choice import STAND_FALSE_ALARM, _compare_stands, _names_no_stand
+from .stand_choice import STAND_FALSE_ALARM, _compare_stands, _names_no_stand, _switches
 from .stand_prior import _stand_variance
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
@@ -250,15 +250,21 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         other = choice.better
         named = (f"another built-in stand, {other.name!r}, explains the record better than {rig.name!r} by ΔBIC "
                  f"{choice.compared['stands'][other.name]['delta_bic']:.4g} (beyond {choice.compared['threshold']:.3g}:"
-                 f" a right stand loses by that in fewer than {STAND_FALSE_ALARM:g} of its records); the record names "
-                 f"no stand, so the answer is {other.name!r}'s -- pass rig={other.name!r} (--rig {other.name}) if "
-                 "it was made there, or the stand it was made on")
-        answer = _conclude(recording, other, data, start, robust, failed, choice.fits, choice.selection, design,
-                           trigger, (gauge, gauge_std), max_reduced_chi2, None, choice.compared)
-        return replace(answer, warnings=(named, *answer.warnings))
-    return _conclude(recording, rig, data, start, robust, failed, fits, selection, design, trigger,
-                     (gauge, gauge_std), max_reduced_chi2, stand_uncertainty,
-                     None if choice is None else choice.compared)
+                 f" a right stand loses by that in fewer than {STAND_FALSE_ALARM:g} of its records)")
+        if _switches(choice, rig):
+            named += (f"; the record names no stand, so the answer is {other.name!r}'s -- pass rig={other.name!r} "
+                      f"(--rig {other.name}) if it was made there, or the stand it was made on")
+            answer = _conclude(recording, other, data, start, robust, failed, choice.fits, choice.selection,
+                               design, trigger, (gauge, gauge_std), max_reduced_chi2, None, choice.compared)
+            return replace(answer, warnings=(named, *answer.warnings))
+        named += (f", and {rig.name!r} does not explain it down to its noise: the record is of neither stand as the "
+                  f"model takes them, or of {other.name!r} -- the answer is {rig.name!r}'s; pass rig={other.name!r} "
+                  f"(--rig {other.name}) if it was made there, or the stand it was made on")
+    answer = _conclude(recording, rig, data, start, robust, failed, fits, selection, design, trigger,
+                       (gauge, gauge_std), max_reduced_chi2, stand_uncertainty,
+                       None if choice is None else choice.compared)
+    return answer if choice is None or choice.better is None else replace(
+        answer, warnings=(named, *answer.warnings))
 
 
 def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, robust: Identification | None,

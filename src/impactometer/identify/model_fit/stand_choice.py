@@ -98,7 +98,9 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
     the samples both read; None where ``rig``'s fits failed. A stand better beyond :func:`_threshold` is taken only
     where it explains the record down to its noise (:func:`.adequacy._assess`, ``quiet`` the instant [s] the noise
     was measured up to): a record of a built-in stand is, and one of neither stand (a pad outside every family) can
-    be explained better, not well, by another stand's friction and volumes."""
+    be explained better, not well, by another stand's friction and volumes. Whether ``rig`` explains it down to its
+    noise is stated too (``compared['stands'][rig.name]['adequate']``): the answer switches stands only where it does
+    (:func:`_switches`)."""
     taken = _best(fits)
     if taken is None:
         return None
@@ -106,6 +108,7 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
     limit = _threshold(len(others))
     scale = max(1.0, taken.reduced_chi2)
     compared: dict[str, Any] = {rig.name: {"law": taken.law, "bic": taken.bic, "reduced_chi2": taken.reduced_chi2,
+                                           "adequate": _assess(data, taken, quiet)[0].verdict == "adequate",
                                            "taken": True}}
     choice = _StandChoice(compared={"stands": compared, "threshold": limit, "false_alarm": STAND_FALSE_ALARM,
                                    "chi2_scale": scale})
@@ -132,3 +135,14 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
     if choice.better is not None:
         compared[choice.better.name]["better"] = True
     return choice
+
+
+def _switches(choice: _StandChoice, rig: Rig) -> bool:
+    """Whether the answer is taken on ``choice.better`` instead of ``rig``: only where ``rig``, too, explains the
+    record down to its noise, so that the two stands differ by what the fit soaks up (a stand the record names
+    nowhere, explained on the wrong one with white residuals). Where ``rig`` does not, the record is of neither
+    stand as the model takes them or of the better one: a pad outside every family on the stand taken was explained
+    down to its noise by the stiff stand's friction and volumes in 3 of 15 records (``scripts/foreign_pads.py``),
+    its answer 3-4.6 σ off. Then ``rig``'s own path (shortened, widened or the robust fall-back) answers, with a
+    warning naming the better stand."""
+    return choice.better is not None and bool(choice.compared["stands"][rig.name]["adequate"])
