@@ -15,6 +15,13 @@ towards the previous maximum point) and ``power-set`` (power-law loading, plasti
 ``--mismatch`` measures instead records of impactometer's own simulator with the stand or the pressure misstated:
 6 records of ``drop-stand-stiff`` (no stand named in the file) identified on the default stand, and 6 of the
 default stand identified with the pressure given 1.5 % and 3 % low and high (none in the file, no σ given).
+It then measures the comparison of the built-in stands that a record naming no stand gets (``rig`` and the stand
+fingerprint removed from the metadata, identified without ``rig``): ``drop-stand-stiff`` records, 12 drawn at random
+(seeds 501-512, each ``numpy.random.default_rng(seed)`` drawing M1 10-50 kg, V0 1-3 m/s, p0 20-400 kPa, recorded
+with that seed, 5 % noise) and the stand cases of the tests, each against the truth with and without the
+comparison; and ``--right-stand`` records of the default stand (seeds 601-, drawn the same way, the contact law
+cycling over every family, the noise alternating 2 % and 5 %), which must not be taken for another stand, with
+the extra time the comparison costs (median over the records, both in one process).
 
 The table: per pad kind, mean and max |relative error| of mass and velocity [%] of the model answer and of the
 robust answer on the same records, ±2σ coverage of each (mass / velocity), and how many answers took each path of
@@ -119,6 +126,108 @@ def mismatch_job(task: tuple) -> dict:
             "named": any(named in w for w in answer.warnings)}
 
 
+#: the stand cases of tests/test_model_identification.py (M1 [kg], V0 [m/s], p0 [Pa gauge], seed)
+STAND_CASES = ((20.0, 2.5, 300e3, 31), (45.0, 3.2, 380e3, 32), (12.0, 1.5, 150e3, 33), (42.2, 2.62, 216e3, 505),
+               (35.0, 2.79, 315e3, 507))
+#: the noise of the right-stand records, alternating [-]
+RIGHT_NOISE = (0.02, 0.05)
+
+
+def drawn(seed: int) -> tuple[float, float, float, int]:
+    """M1 [kg], V0 [m/s] and p0 [Pa gauge] drawn from the paper's ranges with ``seed``, and the seed."""
+    mass, velocity, pressure = np.random.default_rng(seed).uniform([10.0, 1.0, 20e3], [50.0, 3.0, 400e3])
+    return float(mass), float(velocity), float(pressure), seed
+
+
+def stand_job(task: tuple) -> dict:
+    """One record naming no stand: identified without ``rig`` (the stands compared) and on the stand the
+    comparison would otherwise take, both timed."""
+    import time
+    from dataclasses import replace
+
+    import numba
+
+    from impactometer.identify.model_fit import identify
+    from impactometer.rig import CONTACT_LAWS, STAND_KEY, Scenario, get_rig
+    from impactometer.sensors import record
+
+    numba.set_num_threads(1)
+    kind, (mass, velocity, pressure, seed), index = task
+    if kind == "right":
+        law = tuple(CONTACT_LAWS)[index % len(CONTACT_LAWS)]
+        stand, noise = get_rig(None, contact=law), RIGHT_NOISE[index % len(RIGHT_NOISE)]
+    else:
+        law, stand, noise = "kelvin-voigt", get_rig("drop-stand-stiff"), 0.05
+    rec = record(Scenario(mass=mass, velocity=velocity, pressure_gauge=pressure), stand, sample_rate=50e3,
+                 duration=0.05, noise=noise, seed=seed, pre_trigger=0.02)
+    rec = replace(rec, metadata={k: v for k, v in rec.metadata.items() if k not in ("rig", STAND_KEY)})
+    started = time.perf_counter()
+    answer = identify(rec)
+    compared = time.perf_counter() - started
+    started = time.perf_counter()
+    plain = identify(rec, rig="drop-stand")
+    alone = time.perf_counter() - started
+    stands = answer.details.get("stands") or {}
+    deltas = [v["delta_bic"] for v in stands.get("stands", {}).values() if "delta_bic" in v]
+    return {"kind": kind, "law": law, "noise": noise, "seed": seed, "mass": mass, "velocity": velocity,
+            "pressure": pressure,
+            "z": [(answer.mass - mass) / answer.mass_std, (answer.velocity - velocity) / answer.velocity_std],
+            "z_default": [(plain.mass - mass) / plain.mass_std, (plain.velocity - velocity) / plain.velocity_std],
+            "named": any("--rig" in w for w in answer.warnings),
+            "named_default": any("--rig" in w for w in plain.warnings),
+            "switched": any("explains the record better" in w for w in answer.warnings),
+            "delta_bic": max(deltas) if deltas else None, "threshold": stands.get("threshold"),
+            "time": compared, "time_default": alone}
+
+
+def stands_table(args) -> None:
+    tasks = [("stiff", drawn(seed), i) for i, seed in enumerate(range(501, 513))]
+    tasks += [("case", case, i) for i, case in enumerate(STAND_CASES)]
+    tasks += [("right", drawn(601 + i), i) for i in range(args.right_stand)]
+    with Pool(max(args.jobs, 1)) as pool:
+        rows = pool.map(stand_job, tasks, chunksize=1)
+    threshold = next(r["threshold"] for r in rows if r["threshold"] is not None)
+    print(f"\nRecords naming no stand, identified without rig: the built-in stands compared (a record is taken for "
+          f"another stand where its best BIC there is lower by more than {threshold:.3g}, the answer then that "
+          "stand's, with a warning naming --rig). z = (answer − truth)/σ; 'default' = identified on the default stand "
+          "(rig='drop-stand', no comparison); within = both |z| <= 3; named = a warning names --rig\n")
+    print("| records | n | within 3σ or named | within 3σ | named | taken for another stand | max abs z M1 / V0 | "
+          "default: within 3σ or named | default: max abs z M1 / V0 | ΔBIC min / median / max |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    labels = {"stiff": "drop-stand-stiff, seeds 501-512", "case": "drop-stand-stiff, the tests' stand cases",
+              "right": f"drop-stand (right stand), seeds 601-{600 + args.right_stand}"}
+    for kind, label in labels.items():
+        sel = [r for r in rows if r["kind"] == kind]
+        if not sel:
+            continue
+        z, zd = np.abs([r["z"] for r in sel]), np.abs([r["z_default"] for r in sel])
+        within, within_default = np.all(z <= 3, axis=1), np.all(zd <= 3, axis=1)
+        ok = sum(bool(w or r["named"]) for w, r in zip(within, sel, strict=True))
+        ok_default = sum(bool(w or r["named_default"]) for w, r in zip(within_default, sel, strict=True))
+        delta = np.array([r["delta_bic"] for r in sel if r["delta_bic"] is not None])
+        print(f"| {label} | {len(sel)} | {ok} | {int(within.sum())} | {sum(r['named'] for r in sel)} | "
+              f"{sum(r['switched'] for r in sel)} | {z[:, 0].max():.2f} / {z[:, 1].max():.2f} | {ok_default} | "
+              f"{zd[:, 0].max():.2f} / {zd[:, 1].max():.2f} | {delta.min():.3g} / {np.median(delta):.3g} / "
+              f"{delta.max():.3g} |")
+    right = [r for r in rows if r["kind"] == "right"]
+    if right:
+        extra = np.array([r["time"] - r["time_default"] for r in right])
+        ratio = np.array([r["time"] / r["time_default"] for r in right])
+        laws = sorted({r["law"] for r in right})
+        print(f"\nright-stand records: laws {', '.join(laws)}; taken for another stand in "
+              f"{sum(r['switched'] for r in right)} of {len(right)}; time of one identification with the comparison "
+              f"{np.median([r['time'] for r in right]):.3g} s against "
+              f"{np.median([r['time_default'] for r in right]):.3g} s without (median), extra "
+              f"{np.median(extra):.3g} s, ratio {np.median(ratio):.3g} (median)")
+    print("\nper record: kind, seed, M1 / V0 / p0, law, noise, z M1 V0 (with the comparison), z M1 V0 (default stand), "
+          "ΔBIC, taken for another stand")
+    for r in rows:
+        print(f"  {r['kind']} {r['seed']}: {r['mass']:.3g} kg / {r['velocity']:.3g} m/s / {r['pressure'] / 1e3:.4g} "
+              f"kPa, {r['law']}, {r['noise']:g}, {r['z'][0]:+.2f} {r['z'][1]:+.2f}, {r['z_default'][0]:+.2f} "
+              f"{r['z_default'][1]:+.2f}, {r['delta_bic'] if r['delta_bic'] is None else round(r['delta_bic'], 2)}, "
+              f"{r['switched']}")
+
+
 def mismatch(args) -> None:
     tasks = [("stiff", i, 1.0) for i in range(len(MISMATCH_CASES))] + [
         ("pressure", i, f) for f in (0.97, 0.985, 1.015, 1.03) for i in range(len(MISMATCH_CASES))]
@@ -133,7 +242,7 @@ def mismatch(args) -> None:
                          ("pressure", 1.03)]:
         sel = [r for r in rows if r["case"] == case and r["factor"] == factor]
         z = np.abs(np.array([r["z"] for r in sel]))
-        label = ("drop-stand-stiff record, default stand" if case == "stiff" else
+        label = ("drop-stand-stiff record, no stand given" if case == "stiff" else
                  f"pressure given {100 * (factor - 1):+.1f} %")
         paths = ", ".join(f"{sum(r['verdict'] == p for r in sel)} {p}" for p in PATHS if any(
             r["verdict"] == p for r in sel))
@@ -155,12 +264,15 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=1, help="processes")
     ap.add_argument("--rows", help="write every record's row to this JSON file")
     ap.add_argument("--mismatch", action="store_true", help="measure a stand or a pressure misstated instead")
+    ap.add_argument("--right-stand", type=int, default=50, help="records of the default stand naming no stand "
+                    "(--mismatch)")
     ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
     if args.mismatch:
         with recorded("stand_mismatch", "A stand or a charge pressure misstated: the model answer's σ and warnings",
                       args.record):
             mismatch(args)
+            stands_table(args)
         return
     with recorded("foreign_pads", "Pads outside the model's contact families: model against robust answer",
                   args.record) as rec:

@@ -323,6 +323,9 @@ class ModelDetails(Details):
     stream: StreamStage | None = None
     #: the model-adequacy test and the path the answer took
     adequacy: Adequacy | None = None
+    #: for a record that names no stand, identified without one: the built-in stands compared (each one's best law,
+    #: BIC and ΔBIC to the default over common samples), the threshold and which explains the record better
+    stands: Mapping[str, Any] | None = None
 
     def named(self) -> dict[str, Any]:
         base = {} if self.fallback is None else (
@@ -333,6 +336,7 @@ class ModelDetails(Details):
                "path": self.path, "reason": self.reason, "t00": self.t00, "reduced_chi2": self.reduced_chi2,
                "chi2": self.chi2, "dof": self.dof, "crb": self.crb, "fit_span_s": self.fit_span,
                "fit_span": self.fit_span_reason, "parameters": self.parameters,
-               "stand_uncertainty": self.stand_uncertainty, "adequacy": self.adequacy}
+               "stand_uncertainty": self.stand_uncertainty, "adequacy": self.adequacy,
+               "stands": self.stands}
         return {**base, **_present(own), "contact_law": self.contact_law,
                 **({} if self.stream is None else self.stream.named())}

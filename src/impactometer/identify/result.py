@@ -29,7 +29,7 @@ REPORTED_DETAILS = {"t00": "t00_s", "t01": "t01_s", "t11": "t11_s", "onsets": "o
                     "extrapolated": "extrapolated", "path": "path", "reason": "reason", "contact_law": "contact_law",
                     "criterion": "criterion", "model_selection": "model_selection", "reduced_chi2": "reduced_chi2",
                     "parameters": "parameters", "crb": "crb", "robust": "robust", "start": "start",
-                    "adequacy": "adequacy"}
+                    "adequacy": "adequacy", "stands": "stands"}
 #: JSON key of the part of the method's name after its family: the peak-to-peak variant, the map's search
 VARIANT_KEYS = {"peak-to-peak": "variant", "response-map": "search", "model": "variant"}
 

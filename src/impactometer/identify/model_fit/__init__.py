@@ -11,9 +11,11 @@ and the seal friction) and the charge pressure unless it is known. Each contact-
 its noise, and widened by the calibrated stand's stated uncertainty of the parameters the fit holds
 (:mod:`.stand_prior`: propagated linearly through the fit's Jacobian); :mod:`.adequacy` judges that, gives the fit
 of the first span the model explains or a sandwich σ where it does not, and checks the answer against the robust
-answer. When the best law leaves χ²/dof above :data:`MAX_REDUCED_CHI2` and explains no shorter span, or its answer
-disagrees with the robust one, the answer is the robust one; its details say which path was taken and why
-(``adequacy``).
+answer. A record that names no stand, identified without ``rig``, is also fitted on every other built-in stand
+(:mod:`.stand_choice`): where one explains it better beyond what chance gives a right stand in 1 record of 1000, the
+answer is that stand's, with a warning naming it. When the best law leaves χ²/dof above :data:`MAX_REDUCED_CHI2`
+and explains no shorter span, or its answer disagrees with the robust one, the answer is the robust one; its
+details say which path was taken and why (``adequacy``).
 """
 
 from __future__ import annotations
@@ -45,6 +47,7 @@ from .adequacy import (
 from .engine import (
     MIN_DURATION,
     LawFit,
+    Observed,
     anti_alias_design,
     check_channels,
     check_length,
@@ -55,6 +58,7 @@ from .engine import (
 from .forward import _check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
 from .select import CRITERION, _fit_laws, _grid_start, _Start
+from .stand_choice import STAND_FALSE_ALARM, _compare_stands, _names_no_stand, _switches
 from .stand_prior import _stand_variance
 
 __all__ = ["identify", "cramer_rao", "CramerRao", "MAX_REDUCED_CHI2", "MIN_DURATION"]
@@ -162,7 +166,10 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         Contact force [N] and piston acceleration [m/s²] with a pre-trigger (at least ``MIN_PRE_SAMPLES`` +
         ``GUARD_SAMPLES`` samples before first contact) and at least ``MIN_DURATION`` after it.
     rig : Rig or str, optional
-        The stand (a preset name or a TOML file; default ``drop-stand``).
+        The stand (a preset name or a TOML file; default ``drop-stand``). Where it is not given and the recording's
+        metadata names no stand (``rig``, ``rig_fingerprint``), every other built-in stand is fitted too and the one
+        whose best BIC is lower than the default's by more than :func:`.stand_choice._threshold` gives the answer,
+        with a warning naming it (details ``stands``: the stands compared and their evidence).
     pressure_gauge : float, optional
         Charge pressure [Pa gauge] as a gauge reads it; default the metadata's ``pressure_gauge_Pa``, else
         fitted freely. Where both are stated they are combined (their inverse-variance mean), and refused when they
@@ -189,7 +196,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     Identification
         Method ``model/ml`` (the fit's answer) or ``model/fallback`` (the robust peak-to-peak answer, the model
         not describing the record); details: ``path`` and ``reason``, ``contact_law``, ``model_selection`` (each
-        law's χ², BIC and values), ``crb`` (Cramér-Rao σ of M1 and V0 at the estimate), ``robust``.
+        law's χ², BIC and values), ``crb`` (Cramér-Rao σ of M1 and V0 at the estimate), ``robust``, ``stands``
+        (the built-in stands compared, where they were).
 
     Raises
     ------
@@ -208,7 +216,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     elif stand_uncertainty is not None and not isinstance(stand_uncertainty, StandUncertainty):
         raise ParameterError(f"stand_uncertainty must be a StandUncertainty or None, got {shown(stand_uncertainty)}",
                              field="stand_uncertainty", expected="a StandUncertainty or None")
-    rig = get_rig(rig)
+    given, rig = rig, get_rig(rig)
     laws = contact_laws(contact)
     free_names = _check_uncertain(uncertain, laws)
     max_reduced_chi2 = check_real("max_reduced_chi2", max_reduced_chi2, low=1.0, unit=" [-]", state_range=True)
@@ -217,6 +225,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     trigger = check_length(recording)
     pressure_gauge_start = recording.metadata.get("pressure_gauge_Pa") or DEFAULT_PRESSURE_GAUGE_START
     delay = anti_alias_delay(design, recording.sample_rate)
+    failed = ""
     try:
         robust = identify_robust(recording.contact_force, recording.piston_acceleration, recording.sample_rate,
                                  recording.start_time, early=False)
@@ -232,6 +241,40 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, gauge,
                                     pressure_gauge_start), pressure_gauge_std=gauge_std)
     fits, selection = _fit_laws(data, rig, laws, free_names, start)
+    choice = None
+    if given is None and _names_no_stand(recording):
+        choice = _compare_stands(data, rig, fits, laws, free_names, start,
+                                robust.t00 if robust is not None else trigger)
+    if choice is not None and choice.better is not None:
+        assert choice.fits is not None and choice.selection is not None  # a better stand comes with its fits
+        other = choice.better
+        named = (f"another built-in stand, {other.name!r}, explains the record better than {rig.name!r} by ΔBIC "
+                 f"{choice.compared['stands'][other.name]['delta_bic']:.4g} (beyond {choice.compared['threshold']:.3g}:"
+                 f" a right stand loses by that in fewer than {STAND_FALSE_ALARM:g} of its records)")
+        if _switches(choice, rig):
+            named += (f"; the record names no stand, so the answer is {other.name!r}'s -- pass rig={other.name!r} "
+                      f"(--rig {other.name}) if it was made there, or the stand it was made on")
+            answer = _conclude(recording, other, data, start, robust, failed, choice.fits, choice.selection,
+                               design, trigger, (gauge, gauge_std), max_reduced_chi2, None, choice.compared)
+            return replace(answer, warnings=(named, *answer.warnings))
+        named += (f", and {rig.name!r} does not explain it down to its noise: the record is of neither stand as the "
+                  f"model takes them, or of {other.name!r} -- the answer is {rig.name!r}'s; pass rig={other.name!r} "
+                  f"(--rig {other.name}) if it was made there, or the stand it was made on")
+    answer = _conclude(recording, rig, data, start, robust, failed, fits, selection, design, trigger,
+                       (gauge, gauge_std), max_reduced_chi2, stand_uncertainty,
+                       None if choice is None else choice.compared)
+    return answer if choice is None or choice.better is None else replace(
+        answer, warnings=(named, *answer.warnings))
+
+
+def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, robust: Identification | None,
+              failed: str, fits: dict[str, LawFit], selection: dict[str, dict], design: str, trigger: float,
+              stated: tuple[float | None, float], max_reduced_chi2: float,
+              stand_uncertainty: StandUncertainty | None, stands: dict | None) -> Identification:
+    """The answer of the fits ``fits`` of every law on ``rig`` (model selection ``selection``): the adequacy test,
+    the shortened or nested fit, the check against the robust answer ``robust`` (None where it failed, why in
+    ``failed``) or the fall-back; ``stands`` the stands compared (:func:`.stand_choice._compare_stands`)."""
+    gauge, gauge_std = stated
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,
         start={"mass_kg": start.mass, "velocity_m_s": start.velocity, "contact_time_s": start.contact_time,
@@ -239,7 +282,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         robust={"error": failed} if robust is None else
         {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
          "velocity_std_m_s": robust.velocity_std},
-        noise_force=float(data.noise[0]), noise_acceleration=float(data.noise[1]), anti_alias=design)
+        noise_force=float(data.noise[0]), noise_acceleration=float(data.noise[1]), anti_alias=design, stands=stands)
     best = min(fits.values(), key=lambda f: f.bic) if fits else None
     if robust is None and (best is None or best.reduced_chi2 > max_reduced_chi2):
         raise IdentificationError(f"{recording.source}: no answer: the robust method failed ({failed}) and the "
