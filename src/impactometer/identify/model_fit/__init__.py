@@ -245,27 +245,27 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
     if given is None and _names_no_stand(recording):
         choice = _compare_stands(data, rig, fits, laws, free_names, start,
                                 robust.t00 if robust is not None else trigger)
+    named: tuple[str, ...] = ()
+    on = (rig, fits, selection, stand_uncertainty)  # the stand the answer is taken on, its fits and uncertainty
     if choice is not None and choice.better is not None:
         assert choice.fits is not None and choice.selection is not None  # a better stand comes with its fits
         other = choice.better
-        named = (f"another built-in stand, {other.name!r}, explains the record better than {rig.name!r} by ΔBIC "
-                 f"{choice.compared['stands'][other.name]['delta_bic']:.4g} (beyond {choice.compared['threshold']:.3g}:"
-                 f" a right stand loses by that in fewer than {STAND_FALSE_ALARM:g} of its records)")
+        warning = (f"another built-in stand, {other.name!r}, explains the record better than {rig.name!r} by ΔBIC "
+                   f"{choice.compared['stands'][other.name]['delta_bic']:.4g} (beyond "
+                   f"{choice.compared['threshold']:.3g}: a right stand loses by that in fewer than "
+                   f"{STAND_FALSE_ALARM:g} of its records)")
         if _switches(choice, rig):
-            named += (f"; the record names no stand, so the answer is {other.name!r}'s -- pass rig={other.name!r} "
-                      f"(--rig {other.name}) if it was made there, or the stand it was made on")
-            answer = _conclude(recording, other, data, start, robust, failed, choice.fits, choice.selection,
-                               design, trigger, (gauge, gauge_std), max_reduced_chi2, None, choice.compared)
-            return replace(answer, warnings=(named, *answer.warnings))
-        named += (f", and {rig.name!r} does not explain it down to its noise: the record is of neither stand as the "
-                  f"model takes them, or of {other.name!r} -- the answer is {rig.name!r}'s; pass rig={other.name!r} "
-                  f"(--rig {other.name}) if it was made there, or the stand it was made on")
-    answer = _conclude(recording, rig, data, start, robust, failed, fits, selection, design, trigger,
-                       (gauge, gauge_std), max_reduced_chi2, stand_uncertainty,
-                       None if choice is None else choice.compared)
-    return answer if choice is None or choice.better is None else replace(
-        answer, warnings=(named, *answer.warnings))
-
+            on = (other, choice.fits, choice.selection, None)
+            warning += (f"; the record names no stand, so the answer is {other.name!r}'s -- pass rig={other.name!r} "
+                        f"(--rig {other.name}) if it was made there, or the stand it was made on")
+        else:
+            warning += (f", and {rig.name!r} does not explain it down to its noise: the record is of neither stand as "
+                        f"the model takes them, or of {other.name!r} -- the answer is {rig.name!r}'s; pass "
+                        f"rig={other.name!r} (--rig {other.name}) if it was made there, or the stand it was made on")
+        named = (warning,)
+    answer = _conclude(recording, on[0], data, start, robust, failed, on[1], on[2], design, trigger,
+                       (gauge, gauge_std), max_reduced_chi2, on[3], None if choice is None else choice.compared)
+    return replace(answer, warnings=(*named, *answer.warnings)) if named else answer
 
 def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, robust: Identification | None,
               failed: str, fits: dict[str, LawFit], selection: dict[str, dict], design: str, trigger: float,
