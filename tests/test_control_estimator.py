@@ -8,8 +8,10 @@ import pytest
 from impactometer.constants import STANDARD_GRAVITY
 from impactometer.control import ControlSettings, simulate_controlled, windows
 from impactometer.control import estimator as est
+from impactometer.control.identified import MODEL_MASS_FLOOR, ROBUST_MASS_FLOOR, mass_floor
 from impactometer.control.loop import sensor_noise, sensor_sigma
 from impactometer.control.state import N_ESTIMATOR, Estimator, Windows
+from impactometer.identify.result import Identification
 from impactometer.model import dynamics as d
 from impactometer.model.setup import initial_state, pack
 from impactometer.rig import Scenario, get_rig
@@ -80,7 +82,7 @@ def test_the_rated_masses_prior_is_the_mass_until_stage_b_refines_it():
     stage-B estimate exists, then the inverse-variance combination of the two; the answer replaces the prior once
     known."""
     ctrl = ControlSettings(strategy="predictive", early_start=0.0, early_mass=30.0, early_mass_std=11.5,
-                           early_velocity=2.0, mass=12.0, mass_std=0.5).packed()
+                           early_velocity=2.0, mass=12.0, mass_std=0.5, mass_floor=ROBUST_MASS_FLOOR).packed()
     e = np.zeros(N_ESTIMATOR)
     e[Estimator.WINDOWS:] = windows.initial()
     est._combine(e, ctrl, False, True)
@@ -89,20 +91,61 @@ def test_the_rated_masses_prior_is_the_mass_until_stage_b_refines_it():
     est._combine(e, ctrl, False, True)
     weight = 1.0 / 11.5 ** 2, 1.0 / 2.0 ** 2
     assert e[Estimator.MASS] == pytest.approx((30.0 * weight[0] + 20.0 * weight[1]) / sum(weight))
-    est._combine(e, ctrl, True, False)  # the answer (floored at PRIOR_FLOOR of it) and the stage-B estimate
-    floor = 1.0 / (est.PRIOR_FLOOR * 12.0) ** 2
+    est._combine(e, ctrl, True, False)  # the answer (floored at mass_floor of it) and the stage-B estimate
+    floor = 1.0 / (ROBUST_MASS_FLOOR * 12.0) ** 2
     assert e[Estimator.MASS] == pytest.approx((12.0 * floor + 20.0 * weight[1]) / (floor + weight[1]))
 
 
 def test_prior_and_stage_b_are_weighted_by_their_errors():
     scenario = Scenario(mass=30.0, velocity=2.0, pressure_gauge=210e3)
-    _, confident = _watch(scenario, mass=45.0, mass_std=1e-3, start=0.0)  # a prior with a tiny error: floored at 25 %
+    # a prior with a tiny error, floored at the peak-to-peak answer's 25 %
+    _, confident = _watch(scenario, mass=45.0, mass_std=1e-3, mass_floor=ROBUST_MASS_FLOOR, start=0.0)
     _, ignored = _watch(scenario, mass=45.0, mass_std=math.inf, start=0.0)  # no weight once stage B speaks
     _, frozen = _watch(scenario, mass=45.0, mass_std=1.0, refine_mass=False, start=0.0)
     assert frozen["estimated_mass"][-1] == 45.0
     assert ignored["estimated_mass"][-1] == pytest.approx(30.0, rel=0.03)
     # stage B dominates the prior floored at 25 %, which still pulls a little
     assert ignored["estimated_mass"][-1] < confident["estimated_mass"][-1] < 31.5
+
+
+def _answer_and_stage_b(floor, stage_b, stage_b_std, *, mass=30.0, mass_std=0.15):
+    """(mass, standard error) [kg] the estimator acts on once the answer ``mass`` ± ``mass_std`` [kg], floored at
+    ``floor`` of it, meets a stage-B estimate ``stage_b`` ± ``stage_b_std`` [kg]."""
+    ctrl = ControlSettings(strategy="predictive", start=0.0, mass=mass, mass_std=mass_std, velocity=2.0,
+                           mass_floor=floor).packed()
+    e = np.zeros(N_ESTIMATOR)
+    e[Estimator.WINDOWS:] = windows.initial()
+    e[Estimator.WINDOWS + Windows.MASS], e[Estimator.WINDOWS + Windows.STD] = stage_b, stage_b_std
+    est._combine(e, ctrl, True, False)
+    return e[Estimator.MASS], e[Estimator.MASS_STD]
+
+
+def test_a_precise_answer_is_not_pulled_away_by_the_floor():
+    """The model's answer (σ 0.5 % of M1, floored at its validated 1 %) barely moves for a stage-B estimate 10 % off
+    within its own errors; the same answer floored at the peak-to-peak answer's 25 % is pulled most of the way to it.
+    A stage-B estimate that contradicts the answer (beyond 3 combined standard errors) still replaces it, and a mass
+    known exactly is kept."""
+    assert 0.0 < MODEL_MASS_FLOOR < ROBUST_MASS_FLOOR
+    precise, std = _answer_and_stage_b(MODEL_MASS_FLOOR, 33.0, 2.0)
+    assert std == pytest.approx(1.0 / math.sqrt(1.0 / (MODEL_MASS_FLOOR * 30.0) ** 2 + 1.0 / 2.0 ** 2))
+    assert abs(precise - 30.0) < 0.01 * 30.0
+    pulled, _ = _answer_and_stage_b(ROBUST_MASS_FLOOR, 33.0, 2.0)
+    assert pulled > 32.0
+    contradicted, std = _answer_and_stage_b(MODEL_MASS_FLOOR, 40.0, 2.0)
+    assert (contradicted, std) == (40.0, 2.0)
+    assert _answer_and_stage_b(0.0, 33.0, 2.0, mass_std=0.0) == (30.0, 0.0)
+
+
+def test_each_identification_has_its_floor():
+    """The loop floors the model fit's own answer at its validated error, the others (a model answer that fell back
+    to the peak-to-peak one included) at the peak-to-peak answer's."""
+    def found(method):
+        return Identification(method=method, mass=30.0, velocity=2.0, mass_std=0.15, available_at=0.006)
+
+    assert mass_floor(found("model/ml")) == MODEL_MASS_FLOOR
+    assert mass_floor(found("peak-to-peak/robust")) == mass_floor(found("response-map/fast")) \
+        == mass_floor(found("model/fallback")) == ROBUST_MASS_FLOOR
+    assert mass_floor(found("oracle")) == 0.0
 
 
 def test_observer_tracks_the_piston_without_drift():

@@ -14,10 +14,11 @@ Sensors (with noise): contact force Fc, piston acceleration a2, chamber pressure
   exactly, whatever happens between them; the estimate is Σ Fc / Σ (g − a2) between two such instants (the
   force's maxima, and its minima within a contact), chosen for the smallest error, with its standard error from
   the timing of those two instants and the sensor noise (:mod:`.windows`). It is combined with the mass known at
-  the control start by inverse-variance weighting (that one's standard error never taken below 25 % of the value:
-  the early answer rests on a few contact pulses, and on a stand that reaches stage B early its error is often
-  larger than stated), and dropped when the two differ by more than 3 combined standard errors (an early answer
-  of 5 kg for a 40 kg mass happens).
+  the control start by inverse-variance weighting (that one's standard error never taken below ``mass_floor`` of
+  the value: the relative error the identification that answered is validated to, 25 % for the peak-to-peak early
+  answer and 1 % for the model's, :func:`.identified.mass_floor`), and dropped when the two differ by more than 3
+  combined standard errors (an early peak-to-peak answer of 5 kg for a 40 kg mass happens). A mass known exactly
+  (standard error 0, the oracle's) is not refined.
 - What the identification answered (M1, V0 and M1's standard error) is known from the control start on; before,
   only the controller's own stage-B estimates exist, or, from ``early_start`` on, the partial knowledge the
   controller acts on from first contact: V0 from the first samples of the contact and M1 from a prior over the
@@ -49,8 +50,6 @@ from .state import N_ESTIMATOR, Estimator, Settings, Windows
 SLOW_VELOCITY_TIME = 5e-3
 #: bandwidth of the correction of the mass velocity (momentum balance) towards the observer's in stage B [rad/s]
 VELOCITY_CORRECTION = 2.0 * math.pi * 5.0
-#: floor of the relative standard error of the mass known at the control start [-]
-PRIOR_FLOOR = 0.25
 #: the prior is dropped when it and the stage-B estimate differ by more than this many combined standard errors
 CONSISTENCY = 3.0
 #: a mass estimate is acted on only when its standard error is below this fraction of it [-]: the identified one
@@ -140,17 +139,18 @@ def update(e, t, dt, force, acceleration, p_lower, p_upper, displacement, gravit
 
 @njit(cache=True, error_model="numpy")
 def _combine(e, ctrl, known, early):
-    """Mass estimate [kg] and its standard error from the prior (the answer once ``known``, the rated masses'
-    prior while ``early``) and the stage-B windows."""
+    """Mass estimate [kg] and its standard error from the prior (the answer once ``known``, its standard error
+    floored at ``mass_floor`` of it; the rated masses' prior while ``early``) and the stage-B windows; a prior known
+    exactly is kept."""
     if known:
         prior = ctrl[Settings.MASS]
-        prior_std = max(ctrl[Settings.MASS_STD], PRIOR_FLOOR * prior) if prior > 0.0 else math.inf
+        prior_std = max(ctrl[Settings.MASS_STD], ctrl[Settings.MASS_FLOOR] * prior) if prior > 0.0 else math.inf
     elif early:
         prior, prior_std = ctrl[Settings.EARLY_MASS], ctrl[Settings.EARLY_MASS_STD]
     else:
         prior, prior_std = math.nan, math.inf
     stage_b, stage_b_std = e[Estimator.WINDOWS + Windows.MASS], e[Estimator.WINDOWS + Windows.STD]
-    if not (stage_b > 0.0 and math.isfinite(stage_b_std)):
+    if not (stage_b > 0.0 and math.isfinite(stage_b_std)) or (prior > 0.0 and prior_std == 0.0):
         e[Estimator.MASS] = prior
         e[Estimator.MASS_STD] = prior_std
         return

@@ -39,6 +39,7 @@ from .identified import (
     identify_impact,
     loop_method,
     loop_summary,
+    mass_floor,
     run_record,
     usable_mass,
     usable_velocity,
@@ -282,6 +283,7 @@ def _early_run(control, context: ControlContext, scenario: Scenario, absorber: A
         return waiting, result, history
     known = dataclasses.replace(control, start=float(answer.available_at), mass=mass,
                                 mass_std=answer.mass_std if not math.isnan(answer.mass_std) else math.inf,
+                                mass_floor=mass_floor(answer),
                                 velocity=velocity if math.isfinite(velocity) else control.early_velocity)
     return (known, *run_until_stopped(scenario, context.rig, known, absorber, duration=context.duration,
                                       sample_rate=context.sample_rate, sigma=sigma, seed=seed))
@@ -388,7 +390,7 @@ def absorb(scenario: Scenario, rig: Rig | str | None = None, *, strategy: str | 
     trusted_mass = usable_mass(found)
     context = ControlContext(rig=rig, absorber=absorber, mass=trusted_mass, velocity=usable_velocity(found),
                              mass_std=found.mass_std if math.isfinite(trusted_mass)
-                             and not math.isnan(found.mass_std) else math.inf,
+                             and not math.isnan(found.mass_std) else math.inf, mass_floor=mass_floor(found),
                              pressure_gauge=scenario.pressure_gauge, start=start, duration=duration,
                              sample_rate=sample_rate, pressure_lower_start=float(closed.pressure_lower[0]),
                              temperature_lower_start=rig.gas.temperature, force_noise=float(sigma[0]),

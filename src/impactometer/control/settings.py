@@ -32,7 +32,8 @@ class ControlSettings:
     start : Time the controller takes over the valve [s] (``inf``: never).
     opening : Opening of the ``constant`` strategy, fraction of the fully open valve [-].
     mass, mass_std : M1 known at the control start and its standard error [kg]; NaN mass: unknown (the valve
-        waits for the stage-B estimate); ``inf`` std: no weight once the stage-B estimate exists.
+        waits for the stage-B estimate); ``inf`` std: no weight once the stage-B estimate exists; 0: known exactly,
+        never refined.
     velocity : V0 known at the control start [m/s].
     usable_stroke : Largest displacement of the mass the absorber may use [m].
     tau_control : Time constant of the gas-force loop [s].
@@ -54,6 +55,9 @@ class ControlSettings:
         it takes ``early_mass`` ± ``early_mass_std`` [kg] (a prior over the stand's rated masses) and
         ``early_velocity`` [m/s] (V0 from the first samples of the contact) as M1 and V0, refined by its
         stage-B estimate; from ``start`` on, the identification's answer replaces them.
+    mass_floor : Floor of ``mass_std`` as a fraction of ``mass`` [-] where the stage-B estimate refines it: the
+        relative standard error the identification that gave ``mass`` is validated to (the closed loop sets it per
+        method, :func:`.identified.mass_floor`); 0: ``mass_std`` as given.
     """
 
     strategy: str = "closed"
@@ -81,6 +85,7 @@ class ControlSettings:
     early_mass: float = math.nan
     early_mass_std: float = math.inf
     early_velocity: float = math.nan
+    mass_floor: float = 0.0
 
     def __post_init__(self) -> None:
         if self.strategy not in STRATEGIES:
@@ -95,7 +100,7 @@ class ControlSettings:
                 raise ParameterError(f"control.{f.name} must be a number, got {shown(value)}")
         for name in ("start", "early_start", "usable_stroke", "tau_control", "tau_filter", "pressure_lower_start",
                      "temperature_lower_start",
-                     "force_noise", "observer_bandwidth", "acceleration_noise"):
+                     "force_noise", "observer_bandwidth", "acceleration_noise", "mass_floor"):
             check_real(f"control.{name}", getattr(self, name), low=0.0, finite=name not in ("start", "early_start"),
                        state_range=True,
                        low_open=name in ("tau_control", "tau_filter", "pressure_lower_start", "temperature_lower_start",

@@ -75,6 +75,7 @@ class Settings(IntEnum):
     EARLY_MASS = 22
     EARLY_MASS_STD = 23
     EARLY_VELOCITY = 24
+    MASS_FLOOR = 25
 
 
 @slots

@@ -47,6 +47,8 @@ class ControlContext:
     mass, velocity : Identified (or, for the oracle, true) M1 [kg] and V0 [m/s]; NaN mass: not usable (the
         controller waits for its stage-B estimate).
     mass_std : Standard error of ``mass`` [kg] (0 for the oracle, which also does not refine it).
+    mass_floor : Floor of ``mass_std`` as a fraction of ``mass`` [-] (the identification's validated error,
+        :func:`.identified.mass_floor`).
     pressure_gauge : Charge pressure p0 [Pa gauge] (known: the stand was charged to it).
     start : Time the control starts [s] (the identification's ``available_at``).
     duration, sample_rate : Simulated time [s] and controller rate [Hz].
@@ -76,6 +78,7 @@ class ControlContext:
     early_mass: float = math.nan
     early_mass_std: float = math.inf
     early_velocity: float = math.nan
+    mass_floor: float = 0.0
 
     def base(self, strategy: str, **extra) -> ControlSettings:
         """Controller settings with the common fields filled."""
@@ -86,7 +89,8 @@ class ControlContext:
                                temperature_lower_start=self.temperature_lower_start,
                                force_noise=self.force_noise, acceleration_noise=self.acceleration_noise,
                                refine_mass=not oracle, early_start=self.early_start, early_mass=self.early_mass,
-                               early_mass_std=self.early_mass_std, early_velocity=self.early_velocity, **extra)
+                               early_mass_std=self.early_mass_std, early_velocity=self.early_velocity,
+                               mass_floor=self.mass_floor, **extra)
 
 
 def plan_closed(context: ControlContext) -> ControlSettings:
