@@ -18,7 +18,7 @@ import pytest
 from foreign_stand import foreign_case
 from impactometer.cli import main
 from impactometer.identify.details import Adequacy
-from impactometer.identify.model_fit import identify
+from impactometer.identify.model_fit import MAX_REDUCED_CHI2, identify
 from impactometer.identify.model_fit.adequacy import (
     VERDICTS,
     Z_ADEQUATE,
@@ -93,9 +93,10 @@ def test_the_robust_sigma_is_widened_by_the_scatter_of_its_rows(chi2, dof, expec
 
 
 def test_a_fallback_whose_robust_rows_scatter_carries_their_scatter_and_covers_the_truth():
-    # a peak-oriented pad whose reload the robust rows read inconsistently (their χ²/dof far above 1): the model
-    # falls back, and the robust answer's σ counts the rows' scatter, so the truth lies within its stated σ
-    rec, drop, _ = foreign_case("peak-oriented", 7)
+    # a peak-oriented pad whose reload the robust rows read inconsistently (their χ²/dof far above 1) and that no
+    # contact law describes (every law's whole-record fit far above the noise): the model falls back, and the robust
+    # answer's σ counts the rows' scatter, so the truth lies within its stated σ
+    rec, drop, _ = foreign_case("peak-oriented", 4)
     answer = identify(rec)
     adequacy = answer.details.adequacy
     assert answer.method == "model/fallback" and adequacy.verdict == "fell back"
@@ -106,6 +107,24 @@ def test_a_fallback_whose_robust_rows_scatter_carries_their_scatter_and_covers_t
     assert abs(answer.mass - drop.mass) <= Z * answer.mass_std
     assert abs(answer.velocity - drop.velocity) <= Z * answer.velocity_std
     assert answer.to_dict()["adequacy"]["robust_inflation"] == pytest.approx(scale)
+
+
+def test_a_law_the_screens_dropped_is_fitted_to_the_whole_record_where_the_laws_kept_do_not_describe_it():
+    # a peak-oriented pad: the power law loses the 15 ms screen to the hysteretic law (held to its screening
+    # windows' fit), whose whole-record fit then leaves χ²/dof far above the limit of a model answer; the dropped
+    # laws are fitted to the whole record too, the power law describes it down to the noise and gives the answer,
+    # and the truth lies within its stated σ (where without it the robust answer's σ missed the truth)
+    rec, drop, _ = foreign_case("peak-oriented", 8)
+    answer = identify(rec)
+    selection = answer.details.model_selection
+    kept = [fit for fit in selection.values() if "rescued" not in fit and "reduced_chi2" in fit]
+    assert kept and all(fit["reduced_chi2"] > MAX_REDUCED_CHI2 for fit in kept)
+    chosen = selection[answer.details.contact_law]
+    assert "dropped by a screen" in chosen["rescued"]
+    assert answer.method == "model/ml" and answer.details.adequacy.verdict == "adequate"
+    assert answer.details.reduced_chi2 <= MAX_REDUCED_CHI2
+    assert abs(answer.mass - drop.mass) <= Z * answer.mass_std
+    assert abs(answer.velocity - drop.velocity) <= Z * answer.velocity_std
 
 
 def test_the_json_answer_says_which_path_was_taken_and_why(tmp_path, capsys):

@@ -240,7 +240,7 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
         data = observe(recording, design, trigger)
         start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, gauge,
                                     pressure_gauge_start), pressure_gauge_std=gauge_std)
-    fits, selection = _fit_laws(data, rig, laws, free_names, start)
+    fits, selection = _fit_laws(data, rig, laws, free_names, start, rescue=max_reduced_chi2)
     choice = None
     if given is None and _names_no_stand(recording):
         choice = _compare_stands(data, rig, fits, laws, free_names, start,
