@@ -8,7 +8,7 @@ the wrong law (fall-back), a record too short (refused) and pads outside every f
 simulator of ``tests/foreign_stand.py`` (shortened, widened or fell back). Each answer: M1, V0, their σ, method,
 path, contact law, adequacy verdict, warnings and the details as JSON (or the refusal's message).
 
-    python scripts/compare_answers.py write answers.json [--jobs 2]
+    python scripts/compare_answers.py write answers.json [--jobs 2] [--only foreign/]
     python scripts/compare_answers.py compare before.json after.json
 """
 
@@ -55,6 +55,11 @@ def cases() -> list[tuple]:
     for kind, seeds in (("masing", (1, 2, 3)), ("peak-oriented", (1, 2, 3)), ("power-set", (1, 2))):
         for seed in seeds:
             out.append((f"foreign/{kind}/{seed}", "foreign", dict(kind=kind, seed=seed)))
+    for mass, velocity, pressure, seed in ((20.0, 2.5, 300e3, 31), (12.0, 1.5, 150e3, 33)):
+        out.append((f"misstated/stiff-on-default/{seed}", "misstated", dict(mass=mass, velocity=velocity,
+                                                                          pressure=pressure, seed=seed)))
+    for seed in (4, 5):
+        out.append((f"foreign/masing/quiet/{seed}", "foreign", dict(kind="masing", seed=seed, noise=0.01)))
     return out
 
 
@@ -105,6 +110,9 @@ def job(case: tuple) -> dict:
             rec = _simulated(None, 30.0, 2.0, 100e3, a["seed"], a["noise"])
             rec.metadata.pop("pressure_gauge_Pa")
             answer = identify(rec, pressure_gauge=100e3 * (1.0 + a["error"]))
+        elif kind == "misstated":  # a record of the stiff stand identified on the default stand, named
+            rec = _simulated("drop-stand-stiff", a["mass"], a["velocity"], a["pressure"], a["seed"])
+            answer = identify(rec, rig="drop-stand")
         elif kind == "contradicted":
             answer = identify(_simulated(None, 30.0, 2.0, 100e3, a["seed"]), pressure_gauge=110e3)
         elif kind == "short":
@@ -112,7 +120,7 @@ def job(case: tuple) -> dict:
         else:
             from foreign_stand import foreign_case
 
-            rec, _, _ = foreign_case(a["kind"], a["seed"])
+            rec, _, _ = foreign_case(a["kind"], a["seed"], noise=a.get("noise", 0.05))
             answer = identify(rec)
     except ImpactometerError as exc:
         return {"name": name, "refused": f"{type(exc).__name__}: {exc}"}
@@ -124,8 +132,8 @@ def job(case: tuple) -> dict:
             "details": json.loads(json.dumps(answer.to_dict(), default=float))}
 
 
-def write(path: Path, jobs: int) -> None:
-    todo = cases()
+def write(path: Path, jobs: int, only: str | None = None) -> None:
+    todo = [case for case in cases() if only is None or case[0].startswith(only)]
     if jobs > 1:
         with Pool(jobs) as pool:
             rows = pool.map(job, todo, chunksize=1)
@@ -166,12 +174,13 @@ def main() -> None:
     w = sub.add_parser("write")
     w.add_argument("path", type=Path)
     w.add_argument("--jobs", type=int, default=1)
+    w.add_argument("--only", help="the records whose name starts with this")
     c = sub.add_parser("compare")
     c.add_argument("before", type=Path)
     c.add_argument("after", type=Path)
     args = parser.parse_args()
     if args.command == "write":
-        write(args.path, args.jobs)
+        write(args.path, args.jobs, args.only)
     else:
         sys.exit(compare(args.before, args.after))
 
