@@ -60,6 +60,8 @@ def cases() -> list[tuple]:
                                                                           pressure=pressure, seed=seed)))
     for seed in (4, 5):
         out.append((f"foreign/masing/quiet/{seed}", "foreign", dict(kind="masing", seed=seed, noise=0.01)))
+    for kind in ("masing", "peak-oriented"):
+        out.append((f"foreign/long/{kind}/0", "foreign", dict(kind=kind, seed=0, duration=0.1)))
     return out
 
 
@@ -120,7 +122,7 @@ def job(case: tuple) -> dict:
         else:
             from foreign_stand import foreign_case
 
-            rec, _, _ = foreign_case(a["kind"], a["seed"], noise=a.get("noise", 0.05))
+            rec, _, _ = foreign_case(a["kind"], a["seed"], noise=a.get("noise", 0.05), duration=a.get("duration", 0.05))
             answer = identify(rec)
     except ImpactometerError as exc:
         return {"name": name, "refused": f"{type(exc).__name__}: {exc}"}
