@@ -5,8 +5,10 @@ The records cover the paths of the model fit: the default stand and the stiff st
 no stand named in the file (the built-in stands compared), every contact family, 1 / 5 / 10 % noise, a stated
 pressure 3 % off the truth (none in the file), a pressure that contradicts the file's (refused), a fit restricted to
 the wrong law (fall-back), a record too short (refused) and pads outside every family from the independent stand
-simulator of ``tests/foreign_stand.py`` (shortened, widened or fell back). Each answer: M1, V0, their σ, method,
-path, contact law, adequacy verdict, warnings and the details as JSON (or the refusal's message).
+simulator of ``tests/foreign_stand.py``, and records of the stiff stand identified on the default stand named. Each
+answer: M1, V0, their σ, method, path, contact law, adequacy verdict, warnings and the details as JSON (or the
+refusal's message). The 45 records take the paths adequate (27), fell back (15) and refused (3); none of them is
+shortened or widened.
 
     python scripts/compare_answers.py write answers.json [--jobs 2] [--only foreign/]
     python scripts/compare_answers.py compare before.json after.json
