@@ -263,17 +263,21 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
                         f"the model takes them, or of {other.name!r} -- the answer is {rig.name!r}'s; pass "
                         f"rig={other.name!r} (--rig {other.name}) if it was made there, or the stand it was made on")
         named = (warning,)
+    assessed = None if choice is None or choice.assessed is None else choice.assessed.get(on[0].name)
     answer = _conclude(recording, on[0], data, start, robust, failed, on[1], on[2], design, trigger,
-                       (gauge, gauge_std), max_reduced_chi2, on[3], None if choice is None else choice.compared)
+                       (gauge, gauge_std), max_reduced_chi2, on[3], None if choice is None else choice.compared,
+                       assessed)
     return replace(answer, warnings=(*named, *answer.warnings)) if named else answer
 
 def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, robust: Identification | None,
               failed: str, fits: dict[str, LawFit], selection: dict[str, dict], design: str, trigger: float,
               stated: tuple[float | None, float], max_reduced_chi2: float,
-              stand_uncertainty: StandUncertainty | None, stands: dict | None) -> Identification:
+              stand_uncertainty: StandUncertainty | None, stands: dict | None,
+              assessed: tuple[Adequacy, float, float] | None = None) -> Identification:
     """The answer of the fits ``fits`` of every law on ``rig`` (model selection ``selection``): the adequacy test,
     the shortened or nested fit, the check against the robust answer ``robust`` (None where it failed, why in
-    ``failed``) or the fall-back; ``stands`` the stands compared (:func:`.stand_choice._compare_stands`)."""
+    ``failed``) or the fall-back; ``stands`` the stands compared (:func:`.stand_choice._compare_stands`) and
+    ``assessed`` the adequacy test of the best fit there (None: it is made here)."""
     gauge, gauge_std = stated
     common = ModelDetails(
         path="", reason="", contact_law=None, model_selection=selection, criterion=CRITERION,
@@ -284,6 +288,13 @@ def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, rob
          "velocity_std_m_s": robust.velocity_std},
         noise_force=float(data.noise[0]), noise_acceleration=float(data.noise[1]), anti_alias=design, stands=stands)
     best = min(fits.values(), key=lambda f: f.bic) if fits else None
+
+    def fell_back(adequacy: Adequacy | None, reason: str, model: Identification | None = None) -> Identification:
+        """The robust answer (:func:`_fallback`), the verdict ``fell back`` for ``reason``."""
+        verdict = Adequacy(verdict="fell back", reason=reason) if adequacy is None else replace(
+            adequacy, verdict="fell back", reason=reason)
+        return _fallback(recording, rig, common, best, verdict, model)
+
     if robust is None and (best is None or best.reduced_chi2 > max_reduced_chi2):
         raise IdentificationError(f"{recording.source}: no answer: the robust method failed ({failed}) and the "
                                   "model fit, started from a grid, " + (
@@ -292,9 +303,9 @@ def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, rob
     if best is None:
         assert robust is not None  # without a robust answer the case was refused above
         reason = "every contact law's fit failed: " + "; ".join(f"{k}: {v.get('error')}" for k, v in selection.items())
-        return _fallback(recording, rig, common, best, Adequacy(verdict="fell back", reason=reason))
+        return fell_back(None, reason)
     quiet = robust.t00 if robust is not None else trigger  # the noise σ was measured before it (observe)
-    adequacy, mass_std, velocity_std = _assess(data, best, quiet)
+    adequacy, mass_std, velocity_std = _assess(data, best, quiet) if assessed is None else assessed
     if adequacy.verdict != "adequate" and (short := _shortened(data, best, quiet)) is not None:
         whole = adequacy.reason
         best, adequacy, mass_std, velocity_std = short
@@ -321,7 +332,7 @@ def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, rob
         reason = (f"the best model ({best.law}) leaves chi2/dof = {best.reduced_chi2:.3g} > {max_reduced_chi2:g} and "
                   "explains no shorter span down to the noise: it does not describe this record, so the robust answer "
                   "is given")
-        return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
+        return fell_back(adequacy, reason)
     stand = _stand_variance(data, best, rig, stand_uncertainty)
     answer = _answer(recording, rig, best, replace(common, adequacy=adequacy), (gauge, gauge_std), mass_std,
                      velocity_std, stand)
@@ -347,12 +358,11 @@ def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, rob
     if z <= Z_JOINT and adequacy.verdict != "adequate":  # they agree; the model's answer is the less precise
         reason = (f"{adequacy.reason}; its answer ({_said(answer)}) agrees with the robust answer (within "
                   f"{z:.2g} of their joint σ) and is the less precise, so the robust answer is given")
-        return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason))
+        return fell_back(adequacy, reason)
     reason = (f"the model's answer ({_said(answer)}, {adequacy.verdict}: the model does not explain the whole "
               f"record) and the robust answer ({_said(robust)}) {mismatch}; the robust answer is given, its σ widened "
               "to reach the model's answer")
-    return _fallback(recording, rig, common, best, replace(adequacy, verdict="fell back", reason=reason),
-                     model=answer)
+    return fell_back(adequacy, reason, answer)
 
 
 def _said(answer: Identification) -> str:

@@ -26,7 +26,7 @@ from ...errors import IdentificationError, shown
 from ...recording import VALVE_OPENING, Recording
 from ...rig import CONTACT_LAWS, contact_law_name
 from ...signals.noise import quiet_noise_std, robust_noise_std
-from .forward import Grid, Layout, _make_grid, _predict
+from .forward import CONTACT_EARLY, Grid, Layout, _contact_refusal, _make_grid, _predict
 from .information import covariance
 
 #: finite-difference step of the Jacobian in the fit variables (ln of a positive value, value/scale of a linear
@@ -299,7 +299,7 @@ class Residuals:
 
     def _predicted(self, rows: np.ndarray) -> np.ndarray:
         params, times = self.layout.packed(rows)
-        if np.any(times < self.earliest):
+        if any(_contact_refusal(time, self.earliest) == CONTACT_EARLY for time in times):  # the not finite: _predict
             raise IdentificationError("the model is not predicted at a contact instant before the part of the "
                                       "record it is predicted on")
         return _predict(self.grid, params, times, in_turn=self.in_turn) / self.noise[None, :, None]

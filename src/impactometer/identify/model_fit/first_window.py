@@ -48,9 +48,11 @@ from .engine import (
 )
 from .forward import (
     CHANNEL_INDEX,
+    CONTACT_TAKEN,
     FIT_RTOL,
     MAX_FIT_STEPS,
     Layout,
+    _contact_refusal,
     _fir_decimate,
     _outside_ranges,
     _pack_row,
@@ -121,7 +123,7 @@ def _channels(w, x, out, internal, y0, p):
     timing = w.timing
     shift = _pack_row(w.base, x, w.slots, w.code, w.param, w.hysteretic, w.low, w.high, p)
     contact = timing.origin + shift / timing.sample_rate
-    if not (np.isfinite(contact) and contact >= timing.earliest):
+    if _contact_refusal(contact, timing.earliest) != CONTACT_TAKEN:
         return False
     if _predict_row(p, y0, w.instants, contact - timing.start_time, w.valve_times, w.valve_open, CHANNEL_INDEX,
                     w.tolerances[0], w.tolerances[1:], MAX_STEP, MAX_FIT_STEPS, internal) != fast.OK:

@@ -229,8 +229,7 @@ class Layout:
         variable: the relative σ)."""
         j = self.names.index(name)
         _, kind, param = self.specs[j]
-        mean_variable = float(to_variable((mean - self.origin) * self.sample_rate if name == "contact_time" else mean,
-                                          kind, param))
+        mean_variable = float(to_variable(self._scaled(name, mean), kind, param))
         spread = sigma / abs(self.derivative(name, mean_variable))
         return replace(self, priors=(*self.priors, (j, mean_variable, float(spread))))
 
@@ -314,10 +313,7 @@ class Layout:
         """Fit variables of physical values (name -> value [SI])."""
         out = np.empty(len(self.names))
         for i, (name, (_, kind, param)) in enumerate(zip(self.names, self.specs, strict=True)):
-            value = values[name]
-            if name == "contact_time":
-                value = (value - self.origin) * self.sample_rate
-            out[i] = to_variable(value, kind, param)
+            out[i] = to_variable(self._scaled(name, values[name]), kind, param)
         return out
 
     def values(self, x: np.ndarray) -> dict[str, float]:
@@ -327,6 +323,11 @@ class Layout:
             value = float(_from_variable(xi, kind, param))
             out[name] = self.origin + value / self.sample_rate if name == "contact_time" else value
         return out
+
+    def _scaled(self, name: str, value: float) -> float:
+        """``value`` [SI] of the parameter ``name`` as its variable counts it before the transform: the contact
+        instant [s] in sample periods from ``origin``, any other as it is."""
+        return (value - self.origin) * self.sample_rate if name == "contact_time" else value
 
     def derivative(self, name: str, x: float) -> float:
         """d(value)/d(variable) of the unknown ``name`` at variable ``x`` [SI per variable unit]."""
@@ -354,9 +355,7 @@ class Layout:
         for name, lower, upper in self.bounds:
             if name in self.names:
                 j = self.names.index(name)
-                scale = self.sample_rate if name == "contact_time" else 1.0
-                shift = self.origin if name == "contact_time" else 0.0
-                low[j], high[j] = (lower - shift) * scale, (upper - shift) * scale
+                low[j], high[j] = self._scaled(name, lower), self._scaled(name, upper)
         return low, high
 
     def packed(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -498,6 +497,20 @@ def _outside_ranges(p):
         if not (_RANGE_LOW[k] <= value <= _RANGE_HIGH[k]):
             return _RANGE_INDEX[k]
     return -1
+
+
+#: what :func:`_contact_refusal` finds of a contact instant: taken, not finite, before the earliest
+CONTACT_TAKEN, CONTACT_NOT_FINITE, CONTACT_EARLY = 0, 1, 2
+
+
+@njit(cache=True, error_model="numpy")
+def _contact_refusal(contact, earliest):
+    """The one contact-instant check of every prediction of a fit: :data:`CONTACT_EARLY` for a contact instant
+    ``contact`` [s] before ``earliest`` [s] (before the part of the record the model is predicted on), else
+    :data:`CONTACT_NOT_FINITE` for one that is not finite, else :data:`CONTACT_TAKEN`."""
+    if contact < earliest:
+        return CONTACT_EARLY
+    return CONTACT_TAKEN if np.isfinite(contact) else CONTACT_NOT_FINITE
 
 
 @njit(cache=True, error_model="numpy")

@@ -30,6 +30,7 @@ from scipy.stats import norm
 from ...errors import IdentificationError
 from ...recording import Recording
 from ...rig import PRESETS, STAND_KEY, Rig, fingerprint
+from ..details import Adequacy
 from .adequacy import _assess
 from .engine import LawFit, Observed, fit_law, window
 from .select import _fit_laws, _Start
@@ -42,12 +43,14 @@ STAND_FALSE_ALARM = 1e-3
 class _StandChoice:
     """The stands compared (name -> evidence: best law, its BIC and ΔBIC to the stand taken over common samples) and
     the stand that explains the record better beyond :func:`_threshold` with its fits and model selection (None
-    where the stand taken wins)."""
+    where the stand taken wins); ``assessed``: :func:`.adequacy._assess` of each stand's best fit by stand name, so
+    that the answer's stand is not assessed again."""
 
     compared: dict[str, Any]
     better: Rig | None = None
     fits: dict[str, LawFit] | None = None
     selection: dict[str, dict] | None = None
+    assessed: dict[str, tuple[Adequacy, float, float]] | None = None
 
 
 def _threshold(alternatives: int) -> float:
@@ -107,11 +110,11 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
     others = _other_stands(rig)
     limit = _threshold(len(others))
     scale = max(1.0, taken.reduced_chi2)
+    assessed = {rig.name: _assess(data, taken, quiet)}
     compared: dict[str, Any] = {rig.name: {"law": taken.law, "bic": taken.bic, "reduced_chi2": taken.reduced_chi2,
-                                           "adequate": _assess(data, taken, quiet)[0].verdict == "adequate",
-                                           "taken": True}}
+                                           "adequate": assessed[rig.name][0].verdict == "adequate", "taken": True}}
     choice = _StandChoice(compared={"stands": compared, "threshold": limit, "false_alarm": STAND_FALSE_ALARM,
-                                   "chi2_scale": scale})
+                                   "chi2_scale": scale}, assessed=assessed)
     margin = limit
     for other in others:
         other_fits, selection = _fit_laws(data, other, laws, uncertain, start)
@@ -126,7 +129,8 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
             compared[other.name] = {"law": best.law, "error": str(exc)}
             continue
         delta = (mine.bic - theirs.bic) / scale
-        adequate = _assess(data, best, quiet)[0].verdict == "adequate"
+        assessed[other.name] = _assess(data, best, quiet)
+        adequate = assessed[other.name][0].verdict == "adequate"
         compared[other.name] = {"law": best.law, "bic": best.bic, "reduced_chi2": best.reduced_chi2,
                                 "residuals": mine.residuals, "delta_bic": delta, "adequate": adequate, "taken": False}
         if delta > margin and adequate:

@@ -41,7 +41,7 @@ from ...errors import IdentificationError, ParameterError, ParameterTypeError, s
 from ...recording import VALVE_OPENING, Recording, check_sample_rate
 from ...rig import STAND_KEY, Rig, get_rig
 from ...sensors import anti_alias_delay
-from ...validation import check_integer, check_real, renamed
+from ...validation import check_real, renamed
 from .. import model_fit as batch
 from ..details import ModelDetails, StreamStage
 from ..peak_to_peak.streaming import StreamingIdentifier, check_open, last_outcome
@@ -438,21 +438,3 @@ class ModelStream:
         if self._impact is not None and not self._impact.done:
             self._conclude(self._impact, self.robust.seen)
         return last_outcome(self.outcomes)
-
-
-def _stream_model_arrays(force, acceleration, sample_rate: float, *, chunk: int = 64,
-                        **options) -> list[Identification]:
-    """Replay arrays through a :class:`ModelStream` in chunks of ``chunk`` samples; every estimate in order of
-    availability, the final answer included (a refused final answer adds none)."""
-    chunk = check_integer("chunk", chunk, low=1, unit=" [samples]", error=ParameterError)
-    if len(force) != len(acceleration):
-        raise ParameterError(f"force and acceleration must have equal lengths, got {len(force)} and "
-                             f"{shown(len(acceleration))}")
-    stream = ModelStream(sample_rate, **options)
-    out = []
-    for k in range(0, len(force), chunk):
-        out += stream.push(force[k:k + chunk], acceleration[k:k + chunk])
-    shown_before = len(stream.estimates)
-    with contextlib.suppress(IdentificationError):  # a refused final answer adds none
-        stream.finish()
-    return out + stream.estimates[shown_before:]
