@@ -5,6 +5,8 @@
     python scripts/record_study.py absorption --grid 5 --record   # ... kept in docs/results/ and docs/benchmarks.md
     python scripts/record_study.py absorption --grid 3 --set absorption.latency=3ms --as latency3ms_grid3 --record
                                                               # ... kept beside it as study_absorption_latency3ms_grid3
+    python scripts/record_study.py absorption --grid 5 --workers 2 --set absorption.policy=early --as policy_early \
+        --headlines --record                                  # a labelled record that gives the README's rows too
 
 The study runs in a temporary folder with ``impactometer study NAME --out FOLDER [OPTIONS]`` (its progress on
 standard error) and the tables printed are those of ``impactometer study report``.
@@ -34,12 +36,24 @@ TITLES = {"all": "Studies of the paper (Figs. 3-9, 10), default sizes",
           "map-recordings": "Response map built from recordings"}
 
 
+def _policy(name: str, options: list[str]) -> str:
+    """The absorber's policy a headline row was measured with, as the row names it (", policy early, the default")."""
+    if name != "absorption":
+        return ""
+    from impactometer.studies.absorption import DEFAULTS
+    default = DEFAULTS["policy"]
+    given = [o.split("=", 1)[1] for o in options if o.startswith("absorption.policy=")]
+    policy = given[-1] if given else default
+    return f", policy {policy}" + (", the default" if policy == default else "")
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0].startswith("-"):
         print(__doc__, file=sys.stderr)
         return 2
     record = "--record" in argv
-    name, options = argv[0], [a for a in argv[1:] if a != "--record"]
+    headlines = "--headlines" in argv  # a labelled record gives the README's headline rows too
+    name, options = argv[0], [a for a in argv[1:] if a not in ("--record", "--headlines")]
     label = ""
     if "--as" in options:  # a second record of the same study (a what-if), kept under its own name
         at = options.index("--as")
@@ -60,10 +74,11 @@ def main(argv: list[str]) -> int:
                   "`impactometer study report`:\n")
             print(markdown(folder))
             for line in summary_rows(collect(folder)):
-                for start, goal in HEADLINES.get(line["study"], ()) if line["study"] == name and not label else ():
+                wanted = line["study"] == name and (headlines or not label)
+                for start, goal in HEADLINES.get(line["study"], ()) if wanted else ():
                     if str(line.get("quantity", "")).startswith(start):
-                        kept.headline(f"{line['study']} ({' '.join(options)}): {line['quantity']}", str(line["ours"]),
-                                      target=goal)
+                        kept.headline(f"{line['study']} ({' '.join(options)}{_policy(name, options)}): "
+                                      f"{line['quantity']}", str(line["ours"]), target=goal)
     return 0
 
 
