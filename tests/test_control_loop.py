@@ -15,7 +15,7 @@ from impactometer.errors import ParameterError
 from impactometer.identify.result import Identification
 from impactometer.rig import Scenario
 from impactometer.studies import StudyOptions, get_study, load_studies
-from impactometer.studies.base import options_for
+from impactometer.studies.base import indexed_cases, options_for
 
 SCENARIO = Scenario.from_height(mass=30.0, height=0.3, pressure_gauge=200e3)
 
@@ -245,6 +245,20 @@ def test_absorption_study_rows_and_summary():
     assert any(line["quantity"].startswith("best of each reference family") for line in summary)
     # the same arguments, the same rows
     assert study.evaluate([case], options) == rows
+
+
+def test_absorption_study_noise_realisations_are_cases_of_their_own():
+    load_studies()
+    study = get_study("absorption")
+    one = indexed_cases(study, options_for(study, StudyOptions(grid=2)))
+    three = indexed_cases(study, options_for(study, StudyOptions(grid=2, seeds=3)))
+    assert len(one) == 8 and len(three) == 24
+    assert three[:8] == one  # the first realisation of an impact keeps its case, so its seed
+    assert [c["case"] for c in three] == list(range(24))
+    assert {(c["impact"], c["seed_index"]) for c in three} == {(i, k) for i in range(8) for k in range(3)}
+    for c in three:
+        assert {k: c[k] for k in ("mass", "velocity", "pressure_gauge")} == {
+            k: one[c["impact"]][k] for k in ("mass", "velocity", "pressure_gauge")}
 
 
 def test_cli_absorb_json_and_plot(tmp_path, capsys):

@@ -1,7 +1,8 @@
 """Study ``absorption`` (the paper's Fig. 10b over a grid): every absorber strategy judged on the whole event and,
 on one common window per impact, on the controller's R_B (:mod:`impactometer.control.event`).
 
-Per impact (one work unit, its own seed): ``closed``, ``constant``, ``realtime`` and ``predictive`` with M1 and V0
+Per impact and noise realisation (one work unit, its own seed; ``--seeds K`` gives each impact K realisations):
+``closed``, ``constant``, ``realtime`` and ``predictive`` with M1 and V0
 identified from the noisy closed-valve record (:func:`impactometer.control.absorb`), ``predictive`` with the true
 M1 and V0 from first contact (the oracle: what the loop's instant and its identification cost together) and from
 the loop's own control start (what the identification's error alone costs), and the achievable reference
@@ -76,7 +77,12 @@ TARGETS = {"median": 1.2, "p90": 1.5, "improvement": 2.0, "rebound": 5e-3, "rebo
 
 
 def _cases(options: StudyOptions) -> list[Row]:
-    return scenario_grid(options, GRID)  # one noise realisation per impact (the summary is per impact)
+    """The grid's impacts, each ``options.seeds`` times with its own noise realisation: a case is one impact and
+    one realisation (``impact``: the impact's index in the grid, ``seed_index``: the realisation). The first
+    realisation of an impact keeps the impact's index as its case, so its seed does not depend on ``seeds``."""
+    grid = scenario_grid(options, GRID)
+    return [{**s, "case": i + k * len(grid), "impact": i, "seed_index": k}
+            for k in range(options.seeds) for i, s in enumerate(grid)]
 
 
 def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
@@ -102,7 +108,8 @@ def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
                   noise=noise, seed=seed, sample_rate=options.sample_rate)
     summary = found.to_dict()
     ident = summary["identification"]
-    base = {"case": case["case"], "mass_kg": scenario.mass, "velocity_m_s": scenario.velocity,
+    base = {"case": case["case"], "impact": case.get("impact", case["case"]), "seed_index": case.get("seed_index", 0),
+            "mass_kg": scenario.mass, "velocity_m_s": scenario.velocity,
             "pressure_gauge_Pa": scenario.pressure_gauge, "rig": options.rig.name, "noise": noise, "seed": seed,
             "latency_s": latency,
             "identified_mass_kg": ident["mass_kg"], "identified_mass_std_kg": ident["mass_std_kg"],
@@ -274,9 +281,11 @@ def _summary(rows: list[Row]) -> list[Row]:
     a = acceptance(rows)
     n, c = a["impacts"], a["common set"]
     t = TARGETS
+    seeds = len({r.get("seed_index", 0) for r in rows})
+    impacts = "impacts" if seeds == 1 else f"runs (impacts × {seeds} noise realisations)"
     return [
         {"quantity": "R_B of the predictive strategy (identified) on the common window: median / 90th percentile",
-         "ours": f"{a['median R_B']:.3g} / {a['90th pct R_B']:.3g} over the {c} impacts of the common set "
+         "ours": f"{a['median R_B']:.3g} / {a['90th pct R_B']:.3g} over the {c} {impacts} of the common set "
                  f"(oracle from first contact {a['oracle median R_B']:.3g} / {a['oracle 90th pct R_B']:.3g}, from "
                  f"the control start {a['oracle from the control start median R_B']:.3g} / "
                  f"{a['oracle from the control start 90th pct R_B']:.3g}; achievable "
