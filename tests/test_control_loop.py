@@ -15,6 +15,7 @@ from impactometer.errors import ParameterError
 from impactometer.identify.result import Identification
 from impactometer.rig import Scenario
 from impactometer.studies import StudyOptions, get_study, load_studies
+from impactometer.studies.absorption import acceptance
 from impactometer.studies.base import indexed_cases, options_for
 
 SCENARIO = Scenario.from_height(mass=30.0, height=0.3, pressure_gauge=200e3)
@@ -240,6 +241,9 @@ def test_absorption_study_rows_and_summary():
         "median R_B"]
     for family in ("segments", "level", "moving_target", "partial_knowledge"):
         assert rows[0][f"achievable_{family}_force_ratio"] >= reference
+    figures = acceptance(rows)
+    below = figures["not above the oracle by more than 5 %"]  # one-sided: the loop below the oracle counts
+    assert figures["within 5 % of the oracle"] <= below <= figures["common set"] == 1
     summary = study.summary(rows)
     assert "R_B" in summary[0]["quantity"] and "1 impacts of the common set" in summary[0]["ours"]
     assert any(line["quantity"].startswith("best of each reference family") for line in summary)
