@@ -7,8 +7,9 @@ pressure 3 % off the truth (none in the file), a pressure that contradicts the f
 the wrong law (fall-back), a record too short (refused) and pads outside every family from the independent stand
 simulator of ``tests/foreign_stand.py``, and records of the stiff stand identified on the default stand named. Each
 answer: M1, V0, their σ, method, path, contact law, adequacy verdict, warnings and the details as JSON (or the
-refusal's message). The 45 records take the paths adequate (27), fell back (15) and refused (3); none of them is
-shortened or widened.
+refusal's message). The 46 records take the paths adequate (27), widened (1: an answer
+that explains its record down to the noise but disagrees with the robust one), fell back (15) and refused (3); none of
+them is shortened.
 
     python scripts/compare_answers.py write answers.json [--jobs 2] [--only foreign/]
     python scripts/compare_answers.py compare before.json after.json
@@ -64,6 +65,7 @@ def cases() -> list[tuple]:
         out.append((f"foreign/masing/quiet/{seed}", "foreign", dict(kind="masing", seed=seed, noise=0.01)))
     for kind in ("masing", "peak-oriented"):
         out.append((f"foreign/long/{kind}/0", "foreign", dict(kind=kind, seed=0, duration=0.1)))
+    out.append(("foreign/peak-oriented/7", "foreign", dict(kind="peak-oriented", seed=7)))  # widened
     return out
 
 
