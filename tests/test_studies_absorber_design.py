@@ -144,3 +144,26 @@ def test_the_charge_per_class_takes_each_class_at_its_best_charge_and_the_front_
                              and (o["p90 peak / F0"], o["p90 R_B"]) != (d["p90 peak / F0"], d["p90 R_B"])
                              for d in front for o in table)
     assert len({(d["p90 peak / F0"], d["p90 R_B"]) for d in front}) == len(front)  # equal designs shown once
+
+
+def test_the_policy_setting_is_checked_and_passed_to_absorb(pads, monkeypatch):
+    """``policy`` is absorb's: ``early`` (the default) drives the valve from first contact, ``wait`` keeps it
+    closed until M1 is known, the call the study made before it had the setting (``absorb(early=False)``)."""
+    import impactometer.studies.absorber_design as module
+
+    assert module.DEFAULTS["policy"] == "early" == _options(policy="early")[1].params["absorber-design.policy"]
+    with pytest.raises(ParameterError, match="policy"):
+        _options(policy="later")
+    seen = []
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs["early"])
+        return absorb(*args, **kwargs)
+
+    absorb = module.absorb
+    monkeypatch.setattr(module, "absorb", spy)
+    study, options = _options(policy="wait")
+    (wait,) = study.evaluate([_case(1)], options)
+    assert seen == [False] and wait["policy"] == "wait" and pads[1]["policy"] == "early"
+    keys = ("stage_b_ratio", "whole_event_peak_ratio", "control_start_s")
+    assert [wait[k] for k in keys] != [pads[1][k] for k in keys]  # the early policy acts before M1 is known

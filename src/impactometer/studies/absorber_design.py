@@ -7,7 +7,10 @@ the impacts of the M1 × V0 grid over the paper's ranges at the design's p0 are 
 noise, the same noise seed per impact for every design): ``closed`` and ``predictive``, with M1 and V0 from the
 identification in the loop (``identification = model``, the default) or known from first contact plus the stated
 latency (``oracle``: the R_B a design allows once the loop acts from first contact; the identification's own
-answer time on soft pads is then not part of the design's R_B).
+answer time on soft pads is then not part of the design's R_B). The loop's policy is ``absorb``'s (``policy``):
+``early`` (the default) drives the valve from first contact on V0 and M1's prior over the rated masses, refined as
+M1 becomes known; ``wait`` keeps the valve closed until M1 is known. The oracle knows both from first contact +
+the latency, so the policy does not change its rows.
 
 Besides the fixed charges, the charge at contact chosen per impact class (light/heavy: M1 below or above the
 middle of the paper's mass range; slow/fast: V0 likewise, :func:`impact_class`) is a design of its own: the stand
@@ -75,7 +78,7 @@ PAD_LAWS: dict[str, Callable[[float], dict[str, object]]] = {
     "hunt-crossley": _progressive_pad}
 DEFAULTS = {"pressures": [20e3, 200e3], "laws": ["hysteretic"], "stiffnesses": [1e5, 7e5], "areas_mm2": [100],
             "response_times_ms": [3], "piston_masses": [4.0], "dead_time_ms": 0.5, "noise": 0.02,
-            "identification": "model"}
+            "identification": "model", "policy": "early"}
 SETTINGS = {"pressures": Setting("numbers", 0.0, 400e3, "pressure"),
             "laws": Setting("choices", choices=tuple(PAD_LAWS)),
             "stiffnesses": Setting("numbers", 1e3, 1e8),
@@ -83,7 +86,8 @@ SETTINGS = {"pressures": Setting("numbers", 0.0, 400e3, "pressure"),
             "areas_mm2": Setting("numbers", 0.0, 1e4, low_open=True),
             "response_times_ms": Setting("numbers", 0.0, 1e3, low_open=True),
             "dead_time_ms": Setting("number", 0.0, 50.0), "noise": Setting("number", 0.0, 1.0, "fraction"),
-            "identification": Setting("choice", choices=("model", "oracle"))}
+            "identification": Setting("choice", choices=("model", "oracle")),
+            "policy": Setting("choice", choices=("early", "wait"))}
 #: the identification answers early when it does within this time of first contact [s]
 EARLY = 0.010
 #: what a recommended design must reach: whole-event p90 peak / F0, p90 R_B, share of early answers
@@ -145,6 +149,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
     dead = float(_setting(options, "dead_time_ms")) * 1e-3
     noise = float(_setting(options, "noise"))
     oracle = _setting(options, "identification") == "oracle"
+    early = _setting(options, "policy") == "early"
     for case in cases:
         law = case.get("law", "hysteretic")
         rig = iso6358_valve(case["effective_area_mm2"] * 1e-6,
@@ -157,7 +162,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
         result = absorb(scenario, rig, strategy=["closed", "predictive"], noise=noise, seed=seed, absorber=absorber,
                         sample_rate=options.sample_rate, identification="oracle" if oracle else "model",
                         control_start=LATENCY if oracle else None,
-                        early=False)  # designs judged, as recorded, with the valve closed until M1 is known
+                        early=early)
         m, closed = result.metrics["predictive"], result.metrics["closed"]
         rows.append({"case": case["case"], "impact": case["impact"], "mass_kg": scenario.mass,
                      "velocity_m_s": scenario.velocity, "impact_class": impact_class(scenario.mass, scenario.velocity),
@@ -170,6 +175,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
                                             case["effective_area_mm2"], case["response_time_ms"],
                                             case["piston_mass"]),
                      "identification": "oracle" if oracle else result.identification,
+                     "policy": None if oracle else ("early" if early else "wait"),
                      "identified_available_at_s": finite_or_none(result.identified.available_at),
                      "identified_mass_kg": finite_or_none(result.identified.mass),
                      "control_start_s": finite_or_none(m.control_start),
@@ -305,8 +311,9 @@ def _summary(rows: list[Row]) -> list[Row]:
     best = recommended(rows)
     impacts = len({r["impact"] for r in rows})
     known = {r.get("identification") for r in rows}
+    policies = sorted({str(r["policy"]) for r in rows if r.get("policy")})
     basis = ("M1 and V0 known from first contact + the stated latency (oracle)" if known == {"oracle"}
-             else "identification in the loop")
+             else "identification in the loop" + (f", policy {'/'.join(policies)}" if policies else ""))
     target = (f"the design for whole-event p90 peak / F0 <= {TARGETS['whole_event_p90']:g}, p90 R_B <= "
               f"{TARGETS['stage_b_p90']:g} and >= {TARGETS['early_share'] * 100:g} % answers within "
               f"{EARLY * 1e3:g} ms")
