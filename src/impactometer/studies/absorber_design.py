@@ -149,7 +149,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
     dead = float(_setting(options, "dead_time_ms")) * 1e-3
     noise = float(_setting(options, "noise"))
     oracle = _setting(options, "identification") == "oracle"
-    early = _setting(options, "policy") == "early"
+    policy = _setting(options, "policy")
     for case in cases:
         law = case.get("law", "hysteretic")
         rig = iso6358_valve(case["effective_area_mm2"] * 1e-6,
@@ -162,7 +162,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
         result = absorb(scenario, rig, strategy=["closed", "predictive"], noise=noise, seed=seed, absorber=absorber,
                         sample_rate=options.sample_rate, identification="oracle" if oracle else "model",
                         control_start=LATENCY if oracle else None,
-                        early=early)
+                        early=policy == "early")
         m, closed = result.metrics["predictive"], result.metrics["closed"]
         rows.append({"case": case["case"], "impact": case["impact"], "mass_kg": scenario.mass,
                      "velocity_m_s": scenario.velocity, "impact_class": impact_class(scenario.mass, scenario.velocity),
@@ -175,7 +175,7 @@ def _evaluate(cases: list[Row], options: StudyOptions) -> list[Row]:
                                             case["effective_area_mm2"], case["response_time_ms"],
                                             case["piston_mass"]),
                      "identification": "oracle" if oracle else result.identification,
-                     "policy": None if oracle else ("early" if early else "wait"),
+                     "policy": None if oracle else policy,
                      "identified_available_at_s": finite_or_none(result.identified.available_at),
                      "identified_mass_kg": finite_or_none(result.identified.mass),
                      "control_start_s": finite_or_none(m.control_start),

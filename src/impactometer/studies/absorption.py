@@ -38,6 +38,7 @@ from ..rig import ABSORPTION_RIG, Scenario
 from ..tables import flag, number
 from ..validation import finite_or_none
 from .base import Row, Setting, Study, StudyFigure, StudyOptions, case_seed, register, scenario_grid
+from .identification import seeded_grid
 
 NAME = "absorption"
 #: default values per grid axis (8 impacts at the corners of the ranges; ``--grid 5`` gives the paper's 125)
@@ -77,12 +78,12 @@ TARGETS = {"median": 1.2, "p90": 1.5, "improvement": 2.0, "rebound": 5e-3, "rebo
 
 
 def _cases(options: StudyOptions) -> list[Row]:
-    """The grid's impacts, each ``options.seeds`` times with its own noise realisation: a case is one impact and
-    one realisation (``impact``: the impact's index in the grid, ``seed_index``: the realisation). The first
-    realisation of an impact keeps the impact's index as its case, so its seed does not depend on ``seeds``."""
+    """The grid's impacts, each ``options.seeds`` times with its own noise realisation (:func:`.identification.
+    seeded_grid`, realisation-major): a case is one impact and one realisation (``impact``: the impact's index in
+    the grid, ``seed_index``: the realisation). The first realisation of an impact keeps the impact's index as its
+    case, so its seed does not depend on ``seeds``."""
     grid = scenario_grid(options, GRID)
-    return [{**s, "case": i + k * len(grid), "impact": i, "seed_index": k}
-            for k in range(options.seeds) for i, s in enumerate(grid)]
+    return [{**s, "impact": i % len(grid)} for i, s in enumerate(seeded_grid(grid, options))]
 
 
 def case_rows(case: Row, options: StudyOptions, seed: int) -> list[Row]:
