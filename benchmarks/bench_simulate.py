@@ -33,7 +33,7 @@ from impactometer.model import dynamics as d
 from impactometer.model import reference, simulate_batch
 from impactometer.model.setup import initial_states
 from impactometer.model.simulate import DEFAULT_RTOL, MAX_STEP, MAX_STEPS, absolute_tolerance, compare_integrators
-from impactometer.rig import get_rig
+from impactometer.rig import CONTACT_LAWS, get_rig
 from recorded import recorded
 
 DURATION, SAMPLE_RATE = 0.05, 50e3
@@ -208,7 +208,7 @@ def gpu_versus_cpu(n_gpu, n_cpu, agree=True, repeat=3):
     print("| contact law | pulses compared | max rel. diff. peak force | max rel. diff. impulse | "
           "max diff. pulse-peak time [µs] | pulse-count mismatches |")
     print("|---|---:|---:|---:|---:|---:|")
-    for law in ("kelvin-voigt", "hunt-crossley", "hysteretic"):
+    for law in CONTACT_LAWS:  # every shipped law
         a = compare_devices(*grid, get_rig(contact=law), duration=0.05, sample_rate=200e3)
         print(f"| {law} | {a.pulses} | {a.peak_force:.1e} | {a.impulse:.1e} | {a.peak_time * 1e6:.3f} | "
               f"{a.pulse_count_mismatches} |")

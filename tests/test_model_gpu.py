@@ -108,13 +108,22 @@ def test_device_functions_are_compiled_from_the_cpu_functions_code():
         assert not any(isinstance(function.py_func.__globals__.get(n), Dispatcher) for n in names)
 
 
+def _flat_maxima_miss(law):
+    return pytest.param(law, None, marks=pytest.mark.xfail(
+        strict=True, reason="known miss at the default rtol 1e-9 (measured on an H200: 2.5 µs hysteretic, 1.3 µs "
+        "power): the flat maxima of these pads' sustained contact move with rounding, while peak force and impulse "
+        "agree to 1.5e-6; as between the CPU fast and reference integrators, they are compared at rtol 1e-10"))
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("law", LAWS)
-def test_real_gpu_agrees_with_the_cpu_batch_on_the_125_cases(law):
+@pytest.mark.parametrize("law, rtol", [("kelvin-voigt", None), ("hunt-crossley", None),
+                                       _flat_maxima_miss("hysteretic"), ("hysteretic", 1e-10),
+                                       _flat_maxima_miss("power"), ("power", 1e-10)])
+def test_real_gpu_agrees_with_the_cpu_batch_on_the_125_cases(law, rtol):
     reason = gpu.unavailable_reason()
     if reason is not None or gpu.simulator_enabled():
         pytest.skip(f"needs a usable CUDA GPU: {reason or 'the CUDA simulator is on'}")
-    a = compare_devices(*GRID, get_rig(contact=law), duration=0.05, sample_rate=200e3)
+    a = compare_devices(*GRID, get_rig(contact=law), duration=0.05, sample_rate=200e3, rtol=rtol)
     assert a.pulse_count_mismatches == 0 and a.pulses >= 125
     assert a.peak_force <= PEAK_FORCE and a.impulse <= IMPULSE and a.peak_time <= PEAK_TIME, a
 
