@@ -450,3 +450,15 @@ def test_absorption_study_acts_early_by_default_and_waits_when_asked():
     assert waiting.param("absorption", "policy", "early") == "wait"
     with pytest.raises(ParameterError, match="policy"):
         options_for(study, StudyOptions(params={"absorption.policy": "sometimes"}))
+
+
+def test_left_out_runs_of_one_impact_are_named_once():
+    from impactometer.studies.absorption import left_out_text
+
+    why = "stopped in stage A"
+    left = [{"case": case, "mass_kg": 10.0, "velocity_m_s": 1.0, "pressure_gauge_Pa": 400e3, "reason": why}
+            for case in (3, 128, 253)]
+    left.append({"case": 7, "mass_kg": 20.0, "velocity_m_s": 1.5, "pressure_gauge_Pa": 20e3, "reason": why})
+    assert left_out_text(left) == (f"cases 3, 128, 253 (10 kg, 1 m/s, 400 kPa: {why}); "
+                                   f"case 7 (20 kg, 1.5 m/s, 20 kPa: {why})")
+    assert left_out_text([]) == "none"
