@@ -3,7 +3,11 @@
 SI units everywhere (kg, m, s, N, Pa absolute unless named ``gauge``); the axis points down; t = 0 is first contact.
 """
 
-from .errors import (
+from .compiled_cache import remove_stale
+
+remove_stale()  # numba's cached machine code made from other sources than these: removed before any is loaded
+
+from .errors import (  # noqa: E402
     ControlError,
     DeviceError,
     IdentificationError,
@@ -14,7 +18,7 @@ from .errors import (
     SimulationError,
     UnitError,
 )
-from .rig import PRESETS, Contact, Cylinder, Friction, Gas, Rig, Scenario, Stops, Valve, get_rig, load_toml
+from .rig import PRESETS, Contact, Cylinder, Friction, Gas, Rig, Scenario, Stops, Valve, get_rig, load_toml  # noqa: E402
 
 __version__ = "0.1.0"
 
