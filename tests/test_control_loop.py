@@ -244,6 +244,8 @@ def test_absorption_study_rows_and_summary():
     figures = acceptance(rows)
     below = figures["not above the oracle by more than 5 %"]  # one-sided: the loop below the oracle counts
     assert figures["within 5 % of the oracle"] <= below <= figures["common set"] == 1
+    partial, oracle = rows[0]["achievable_partial_knowledge_force_ratio"], rows[2]["stage_b_ratio"]
+    assert figures["partial knowledge within 5 % of the oracle"] == int(abs(partial / oracle - 1.0) <= 0.05)
     summary = study.summary(rows)
     assert "R_B" in summary[0]["quantity"] and "1 impacts of the common set" in summary[0]["ours"]
     assert any(line["quantity"].startswith("best of each reference family") for line in summary)

@@ -261,6 +261,10 @@ def acceptance(rows: list[Row], strategy: str = "predictive") -> dict[str, Any]:
             "below the achievable by > 5 %": int(np.sum(mine < 0.95 * reference)),
             "oracle below the achievable by > 5 %": int(np.sum(oracle < 0.95 * reference)),
             "within 5 % of the oracle": int(np.sum(deviation <= TARGETS["oracle_deviation"])),
+            # the same law, noise-free, on the prior's M1 until the loop's answer and the true M1 from then on: what
+            # the instant of the answer alone costs
+            "partial knowledge within 5 % of the oracle": int(np.sum(
+                np.abs(families["partial knowledge"] / oracle - 1.0) <= TARGETS["oracle_deviation"])),
             "not above the oracle by more than 5 %": int(np.sum(mine <= (1.0 + TARGETS["oracle_deviation"]) * oracle)),
             "largest deviation from the oracle": float(np.nanmax(deviation)) if deviation.size else math.nan,
             "bottomed out": sum(flag(r.get("bottomed_out")) for r in chosen),
@@ -325,7 +329,9 @@ def _summary(rows: list[Row]) -> list[Row]:
                  f"{a['largest deviation from the oracle'] * 100:.3g} %; not above it by more than 5 %, the loop "
                  f"below the oracle counted as within: {a['not above the oracle by more than 5 %']} of {c}); of the "
                  "oracle from the control start: "
-                 f"{a['within 5 % of the oracle from the control start']} of {c}", "paper": "target: >= 95 %"},
+                 f"{a['within 5 % of the oracle from the control start']} of {c}; the partial-knowledge reference "
+                 "(noise-free, the true M1 from the loop's answer on): "
+                 f"{a['partial knowledge within 5 % of the oracle']} of {c}", "paper": "target: >= 95 %"},
         {"quantity": "median R_B / the achievable reference's median",
          "ours": f"{a['median R_B / achievable median']:.3g} (predictive below the reference by > 5 % on "
                  f"{a['below the achievable by > 5 %']}, oracle on {a['oracle below the achievable by > 5 %']})",
