@@ -33,7 +33,8 @@ fit soaking the difference up into the pressure and the contact: then the fit of
 and the whole fit disagree beyond the σ of their difference (:func:`_nested`, a Hausman specification test); such an
 answer is ``widened`` by that difference and its warning names ``--rig`` and ``--pressure``.
 Either answer is then checked against the robust answer of the same record within their joint σ (:data:`Z_JOINT`;
-:data:`Z_JOINT_ADEQUATE` for an adequate or a shortened fit, whose residuals pass the test above): where they
+:data:`Z_JOINT_ADEQUATE` for an adequate fit, and for a shortened one, whose residuals pass the test above, where it
+is the more precise): where they
 disagree (another stand, a misread pressure, a pad the model does not hold), the answer is the robust one with a σ
 that spans both (``fell back``); an adequate whole-record fit keeps its answer with a σ widened to reach the robust
 one.
@@ -66,7 +67,10 @@ Z_JOINT = 3.0
 #: model's own stand (3.6-4.4 joint σ in 3 of 33 records tried; on noise-free records its errors are 2-3 of its own
 #: σ, its rows' method bias beyond their noise, while the model's σ is a thousandth of it, so that the joint σ is
 #: the robust σ alone and the comparison tests the robust answer), so a disagreement counts from 5. A shortened
-#: answer that disagrees beyond it still gives the robust answer (its fit explains a span, not the whole record)
+#: answer (its fit explains a span, not the whole record) is kept within it only where its σ is below the robust
+#: answer's in M1 and V0, as any answer within Z_JOINT is; where it is the less precise or disagrees beyond 5, the
+#: robust answer is given (a span of a pad outside the laws, its σ hundreds of times the robust one, gave answers
+#: 2-6 times off when kept)
 Z_JOINT_ADEQUATE = 5.0
 #: the spans after first contact [s] the chosen law is refitted on, longest first, when it does not explain the
 #: whole record: the first impact and its rebound (the pad's loading and unloading) come before the minor loops
