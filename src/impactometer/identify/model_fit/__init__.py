@@ -340,7 +340,10 @@ def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, rob
         return answer
     z = _disagreement(answer, robust)
     adequacy = replace(adequacy, robust_z=z)
-    if adequacy.verdict == "adequate" and z <= Z_JOINT_ADEQUATE or z <= Z_JOINT and (
+    # a shortened fit is adequate over its span: a disagreement counts from Z_JOINT_ADEQUATE where it is the more
+    # precise answer (where it is not, the robust answer is given below whether or not they agree)
+    limit = Z_JOINT_ADEQUATE if adequacy.verdict == "shortened" else Z_JOINT
+    if adequacy.verdict == "adequate" and z <= Z_JOINT_ADEQUATE or z <= limit and (
             answer.mass_std <= robust.mass_std and answer.velocity_std <= robust.velocity_std):
         return _with_adequacy(answer, adequacy)
     mismatch = (f"differ by {z:.3g} of their joint σ: the record is not of the stand the model takes (pass rig the "
