@@ -15,7 +15,7 @@ with compiled residuals.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
@@ -428,6 +428,11 @@ class LawFit(Quality):
                 "std": {name: self.std(name) for name in self.layout.names},
                 "offsets": {"contact_force_N": float(self.offsets[0]),
                             "piston_acceleration_m_s2": float(self.offsets[1])}}
+
+
+def _least_bic(fits: Iterable[LawFit]) -> LawFit | None:
+    """The fit of smallest BIC of ``fits`` (the first of equals; None where there is none)."""
+    return min(fits, key=lambda fit: fit.bic, default=None)
 
 
 def _law_fit(problem: Residuals, solution: Solution, *, information: bool = True,

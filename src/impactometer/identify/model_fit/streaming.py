@@ -80,10 +80,8 @@ def check_schedule(cadence: float = CADENCE, first: float = STAGES[0][0], window
     """``cadence``, ``first`` and ``window`` [s] of a :class:`ModelStream` as floats, or ParameterError naming the
     one out of range: the cadence at least a sample period (> 0 where ``sample_rate`` [Hz] is not known yet),
     ``first`` from ``MIN_FIRST`` to the screening window, ``window`` at least ``first`` plus one cadence."""
-    if sample_rate is None:
-        cadence = check_real("cadence", cadence, low=0.0, low_open=True, unit=" [s]", error=ParameterError)
-    else:
-        cadence = check_real("cadence", cadence, low=1.0 / sample_rate, unit=" [s]", error=ParameterError)
+    cadence = check_real("cadence", cadence, low=0.0 if sample_rate is None else 1.0 / sample_rate,
+                         low_open=sample_rate is None, unit=" [s]", error=ParameterError)
     first = check_real("first", first, low=MIN_FIRST, high=STAGES[SCREEN_WINDOW][0], unit=" [s]",
                        error=ParameterError)
     window = check_real("window", window, low=first + cadence, unit=" [s]", error=ParameterError)
