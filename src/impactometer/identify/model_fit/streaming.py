@@ -164,6 +164,7 @@ class ModelStream:
             raise ParameterTypeError(f"metadata must be None or a dict (the recording's metadata), got "
                                      f"{shown(metadata)}", field="metadata", expected="must be None or a dict")
         self.metadata = dict(metadata or {})
+        self._pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         probe = self._recording(np.zeros((2, 1)), 0)
         #: the warning of a stand other than the recording's, stated once: the updates' records leave it out (its
         #: fingerprint of the stand cost a sixth of a millisecond an answer)
@@ -195,10 +196,9 @@ class ModelStream:
         pre = int(PRE_TRIGGER * self.sample_rate)
         contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
         size = int(math.floor((contact + min(self.first, STAGES[0][0])) * self.sample_rate + 1e-9)) + 1
-        pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         try:
             return {(pre, size): _grid_predictions(_make_grid(0.0, self.sample_rate, size, self.design), self.rig,
-                                                  contact, self.pressure_gauge, pressure_gauge_start)}
+                                                  contact, self.pressure_gauge, self._pressure_gauge_start)}
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
 
@@ -340,11 +340,10 @@ class ModelStream:
     def _first(self, impact: _Impact, data: Observed, span: float) -> LawFit | None:
         """The first answer, from the robust answer where the stream has one by then, else from the grid's best
         starts (:func:`.growing.first_fit`)."""
-        pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         if self.robust.estimates:
             robust = self.robust.estimates[-1]
             starts = [_Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
-                            pressure_gauge=self.pressure_gauge, pressure_gauge_start=pressure_gauge_start,
+                            pressure_gauge=self.pressure_gauge, pressure_gauge_start=self._pressure_gauge_start,
                             pressure_gauge_std=self.pressure_gauge_std)]
         else:
             part = window(data, impact.contact_time + STAGES[0][0])  # the window the grid is ranked on
@@ -359,7 +358,7 @@ class ModelStream:
                     size=part.grid.size - cut))  # the window's floor keeps its last sample)
                 predicted = predicted[..., cut:]
             starts = [replace(start, pressure_gauge_std=self.pressure_gauge_std) for start in _grid_starts(
-                part, self.rig, impact.contact_time, self.pressure_gauge, pressure_gauge_start, count=GRID_STARTS,
+                part, self.rig, impact.contact_time, self.pressure_gauge, self._pressure_gauge_start, count=GRID_STARTS,
                 predicted=predicted)]
         return _first_fit(impact.fit, data, span, starts)
 
