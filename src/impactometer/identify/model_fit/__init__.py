@@ -48,6 +48,7 @@ from .engine import (
     MIN_DURATION,
     LawFit,
     Observed,
+    _least_bic,
     anti_alias_design,
     check_channels,
     check_length,
@@ -57,7 +58,7 @@ from .engine import (
 )
 from .forward import _check_uncertain, free_parameters, make_layout, stand_values
 from .information import CramerRao, _bound_of, covariance
-from .select import CRITERION, _fit_laws, _grid_start, _Start
+from .select import CRITERION, _fit_laws, _grid_starts, _Start
 from .stand_choice import STAND_FALSE_ALARM, _compare_stands, _names_no_stand, _switches
 from .stand_prior import _stand_variance
 
@@ -238,8 +239,8 @@ def identify(recording: Recording, *, rig: Rig | str | None = None, pressure_gau
                       pressure_gauge_start=pressure_gauge_start, pressure_gauge_std=gauge_std)
     else:  # a few samples before the crude trigger: the first window's fit finds the instant
         data = observe(recording, design, trigger)
-        start = replace(_grid_start(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, gauge,
-                                    pressure_gauge_start), pressure_gauge_std=gauge_std)
+        start = replace(_grid_starts(data, rig, trigger - delay - TRIGGER_LEAD / recording.sample_rate, gauge,
+                                     pressure_gauge_start)[0], pressure_gauge_std=gauge_std)
     fits, selection = _fit_laws(data, rig, laws, free_names, start, rescue=max_reduced_chi2)
     choice = None
     if given is None and _names_no_stand(recording):
@@ -287,7 +288,7 @@ def _conclude(recording: Recording, rig: Rig, data: Observed, start: _Start, rob
         {"mass_kg": robust.mass, "velocity_m_s": robust.velocity, "mass_std_kg": robust.mass_std,
          "velocity_std_m_s": robust.velocity_std},
         noise_force=float(data.noise[0]), noise_acceleration=float(data.noise[1]), anti_alias=design, stands=stands)
-    best = min(fits.values(), key=lambda f: f.bic) if fits else None
+    best = _least_bic(fits.values())
 
     def fell_back(adequacy: Adequacy | None, reason: str, model: Identification | None = None) -> Identification:
         """The robust answer (:func:`_fallback`), the verdict ``fell back`` for ``reason``."""

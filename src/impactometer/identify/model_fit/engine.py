@@ -15,7 +15,7 @@ with compiled residuals.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
@@ -430,6 +430,11 @@ class LawFit(Quality):
                             "piston_acceleration_m_s2": float(self.offsets[1])}}
 
 
+def _least_bic(fits: Iterable[LawFit]) -> LawFit | None:
+    """The fit of smallest BIC of ``fits`` (the first of equals; None where there is none)."""
+    return min(fits, key=lambda fit: fit.bic, default=None)
+
+
 def _law_fit(problem: Residuals, solution: Solution, *, information: bool = True,
             converged: bool | None = None, kept: bool = False) -> LawFit:
     """The :class:`LawFit` of ``solution`` on ``problem`` (its covariance from the solution's Jacobian with
@@ -527,10 +532,7 @@ def observe(recording: Recording, design: str, contact_time: float, min_duration
     data = np.vstack([np.asarray(recording.channel(name), dtype=float) for name in CHANNELS])
     fs = recording.sample_rate
     onset = int(math.floor((contact_time - recording.start_time) * fs))
-    after = (data.shape[1] - 1 - onset) / fs
-    if after < min_duration:
-        raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
-                                  f"the model fit needs at least {min_duration * 1e3:g} ms")
+    _check_after(recording, (data.shape[1] - 1 - onset) / fs, min_duration)
     pre = onset - GUARD_SAMPLES
     if pre < MIN_PRE_SAMPLES:
         raise IdentificationError(f"{recording.source}: {max(pre, 0)} samples before first contact; the model fit "
@@ -577,11 +579,15 @@ def check_length(recording: Recording, min_duration: float = MIN_DURATION) -> fl
     above = np.flatnonzero(np.abs(force - level) > 10.0 * sd)
     if not above.size:
         raise IdentificationError(f"{recording.source}: no impact: the force never leaves its noise ({sd:.3g} N)")
-    after = (force.size - 1 - above[0]) / recording.sample_rate
+    _check_after(recording, (force.size - 1 - above[0]) / recording.sample_rate, min_duration)
+    return recording.start_time + above[0] / recording.sample_rate
+
+
+def _check_after(recording: Recording, after: float, min_duration: float) -> None:
+    """IdentificationError where ``recording`` holds less than ``min_duration`` [s] (``after`` [s]) after contact."""
     if after < min_duration:
         raise IdentificationError(f"{recording.source}: the record holds {after * 1e3:.3g} ms after first contact; "
                                   f"the model fit needs at least {min_duration * 1e3:g} ms")
-    return recording.start_time + above[0] / recording.sample_rate
 
 
 def check_channels(recording: Recording) -> None:

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .engine import MAX_EVALUATIONS, LawFit, Observed
+from .engine import MAX_EVALUATIONS, LawFit, Observed, _least_bic
 from .first_window import _fit_window
 from .forward import Layout
 from .select import (
@@ -89,23 +89,19 @@ class _Growing:
 
     def best(self) -> LawFit | None:
         """The fit of smallest BIC among the laws followed (None before the first answer)."""
-        return min((state.fit for state in self.states.values()), key=lambda fit: fit.bic, default=None)
-
-
-def _explains(fit: LawFit, data: Observed) -> bool:
-    """Whether ``fit`` explains the samples of ``data`` after its first contact down to their noise (see
-    :data:`EXPLAINED_SPREAD`); the model is zero before contact, so those samples' share of χ² is the offsets'."""
-    times = data.grid.start_time + np.arange(data.channels.shape[1]) / data.grid.sample_rate
-    before = int(np.searchsorted(times, fit.values["contact_time"]))  # the samples before: the first ones
-    pre = float(np.sum(np.square((data.channels[:, :before] - fit.offsets[:, None]) / data.noise[:, None])))
-    dof = 2 * (times.size - before) - fit.unknowns
-    return dof > 0 and (fit.chi2 - pre) / dof <= 1.0 + EXPLAINED_SPREAD * math.sqrt(2.0 / dof)
+        return _least_bic(state.fit for state in self.states.values())
 
 
 def _explained(growing: _Growing, fit: LawFit, data: Observed) -> bool:
-    """:func:`_explains` of ``fit`` on ``data``, the window it was fitted on, judged once per fit."""
+    """Whether ``fit`` explains the samples of ``data`` (the window it was fitted on) after its first contact down
+    to their noise (see :data:`EXPLAINED_SPREAD`), judged once per fit; the model is zero before contact, so those
+    samples' share of χ² is the offsets'."""
     if growing.judged is None or growing.judged[0] is not fit:
-        growing.judged = (fit, _explains(fit, data))
+        times = data.grid.start_time + np.arange(data.channels.shape[1]) / data.grid.sample_rate
+        before = int(np.searchsorted(times, fit.values["contact_time"]))  # the samples before: the first ones
+        pre = float(np.sum(np.square((data.channels[:, :before] - fit.offsets[:, None]) / data.noise[:, None])))
+        dof = 2 * (times.size - before) - fit.unknowns
+        growing.judged = (fit, dof > 0 and (fit.chi2 - pre) / dof <= 1.0 + EXPLAINED_SPREAD * math.sqrt(2.0 / dof))
     return growing.judged[1]
 
 
@@ -124,7 +120,7 @@ def _fit_core(growing: _Growing, law: str, data: Observed, core: dict | None, ev
 def _first_fit(growing: _Growing, data: Observed, span: float, starts: list[_Start]) -> LawFit | None:
     """The first answer on the first window (``span`` [s] after contact): the stand's own law (the first of
     ``laws`` otherwise) fitted to convergence with the stand held, from each start in turn until a fit explains the
-    window (:func:`explains`); the fit of smallest χ². The other laws wait for :func:`_screen_pending` (one at each
+    window (:func:`_explained`); the fit of smallest χ². The other laws wait for :func:`_screen_pending` (one at each
     update) unless no fit explains the window; then they are screened at once."""
     own = growing.rig.contact.law if growing.rig.contact.law in growing.laws else growing.laws[0]
     found: tuple[_LawState, _Start] | None = None

@@ -32,7 +32,7 @@ import numpy as np
 
 from ...errors import IdentificationError
 from ...rig import Rig
-from .engine import MAX_EVALUATIONS, LawFit, Observed, fit_law, staged, window
+from .engine import MAX_EVALUATIONS, LawFit, Observed, _least_bic, fit_law, staged, window
 from .forward import Grid, Layout, _horizon, _predict, free_parameters, make_layout, stand_values
 
 #: windows after the start contact instant [s] fitted in turn, and whether the stand parameters are free in them;
@@ -89,10 +89,8 @@ def _screen(fits: dict[str, LawFit], span: float, margin: float, *, within: floa
     those whose BIC exceeds the best law's by more than ``margin``; with ``within``, only where the best law
     leaves χ²/dof <= ``within`` (it explains the window down to the noise, so a law far above it cannot catch up
     once its parameters are freed)."""
-    if not fits:
-        return {}
-    best = min(fits.values(), key=lambda fit: fit.bic)
-    if within is not None and best.reduced_chi2 > within:
+    best = _least_bic(fits.values())
+    if best is None or within is not None and best.reduced_chi2 > within:
         return {}
     return {law: f"BIC on the first {span * 1e3:g} ms exceeds the best law's ({best.law}) by "
                  f"{fit.bic - best.bic:.4g} > {margin:g}"
@@ -248,21 +246,15 @@ START_MASSES = np.geomspace(2.0, 200.0, 9)
 START_VELOCITIES = np.geomspace(0.3, 8.0, 9)
 
 
-def _grid_start(data: Observed, rig: Rig, contact_time: float, pressure_gauge: float | None,
-                pressure_gauge_start: float) -> _Start:
-    """A start for :func:`_fit_laws` without the robust answer: the impact of :data:`START_MASSES` ×
-    :data:`START_VELOCITIES` whose prediction of the first window (``STAGES[0]``) with the stand's own law and
-    parameters fits best (offsets from the pre-trigger), first contact at ``contact_time`` [s]."""
-    return _grid_starts(data, rig, contact_time, pressure_gauge, pressure_gauge_start)[0]
-
-
 def _grid_starts(data: Observed, rig: Rig, contact_time: float, pressure_gauge: float | None,
                  pressure_gauge_start: float,
                 count: int = 1, predicted: np.ndarray | None = None) -> list[_Start]:
-    """The ``count`` best starts of :func:`_grid_start`, best first, none next to (one grid step from) a better
-    one: the first window of a light, fast impact can hold more than one minimum. ``predicted`` (from
-    :func:`grid_predictions` on the same window) spares the integrations. The window is ``data`` up to
-    ``STAGES[0]`` after ``contact_time``, or all of it where it is shorter."""
+    """Starts for :func:`_fit_laws` without the robust answer: the ``count`` impacts of :data:`START_MASSES` ×
+    :data:`START_VELOCITIES` whose predictions of the first window with the stand's own law and parameters fit
+    best (offsets from the pre-trigger), first contact at ``contact_time`` [s]; best first, none next to (one grid
+    step from) a better one: the first window of a light, fast impact can hold more than one minimum.
+    ``predicted`` (from :func:`_grid_predictions` on the same window) spares the integrations. The window is
+    ``data`` up to ``STAGES[0]`` after ``contact_time``, or all of it where it is shorter."""
     part = window(data, contact_time + STAGES[0][0])
     if predicted is None or predicted.shape[-1] != part.grid.size:
         predicted = _grid_predictions(part.grid, rig, contact_time, pressure_gauge, pressure_gauge_start)

@@ -32,7 +32,7 @@ from ...recording import Recording
 from ...rig import PRESETS, STAND_KEY, Rig, fingerprint
 from ..details import Adequacy
 from .adequacy import _assess
-from .engine import LawFit, Observed, fit_law, window
+from .engine import LawFit, Observed, _least_bic, fit_law, window
 from .select import _fit_laws, _Start
 
 #: the fraction of a right stand's records in which another built-in stand may be preferred by chance [-]
@@ -77,10 +77,6 @@ def _other_stands(rig: Rig) -> list[Rig]:
     return others
 
 
-def _best(fits: Mapping[str, LawFit]) -> LawFit | None:
-    return min(fits.values(), key=lambda f: f.bic) if fits else None
-
-
 def _end(fit: LawFit) -> float:
     """The instant [s] up to which ``fit`` read the record (its window's end), +inf for the whole record."""
     return math.inf if fit.span is None else fit.values["contact_time"] + fit.span[0]
@@ -104,7 +100,7 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
     be explained better, not well, by another stand's friction and volumes. Whether ``rig`` explains it down to its
     noise is stated too (``compared['stands'][rig.name]['adequate']``): the answer switches stands only where it does
     (:func:`_switches`)."""
-    taken = _best(fits)
+    taken = _least_bic(fits.values())
     if taken is None:
         return None
     others = _other_stands(rig)
@@ -118,7 +114,7 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
     margin = limit
     for other in others:
         other_fits, selection = _fit_laws(data, other, laws, uncertain, start)
-        best = _best(other_fits)
+        best = _least_bic(other_fits.values())
         if best is None:
             compared[other.name] = {"error": "every contact law's fit failed"}
             continue

@@ -80,10 +80,8 @@ def check_schedule(cadence: float = CADENCE, first: float = STAGES[0][0], window
     """``cadence``, ``first`` and ``window`` [s] of a :class:`ModelStream` as floats, or ParameterError naming the
     one out of range: the cadence at least a sample period (> 0 where ``sample_rate`` [Hz] is not known yet),
     ``first`` from ``MIN_FIRST`` to the screening window, ``window`` at least ``first`` plus one cadence."""
-    if sample_rate is None:
-        cadence = check_real("cadence", cadence, low=0.0, low_open=True, unit=" [s]", error=ParameterError)
-    else:
-        cadence = check_real("cadence", cadence, low=1.0 / sample_rate, unit=" [s]", error=ParameterError)
+    cadence = check_real("cadence", cadence, low=0.0 if sample_rate is None else 1.0 / sample_rate,
+                         low_open=sample_rate is None, unit=" [s]", error=ParameterError)
     first = check_real("first", first, low=MIN_FIRST, high=STAGES[SCREEN_WINDOW][0], unit=" [s]",
                        error=ParameterError)
     window = check_real("window", window, low=first + cadence, unit=" [s]", error=ParameterError)
@@ -166,6 +164,7 @@ class ModelStream:
             raise ParameterTypeError(f"metadata must be None or a dict (the recording's metadata), got "
                                      f"{shown(metadata)}", field="metadata", expected="must be None or a dict")
         self.metadata = dict(metadata or {})
+        self._pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         probe = self._recording(np.zeros((2, 1)), 0)
         #: the warning of a stand other than the recording's, stated once: the updates' records leave it out (its
         #: fingerprint of the stand cost a sixth of a millisecond an answer)
@@ -197,10 +196,9 @@ class ModelStream:
         pre = int(PRE_TRIGGER * self.sample_rate)
         contact = (pre - batch.TRIGGER_LEAD) / self.sample_rate - self.delay
         size = int(math.floor((contact + min(self.first, STAGES[0][0])) * self.sample_rate + 1e-9)) + 1
-        pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         try:
             return {(pre, size): _grid_predictions(_make_grid(0.0, self.sample_rate, size, self.design), self.rig,
-                                                  contact, self.pressure_gauge, pressure_gauge_start)}
+                                                  contact, self.pressure_gauge, self._pressure_gauge_start)}
         except IdentificationError:  # a stand the model cannot start: the first impact says so
             return {}
 
@@ -342,11 +340,10 @@ class ModelStream:
     def _first(self, impact: _Impact, data: Observed, span: float) -> LawFit | None:
         """The first answer, from the robust answer where the stream has one by then, else from the grid's best
         starts (:func:`.growing.first_fit`)."""
-        pressure_gauge_start = self.metadata.get("pressure_gauge_Pa") or batch.DEFAULT_PRESSURE_GAUGE_START
         if self.robust.estimates:
             robust = self.robust.estimates[-1]
             starts = [_Start(mass=robust.mass, velocity=robust.velocity, contact_time=impact.contact_time,
-                            pressure_gauge=self.pressure_gauge, pressure_gauge_start=pressure_gauge_start,
+                            pressure_gauge=self.pressure_gauge, pressure_gauge_start=self._pressure_gauge_start,
                             pressure_gauge_std=self.pressure_gauge_std)]
         else:
             part = window(data, impact.contact_time + STAGES[0][0])  # the window the grid is ranked on
@@ -361,7 +358,7 @@ class ModelStream:
                     size=part.grid.size - cut))  # the window's floor keeps its last sample)
                 predicted = predicted[..., cut:]
             starts = [replace(start, pressure_gauge_std=self.pressure_gauge_std) for start in _grid_starts(
-                part, self.rig, impact.contact_time, self.pressure_gauge, pressure_gauge_start, count=GRID_STARTS,
+                part, self.rig, impact.contact_time, self.pressure_gauge, self._pressure_gauge_start, count=GRID_STARTS,
                 predicted=predicted)]
         return _first_fit(impact.fit, data, span, starts)
 
