@@ -73,12 +73,15 @@ def test_a_noise_free_record_keeps_the_models_answer():
     # a record of the sampling study (noise-free, 20 kHz): its σ is the floor NOISE_FLOOR, the residuals after contact
     # are a few % of its variance and smooth (integration-level differences); their correlation is a smooth error far
     # below the noise, not a model error, and the robust answer (its error here 1.2 of its own σ in M1, its σ a
-    # thousand times the model's) does not overrule the model's answer, which is exact to its Fisher σ
+    # thousand times the model's) does not overrule the model's answer, which is exact to its Fisher σ. Whether the
+    # whole record or its first span is explained down to the noise depends on remnants at the integrator's tolerance
+    # (the whole record here, its first 30 ms with the lowest supported numpy and scipy): either is the model's answer
+    # with the σ of a fit that passed the test
     rec = record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=210e3), sample_rate=20e3, duration=0.1,
                  pre_trigger=0.05)
     answer = identify(rec)
     adequacy = answer.details.adequacy
-    assert answer.details.path == "ml" and adequacy.verdict == "adequate"
+    assert answer.details.path == "ml" and adequacy.verdict in ("adequate", "shortened")
     assert max(adequacy.misfit) < 0.5 and adequacy.autocorrelation_z <= Z_ADEQUATE
     assert abs(answer.mass - 30.0) <= Z * answer.mass_std and abs(answer.velocity - 2.0) <= Z * answer.velocity_std
 
