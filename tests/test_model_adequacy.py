@@ -75,7 +75,7 @@ def test_a_noise_free_record_keeps_the_models_answer():
     # below the noise, not a model error, and the robust answer (its error here 1.2 of its own σ in M1, its σ a
     # thousand times the model's) does not overrule the model's answer, which is exact to its Fisher σ. Whether the
     # whole record or its first span is explained down to the noise depends on remnants at the integrator's tolerance
-    # (the whole record here, its first 30 ms with the lowest supported numpy and scipy): either is the model's answer
+    # (the whole record here, a first span with the lowest supported numpy and scipy): either is the model's answer
     # with the σ of a fit that passed the test
     rec = record(Scenario(mass=30.0, velocity=2.0, pressure_gauge=210e3), sample_rate=20e3, duration=0.1,
                  pre_trigger=0.05)
