@@ -56,8 +56,9 @@ def job(task: tuple) -> dict:
     from impactometer.identify.model_fit import identify
 
     numba.set_num_threads(1)
-    kind, seed, exponent, noise, duration = task
-    rec, drop, _ = foreign_case(kind, seed, reload_exponent=exponent, noise=noise, duration=duration)
+    kind, seed, exponent, noise, duration, loading = task
+    rec, drop, _ = foreign_case(kind, seed, reload_exponent=exponent, noise=noise, duration=duration,
+                                loading_exponent=loading)
     row = {"kind": kind, "seed": seed, "mass": drop.mass, "velocity": drop.velocity,
            "pressure_gauge": drop.pressure_gauge}
     try:
@@ -258,6 +259,8 @@ def main() -> None:
     ap.add_argument("--per-kind", type=int, default=15, help="records per pad kind")
     ap.add_argument("--reload-exponent", type=float, default=1.0, help="exponent of the Masing pad's unloading and "
                     "reloading curves")
+    ap.add_argument("--loading-exponent", type=float, help="loading exponent n of the Masing and peak-oriented pads "
+                    "in place of the drawn one (1-1.1; the other draws the same); not with --record")
     ap.add_argument("--noise", type=float, default=0.05, help="noise, fraction of each channel's RMS after contact")
     ap.add_argument("--duration", type=float, default=0.05, help="record length after first contact [s]")
     ap.add_argument("--first-seed", type=int, default=0, help="seed of the first record of each kind")
@@ -268,6 +271,8 @@ def main() -> None:
                     "(--mismatch)")
     ap.add_argument("--record", action="store_true", help="keep the output in docs/results/ and the docs")
     args = ap.parse_args()
+    if args.record and args.loading_exponent is not None:
+        ap.error("--loading-exponent changes the pads of the recorded table: run it without --record")
     if args.mismatch:
         with recorded("stand_mismatch", "A stand or a charge pressure misstated: the model answer's σ and warnings",
                       args.record):
@@ -280,9 +285,10 @@ def main() -> None:
 
 
 def measure(args, rec) -> None:
-    tasks = [(kind, args.first_seed + i, args.reload_exponent, args.noise, args.duration) for kind in args.kinds
-             for i in range(args.per_kind)]
-    print(f"{args.per_kind} records per pad kind (Masing reload exponent {args.reload_exponent:g}), "
+    tasks = [(kind, args.first_seed + i, args.reload_exponent, args.noise, args.duration, args.loading_exponent)
+             for kind in args.kinds for i in range(args.per_kind)]
+    loading = "" if args.loading_exponent is None else f", loading exponent {args.loading_exponent:g}"
+    print(f"{args.per_kind} records per pad kind (Masing reload exponent {args.reload_exponent:g}{loading}), "
           f"{args.noise:.0%} RMS noise, {args.duration * 1e3:.0f} ms + 20 ms pre-trigger, 50 kHz, seeds "
           f"{args.first_seed}-{args.first_seed + args.per_kind - 1}; errors in % (mean / max), coverage = truth within "
           "±2σ (mass / velocity); paths of the model answer: adequate / shortened / widened / fell back\n")

@@ -376,14 +376,17 @@ def record(pad: PadLaw, drop: Drop, *, stand: Stand = PAD_STAND, seed: int = 0, 
 
 
 #: the pads of the foreign records, each a function of a random generator
-def draw_pad(kind: str, rng: np.random.Generator, reload_exponent: float = 1.0) -> PadLaw:
+def draw_pad(kind: str, rng: np.random.Generator, reload_exponent: float = 1.0,
+             loading_exponent: float | None = None) -> PadLaw:
     """A pad of ``kind`` (``masing``, ``peak-oriented``, ``power-set``) with parameters drawn around those of an
     elastomer pad like the built-in one (loading stiffness 5e5-1e6 N/m at 1 cm, unloading 1/e² times stiffer with
-    e = 0.3-0.5): a loading exponent 1-1.1 for the pads that reload another way, 1.3-1.8 for the power-law pad."""
+    e = 0.3-0.5): a loading exponent 1-1.1 for the pads that reload another way (``loading_exponent`` in its place
+    where given, the other draws the same), 1.3-1.8 for the power-law pad."""
     k = rng.uniform(5e5, 1e6)
     stiffer = rng.uniform(0.3, 0.5) ** -2
     if kind in ("masing", "peak-oriented"):
         n = rng.uniform(1.0, 1.1)
+        n = n if loading_exponent is None else loading_exponent
         k1 = k * 0.01 ** (1.0 - n)  # k at 1 cm
         if kind == "peak-oriented":
             return PeakOriented(k=k1, n=n, ku=k * stiffer)
@@ -401,10 +404,10 @@ def draw_drop(rng: np.random.Generator) -> Drop:
 
 
 def foreign_case(kind: str, seed: int, *, reload_exponent: float = 1.0, noise: float = 0.05,
-                 duration: float = 0.05):
+                 duration: float = 0.05, loading_exponent: float | None = None):
     """(record, drop, pad) of the foreign case ``seed`` of pad ``kind``: deterministic from the seed."""
     rng = np.random.default_rng([seed, sum(map(ord, kind))])
-    pad = draw_pad(kind, rng, reload_exponent)
+    pad = draw_pad(kind, rng, reload_exponent, loading_exponent)
     drop = draw_drop(rng)
     rec = record(pad, drop, seed=int(rng.integers(2**31)), noise=noise, duration=duration)
     return rec, drop, replace(pad)

@@ -4,6 +4,7 @@ pad without friction or damping) and against impactometer's model of the same st
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
@@ -85,3 +86,45 @@ def test_records_are_deterministic_and_state_only_the_pressure():
     post = clean.time >= 0
     ratio = np.std(noisy.contact_force - clean.contact_force) / np.sqrt(np.mean(clean.contact_force[post] ** 2))
     assert ratio == pytest.approx(0.05, rel=0.1)  # 3500 samples: the std of a std is 1.2 %
+
+
+def _path_forces(pad, law_force, path):
+    """Forces of the foreign ``pad`` and of impactometer's ``law_force(delta, turning_point)`` along a compression
+    ``path`` [m] of straight legs, each turning: the pad told of each reversal, the law's memory the deepest
+    compression."""
+    pad.reset()
+    ours, theirs, deepest = [], [], 0.0
+    for a, b in itertools.pairwise(path):
+        for d in np.linspace(a, b, 41)[1:]:
+            deepest = max(deepest, d)
+            theirs.append(pad.force(d))
+            ours.append(law_force(d, deepest))
+        pad.reverse(b, -1 if b > a else 1)  # the pad turns here: unloads after a loading leg
+    return np.array(theirs), np.array(ours)
+
+
+@pytest.mark.parametrize("n", [1.0, 1.1])
+def test_a_linear_peak_oriented_pad_is_the_power_law_with_a_fixed_set_fraction(n):
+    """Clough's peak-oriented pad unloads along a line of stiffness ku and reloads along it towards its largest point,
+    so its set is δmax − Fmax/ku. With a linear backbone (n = 1) that is the power law with m = 1 and the fixed set
+    fraction 1 − k/ku at every turning point; with n = 1.1 the fraction that matches the first turning point is off
+    at a deeper one (the pad is outside the power family, by a few % of the force)."""
+    from impactometer.model.forces import POWER, REFERENCE_COMPRESSION, contact_force
+
+    k, ku = 8e5, 5e6  # backbone stiffness at 1 cm [N/m], unloading stiffness [N/m]
+    pad = PeakOriented(k=k * REFERENCE_COMPRESSION ** (1.0 - n), n=n, ku=ku)
+    first = 0.008  # the first turning point [m]; the set fraction that matches it
+    fraction = 1.0 - pad.backbone(first) / (ku * first)
+
+    def law(d, deepest):
+        return contact_force(d, 0.0, deepest, POWER, k, fraction, n, 1.0)
+
+    legs = [0.0, first, 0.0075, first - 0.0003, 0.0076]  # load, unload, reload, unload, then reload past the peak
+    theirs, ours = _path_forces(pad, law, [*legs, first])
+    assert np.allclose(theirs, ours, rtol=1e-9, atol=1e-6)
+    theirs, ours = _path_forces(pad, law, [*legs, 0.012, 0.0105, 0.012])  # deeper, unload, reload
+    deeper = slice(-80, None)
+    if n == 1.0:
+        assert np.allclose(theirs, ours, rtol=1e-9, atol=1e-6)
+    else:  # unloading from 12 mm the pad is (12/8)^0.1 - 1 = 4 % stiffer than the power law: 3 % of the force
+        assert np.max(np.abs(theirs[deeper] - ours[deeper])) > 0.02 * np.max(theirs)
