@@ -255,6 +255,35 @@ def window(data: Observed, end: float) -> Observed:
     return replace(data, channels=data.channels[:, :n], grid=replace(data.grid, size=n))
 
 
+@njit(cache=True, error_model="numpy")
+def _weighted(tail, model, x, q, root, mean, prior_index, prior_mean, prior_sigma, r):
+    """``r`` := the rows of :class:`Residuals` at ``x`` of the model over σ ``model`` (2, n): ``tail`` − offset −
+    model, the head's two rows ``root``·(``mean`` − offset), one row per prior; returns ``r``."""
+    n = tail.shape[1]
+    for c in range(2):
+        r[c * n:(c + 1) * n] = tail[c] - x[q + c] - model[c]
+        r[2 * n + c] = root * (mean[c] - x[q + c])
+    for k in range(prior_index.size):
+        r[2 * n + 2 + k] = (x[prior_index[k]] - prior_mean[k]) / prior_sigma[k]
+    return r
+
+
+@njit(cache=True, error_model="numpy")
+def _differenced(model, moved, steps, root, prior_index, prior_sigma, jac):
+    """``jac`` := the Jacobian of :func:`_weighted`'s rows from the model over σ ``model`` (2, n) and ``moved`` (q,
+    2, n), the model with each variable j moved by ``steps[j]`` (finite differences; exact for the offsets)."""
+    q, n = steps.size, model.shape[1]
+    jac[:] = 0.0
+    for j in range(q):
+        for c in range(2):
+            jac[c * n:(c + 1) * n, j] = (model[c] - moved[j, c]) / steps[j]
+    jac[:n, q] = jac[n:2 * n, q + 1] = -1.0
+    jac[2 * n, q] = jac[2 * n + 1, q + 1] = -root
+    for k in range(prior_index.size):
+        jac[2 * n + 2 + k, prior_index[k]] = 1.0 / prior_sigma[k]
+    return jac
+
+
 class Residuals:
     """The weighted residuals (data − offset − model)/σ of ``layout`` on ``data`` as functions of the variables
     ``x`` (the layout's, then the two offsets in units of each channel's σ), and their Jacobian (forward
@@ -321,11 +350,11 @@ class Residuals:
         """The residuals at ``x`` (those after the head, then the head's two rows); None where the model cannot be
         integrated there."""
         try:
-            tail = self.tail - x[self.q:, None] - self.model(x)
+            model = self.model(x)
         except IdentificationError:
             return None
-        return np.concatenate((tail.ravel(), self.root * (self.mean - x[self.q:]),
-                               (x[self.prior_index] - self.prior_mean) / self.prior_sigma))
+        return _weighted(self.tail, model, x, self.q, self.root, self.mean, self.prior_index, self.prior_mean,
+                         self.prior_sigma, np.empty(self.tail.size + 2 + self.prior_index.size))
 
     def normal(self, jac: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The normal equations of Jacobian ``jac`` and residuals ``r`` (:func:`normal_equations`)."""
@@ -340,13 +369,8 @@ class Residuals:
         except IdentificationError:
             steps = -self.steps
             moved = self._predicted(x[None, :self.q] + np.diag(steps))
-        n = self.tail.shape[1]
-        jac = np.zeros((2 * n + 2 + self.prior_index.size, self.q + 2))
-        jac[:2 * n, :self.q] = ((base[None] - moved).reshape(self.q, -1) / steps[:, None]).T
-        jac[:n, self.q] = jac[n:2 * n, self.q + 1] = -1.0
-        jac[2 * n, self.q] = jac[2 * n + 1, self.q + 1] = -self.root
-        jac[2 * n + 2 + np.arange(self.prior_index.size), self.prior_index] = 1.0 / self.prior_sigma
-        return jac
+        return _differenced(base, moved, steps, self.root, self.prior_index, self.prior_sigma,
+                            np.empty((self.tail.size + 2 + self.prior_index.size, self.q + 2)))
 
 
 class Quality:

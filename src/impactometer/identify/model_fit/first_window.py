@@ -40,9 +40,11 @@ from .engine import (
     Solution,
     _advance,
     _begin,
+    _differenced,
     _law_fit,
     _outcome,
     _variables,
+    _weighted,
     fit_law,
     normal_equations,
 )
@@ -136,47 +138,32 @@ def _channels(w, x, out, internal, y0, p):
 
 @njit(cache=True, error_model="numpy")
 def _chi2(w, x, model, r, internal, y0, p):
-    """χ² less the head's constant at ``x`` (``model`` and ``r`` filled: the residuals after the head, the head's
-    two rows, then one row per prior: :meth:`.engine.Residuals.residuals`); inf where the model is not integrated
-    there."""
-    q = w.slots.size
+    """χ² less the head's constant at ``x`` (``model`` and ``r`` filled: :func:`.engine._weighted`); inf where the
+    model is not integrated there."""
     if not _channels(w, x, model, internal, y0, p):
         return np.inf
-    n = w.tail.shape[1]
-    for c in range(2):
-        r[c * n:(c + 1) * n] = w.tail[c] - x[q + c] - model[c]
-        r[2 * n + c] = w.head[0] * (w.head[1 + c] - x[q + c])
-    for k in range(w.prior_index.size):
-        r[2 * n + 2 + k] = (x[w.prior_index[k]] - w.prior_mean[k]) / w.prior_sigma[k]
+    _weighted(w.tail, model, x, w.slots.size, w.head[0], w.head[1:], w.prior_index, w.prior_mean, w.prior_sigma, r)
     return float(r @ r)
 
 
 @njit(cache=True, error_model="numpy")
 def _jacobian(w, x, model, internal, y0, p, moved, jac):
     """``jac`` := ∂residuals/∂x as :meth:`.engine.Residuals.jacobian` makes it (backward differences where a
-    forward step leaves the range the model is integrated in); False where neither is integrated."""
-    q, n = w.slots.size, model.shape[1]
-    jac[:] = 0.0
+    forward step leaves the range the model is integrated in; ``moved`` (q, 2, n) scratch); False where neither is
+    integrated."""
     for sign in (1.0, -1.0):
+        steps = sign * w.steps
         done = True
-        for j in range(q):
+        for j in range(steps.size):
             shifted = x.copy()
-            shifted[j] += sign * w.steps[j]
-            if not _channels(w, shifted, moved, internal, y0, p):
+            shifted[j] += steps[j]
+            if not _channels(w, shifted, moved[j], internal, y0, p):
                 done = False
                 break
-            for c in range(2):
-                jac[c * n:(c + 1) * n, j] = (model[c] - moved[c]) / (sign * w.steps[j])
         if done:
-            break
-    if not done:
-        return False
-    jac[:n, q] = -1.0
-    jac[n:2 * n, q + 1] = -1.0
-    jac[2 * n, q] = jac[2 * n + 1, q + 1] = -w.head[0]
-    for k in range(w.prior_index.size):
-        jac[2 * n + 2 + k, w.prior_index[k]] = 1.0 / w.prior_sigma[k]
-    return True
+            _differenced(model, moved, steps, w.head[0], w.prior_index, w.prior_sigma, jac)
+            return True
+    return False
 
 
 @njit(cache=True, error_model="numpy")
@@ -188,7 +175,7 @@ def _solve(w, evaluations, jacobians, information, jac):
     # the internal instants the causal FIR reads (those after the last sample's: none)
     used = w.timing.pad + (n - 1) * w.timing.factor + 1
     internal, y0, p = np.empty((2, used)), np.empty(d.N_STATE), np.empty(w.base.size)
-    model, trial_model, moved = np.empty((2, n)), np.empty((2, n)), np.empty((2, n))
+    model, trial_model, moved = np.empty((2, n)), np.empty((2, n)), np.empty((w.steps.size, 2, n))
     r, r_trial = np.empty(rows), np.empty(rows)
     x = w.x.copy()
     chi2 = _chi2(w, x, model, r, internal, y0, p)
