@@ -104,7 +104,7 @@ def _residuals_of(data: Observed, best: LawFit, quiet: float) -> _Residual | Non
     """The weighted residuals of ``best`` on the part of ``data`` it was fitted to, the pre-trigger's up to
     ``GUARD_SAMPLES`` before ``quiet`` (the instant [s] the noise σ was measured up to, :func:`.engine.observe`);
     None where the model cannot be integrated at its answer."""
-    part = data if best.span is None else window(data, best.values["contact_time"] + best.span[0])
+    part = window(data, best.end)
     problem = Residuals(part, best.layout)
     known = _restricted(best, problem)
     vector = problem.residuals(best.x) if known is None else known[0]

@@ -250,7 +250,10 @@ class Observed:
 
 
 def window(data: Observed, end: float) -> Observed:
-    """``data`` up to the instant ``end`` [s] on the recording's clock (all of it when ``end`` is past its end)."""
+    """``data`` up to the instant ``end`` [s] on the recording's clock (all of it when ``end`` is past its end;
+    ``data`` itself at +inf: :attr:`LawFit.end` of a fit of the whole record)."""
+    if end == math.inf:
+        return data
     n = min(data.channels.shape[1], int(math.floor((end - data.grid.start_time) * data.grid.sample_rate)) + 1)
     return replace(data, channels=data.channels[:, :n], grid=replace(data.grid, size=n))
 
@@ -431,6 +434,11 @@ class LawFit(Quality):
     def law(self) -> str:
         """The contact law."""
         return self.layout.law
+
+    @property
+    def end(self) -> float:
+        """The instant [s] up to which the fit read its record (its span's end), +inf for the whole record."""
+        return math.inf if self.span is None else self.values["contact_time"] + self.span[0]
 
     @property
     def unknowns(self) -> int:

@@ -2,11 +2,10 @@
 window (M1, V0 and the contact instant with the stand held) and each update, Levenberg-Marquardt in one call on
 the calling thread.
 
-The compiled fit is :func:`.engine.fit_law` of any layout with a fitted contact instant (the same residuals with
-the pre-trigger through its sums and a row per prior, the same Jacobian by forward differences, the same packing
-of the variables :func:`.forward._pack_row`, and the same solver: the requests of :func:`.engine._advance` answered
-by compiled residuals and Jacobians) without the ~0.1 ms of Python around each prediction and step, which was two
-thirds of a first answer's time. Its predictions equal :func:`.forward.predict`'s. Every other record is fitted by
+The compiled fit is :func:`.engine.fit_law` of any layout with a fitted contact instant (the same packing
+:func:`.forward._pack_row`, prediction :func:`.forward._predict_row`, rows :func:`.engine._weighted`, Jacobian
+:func:`.engine._differenced` and solver :func:`.engine._advance`) without the ~0.1 ms of Python around each
+prediction and step, which was two thirds of a first answer's time. Every other record is fitted by
 :func:`.engine.fit_law` with the predictions on the calling thread.
 
 The integration tolerance stays :data:`.forward.FIT_RTOL`: a looser one saves little on a 4 ms window (54 steps at

@@ -283,8 +283,7 @@ class Layout:
     def table(self, x: np.ndarray | None = None) -> tuple[Parameter, ...]:
         """Every parameter the fit can free, by name: its value (an unknown's at the fit variables ``x``, else at
         none: NaN; a held one's), the range the solver's one range check keeps it in (:func:`_outside_ranges`: the
-        range the model is integrated in, within the layout's own bounds),
-        whether it is free, and its prior."""
+        range the model is integrated in, within the layout's own bounds), whether it is free, and its prior."""
         values = {} if x is None else self.values(np.asarray(x, dtype=float)[:len(self.names)])
         priors = {self.names[j]: (mean, spread) for j, mean, spread in self.priors}
         rows = []

@@ -20,7 +20,6 @@ divided by the default fit's χ²/dof where that exceeds 1 (the noise σ of the 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from typing import Any
@@ -77,15 +76,10 @@ def _other_stands(rig: Rig) -> list[Rig]:
     return others
 
 
-def _end(fit: LawFit) -> float:
-    """The instant [s] up to which ``fit`` read the record (its window's end), +inf for the whole record."""
-    return math.inf if fit.span is None else fit.values["contact_time"] + fit.span[0]
-
-
 def _until(data: Observed, fit: LawFit, end: float) -> LawFit:
     """``fit`` refitted on ``data`` up to the instant ``end`` [s] (the shorter span of two stands' fits), from its
     own answer; ``fit`` itself where it read no further."""
-    if _end(fit) <= end:
+    if fit.end <= end:
         return fit
     return fit_law(window(data, end), fit.layout, fit.values, offsets=fit.offsets, information=False)
 
@@ -118,7 +112,7 @@ def _compare_stands(data: Observed, rig: Rig, fits: Mapping[str, LawFit], laws: 
         if best is None:
             compared[other.name] = {"error": "every contact law's fit failed"}
             continue
-        end = min(_end(taken), _end(best))
+        end = min(taken.end, best.end)
         try:
             mine, theirs = _until(data, taken, end), _until(data, best, end)
         except IdentificationError as exc:

@@ -50,7 +50,7 @@ def _stand_variance(data: Observed, fit: LawFit, rig: Rig, uncertainty: StandUnc
     for name in names:
         layout = layout.with_free(name)
     point = {**fit.values, **stand_values(rig, fit.law, names)}
-    part = data if fit.span is None else window(data, fit.values["contact_time"] + fit.span[0])
+    part = window(data, fit.end)
     x = np.r_[layout.variables(point), fit.x[-2:]]
     problem = Residuals(part, layout)
     # each stated σ in its fit variable (d value / d variable at the calibrated value)
