@@ -51,6 +51,8 @@ def truth_value(key: str, value: Any, where: str = "") -> float:
     RecordingError naming ``where`` and the key unless it is a finite number within :data:`TRUTH_RANGES`.
     """
     dimension, low, high = TRUTH_RANGES[key]
+    if type(value) is float and low <= value <= high:  # a number in SI units already (what the checks below keep)
+        return value
     plain = value.item() if isinstance(value, np.generic) else value
     if not (is_real(plain) or isinstance(plain, str)):
         raise RecordingError(f"{where}metadata {key} must be a number, got {shown(plain)}")
