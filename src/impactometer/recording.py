@@ -79,8 +79,9 @@ def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np
         arr = arr.reshape(-1)
     if arr.ndim != 1 or arr.size == 0:
         raise RecordingError(f"{source}: channel {name!r} must be a non-empty 1-D array, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
+    finite = np.isfinite(arr)
+    if not finite.all():
+        bad = np.flatnonzero(~finite)
         raise RecordingError(f"{source}: channel {name!r} has a non-finite sample ({float(arr[bad[0]])!r}) at "
                              f"index {int(bad[0])}; expected finite numbers")
     if arr.size and max(float(arr.max()), -float(arr.min())) > SAMPLE_LIMIT:
