@@ -43,9 +43,10 @@ MODEL_FIRST, MODEL_CADENCE, MODEL_LAST = 0.003, 0.001, 0.015
 #: the loop's default latency budget [s]: from the last sample an answer used to the valve command that acts on it.
 #: It is what a compiled real-time core (the stream's whole update as compiled code on one core, fed by the DAQ block
 #: by block) must meet: the DAQ block (:data:`STREAM_CHUNK` samples, 0.32 ms at 50 kHz), one update and the valve
-#: driver's command within 1 ms. A requirement, not what this implementation achieves: its processor time per update
-#: (about 3 ms on one core here) is measured by ``benchmarks/bench_loop_latency.py``, never counted in a simulation
-#: (it depends on the machine and its load, and the same arguments must give the same numbers).
+#: driver's command within 1 ms. A requirement of the real-time system: this implementation's processor time per push
+#: (a median just under 1 ms for an update on one core here, about 3 ms for the first answer's) is measured by
+#: ``benchmarks/bench_loop_latency.py``, never counted in a simulation (it depends on the machine and its load, and
+#: the same arguments must give the same numbers).
 LATENCY = 1e-3
 #: record after the contact is detected from which V0 is taken [s] (:func:`contact_velocity`): within the first
 #: rise of the contact force on the stands built in (its quarter period is 1.5-3 ms), long enough for a standard

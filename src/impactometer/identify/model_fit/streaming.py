@@ -394,8 +394,8 @@ class ModelStream:
         else:
             answer = batch._answer(recording, self.rig, fit, common, (self.pressure_gauge, self.pressure_gauge_std))
             warnings, available_at, method = (*self._stand_notes, *answer.warnings), answer.available_at, answer.method
+            assert isinstance(answer.details, ModelDetails)  # _answer's
             details = answer.details
-            assert isinstance(details, ModelDetails)  # _answer's
         assert details.stream is not None  # made above
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
