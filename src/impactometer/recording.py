@@ -51,6 +51,8 @@ def truth_value(key: str, value: Any, where: str = "") -> float:
     RecordingError naming ``where`` and the key unless it is a finite number within :data:`TRUTH_RANGES`.
     """
     dimension, low, high = TRUTH_RANGES[key]
+    if type(value) is float and low <= value <= high:  # a number in SI units already (what the checks below keep)
+        return value
     plain = value.item() if isinstance(value, np.generic) else value
     if not (is_real(plain) or isinstance(plain, str)):
         raise RecordingError(f"{where}metadata {key} must be a number, got {shown(plain)}")
@@ -77,8 +79,9 @@ def samples(values: Any, name: str, source: str, *, squeeze: bool = False) -> np
         arr = arr.reshape(-1)
     if arr.ndim != 1 or arr.size == 0:
         raise RecordingError(f"{source}: channel {name!r} must be a non-empty 1-D array, got shape {arr.shape}")
-    bad = np.flatnonzero(~np.isfinite(arr))
-    if bad.size:
+    finite = np.isfinite(arr)
+    if not finite.all():
+        bad = np.flatnonzero(~finite)
         raise RecordingError(f"{source}: channel {name!r} has a non-finite sample ({float(arr[bad[0]])!r}) at "
                              f"index {int(bad[0])}; expected finite numbers")
     if arr.size and max(float(arr.max()), -float(arr.min())) > SAMPLE_LIMIT:

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import IdentificationError, ParameterError, ResponseMapError
+from ..identify.details import ModelDetails
 from ..identify.peak_to_peak.streaming import StreamingIdentifier
 from ..identify.response_map import identify_recording
 from ..identify.result import Identification
@@ -42,9 +43,10 @@ MODEL_FIRST, MODEL_CADENCE, MODEL_LAST = 0.003, 0.001, 0.015
 #: the loop's default latency budget [s]: from the last sample an answer used to the valve command that acts on it.
 #: It is what a compiled real-time core (the stream's whole update as compiled code on one core, fed by the DAQ block
 #: by block) must meet: the DAQ block (:data:`STREAM_CHUNK` samples, 0.32 ms at 50 kHz), one update and the valve
-#: driver's command within 1 ms. A requirement, not what this implementation achieves: its processor time per update
-#: (about 3 ms on one core here) is measured by ``benchmarks/bench_loop_latency.py``, never counted in a simulation
-#: (it depends on the machine and its load, and the same arguments must give the same numbers).
+#: driver's command within 1 ms. A requirement of the real-time system: this implementation's processor time per push
+#: (a median just under 1 ms for an update on one core here, about 3 ms for the first answer's) is measured by
+#: ``benchmarks/bench_loop_latency.py``, never counted in a simulation (it depends on the machine and its load, and
+#: the same arguments must give the same numbers).
 LATENCY = 1e-3
 #: record after the contact is detected from which V0 is taken [s] (:func:`contact_velocity`): within the first
 #: rise of the contact force on the stands built in (its quarter period is 1.5-3 ms), long enough for a standard
@@ -300,16 +302,27 @@ def _force_noise(recording: Recording) -> float:
     return float(quiet_noise_std(quiet)) if quiet.size > 1 else 0.0
 
 
-def _turned(recording: Recording, until: float, noise: float) -> bool:
+def _turned(recording: Recording, until: float, noise: float, time: np.ndarray | None = None) -> bool:
     """Whether the force of the first contact pulse has turned over in the record up to ``until`` [s]: its
     maximum since first contact (t = 0) stands :data:`~impactometer.signals.extrema.TURN_SIGMAS`
     noise levels ``noise`` [N] above the force at ``until``. Before its turn the first pulse's rise depends on M1
-    hardly at all (on a soft pad a fit of it can put a 30 kg mass at 3 kg with a small stated σ)."""
+    hardly at all (on a soft pad a fit of it can put a 30 kg mass at 3 kg with a small stated σ). ``time``: the
+    record's ``time`` where the caller has it made."""
     from ..signals.extrema import TURN_SIGMAS
 
-    t = recording.time
-    seen = recording.contact_force[(t >= 0.0) & (t <= until)]
+    t = recording.time if time is None else time
+    # the samples from t = 0 to ``until``: a slice of the increasing instants (the mask of both bounds, read off)
+    seen = recording.contact_force[np.searchsorted(t, 0.0, "left"):np.searchsorted(t, until, "right")]
     return seen.size > 0 and float(seen.max() - seen[-1]) > TURN_SIGMAS * noise
+
+
+def _stage(found: Identification) -> str | None:
+    """The model stream's stage of ``found`` (``first``, ``update``, ``final``), read off its typed details (their
+    mapping form builds every detail's dict)."""
+    details = found.details
+    if isinstance(details, ModelDetails):
+        return None if details.stream is None else details.stream.stage
+    return details.get("stage")
 
 
 @renamed(pressure="pressure_gauge")
@@ -340,7 +353,7 @@ def model_answers(recording: Recording, rig: Rig, *, pressure_gauge: float,
                          rig=rig, pressure_gauge=pressure_gauge, contact=rig.contact.law, cadence=MODEL_CADENCE,
                          first=MODEL_FIRST, window=MODEL_LAST,  # its grid of starts is made here, before the impact
                          robust_starts=False)  # no robust estimate comes before the first window's end
-    force, acceleration = recording.contact_force, recording.piston_acceleration
+    force, acceleration, time = recording.contact_force, recording.piston_acceleration, recording.time
     opening = recording.channels.get(VALVE_OPENING)  # valve Z's opening [-], an input of the fit where given
     noise = _force_noise(recording)
     threads = numba.get_num_threads()
@@ -350,15 +363,15 @@ def model_answers(recording: Recording, rig: Rig, *, pressure_gauge: float,
             if recording.start_time + k / recording.sample_rate > MODEL_LAST:
                 return  # t = 0 is first contact
             chunk = slice(k, min(k + STREAM_CHUNK, force.size))
-            arrived = float(recording.time[chunk.stop - 1])  # a chunk is pushed once its last sample is in
+            arrived = float(time[chunk.stop - 1])  # a chunk is pushed once its last sample is in
             answer, updates = None, 0
             for found in stream.push(force[chunk], acceleration[chunk], None if opening is None else opening[chunk]):
-                if found.details.get("stage") == "final":
+                if _stage(found) == "final":
                     break  # the batch fit of MODEL_LAST: too late for the controller
                 updates += 1
                 stream.defer(found.available_at + latency)  # the next update reads what has arrived by then
                 if found.method == "model/ml" and found.mass_std < MODEL_MASS_TRUST * found.mass \
-                        and _turned(recording, found.available_at, noise):
+                        and _turned(recording, found.available_at, noise, time):
                     answer = found
                     break
             yield arrived, updates, answer

@@ -313,7 +313,7 @@ class Residuals:
         self.mean = scaled[:, :head].mean(axis=1) if head else np.zeros(2)
         self.constant = float(np.sum(np.square(scaled[:, :head] - self.mean[:, None])))
         self.root = np.sqrt(head)
-        self.steps = np.where(np.array(layout.names) == "contact_time", CONTACT_TIME_STEP, STEP)
+        self.steps = np.array([CONTACT_TIME_STEP if name == "contact_time" else STEP for name in layout.names])
         self.prior_index = np.array([j for j, _, _ in layout.priors], dtype=np.int64)
         self.prior_mean = np.array([mean for _, mean, _ in layout.priors])
         self.prior_sigma = np.array([sigma for _, _, sigma in layout.priors])

@@ -61,6 +61,8 @@ from .forward import (
     _schedule,
 )
 
+#: rtol then the absolute tolerances of the compiled fit's integration (:data:`.forward.FIT_RTOL`), made once
+_TOLERANCES = np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)]
 #: what the compiled fit reports: converged, stopped at its evaluations or Jacobians, not integrable at the start
 #: or at a Jacobian
 CONVERGED, STOPPED, NO_START, NO_JACOBIAN = 0, 1, 2, 3
@@ -221,8 +223,8 @@ def _window(data: Observed, layout: Layout, start: dict[str, float], offsets: np
                   prior_index=problem.prior_index, prior_mean=problem.prior_mean, prior_sigma=problem.prior_sigma,
                   x=x, steps=problem.steps.astype(float), timing=timing, instants=grid.instants,
                   valve_times=valve_times, valve_open=valve_open, fir=grid.taps,
-                  noise=data.noise, tolerances=np.r_[FIT_RTOL, absolute_tolerance(FIT_RTOL)],
-                  tail=np.ascontiguousarray(problem.tail), head=np.r_[problem.root, problem.mean]), problem
+                  noise=data.noise, tolerances=_TOLERANCES,
+                  tail=np.ascontiguousarray(problem.tail), head=np.array([problem.root, *problem.mean])), problem
 
 
 def _fit_window(data: Observed, layout: Layout, start: dict[str, float], offsets: np.ndarray | None = None, *,

@@ -97,10 +97,17 @@ def _explained(growing: _Growing, fit: LawFit, data: Observed) -> bool:
     to their noise (see :data:`EXPLAINED_SPREAD`), judged once per fit; the model is zero before contact, so those
     samples' share of χ² is the offsets'."""
     if growing.judged is None or growing.judged[0] is not fit:
-        times = data.grid.start_time + np.arange(data.channels.shape[1]) / data.grid.sample_rate
-        before = int(np.searchsorted(times, fit.values["contact_time"]))  # the samples before: the first ones
+        size, start, rate = data.channels.shape[1], data.grid.start_time, data.grid.sample_rate
+        contact = fit.values["contact_time"]
+        # the samples before contact (the first ones): the instants start + k/rate below it, counted as the
+        # search of those instants counts them, without making them
+        before = min(max(math.ceil((contact - start) * rate), 0), size)
+        while before > 0 and start + (before - 1) / rate >= contact:
+            before -= 1
+        while before < size and start + before / rate < contact:
+            before += 1
         pre = float(np.sum(np.square((data.channels[:, :before] - fit.offsets[:, None]) / data.noise[:, None])))
-        dof = 2 * (times.size - before) - fit.unknowns
+        dof = 2 * (size - before) - fit.unknowns
         growing.judged = (fit, dof > 0 and (fit.chi2 - pre) / dof <= 1.0 + EXPLAINED_SPREAD * math.sqrt(2.0 / dof))
     return growing.judged[1]
 

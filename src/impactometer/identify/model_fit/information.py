@@ -30,7 +30,7 @@ def covariance(jacobian: np.ndarray) -> tuple[np.ndarray, int]:
     # fraction of the cost of its thin SVD (which builds the tall left factor)
     _, s, vt = np.linalg.svd(np.linalg.qr(jacobian / scale, mode="r"))
     kept = s > RANK_TOLERANCE * s[0]
-    cov = (vt[kept].T / s[kept] ** 2) @ vt[kept] / np.outer(scale, scale)
+    cov = (vt[kept].T / s[kept] ** 2) @ vt[kept] / (scale[:, None] * scale)  # np.outer's products, made directly
     if not kept.all():  # variables with a share in an undetermined direction are undetermined
         lost = np.any(np.abs(vt[~kept]) > 1e-6, axis=0)
         cov[lost, :] = np.inf

@@ -152,6 +152,8 @@ class ModelStream:
         self.robust = StreamingIdentifier(sample_rate, start_time=start_time, estimates=robust_starts)
         #: valve Z's opening [-] of the samples in the robust stream's ring buffer, by the same stream index
         self._opening = np.zeros(self.robust.capacity)
+        #: whether an opening above zero was ever pushed (until then the buffer's openings are all zero)
+        self._opened = False
         self.sample_rate, self.start_time = float(sample_rate), float(start_time)
         self.rig = get_rig(rig)
         # the stream screens one law per update from its first window on: the power law (six contact parameters)
@@ -214,7 +216,7 @@ class ModelStream:
     def _buffered(self, first: int, stop: int, metadata: dict | None = None) -> Recording:
         """The record of stream indices ``first`` to ``stop`` (exclusive), with valve Z's opening where the valve
         was open in it."""
-        opening = self._opening[np.arange(first, stop) % self._opening.size]
+        opening = self._opening[np.arange(first, stop) % self._opening.size] if self._opened else None
         return self._recording(np.vstack(self.robust.buffered(first, stop)), first, metadata, opening)
 
     @property
@@ -253,6 +255,7 @@ class ModelStream:
         if bad.any():
             raise IdentificationError(f"opening_chunk must be valve Z's opening within [0, 1] [-] at every sample, "
                                       f"got {float(z[bad][0])!r} at index {int(np.argmax(bad))}")
+        self._opened = self._opened or opening_chunk is not None and bool(np.any(z > 0.0))
         out: list[Identification] = []
         for k in range(0, f.size, self._chunk):  # an impact's trigger is seen within a cadence
             part = z[k:k + self._chunk]
@@ -384,17 +387,20 @@ class ModelStream:
             robust = self.robust.estimates[-1]
             reason = (f"the best model ({fit.law}) leaves chi2/dof = {fit.reduced_chi2:.3g} > "
                       f"{batch.MAX_REDUCED_CHI2:g} on the record so far: the robust stream's answer is given")
-            answer = replace(robust, method="model/fallback", available_at=recording.start_time + (
-                recording.contact_force.size - 1) / self.sample_rate, details=replace(
-                common, path="fallback", reason=reason, contact_law=fit.law, fallback=robust.details))
+            answer, warnings = robust, robust.warnings
+            details = replace(common, path="fallback", reason=reason, contact_law=fit.law, fallback=robust.details)
+            available_at = recording.start_time + (recording.contact_force.size - 1) / self.sample_rate
+            method = "model/fallback"
         else:
             answer = batch._answer(recording, self.rig, fit, common, (self.pressure_gauge, self.pressure_gauge_std))
-            answer = replace(answer, warnings=(*self._stand_notes, *answer.warnings))
+            warnings, available_at, method = (*self._stand_notes, *answer.warnings), answer.available_at, answer.method
+            assert isinstance(answer.details, ModelDetails)  # _answer's
+            details = answer.details
+        assert details.stream is not None  # made above
         elapsed = time.perf_counter() - clock
         self.update_times.append(elapsed)
-        details = answer.details
-        assert isinstance(details, ModelDetails) and details.stream is not None  # made above
-        answer = replace(answer, details=replace(details, stream=replace(details.stream, update_time=elapsed)))
+        answer = replace(answer, method=method, available_at=available_at, warnings=warnings,
+                         details=replace(details, stream=replace(details.stream, update_time=elapsed)))
         self.estimates.append(answer)
         return [answer]
 
